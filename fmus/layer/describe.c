@@ -1,0 +1,84 @@
+/* Prints the model's modelDescription.xml from the same X-macro tables the binary is built from,
+ * so value references, start values and causalities can never drift apart. */
+#include <stdio.h>
+
+#include "model.h"
+
+static const char *causality(int kind) {
+    switch (kind) {
+    case PARAMETER: case TUNABLE: return "parameter";
+    case INPUT: return "input";
+    default: return "output";
+    }
+}
+
+static int index_counter = 0;
+
+#define PRINT_REAL(name, kind, start, unit, desc) print_real(#name, VR_##name, kind, start, unit, desc);
+#define PRINT_INT(name, start, desc) print_int(#name, INTEGER_VR_BASE + VRI_##name, start, desc);
+#define LIST_OUTPUT(name, kind, start, unit, desc) \
+    index_counter++; \
+    if (kind == STATE || kind == OUTPUT) printf("      <Unknown index=\"%d\"/>\n", index_counter);
+#define LIST_INITIAL(name, kind, start, unit, desc) \
+    index_counter++; \
+    if (kind == OUTPUT) printf("      <Unknown index=\"%d\"/>\n", index_counter);
+
+static void print_real(const char *name, int vr, int kind, double start, const char *unit, const char *desc) {
+    const char *variability = kind == PARAMETER ? "fixed" : kind == TUNABLE ? "tunable" : "continuous";
+    printf("    <ScalarVariable name=\"%s\" valueReference=\"%d\" causality=\"%s\" variability=\"%s\"",
+           name, vr, causality(kind), variability);
+    if (kind == STATE) printf(" initial=\"exact\"");
+    if (kind == OUTPUT) printf(" initial=\"calculated\"");
+    printf(" description=\"%s\">\n", desc);
+    if (kind == OUTPUT) printf("      <Real");
+    else printf("      <Real start=\"%.17g\"", start);
+    if (unit[0]) printf(" unit=\"%s\"", unit);
+    printf("/>\n    </ScalarVariable>\n");
+}
+
+static void print_int(const char *name, int vr, int start, const char *desc) {
+    printf("    <ScalarVariable name=\"%s\" valueReference=\"%d\" causality=\"parameter\" "
+           "variability=\"fixed\" description=\"%s\">\n      <Integer start=\"%d\"/>\n    </ScalarVariable>\n",
+           name, vr, desc, start);
+}
+
+#define UNIT_DEF(name, kind, start, unit, desc) collect_unit(unit);
+static const char *units[64];
+static int n_units = 0;
+static void collect_unit(const char *unit) {
+    if (!unit[0]) return;
+    for (int k = 0; k < n_units; k++) {
+        const char *a = units[k], *b = unit;
+        while (*a && *a == *b) { a++; b++; }
+        if (*a == *b) return;
+    }
+    if (n_units < 64) units[n_units++] = unit;
+}
+
+int main(void) {
+    printf("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n");
+    printf("<fmiModelDescription fmiVersion=\"2.0\" modelName=\"%s\" guid=\"%s\" description=\"%s\" "
+           "generationTool=\"wavecosim fmus/layer\" variableNamingConvention=\"flat\" numberOfEventIndicators=\"0\">\n",
+           MODEL_IDENTIFIER_STR, MODEL_GUID, MODEL_DESCRIPTION);
+    printf("  <CoSimulation modelIdentifier=\"%s\" canHandleVariableCommunicationStepSize=\"true\" "
+           "canGetAndSetFMUstate=\"true\" canSerializeFMUstate=\"true\" canNotUseMemoryManagementFunctions=\"true\"/>\n",
+           MODEL_IDENTIFIER_STR);
+    REAL_VARIABLES(UNIT_DEF)
+    if (n_units) {
+        printf("  <UnitDefinitions>\n");
+        for (int k = 0; k < n_units; k++) printf("    <Unit name=\"%s\"/>\n", units[k]);
+        printf("  </UnitDefinitions>\n");
+    }
+    printf("  <DefaultExperiment startTime=\"0\" stopTime=\"10\" stepSize=\"0.01\"/>\n");
+    printf("  <ModelVariables>\n");
+    REAL_VARIABLES(PRINT_REAL)
+    INTEGER_VARIABLES(PRINT_INT)
+    printf("  </ModelVariables>\n  <ModelStructure>\n    <Outputs>\n");
+    index_counter = 0;
+    REAL_VARIABLES(LIST_OUTPUT)
+    printf("    </Outputs>\n    <InitialUnknowns>\n");
+    index_counter = 0;
+    REAL_VARIABLES(LIST_INITIAL)
+    printf("    </InitialUnknowns>\n  </ModelStructure>\n</fmiModelDescription>\n");
+    return 0;
+}

@@ -1,0 +1,78 @@
+/* The contract between one model (models/<name>/) and the shared FMI 2.0 layer (fmus/layer/).
+ *
+ * A model's config.h declares its variables with X-macros; this header turns them into value
+ * references (VR_<name>) and one plain ModelData struct, so the layer can save, restore and
+ * serialize state as a byte copy. model.c implements the four functions at the bottom.
+ *
+ * config.h provides:
+ *   MODEL_IDENTIFIER, MODEL_GUID, MODEL_DESCRIPTION
+ *   REAL_VARIABLES(X)    X(name, kind, start, unit, description)
+ *                        kind: PARAMETER, TUNABLE, STATE, INPUT, OUTPUT
+ *   INTEGER_VARIABLES(X) X(name, start, description)      (always fixed parameters)
+ *   PORT_CHANNELS(X)     X(wave_in, wave_out, effort, flow, physical_in, input_kind)
+ *                        input_kind: FLOW_INPUT or EFFORT_INPUT
+ *   MODEL_EXTRA_FIELDS   optional: more state kept in ModelData (arrays of internal DOFs)
+ */
+#ifndef WAVECOSIM_MODEL_H
+#define WAVECOSIM_MODEL_H
+
+#include <stddef.h>
+#include "config.h"
+
+#define PARAMETER 0
+#define TUNABLE 1
+#define STATE 2
+#define INPUT 3
+#define OUTPUT 4
+
+#define FLOW_INPUT 0
+#define EFFORT_INPUT 1
+
+/* Integer value references start here so that they never collide with real ones. */
+#define INTEGER_VR_BASE 1000
+
+#define WAVECOSIM_STR_(x) #x
+#define WAVECOSIM_STR(x) WAVECOSIM_STR_(x)
+#define MODEL_IDENTIFIER_STR WAVECOSIM_STR(MODEL_IDENTIFIER)
+
+#define VR_REAL_ENUM(name, kind, start, unit, desc) VR_##name,
+#define VR_INT_ENUM(name, start, desc) VRI_##name,
+enum { REAL_VARIABLES(VR_REAL_ENUM) N_REALS };
+enum { INTEGER_VARIABLES(VR_INT_ENUM) N_INTEGERS };
+
+#define COUNT_CHANNEL(ain, bout, eff, flo, phys, kind) +1
+enum { N_CHANNELS = 0 PORT_CHANNELS(COUNT_CHANNEL) };
+
+#ifndef MODEL_EXTRA_FIELDS
+#define MODEL_EXTRA_FIELDS
+#endif
+
+/* Every simulation variable of an instance; a saved FMU state is a copy of this struct. */
+typedef struct {
+    double time;
+    double r[N_REALS];
+    int i[N_INTEGERS];
+    MODEL_EXTRA_FIELDS
+} ModelData;
+
+/* Port closure for one step: on each channel the held port input is `c - s * output`.
+ * Physical mode: c = the given input, s = 0. Wave mode: the layer picks c, s so that
+ * e + gamma f = sqrt(2 gamma / h) a holds together with the step. */
+typedef struct {
+    double c[N_CHANNELS];
+    double s[N_CHANNELS];
+} PortClosure;
+
+/* Called after start values and parameters are final (exit of initialization mode). */
+void model_initialize(ModelData *m);
+
+/* Stored energy H(x) of the current state. */
+double model_energy(const ModelData *m);
+
+/* One discrete-gradient step of size h with the port closure p. On success writes the new state,
+ * and the stage port values e[j], f[j] of each channel, and returns 0. On failure returns
+ * non-zero with a message in msg and must leave m unchanged or the layer restores it. */
+int model_step(ModelData *m, double h, const PortClosure *p, double *e, double *f,
+               char *msg, size_t msg_size);
+
+#endif
