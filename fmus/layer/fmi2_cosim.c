@@ -55,7 +55,11 @@ static void log_msg(Instance *c, fmi2Status status, const char *category, const 
     va_start(ap, fmt);
     vsnprintf(buf, sizeof buf, fmt, ap);
     va_end(ap);
-    c->cb.logger(c->cb.componentEnvironment, c->name, status, category, "%s", buf);
+    /* The message is passed as the format itself (callers through ctypes cannot expand varargs),
+     * so any '%' is neutralised first. */
+    for (char *p = buf; *p; p++)
+        if (*p == '%') *p = '#';
+    c->cb.logger(c->cb.componentEnvironment, c->name, status, category, buf);
 }
 
 static fmi2Status fail(Instance *c, const char *fn, const char *fmt, const char *detail) {

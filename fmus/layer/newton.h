@@ -22,7 +22,9 @@ static int newton_increasing(ScalarResidual g, void *ctx, double *x, double scal
         if (gk == 0.0) { *x = xk; return k; }
         if (gk < 0.0) lo = xk; else hi = xk;
         double next = (dg > 0.0) ? xk - gk / dg : NAN;
-        if (!(next > lo && next < hi)) {
+        /* Closed bracket: xk is one of its ends, and near the root the Newton step rounds to
+         * next == xk; bisecting there would throw the converged iterate away. */
+        if (!(next >= lo && next <= hi)) {
             if (!isfinite(lo) || !isfinite(hi)) {
                 next = xk - gk / (dg > 0.0 ? dg : 1.0);
             } else {

@@ -1,0 +1,203 @@
+"""The `wavecosim` command line: a thin shell over config, runner and sweep.
+
+Every WavecosimError becomes one line on stderr and its class's exit code (2 for bad input)."""
+import dataclasses
+import sys
+from pathlib import Path
+
+import click
+
+from .config import ALGORITHMS, DEFAULT_CONFIG, load_scenario
+from .errors import ConfigError, Interrupted, WavecosimError
+from .recorder import write_json
+
+
+def _progress(label, quiet):
+    """A progress callback printing about 20 updates per run to stderr."""
+    if quiet:
+        return None
+    state = {"last": -1}
+    tty = sys.stderr.isatty()
+
+    def report(n, total):
+        pct = (20 * n) // total
+        if n == total:
+            click.echo(f"\r  {label}: {n}/{total} steps done", err=True)
+        elif tty and pct != state["last"]:
+            state["last"] = pct
+            click.echo(f"\r  {label}: {n}/{total} steps ({100 * n // total}%)", err=True, nl=False)
+    return report
+
+
+def _apply_overrides(scenario, K=None, eps=None, gamma=None, dt=None, T=None, algorithm=None):
+    master = {k: v for k, v in (("K", K), ("eps", eps), ("algorithm", algorithm)) if v is not None}
+    if master:
+        scenario = scenario.with_master(**master)
+    changes = {}
+    if gamma is not None:
+        if gamma not in ("auto", "auto-retune", "fast-unsafe"):
+            try:
+                changes["gamma"] = float(gamma)
+            except ValueError:
+                raise ConfigError(f"--gamma: must be a number > 0 or auto, auto-retune, fast-unsafe; got {gamma!r}")
+            if not changes["gamma"] > 0:
+                raise ConfigError(f"--gamma: must be > 0, got {gamma}")
+        else:
+            changes["gamma"] = gamma
+    if dt is not None:
+        changes["dt"] = dt
+    if T is not None:
+        changes["T"] = T
+    scenario = dataclasses.replace(scenario, **changes)
+    steps = scenario.T / scenario.dt
+    if abs(steps - round(steps)) > 1e-9 * steps or round(steps) < 1:
+        raise ConfigError(f"--T/--dt: T = {scenario.T} must be a whole number (>= 1) of steps dt = {scenario.dt}")
+    return scenario
+
+
+def _fmt(x):
+    return f"{x:.3e}" if isinstance(x, float) else str(x)
+
+
+def print_table(rows, fields):
+    """A plain aligned text table of dicts."""
+    cells = [[_fmt(r.get(f, "")) for f in fields] for r in rows]
+    widths = [max(len(f), *(len(c[i]) for c in cells)) for i, f in enumerate(fields)]
+    click.echo("  ".join(f.rjust(w) for f, w in zip(fields, widths)))
+    for c in cells:
+        click.echo("  ".join(v.rjust(w) for v, w in zip(c, widths)))
+
+
+config_argument = click.argument("config", required=False, type=click.Path(dir_okay=False, path_type=Path))
+common = [
+    click.option("--K", "K", type=click.IntRange(min=0), help="Inner-iteration budget K per macro-step."),
+    click.option("--eps", type=click.FloatRange(min=0, min_open=True), help="Inner tolerance: stop when |u_new - u| <= eps."),
+    click.option("--gamma", help="Scattering impedance (> 0), or auto / auto-retune / fast-unsafe."),
+    click.option("--dt", type=click.FloatRange(min=0, min_open=True), help="Macro-step size (s)."),
+    click.option("--T", "T", type=click.FloatRange(min=0, min_open=True), help="End time (s)."),
+    click.option("--quiet", is_flag=True, help="No progress output."),
+]
+
+
+def with_common(f):
+    for opt in reversed(common):
+        f = opt(f)
+    return f
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+def cli():
+    """wavecosim: early-terminable, energy-safe FMI co-simulation (wave variables + Douglas-Rachford).
+
+    Without CONFIG, commands use the built-in default scenario (the paper's benchmark,
+    configs/two_oscillators.yaml)."""
+
+
+@cli.command("run")
+@config_argument
+@with_common
+@click.option("--master", "algorithm", type=click.Choice(ALGORITHMS), help="Master algorithm (default: from CONFIG).")
+@click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("out/run"), show_default=True,
+              help="Output folder for trajectory.csv, steps.csv and summary.json.")
+@click.option("--no-certificates", is_flag=True, help="Skip FNE sampling and the augmented-storage check (faster).")
+@click.option("--no-reference", is_flag=True, help="Skip the monolithic reference run (no error figures).")
+@click.option("--plots", is_flag=True, help="Also write PNG figures into the output folder.")
+def run_cmd(config, K, eps, gamma, dt, T, quiet, algorithm, out, no_certificates, no_reference, plots):
+    """Run one scenario and write its trajectory, per-step certificates and a summary."""
+    from .runner import run
+    from .sweep import reference_run
+    scenario = _apply_overrides(load_scenario(config), K, eps, gamma, dt, T, algorithm)
+    reference = None
+    if not no_reference:
+        reference = reference_run(scenario, out, _progress("monolithic reference", quiet))
+    result = run(scenario, out_dir=out, label=scenario.master.algorithm, progress=_progress("run", quiet),
+                 certificates=not no_certificates, reference=reference, file_suffix=False)
+    s = result.summary
+    click.echo(f"{scenario.name}: {s['master']} K={s['K']} dt={scenario.dt} T={scenario.T} -> {out}")
+    print_table([s], ["steps", "max_error", "rms_error", "final_error", "max_passivity_pos", "max_augmented_pos",
+                      "min_fne_margin", "iterations_mean", "wall_time_s"])
+    if plots:
+        from .plots import run_plots
+        for p in run_plots(result, reference, out):
+            click.echo(f"wrote {p}")
+
+
+@cli.command("sweep")
+@config_argument
+@with_common
+@click.option("--Ks", "--K-list", "ks", default="0,3,8,20,35,50", show_default=True,
+              help="Comma-separated budgets K.")
+@click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("out/sweep"), show_default=True)
+@click.option("--no-certificates", is_flag=True, help="Skip FNE sampling and the augmented-storage check.")
+@click.option("--plots", is_flag=True, help="Also write the paper's figures (Figs. 4-6) as PNG.")
+def sweep_cmd(config, K, eps, gamma, dt, T, quiet, ks, out, no_certificates, plots):
+    """Reproduce the paper's experiment: DR for each K against the monolithic reference."""
+    from .sweep import SWEEP_FIELDS, sweep
+    try:
+        Ks = [int(k) for k in ks.split(",") if k.strip()]
+    except ValueError:
+        raise ConfigError(f"--Ks: must be comma-separated integers, got {ks!r}") from None
+    if not Ks or min(Ks) < 0:
+        raise ConfigError(f"--Ks: budgets must be integers >= 0, got {ks!r}")
+    scenario = _apply_overrides(load_scenario(config), None, eps, gamma, dt, T)
+    progress = (lambda label: _progress(label, quiet))
+    reference, results, runs = sweep(scenario, Ks, out, progress=progress, certificates=not no_certificates)
+    click.echo(f"{scenario.name}: sweep over K = {Ks} -> {out / 'summary.json'}")
+    print_table(runs, list(SWEEP_FIELDS))
+    if plots:
+        from .plots import sweep_plots
+        for p in sweep_plots(results, reference, out):
+            click.echo(f"wrote {p}")
+
+
+@cli.command("validate")
+@config_argument
+def validate_cmd(config):
+    """Check a scenario file and its FMUs without running it."""
+    from .scene import build_scene
+    scenario = load_scenario(config)
+    scene = build_scene(scenario, wave=True)
+    try:
+        wm = scene.wave_map()
+        click.echo(f"{scenario.source}: OK ({len(scene.subsystems)} subsystems, {scene.n_channels} channels, "
+                   f"|P^T P - I| = {wm.orthogonality_residual:.1e})")
+    finally:
+        scene.close()
+
+
+@cli.command("build")
+@click.option("--force", is_flag=True, help="Rebuild even when sources are unchanged.")
+def build_cmd(force):
+    """Build the FMUs in models/ (done on demand by every other command)."""
+    from . import scene
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("wavecosim_fmu_build", Path(scene.ROOT) / "fmus" / "build.py")
+    build = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(build)
+    for ident, path in build.build_all(force=force).items():
+        click.echo(f"{ident}: {path}")
+
+
+def main(argv=None):
+    try:
+        cli.main(args=argv, standalone_mode=False)
+    except click.exceptions.Abort:
+        click.echo("error: interrupted", err=True)
+        sys.exit(130)
+    except click.ClickException as exc:
+        exc.show()
+        sys.exit(2)
+    except Interrupted as exc:
+        click.echo(f"interrupted: {exc}; results so far are on disk", err=True)
+        sys.exit(130)
+    except WavecosimError as exc:
+        click.echo(f"error: {exc}", err=True)
+        sys.exit(getattr(exc, "exit_code", 1))
+    except KeyboardInterrupt:
+        click.echo("error: interrupted", err=True)
+        sys.exit(130)
+    sys.exit(0)
+
+
+if __name__ == "__main__":
+    main()

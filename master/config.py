@@ -1,0 +1,303 @@
+"""Scenario files: read YAML safely, check every key, and return a plain validated Scenario.
+
+Every problem becomes a ConfigError whose one line names the file and the key path.
+"""
+import math
+import re
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import yaml
+
+from .errors import ConfigError
+
+ROOT = Path(__file__).resolve().parent.parent
+DEFAULT_CONFIG = ROOT / "configs" / "two_oscillators.yaml"
+ALGORITHMS = ("dr", "newton", "explicit", "gauss-seidel", "jacobi-iter", "gauss-seidel-iter")
+COUPLING_TYPES = ("equal_effort_opposite_flow", "zero_junction", "one_junction", "transformer", "gyrator",
+                  "free_end", "clamped_end", "dirac")
+GAMMA_MODES = ("auto", "auto-retune", "fast-unsafe")
+
+
+@dataclass
+class SubsystemConfig:
+    name: str
+    fmu: str
+    parameters: dict
+    start: dict
+    integers: dict
+    port: dict
+    fmu_path: Path = None
+
+
+@dataclass
+class CouplingConfig:
+    type: str
+    ports: list
+    ratio: float = None
+    E: list = None
+    F: list = None
+
+
+@dataclass
+class MasterConfig:
+    algorithm: str = "dr"
+    K: int = 50
+    eps: float = None
+    deadline_us: float = None
+    fast: str = "auto"
+    threads: str = "auto"
+
+
+@dataclass
+class CertificateConfig:
+    augmented: bool = True
+    fne_pairs: int = 8
+    fne_seed: int = 1
+    fne_scale: float = 0.1
+
+
+@dataclass
+class Scenario:
+    name: str
+    source: str
+    dt: float
+    T: float
+    gamma: object
+    subsystems: list
+    couplings: list
+    master: MasterConfig
+    certificates: CertificateConfig
+    outputs: dict
+    error: list
+    description: str = ""
+    fne_watch: bool = True
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def n_steps(self):
+        return int(round(self.T / self.dt))
+
+    def with_master(self, **changes):
+        return replace(self, master=replace(self.master, **changes))
+
+
+class _Checker:
+    """Walks a parsed YAML mapping, reporting the first bad key as `file: key.path: problem`."""
+
+    def __init__(self, source):
+        self.source = source
+
+    def fail(self, path, message):
+        raise ConfigError(f"{self.source}: {path}: {message}" if path else f"{self.source}: {message}")
+
+    def mapping(self, value, path, allowed, required=()):
+        if not isinstance(value, dict):
+            self.fail(path, f"must be a mapping, got {type(value).__name__}")
+        for key in value:
+            if key not in allowed:
+                where = f"{path}.{key}" if path else str(key)
+                self.fail(where, f"unknown key (allowed: {', '.join(allowed)})")
+        for key in required:
+            if key not in value:
+                self.fail(f"{path}.{key}" if path else key, "missing required key")
+        return value
+
+    def number(self, value, path, positive=False, minimum=None):
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            self.fail(path, f"must be a number, got {value!r}")
+        value = float(value)
+        if not math.isfinite(value):
+            self.fail(path, f"must be finite, got {value!r}")
+        if positive and value <= 0:
+            self.fail(path, f"must be > 0, got {value!r}")
+        if minimum is not None and value < minimum:
+            self.fail(path, f"must be >= {minimum}, got {value!r}")
+        return value
+
+    def integer(self, value, path, minimum=None):
+        if isinstance(value, bool) or not isinstance(value, int):
+            self.fail(path, f"must be an integer, got {value!r}")
+        if minimum is not None and value < minimum:
+            self.fail(path, f"must be >= {minimum}, got {value!r}")
+        return value
+
+    def string(self, value, path, choices=None):
+        if not isinstance(value, str) or not value:
+            self.fail(path, f"must be a non-empty string, got {value!r}")
+        if choices and value not in choices:
+            self.fail(path, f"must be one of {', '.join(choices)}, got {value!r}")
+        return value
+
+    def names(self, value, path):
+        if isinstance(value, str):
+            value = [value]
+        if not isinstance(value, list) or not value or not all(isinstance(v, str) and v for v in value):
+            self.fail(path, f"must be a list of variable names, got {value!r}")
+        return list(value)
+
+    def numbers(self, value, path):
+        value = value or {}
+        self.mapping(value, path, list(value))
+        return {k: self.number(v, f"{path}.{k}") for k, v in value.items()}
+
+
+PORT_KEYS = ("wave_in", "wave_out", "effort", "flow", "physical_in", "input", "energy")
+
+
+def _subsystem(ck, name, raw, base_dir):
+    path = f"subsystems.{name}"
+    ck.mapping(raw, path, ("fmu", "parameters", "start", "integers", "port"), required=("fmu",))
+    fmu = ck.string(raw["fmu"], f"{path}.fmu")
+    port = ck.mapping(raw.get("port") or {}, f"{path}.port", PORT_KEYS)
+    spec = {
+        "wave_in": ck.names(port.get("wave_in", ["a"]), f"{path}.port.wave_in"),
+        "wave_out": ck.names(port.get("wave_out", ["b"]), f"{path}.port.wave_out"),
+        "effort": ck.names(port.get("effort", ["e"]), f"{path}.port.effort"),
+        "flow": ck.names(port.get("flow", ["f"]), f"{path}.port.flow"),
+        "energy": ck.string(port.get("energy", "H"), f"{path}.port.energy"),
+    }
+    m = len(spec["wave_in"])
+    if "physical_in" in port:
+        spec["physical_in"] = ck.names(port["physical_in"], f"{path}.port.physical_in")
+    if "input" in port:
+        kinds = ck.names(port["input"], f"{path}.port.input")
+        for k in kinds:
+            ck.string(k, f"{path}.port.input", ("flow", "effort"))
+        spec["input"] = kinds
+    for key in ("wave_out", "effort", "flow", "physical_in", "input"):
+        if key in spec and len(spec[key]) != m:
+            ck.fail(f"{path}.port.{key}", f"has {len(spec[key])} entries but wave_in has {m} channels")
+    integers = raw.get("integers") or {}
+    ck.mapping(integers, f"{path}.integers", list(integers))
+    integers = {k: ck.integer(v, f"{path}.integers.{k}") for k, v in integers.items()}
+    fmu_path = None
+    if fmu.endswith(".fmu") or "/" in fmu:
+        fmu_path = (base_dir / fmu).resolve()
+    return SubsystemConfig(name=name, fmu=fmu, parameters=ck.numbers(raw.get("parameters"), f"{path}.parameters"),
+                           start=ck.numbers(raw.get("start"), f"{path}.start"), integers=integers, port=spec,
+                           fmu_path=fmu_path)
+
+
+PORT_REF = re.compile(r"^([A-Za-z_][\w-]*)(?:\[(\d+)\])?$")
+
+
+def _coupling(ck, k, raw, subsystem_names):
+    path = f"couplings[{k}]"
+    ck.mapping(raw, path, ("type", "ports", "ratio", "E", "F"), required=("type", "ports"))
+    ctype = ck.string(raw["type"], f"{path}.type", COUPLING_TYPES)
+    ports = raw["ports"]
+    if not isinstance(ports, list) or not ports:
+        ck.fail(f"{path}.ports", f"must be a non-empty list like [A, B] or [A[0], B[1]], got {ports!r}")
+    for p in ports:
+        m = PORT_REF.match(str(p))
+        if not m:
+            ck.fail(f"{path}.ports", f"{p!r} is not a port reference (NAME or NAME[channel])")
+        if m.group(1) not in subsystem_names:
+            ck.fail(f"{path}.ports", f"{p!r} names no subsystem (have: {', '.join(subsystem_names)})")
+    c = CouplingConfig(type=ctype, ports=[str(p) for p in ports])
+    if ctype in ("transformer", "gyrator"):
+        if "ratio" not in raw:
+            ck.fail(f"{path}.ratio", f"missing required key for a {ctype}")
+        c.ratio = ck.number(raw["ratio"], f"{path}.ratio")
+        if c.ratio == 0:
+            ck.fail(f"{path}.ratio", "must be non-zero")
+    elif "ratio" in raw:
+        ck.fail(f"{path}.ratio", f"only a transformer or gyrator takes a ratio")
+    if ctype == "dirac":
+        for key in ("E", "F"):
+            mat = raw.get(key)
+            if not isinstance(mat, list) or not all(isinstance(r, list) for r in mat):
+                ck.fail(f"{path}.{key}", "must be a matrix (a list of rows)")
+            for i, row in enumerate(mat):
+                for j, v in enumerate(row):
+                    ck.number(v, f"{path}.{key}[{i}][{j}]")
+        c.E, c.F = raw["E"], raw["F"]
+    elif "E" in raw or "F" in raw:
+        ck.fail(f"{path}", "E and F are only given for type dirac")
+    return c
+
+
+def load_scenario(path=None) -> Scenario:
+    """Read and validate a scenario file (the built-in default when path is None)."""
+    path = Path(path) if path else DEFAULT_CONFIG
+    if not path.exists():
+        raise ConfigError(f"{path}: scenario file not found")
+    try:
+        raw = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"line {mark.line + 1}" if mark else "?"
+        raise ConfigError(f"{path}: not valid YAML ({where}: {getattr(exc, 'problem', exc)})") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{path}: cannot read: {exc}") from None
+    return parse_scenario(raw, str(path), path.parent)
+
+
+def parse_scenario(raw, source="<scenario>", base_dir=Path(".")) -> Scenario:
+    ck = _Checker(source)
+    top = ("name", "description", "dt", "T", "gamma", "subsystems", "couplings", "master", "certificates",
+           "outputs", "error", "fne_watch")
+    ck.mapping(raw, "", top, required=("dt", "T", "gamma", "subsystems", "couplings"))
+    dt = ck.number(raw["dt"], "dt", positive=True)
+    T = ck.number(raw["T"], "T", positive=True)
+    if T < dt:
+        ck.fail("T", f"must be at least one step dt = {dt}, got {T}")
+    if abs(T / dt - round(T / dt)) > 1e-9 * (T / dt):
+        ck.fail("T", f"must be a whole number of steps dt = {dt}, got {T}")
+    gamma = raw["gamma"]
+    if isinstance(gamma, str):
+        ck.string(gamma, "gamma", GAMMA_MODES)
+    else:
+        gamma = ck.number(gamma, "gamma", positive=True)
+    subs = raw["subsystems"]
+    ck.mapping(subs, "subsystems", list(subs) if isinstance(subs, dict) else [])
+    if len(subs) < 1:
+        ck.fail("subsystems", "must name at least one subsystem")
+    subsystems = [_subsystem(ck, str(n), s, base_dir) for n, s in subs.items()]
+    names = [s.name for s in subsystems]
+    couplings = raw["couplings"]
+    if not isinstance(couplings, list) or not couplings:
+        ck.fail("couplings", "must be a non-empty list of couplings")
+    couplings = [_coupling(ck, k, c, names) for k, c in enumerate(couplings)]
+    m = ck.mapping(raw.get("master") or {}, "master", ("algorithm", "K", "eps", "deadline_us", "fast", "threads"))
+    master = MasterConfig()
+    if "algorithm" in m:
+        master.algorithm = ck.string(m["algorithm"], "master.algorithm", ALGORITHMS)
+    if "K" in m:
+        master.K = ck.integer(m["K"], "master.K", minimum=0)
+    if m.get("eps") is not None:
+        master.eps = ck.number(m["eps"], "master.eps", positive=True)
+    if m.get("deadline_us") is not None:
+        master.deadline_us = ck.number(m["deadline_us"], "master.deadline_us", positive=True)
+    if "fast" in m:
+        master.fast = ck.string(str(m["fast"]).lower(), "master.fast", ("auto", "true", "false"))
+    if "threads" in m:
+        master.threads = ck.string(str(m["threads"]), "master.threads", ("auto", "1", "2"))
+    c = ck.mapping(raw.get("certificates") or {}, "certificates", ("augmented", "fne_pairs", "fne_seed", "fne_scale"))
+    certs = CertificateConfig()
+    if "augmented" in c:
+        if not isinstance(c["augmented"], bool):
+            ck.fail("certificates.augmented", f"must be true or false, got {c['augmented']!r}")
+        certs.augmented = c["augmented"]
+    if "fne_pairs" in c:
+        certs.fne_pairs = ck.integer(c["fne_pairs"], "certificates.fne_pairs", minimum=0)
+    if "fne_seed" in c:
+        certs.fne_seed = ck.integer(c["fne_seed"], "certificates.fne_seed")
+    if "fne_scale" in c:
+        certs.fne_scale = ck.number(c["fne_scale"], "certificates.fne_scale", positive=True)
+    outputs = raw.get("outputs") or {}
+    ck.mapping(outputs, "outputs", list(outputs))
+    for col, ref in outputs.items():
+        if not isinstance(ref, str) or ref.count(".") != 1 or ref.split(".")[0] not in names:
+            ck.fail(f"outputs.{col}", f"must be SUBSYSTEM.variable with a known subsystem, got {ref!r}")
+    error = raw.get("error", [])
+    if not isinstance(error, list) or not all(e in outputs for e in error):
+        ck.fail("error", f"must list output columns (have: {', '.join(outputs)}), got {error!r}")
+    fne_watch = raw.get("fne_watch", True)
+    if not isinstance(fne_watch, bool):
+        ck.fail("fne_watch", f"must be true or false, got {fne_watch!r}")
+    return Scenario(name=str(raw.get("name", Path(source).stem)), source=source, dt=dt, T=T, gamma=gamma,
+                    subsystems=subsystems, couplings=couplings, master=master, certificates=certs,
+                    outputs=dict(outputs), error=list(error), description=str(raw.get("description", "")),
+                    fne_watch=fne_watch)

@@ -1,0 +1,190 @@
+"""Thin wrapper over one FMI 2.0 co-simulation FMU instance (loaded by fmpy).
+
+Keeps FMI names, converts arguments, turns bad statuses into FmuError carrying the FMU's own
+log message, and exposes the raw C function pointers for the fast path. Nothing above this
+module imports ctypes except the fast path itself.
+"""
+import atexit
+import ctypes
+import math
+import shutil
+import tempfile
+import zipfile
+from pathlib import Path
+
+import numpy as np
+from fmpy import read_model_description
+from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
+from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, fmi2StepFinishedTYPE
+
+from .errors import FmuError
+
+_STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
+_libc = ctypes.CDLL(None)
+_libc.calloc.restype = ctypes.c_void_p
+_libc.calloc.argtypes = [ctypes.c_size_t, ctypes.c_size_t]
+_libc.free.argtypes = [ctypes.c_void_p]
+
+
+def extract_fmu(path: Path) -> Path:
+    """Extract an FMU into a fresh temporary folder, refusing members that would escape it."""
+    path = Path(path)
+    if not path.exists():
+        raise FmuError(f"FMU file not found: {path}")
+    if not zipfile.is_zipfile(path):
+        raise FmuError(f"{path} is not an FMU (not a zip archive)")
+    target = Path(tempfile.mkdtemp(prefix="wavecosim-fmu-"))
+    atexit.register(shutil.rmtree, target, True)
+    try:
+        with zipfile.ZipFile(path) as z:
+            names = z.namelist()
+            if "modelDescription.xml" not in names:
+                raise FmuError(f"{path} is not an FMU (no modelDescription.xml)")
+            root = target.resolve()
+            for member in names:
+                dest = (target / member).resolve()
+                if dest != root and root not in dest.parents:
+                    raise FmuError(f"{path}: archive member {member!r} escapes the extraction folder")
+            z.extractall(target)
+    except (zipfile.BadZipFile, OSError) as exc:
+        shutil.rmtree(target, ignore_errors=True)
+        raise FmuError(f"{path}: cannot extract FMU: {exc}") from None
+    except FmuError:
+        shutil.rmtree(target, ignore_errors=True)
+        raise
+    return target
+
+
+class Fmu:
+    """One instantiated, initialized FMU; `name` is the subsystem name used in messages."""
+
+    def __init__(self, path, name, real_values=None, integer_values=None, start_time=0.0, optional=()):
+        self.path, self.name = Path(path), name
+        self._dir = extract_fmu(self.path)
+        try:
+            self.description = read_model_description(str(self._dir), validate=False)
+        except Exception as exc:  # fmpy raises bare exceptions for malformed XML
+            raise FmuError(f"{self.path}: cannot read modelDescription.xml: {exc}") from None
+        cs = self.description.coSimulation
+        if cs is None:
+            raise FmuError(f"{self.path}: the FMU has no co-simulation interface")
+        self.can_save_state = bool(cs.canGetAndSetFMUstate)
+        self.variables = {v.name: v for v in self.description.modelVariables}
+        self.messages = []
+        self._callbacks = self._make_callbacks()
+        self._slave = FMU2Slave(guid=self.description.guid, unzipDirectory=str(self._dir),
+                                modelIdentifier=cs.modelIdentifier, instanceName=name)
+        self.dll = self._slave.dll
+        self._checked(self._slave.instantiate, "fmi2Instantiate", callbacks=self._callbacks)
+        self.component = self._slave.component
+        drop = [k for k in optional if k not in self.variables]
+        reals = {k: v for k, v in (real_values or {}).items() if k not in drop}
+        integers = {k: v for k, v in (integer_values or {}).items() if k not in drop}
+        self._setup(reals, integers, start_time)
+
+    def _make_callbacks(self):
+        def logger(env, instance, status, category, message):
+            text = message.decode("utf-8", "replace") if message else ""
+            self.messages.append((status, text))
+        cb = fmi2CallbackFunctions()
+        self._logger_ref = fmi2CallbackLoggerTYPE(logger)
+        cb.logger = self._logger_ref
+        self._alloc_ref = fmi2CallbackAllocateMemoryTYPE(_libc.calloc)
+        self._free_ref = fmi2CallbackFreeMemoryTYPE(_libc.free)
+        cb.allocateMemory = self._alloc_ref
+        cb.freeMemory = self._free_ref
+        cb.stepFinished = fmi2StepFinishedTYPE()
+        cb.componentEnvironment = None
+        return cb
+
+    def last_message(self) -> str:
+        return self.messages[-1][1] if self.messages else "no message from the FMU"
+
+    def _checked(self, call, fname, *args, **kwargs):
+        try:
+            return call(*args, **kwargs)
+        except Exception as exc:
+            raise FmuError(f"{self.name}: {fname} failed: {self.last_message()}", subsystem=self.name) from exc
+
+    def _setup(self, reals, integers, start_time):
+        self._checked(self._slave.setupExperiment, "fmi2SetupExperiment", startTime=start_time)
+        for key, value in {**reals, **integers}.items():
+            self.variable(key)
+        if reals:
+            self._checked(self._slave.setReal, "fmi2SetReal", [self.vr(k) for k in reals],
+                          [float(v) for v in reals.values()])
+        if integers:
+            self._checked(self._slave.setInteger, "fmi2SetInteger", [self.vr(k) for k in integers],
+                          [int(v) for v in integers.values()])
+        self._checked(self._slave.enterInitializationMode, "fmi2EnterInitializationMode")
+        self._checked(self._slave.exitInitializationMode, "fmi2ExitInitializationMode")
+
+    def variable(self, name):
+        if name not in self.variables:
+            raise FmuError(f"{self.name}: the FMU {self.path.name} has no variable {name!r}", subsystem=self.name)
+        return self.variables[name]
+
+    def vr(self, name) -> int:
+        return self.variable(name).valueReference
+
+    def vrs(self, names) -> np.ndarray:
+        return np.array([self.vr(n) for n in names], dtype=np.uint32)
+
+    # ---- the calls a master makes, status-checked ----
+    def get_real(self, vrs) -> np.ndarray:
+        return np.array(self._checked(self._slave.getReal, "fmi2GetReal", list(map(int, vrs))))
+
+    def set_real(self, vrs, values):
+        values = [float(v) for v in values]
+        if not all(math.isfinite(v) for v in values):
+            raise FmuError(f"{self.name}: refusing to set a non-finite input {values}", subsystem=self.name)
+        self._checked(self._slave.setReal, "fmi2SetReal", list(map(int, vrs)), values)
+
+    def do_step(self, t, h):
+        self._checked(self._slave.doStep, "fmi2DoStep", currentCommunicationPoint=t, communicationStepSize=h)
+
+    def get_state(self):
+        """A new saved state (fmi2FMUstate handle) of the current instance."""
+        return self._checked(self._slave.getFMUstate, "fmi2GetFMUstate")
+
+    def set_state(self, state):
+        self._checked(self._slave.setFMUstate, "fmi2SetFMUstate", state)
+
+    def free_state(self, state):
+        self._checked(self._slave.freeFMUstate, "fmi2FreeFMUstate", state)
+
+    def serialize_state(self, state) -> bytes:
+        return bytes(self._checked(self._slave.serializeFMUstate, "fmi2SerializeFMUstate", state))
+
+    def deserialize_state(self, data: bytes):
+        return self._checked(self._slave.deSerializeFMUstate, "fmi2DeSerializeFMUstate", bytearray(data))
+
+    def set_integer(self, vrs, values):
+        self._checked(self._slave.setInteger, "fmi2SetInteger", list(map(int, vrs)), list(map(int, values)))
+
+    def raw_function(self, fname):
+        """A fresh ctypes function object without argtypes: callers pass pre-converted arguments."""
+        return self.dll[fname]
+
+    def function_pointer(self, fname) -> int:
+        """Address of one of the FMU's own fmi2 functions, for the C fast path."""
+        return ctypes.cast(self.dll[fname], ctypes.c_void_p).value
+
+    def status_error(self, fname, status, step=None, time=None):
+        """The FmuError for a raw call that returned `status`."""
+        where = "" if step is None else f" at step {step} (t = {time:.6g})"
+        return FmuError(f"subsystem {self.name}: {fname} returned {_STATUS.get(status, status)}{where}: "
+                        f"{self.last_message()}", subsystem=self.name, step=step, time=time)
+
+    def close(self):
+        if getattr(self, "_slave", None) is not None:
+            try:
+                self._slave.terminate()
+            except Exception:
+                pass
+            try:
+                self._slave.freeInstance()
+            except Exception:
+                pass
+            self._slave = None
+        shutil.rmtree(self._dir, ignore_errors=True)
