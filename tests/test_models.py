@@ -218,3 +218,146 @@ def test_gyrator_between_rlc_and_motor_is_an_orthogonal_wave_map():
     a_mot, b_mot = wave(tau, omega, g_mot)
     assert np.isclose(a_rlc, -b_mot) and np.isclose(a_mot, b_rlc)
     assert np.isclose(u * i + tau * omega, 0.0)
+
+
+def test_heavy_chain_sweeps_change_cost_not_physics(fmus):
+    """Newton sweeps past convergence move the solution by roundoff only."""
+    runs = []
+    for sweeps in (1, 30):
+        inst = Instance(fmus, "HeavyChain", ints={"n": 60, "newton_sweeps": sweeps, "port_mode": 1})
+        try:
+            for k in range(20):
+                inst.set(F=np.sin(0.3 * k))
+                inst.step(0.01)
+            runs.append(inst.get("q_first", "q_last", "H", "e", "f"))
+        finally:
+            inst.free()
+    assert np.allclose(runs[0], runs[1], rtol=1e-10, atol=1e-13)
+
+
+def test_heavy_chain_at_rest_driven_from_the_port(fmus):
+    """Zero initial state and a nonzero input: the Newton tolerance is relative to the iterate."""
+    inst = Instance(fmus, "HeavyChain", reals={"amplitude": 0.0}, ints={"port_mode": 1, "newton_sweeps": 1})
+    try:
+        inst.set(F=1e-3)
+        inst.step(0.01)
+        assert inst.get("f")[0] > 0.0  # pushed towards -x by the reaction -F: f = -v > 0
+    finally:
+        inst.free()
+
+
+def test_failures_report_and_keep_the_state(fmus, capfd):
+    from fmpy.fmi1 import FMICallException
+
+    inst = Instance(fmus, "PlanarSpring", reals={"kxy": 100.0})
+    try:
+        with pytest.raises(FMICallException):
+            inst.step(0.01)
+        assert "convex potential" in capfd.readouterr().out
+    finally:
+        inst.free()
+
+    inst = Instance(fmus, "HeavyChain", reals={"amplitude": 0.6},
+                    ints={"n": 20, "newton_max_iter": 1, "newton_sweeps": 1})
+    try:
+        H0 = inst.get("H", "q_first", "q_last")
+        with pytest.raises(FMICallException):
+            inst.step(0.05)
+        assert "did not converge" in capfd.readouterr().out
+        assert inst.get("H", "q_first", "q_last").tobytes() == H0.tobytes()
+    finally:
+        inst.free()
+
+    with pytest.raises(FMICallException):
+        Instance(fmus, "HeavyChain", ints={"n": 5000})
+    assert "H is not finite" in capfd.readouterr().out
+
+
+def _solve_affine_interface(evaluate, n):
+    """Root of the affine residual r(z) = evaluate(z) - z (z in R^n) from n + 1 evaluations;
+    evaluates once more at the root so that the committed step is the converged one."""
+    z0 = np.zeros(n)
+    r0 = evaluate(z0) - z0
+    jac = np.column_stack([evaluate(np.eye(n)[j]) - np.eye(n)[j] - r0 for j in range(n)])
+    z = np.linalg.solve(jac, -r0)
+    return z, evaluate(z) - z
+
+
+def _midpoint(A, x, h, steps):
+    eye = np.eye(len(x))
+    for _ in range(steps):
+        x = np.linalg.solve(eye - 0.5 * h * A, (eye + 0.5 * h * A) @ x)
+    return x
+
+
+def test_oscillator_chain_matches_monolithic_midpoint(fmus):
+    """Oscillator.right - SpringDamper.left, SpringDamper.right - Oscillator.left with e_A = e_B,
+    f_A + f_B = 0 solved exactly each step equals the implicit midpoint of the whole chain."""
+    mA, kA, cA, mB, kB, cB, ks, cs, h = 1.0, 10.0, 0.1, 2.0, 5.0, 0.0, 20.0, 0.3, 0.02
+    x = np.array([0.2, 0.0, -0.1, 0.5, 0.05])  # qA, vA, qB, vB, delta
+    A = np.array([[0, 1, 0, 0, 0], [-kA / mA, -(cA + cs) / mA, 0, cs / mA, ks / mA], [0, 0, 0, 1, 0],
+                  [0, cs / mB, -kB / mB, -(cB + cs) / mB, -ks / mB], [0, -1, 0, 1, 0]])
+    ints = {"port_mode": 1}
+    osc_a = Instance(fmus, "Oscillator", "A", {"m": mA, "k": kA, "c": cA, "q": x[0], "v": x[1]}, ints)
+    osc_b = Instance(fmus, "Oscillator", "B", {"m": mB, "k": kB, "c": cB, "q": x[2], "v": x[3]}, ints)
+    spring = Instance(fmus, "SpringDamper", "S", {"k": ks, "c": cs, "delta": x[4]}, ints)
+    parts = (osc_a, osc_b, spring)
+    try:
+        for _ in range(25):
+            saved = [p.fmu.getFMUState() for p in parts]
+
+            def evaluate(z):
+                for p, s in zip(parts, saved):
+                    p.fmu.setFMUState(s)
+                tension = z[0]
+                osc_a.set(F_right=tension, F_left=0.0)
+                osc_b.set(F_left=tension, F_right=0.0)
+                osc_a.fmu.doStep(osc_a.t, h)
+                osc_b.fmu.doStep(osc_b.t, h)
+                spring.set(u_left=-osc_a.get("f_right")[0], u_right=-osc_b.get("f_left")[0])
+                spring.fmu.doStep(spring.t, h)
+                return spring.get("e_left")
+
+            _, res = _solve_affine_interface(evaluate, 1)
+            assert abs(res[0]) < 1e-12
+            for p, s in zip(parts, saved):
+                p.t += h
+                p.fmu.freeFMUState(s)
+        got = np.concatenate([osc_a.get("q", "v"), osc_b.get("q", "v"), spring.get("delta")])
+        assert np.allclose(got, _midpoint(A, x, h, 25), rtol=1e-12, atol=1e-13)
+    finally:
+        for p in parts:
+            p.free()
+
+
+def test_rlc_and_motor_through_a_gyrator_match_monolithic_midpoint(fmus):
+    """RLCCircuit and DCMotorLoad, both effort-in, joined by u = Km omega, tau = -Km i."""
+    L, R, C, J, fr, kt, km, h = 0.1, 1.0, 0.01, 0.01, 0.01, 1.0, 0.1, 0.01
+    x = np.array([0.1, 0.0, 0.0, 0.0])  # q_C, i_L, theta, omega
+    A = np.array([[0, 1, 0, 0], [-1 / (L * C), -R / L, 0, km / L], [0, 0, 0, 1], [0, -km / J, -kt / J, -fr / J]])
+    ints = {"port_mode": 1}
+    rlc = Instance(fmus, "RLCCircuit", "rlc", {"L": L, "R": R, "C": C, "q_C": x[0], "i_L": x[1]}, ints)
+    motor = Instance(fmus, "DCMotorLoad", "motor", {"J": J, "friction": fr, "stiffness": kt}, ints)
+    try:
+        for _ in range(25):
+            saved = [p.fmu.getFMUState() for p in (rlc, motor)]
+
+            def evaluate(z):  # z = (u, tau), the held efforts of both sides
+                for p, s in zip((rlc, motor), saved):
+                    p.fmu.setFMUState(s)
+                rlc.set(u=z[0])
+                motor.set(tau=z[1])
+                rlc.fmu.doStep(rlc.t, h)
+                motor.fmu.doStep(motor.t, h)
+                return np.array([km * motor.get("f")[0], -km * rlc.get("f")[0]])
+
+            _, res = _solve_affine_interface(evaluate, 2)
+            assert np.abs(res).max() < 1e-12
+            for p, s in zip((rlc, motor), saved):
+                p.t += h
+                p.fmu.freeFMUState(s)
+        got = np.concatenate([rlc.get("q_C", "i_L"), motor.get("theta", "omega")])
+        assert np.allclose(got, _midpoint(A, x, h, 25), rtol=1e-12, atol=1e-13)
+    finally:
+        rlc.free()
+        motor.free()

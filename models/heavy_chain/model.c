@@ -25,10 +25,11 @@ void model_initialize(ModelData *m) {
         m->q[i] = i < n ? m->r[VR_amplitude] * exp(-z * z) : 0.0;
         m->v[i] = 0.0;
     }
-    m->r[VR_q_first] = n ? m->q[0] : NAN;
-    m->r[VR_q_last] = n ? m->q[n - 1] : NAN;
+    m->r[VR_q_first] = m->q[0];
+    m->r[VR_q_last] = n ? m->q[n - 1] : 0.0;
 }
 
+/* NaN for an invalid n: the layer then refuses initialization ("H is not finite at the start"). */
 double model_energy(const ModelData *m) {
     if (!valid_n(m)) return NAN;
     const double *r = m->r;
@@ -99,14 +100,17 @@ int model_step(ModelData *md, double h, const PortClosure *p, double *e, double 
     }
     int sweeps = md->i[VRI_newton_sweeps], max_iter = md->i[VRI_newton_max_iter];
     if (max_iter < sweeps) max_iter = sweeps;
-    double tol = r[VR_newton_rtol] * scale;
-    int converged = 0, it;
+    int converged = 0;
     double norm = residual(&x, u, R, diag, off);
-    for (it = 1; it <= max_iter; it++) {
+    for (int it = 1; it <= max_iter; it++) {
         solve_tridiagonal(n, diag, off, R, d, w);
-        double dmax = 0.0;
-        for (int i = 0; i < n; i++) dmax = fmax(dmax, fabs(d[i]));
+        double dmax = 0.0, umax = 0.0;
+        for (int i = 0; i < n; i++) {
+            dmax = fmax(dmax, fabs(d[i]));
+            umax = fmax(umax, fabs(u[i]));
+        }
         if (!isfinite(dmax)) break;
+        double tol = r[VR_newton_rtol] * (scale + umax);
         /* Far from the solution, backtrack on |R|^2 (the Newton direction descends); once the
          * step is at the tolerance, take it whole. */
         double lambda = 1.0, trial_norm;

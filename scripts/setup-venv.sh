@@ -1,0 +1,15 @@
+#!/usr/bin/env bash
+# Create .venv at the repository root and install wavecosim into it (editable), once per change
+# of pyproject.toml. The FMUs are built on demand by the commands themselves.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+PY=${PYTHON:-python3}
+if [ ! -x .venv/bin/python ]; then
+  "$PY" -m venv .venv
+fi
+stamp=.venv/.wavecosim-installed
+if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
+  .venv/bin/python -m pip install --quiet --upgrade pip
+  .venv/bin/python -m pip install --quiet -e .
+  touch "$stamp"
+fi
