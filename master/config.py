@@ -28,6 +28,7 @@ class SubsystemConfig:
     integers: dict
     port: dict
     fmu_path: Path = None
+    gamma: float = None
 
 
 @dataclass
@@ -147,7 +148,7 @@ PORT_KEYS = ("wave_in", "wave_out", "effort", "flow", "physical_in", "input", "e
 
 def _subsystem(ck, name, raw, base_dir):
     path = f"subsystems.{name}"
-    ck.mapping(raw, path, ("fmu", "parameters", "start", "integers", "port"), required=("fmu",))
+    ck.mapping(raw, path, ("fmu", "parameters", "start", "integers", "port", "gamma"), required=("fmu",))
     fmu = ck.string(raw["fmu"], f"{path}.fmu")
     port = ck.mapping(raw.get("port") or {}, f"{path}.port", PORT_KEYS)
     spec = {
@@ -176,7 +177,8 @@ def _subsystem(ck, name, raw, base_dir):
         fmu_path = (base_dir / fmu).resolve()
     return SubsystemConfig(name=name, fmu=fmu, parameters=ck.numbers(raw.get("parameters"), f"{path}.parameters"),
                            start=ck.numbers(raw.get("start"), f"{path}.start"), integers=integers, port=spec,
-                           fmu_path=fmu_path)
+                           fmu_path=fmu_path,
+                           gamma=ck.number(raw["gamma"], f"{path}.gamma", positive=True) if "gamma" in raw else None)
 
 
 PORT_REF = re.compile(r"^([A-Za-z_][\w-]*)(?:\[(\d+)\])?$")

@@ -76,14 +76,21 @@ class Scene:
     F: np.ndarray
     gamma: float
     wave: bool
+    gammas: list = None
+
+    def channel_gammas(self, gamma=None):
+        """Impedance of every channel: a scalar override, else each subsystem's own gamma."""
+        per_sub = [gamma] * len(self.subsystems) if gamma is not None else (self.gammas or
+                                                                            [self.gamma] * len(self.subsystems))
+        return [g for g, s in zip(per_sub, self.subsystems) for _ in range(s.m)]
 
     @property
     def n_channels(self):
         return self.E.shape[0]
 
     def wave_map(self, gamma=None):
-        g = self.gamma if gamma is None else gamma
-        return ic.compile_wave_map(self.E, self.F, [g] * self.n_channels, where=f"{self.scenario.source}: couplings")
+        return ic.compile_wave_map(self.E, self.F, self.channel_gammas(gamma),
+                                   where=f"{self.scenario.source}: couplings")
 
     def input_map(self):
         """G with inputs = G outputs for physical masters, from E e + F f = 0 split by causality."""
@@ -168,11 +175,13 @@ def coupling_structure(scenario: Scenario, sizes):
 def build_scene(scenario: Scenario, wave=True, gamma=None, needs_rollback=True) -> Scene:
     """Instantiate every subsystem (wave or physical port mode) and compile the coupling."""
     g = gamma if gamma is not None else (scenario.gamma if not isinstance(scenario.gamma, str) else 0.4)
-    subsystems = []
+    subsystems, gammas = [], []
     try:
         for sub in scenario.subsystems:
             path = resolve_fmu(sub, scenario.source)
-            reals = {**sub.parameters, **sub.start, "gamma": g}
+            g_sub = sub.gamma if (sub.gamma is not None and gamma is None) else g
+            gammas.append(g_sub)
+            reals = {**sub.parameters, **sub.start, "gamma": g_sub}
             integers = {**sub.integers, "port_mode": 0 if wave else 1}
             try:
                 fmu = Fmu(path, sub.name, reals, integers, optional=("gamma", "port_mode"))
@@ -199,7 +208,7 @@ def build_scene(scenario: Scenario, wave=True, gamma=None, needs_rollback=True) 
                 raise ConfigError(f"{scenario.source}: outputs.{col}: subsystem {name} has no variable {var!r}")
         sizes = [s.m for s in subsystems]
         E, F, offsets = coupling_structure(scenario, sizes)
-        scene = Scene(scenario, subsystems, offsets, E, F, g, wave)
+        scene = Scene(scenario, subsystems, offsets, E, F, g, wave, gammas)
         if wave:
             scene.wave_map()
         return scene

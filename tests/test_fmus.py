@@ -99,7 +99,7 @@ def open_fmu(extracted):
 
 
 def test_every_model_is_built(built_fmus):
-    assert sorted(built_fmus) == sorted(MODELS)
+    assert set(MODELS) <= set(built_fmus)
 
 
 # ---- 1. fmpy's validation and a stand-alone run ----

@@ -1,0 +1,8 @@
+"""Sequential explicit coupling: the second FMU already sees the first one's new output."""
+from .explicit import ExplicitMaster
+
+
+class GaussSeidelMaster(ExplicitMaster):
+    """Like ExplicitMaster, but the subsystems step in order, each with inputs G y from the newest y."""
+    name = "gauss-seidel"
+    sequential = True
