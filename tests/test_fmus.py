@@ -2,7 +2,6 @@
 discrete passivity in both port modes, bit-identical rollback, the frozen port map being firmly
 nonexpansive (Condition 1) at gamma = 0.4 and not at gamma = 5, error statuses that commit
 nothing, and the wave-port closure e + gamma f = sqrt(2 gamma / dt) a."""
-from ctypes import byref
 
 import numpy as np
 import pytest
@@ -10,7 +9,6 @@ from fmpy import calloc, extract, free, read_model_description, simulate_fmu
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
-from fmpy.logging import addLoggerProxy
 from fmpy.validation import validate_fmu
 
 MODELS = ("DuffingSide", "LinearSide")
@@ -34,7 +32,6 @@ class Fmu:
         self._callbacks.logger = fmi2CallbackLoggerTYPE(self._log)
         self._callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
         self._callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-        addLoggerProxy(byref(self._callbacks))
         self.slave = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir,
                                modelIdentifier=md.coSimulation.modelIdentifier, instanceName="test")
         self.slave.instantiate(callbacks=self._callbacks)

@@ -14,6 +14,19 @@ static const char *causality(int kind) {
 
 static int index_counter = 0;
 
+/* Prints text with the XML special characters escaped. */
+static void print_escaped(const char *text) {
+    for (; *text; text++) {
+        switch (*text) {
+        case '<': fputs("&lt;", stdout); break;
+        case '>': fputs("&gt;", stdout); break;
+        case '&': fputs("&amp;", stdout); break;
+        case '"': fputs("&quot;", stdout); break;
+        default: putchar(*text);
+        }
+    }
+}
+
 #define PRINT_REAL(name, kind, start, unit, desc) print_real(#name, VR_##name, kind, start, unit, desc);
 #define PRINT_INT(name, start, desc) print_int(#name, INTEGER_VR_BASE + VRI_##name, start, desc);
 #define LIST_OUTPUT(name, kind, start, unit, desc) \
@@ -29,7 +42,9 @@ static void print_real(const char *name, int vr, int kind, double start, const c
            name, vr, causality(kind), variability);
     if (kind == STATE) printf(" initial=\"exact\"");
     if (kind == OUTPUT) printf(" initial=\"calculated\"");
-    printf(" description=\"%s\">\n", desc);
+    printf(" description=\"");
+    print_escaped(desc);
+    printf("\">\n");
     if (kind == OUTPUT) printf("      <Real");
     else printf("      <Real start=\"%.17g\"", start);
     if (unit[0]) printf(" unit=\"%s\"", unit);
@@ -38,8 +53,9 @@ static void print_real(const char *name, int vr, int kind, double start, const c
 
 static void print_int(const char *name, int vr, int start, const char *desc) {
     printf("    <ScalarVariable name=\"%s\" valueReference=\"%d\" causality=\"parameter\" "
-           "variability=\"fixed\" description=\"%s\">\n      <Integer start=\"%d\"/>\n    </ScalarVariable>\n",
-           name, vr, desc, start);
+           "variability=\"fixed\" description=\"", name, vr);
+    print_escaped(desc);
+    printf("\">\n      <Integer start=\"%d\"/>\n    </ScalarVariable>\n", start);
 }
 
 #define UNIT_DEF(name, kind, start, unit, desc) collect_unit(unit);
