@@ -114,6 +114,10 @@ def run_cmd(config, K, eps, gamma, dt, T, quiet, algorithm, out, no_certificates
                  certificates=not no_certificates, reference=reference, file_suffix=False)
     s = result.summary
     click.echo(f"{scenario.name}: {s['master']} K={s['K']} dt={scenario.dt} T={scenario.T} -> {out}")
+    if s.get("gamma_mode", "fixed") != "fixed":
+        click.echo(f"gamma: {s['gamma_mode']} -> {s['gamma_initial']:.6g} (final {s['gamma_final']:.6g}, "
+                   f"{s['gamma_changes']} changes; FNE bound {s['gamma_fne_bound']:.6g}; predicted inner rate "
+                   f"{s['gamma_rate_estimate']:.3f}; Theorem 1 {'holds' if s['gamma_guaranteed'] else 'NOT guaranteed'})")
     print_table([s], ["steps", "max_error", "rms_error", "final_error", "max_passivity_pos", "max_augmented_pos",
                       "min_fne_margin", "iterations_mean", "wall_time_s"])
     if plots:
@@ -150,6 +154,47 @@ def sweep_cmd(config, K, eps, gamma, dt, T, quiet, ks, out, no_certificates, plo
             click.echo(f"wrote {p}")
 
 
+@cli.command("compare")
+@config_argument
+@with_common
+@click.option("--masters", default="explicit,gauss-seidel,jacobi-iter,gauss-seidel-iter,newton,dr", show_default=True,
+              help="Comma-separated masters to compare.")
+@click.option("--Ks", "--K-list", "ks", default=None,
+              help="Comma-separated budgets K for the iterative masters (default: a grid per master).")
+@click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("out/compare"), show_default=True)
+@click.option("--no-certificates", is_flag=True, help="Skip FNE sampling and the augmented-storage check.")
+@click.option("--plots", is_flag=True, help="Also write pareto.png and energy_by_master.png.")
+def compare_cmd(config, K, eps, gamma, dt, T, quiet, masters, ks, out, no_certificates, plots):
+    """Every master over a grid of budgets against the monolithic reference: error, energy, cost."""
+    from .compare import COMPARE_FIELDS, compare
+    names = [m.strip() for m in masters.split(",") if m.strip()]
+    for name in names:
+        if name not in ALGORITHMS:
+            raise ConfigError(f"--masters: unknown master {name!r} (have: {', '.join(ALGORITHMS)})")
+    if K is not None and ks is not None:
+        raise ConfigError("--K and --Ks: give one budget (--K) or a list (--Ks), not both")
+    Ks = [K] if K is not None else None
+    if ks is not None:
+        try:
+            Ks = [int(k) for k in ks.split(",") if k.strip()]
+        except ValueError:
+            raise ConfigError(f"--Ks: must be comma-separated integers, got {ks!r}") from None
+        if not Ks or min(Ks) < 0:
+            raise ConfigError(f"--Ks: budgets must be integers >= 0, got {ks!r}")
+    scenario = _apply_overrides(load_scenario(config), None, eps, gamma, dt, T)
+    progress = (lambda label: _progress(label, quiet))
+    reference, results, rows = compare(scenario, out, names, Ks, progress=progress, certificates=not no_certificates)
+    click.echo(f"{scenario.name}: {len(rows)} runs of {len(names)} masters -> {out / 'compare.json'}")
+    print_table(rows, list(COMPARE_FIELDS))
+    for r in rows:
+        if r["status"] != "finished":
+            click.echo(f"{r['master']} K={r['K']}: {r['status']} after {r['steps']} steps: {r['message']}")
+    if plots:
+        from .plots import compare_plots
+        for p in compare_plots(rows, results, reference, out):
+            click.echo(f"wrote {p}")
+
+
 @cli.command("validate")
 @config_argument
 def validate_cmd(config):
@@ -178,6 +223,20 @@ def build_cmd(force):
         click.echo(f"{ident}: {path}")
 
 
+@cli.command("bench")
+@click.option("--quick", is_flag=True, help="Fewer steps and repeats (a few seconds instead of about a minute).")
+@click.option("--json", "json_file", type=click.Path(dir_okay=False, path_type=Path), help="Also write the figures here.")
+def bench_cmd(quick, json_file):
+    """Time the inner iteration: plain fmpy loop, Python reference, C fast path and the C floor."""
+    from .bench import report, run_bench
+    result = run_bench(quick=quick, progress=lambda msg: click.echo(msg, err=True))
+    for line in report(result):
+        click.echo(line)
+    if json_file:
+        write_json(json_file, result)
+        click.echo(f"wrote {json_file}")
+
+
 def main(argv=None):
     try:
         cli.main(args=argv, standalone_mode=False)
@@ -185,7 +244,7 @@ def main(argv=None):
         click.echo("error: interrupted", err=True)
         sys.exit(130)
     except click.ClickException as exc:
-        exc.show()
+        click.echo(f"error: {exc.format_message()}", err=True)    # one line, naming the option
         sys.exit(2)
     except Interrupted as exc:
         click.echo(f"interrupted: {exc}; results so far are on disk", err=True)

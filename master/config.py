@@ -220,13 +220,36 @@ def _coupling(ck, k, raw, subsystem_names):
     return c
 
 
+class _SafeLoader(yaml.SafeLoader):
+    """PyYAML's safe loader (no Python tags such as !!python/object), refusing a key given twice."""
+
+
+def _mapping_without_duplicates(loader, node):
+    loader.flatten_mapping(node)
+    seen = {}
+    for key_node, _ in node.value:
+        key = loader.construct_object(key_node, deep=True)
+        try:
+            first = seen.get(key)
+        except TypeError:              # unhashable key: construct_mapping below reports it
+            continue
+        if first is not None:
+            raise yaml.constructor.ConstructorError(None, None, f"duplicate key {key!r} (first on line {first + 1})",
+                                                    key_node.start_mark)
+        seen[key] = key_node.start_mark.line
+    return loader.construct_mapping(node, deep=True)
+
+
+_SafeLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _mapping_without_duplicates)
+
+
 def load_scenario(path=None) -> Scenario:
     """Read and validate a scenario file (the built-in default when path is None)."""
     path = Path(path) if path else DEFAULT_CONFIG
     if not path.exists():
         raise ConfigError(f"{path}: scenario file not found")
     try:
-        raw = yaml.safe_load(path.read_text())
+        raw = yaml.load(path.read_text(), Loader=_SafeLoader)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}" if mark else "?"

@@ -121,7 +121,9 @@ class Fmu:
 
     def variable(self, name):
         if name not in self.variables:
-            raise FmuError(f"{self.name}: the FMU {self.path.name} has no variable {name!r}", subsystem=self.name)
+            exc = FmuError(f"{self.name}: the FMU {self.path.name} has no variable {name!r}", subsystem=self.name)
+            exc.variable = name
+            raise exc
         return self.variables[name]
 
     def vr(self, name) -> int:

@@ -1,4 +1,7 @@
 """Runs one scenario with one master: the macro-step loop, certificates, streaming output, summary."""
+import signal
+import sys
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -6,7 +9,9 @@ from pathlib import Path
 import numpy as np
 
 from . import certificates as cert
-from .errors import Interrupted, NumericalError, WavecosimError
+from .errors import ConfigError, Interrupted, NumericalError, WavecosimError
+from .fne_watch import FneWatch, trace_impedances, trace_margins
+from .gamma_tuning import GammaTuner
 from .masters import MASTERS
 from .masters.newton import solve_interface
 from .recorder import CsvStream, write_json
@@ -26,6 +31,8 @@ class RunResult:
     summary: dict = field(default_factory=dict)
     status: str = "finished"
     message: str = ""
+    units: dict = field(default_factory=dict)
+    error_columns: list = field(default_factory=list)
 
     def column(self, name):
         return self.outputs[:, self.columns.index(name)]
@@ -39,6 +46,16 @@ def _observed(scene, scenario):
         cols = [(c, ref.split(".")[1]) for c, ref in scenario.outputs.items() if ref.split(".")[0] == s.name]
         plan.append((s, s.fmu.vrs(names + [v for _, v in cols]), [c for c, _ in cols]))
     return plan
+
+
+def _units(scene, scenario):
+    """{column: unit} of the recorded outputs, from the FMUs' model descriptions ('' when none)."""
+    subs = {s.name: s for s in scene.subsystems}
+    units = {}
+    for c, ref in scenario.outputs.items():
+        name, var = ref.split(".")
+        units[c] = subs[name].fmu.variable(var).unit or ""
+    return units
 
 
 def _read(plan, m_sizes):
@@ -63,19 +80,59 @@ def error_metrics(result: RunResult, reference: RunResult, columns):
                  "final_error": float(err[-1])}
 
 
+def _stderr_warning(message):
+    print(f"warning: {message}", file=sys.stderr, flush=True)
+
+
+class _DeferInterrupt:
+    """Holds a Ctrl-C (SIGINT) back while one step is booked and written, so the CSV files and the
+    summary always agree on the number of steps; the KeyboardInterrupt is raised right after."""
+
+    def __enter__(self):
+        self.hit, self.old = False, None
+        if threading.current_thread() is threading.main_thread():
+            self.old = signal.signal(signal.SIGINT, self._hold)
+        return self
+
+    def _hold(self, signum, frame):
+        self.hit = True
+
+    def __exit__(self, *exc):
+        if self.old is not None:
+            signal.signal(signal.SIGINT, self.old)
+        if self.hit and exc[0] is None:
+            raise KeyboardInterrupt
+        return False
+
+
 def run(scenario, out_dir=None, label=None, progress=None, certificates=True, reference=None, gamma=None,
-        file_suffix=True) -> RunResult:
-    """Run `scenario` with its master settings; stream `trajectory.csv` and `steps.csv` into out_dir."""
+        file_suffix=True, warn=None) -> RunResult:
+    """Run `scenario` with its master settings; stream `trajectory.csv` and `steps.csv` into out_dir.
+
+    `gamma` overrides the scenario's; `gamma: auto | auto-retune | fast-unsafe` is resolved here
+    (gamma_tuning). `warn(line)` receives warnings (Condition 1 failing, fast-unsafe); default stderr."""
+    warn = warn or _stderr_warning
     settings = scenario.master
     cls = MASTERS[settings.algorithm]
     label = label or f"{settings.algorithm}_K{settings.K}"
     N, dt = scenario.n_steps, scenario.dt
     columns = list(scenario.outputs)
     scene = build_scene(scenario, wave=cls.wave, gamma=gamma, needs_rollback=cls.needs_rollback)
+    tuner = None
+    if cls.wave and gamma is None and isinstance(scenario.gamma, str):
+        try:
+            tuner = GammaTuner(scene, scenario.gamma, warn if settings.algorithm == "dr" else None)
+            gamma = tuner.initial([0.0] * scene.n_channels).gamma
+        except BaseException:
+            scene.close()
+            raise
+    units = _units(scene, scenario)
     sizes = [s.m for s in scene.subsystems]
     names = [s.name for s in scene.subsystems]
     t_rows, out_rows = [], []
-    steps = {k: [] for k in ("iterations", "residual", "passivity", "augmented", "fne", "supply", "H")}
+    steps = {k: [] for k in ("iterations", "residual", "passivity", "augmented", "fne", "supply", "H", "gamma",
+                             "fne_watch")}
+    watch = None
     traj = diag = None
     status, message = "finished", ""
     master_time = 0.0
@@ -84,6 +141,13 @@ def run(scenario, out_dir=None, label=None, progress=None, certificates=True, re
     master = None
     try:
         master = cls(scene, settings, gamma=gamma) if cls.wave else cls(scene, settings)
+        if tuner and tuner.retune and not hasattr(master, "set_gamma"):
+            raise ConfigError(f"{scenario.source}: gamma: auto-retune needs a master that can change gamma between "
+                              f"macro-steps (dr, newton), not {settings.algorithm}")
+        if scenario.fne_watch and settings.algorithm == "dr":
+            watch = FneWatch(scene, warn)
+        if (watch or tuner and tuner.retune) and hasattr(master, "trace"):
+            master.trace = []                                        # keep the inner loop's (u, S(u)) pairs
         plan = _observed(scene, scenario)
         if out_dir is not None:
             out_dir = Path(out_dir)
@@ -91,7 +155,7 @@ def run(scenario, out_dir=None, label=None, progress=None, certificates=True, re
             traj = CsvStream(out_dir / f"trajectory{suffix}.csv", ["t", *columns])
             diag = CsvStream(out_dir / f"steps{suffix}.csv",
                              ["t", "iterations", "inner_residual", "reason", *[f"r_{n}" for n in names],
-                              "augmented", "interface_supply", "H_total", "fne_min"])
+                              "augmented", "interface_supply", "H_total", "fne_min", "gamma", "fne_watch"])
         H, _, _, _, out = _read(plan, sizes)
         t_rows.append(0.0)
         out_rows.append([out[c] for c in columns])
@@ -103,6 +167,11 @@ def run(scenario, out_dir=None, label=None, progress=None, certificates=True, re
         for n in range(N):
             t = n * dt
             fne_min, u_star = float("nan"), None
+            if tuner:
+                tuner.between_steps(master, n, t)                    # gamma changes only between macro-steps
+            probed = None
+            if watch and (settings.K < 2 or getattr(master, "trace", None) is None):
+                probed = watch.probe(master.b, n, t, master.P)       # no inner iterates to read margins from
             if wave_certs and (scenario.certificates.fne_pairs or scenario.certificates.augmented):
                 for s in scene.subsystems:
                     s.freeze(n, t)
@@ -123,6 +192,13 @@ def run(scenario, out_dir=None, label=None, progress=None, certificates=True, re
             master_time += time.perf_counter() - t0
             for k in calls:
                 calls[k] += sum(s.calls[k] for s in scene.subsystems) - before[k]
+            if tuner and tuner.retune and getattr(master, "trace", None):
+                tuner.observe(trace_impedances(scene, master.trace, scene.gamma))
+            watched = float("nan")
+            if watch:
+                if probed is None and not master.trace and log.iterations >= 2:
+                    master.trace = None                              # this master does not expose its queries
+                watched = watch.record(n, t, probed if probed is not None else trace_margins(scene, master.trace or []))
             H_new, E, F, B, out = _read(plan, sizes)
             if cls.wave:
                 a_parts = scene.split(log.a_hat)
@@ -136,15 +212,17 @@ def run(scenario, out_dir=None, label=None, progress=None, certificates=True, re
                 aug = cert.augmented_residual(sum(H_new) - sum(H), log.u0, log.uK, u_star, log.a_hat,
                                               [x for bi in B for x in bi])
             row = [out[c] for c in columns]
-            t_rows.append((n + 1) * dt)
-            out_rows.append(row)
-            for key, val in (("iterations", log.iterations), ("residual", log.residual), ("passivity", r),
-                             ("augmented", aug), ("fne", fne_min), ("supply", supply), ("H", sum(H_new))):
-                steps[key].append(val)
-            if traj:
-                traj.write([(n + 1) * dt, *row])
-                diag.write([(n + 1) * dt, log.iterations, log.residual, log.reason, *r, aug, supply,
-                            sum(H_new), fne_min])
+            with _DeferInterrupt():
+                t_rows.append((n + 1) * dt)
+                out_rows.append(row)
+                for key, val in (("iterations", log.iterations), ("residual", log.residual), ("passivity", r),
+                                 ("augmented", aug), ("fne", fne_min), ("supply", supply), ("H", sum(H_new)),
+                                 ("gamma", scene.gamma), ("fne_watch", watched)):
+                    steps[key].append(val)
+                if traj:
+                    traj.write([(n + 1) * dt, *row])
+                    diag.write([(n + 1) * dt, log.iterations, log.residual, log.reason, *r, aug, supply,
+                                sum(H_new), fne_min, scene.gamma, watched])
             if not np.all(np.isfinite(row)) or not np.all(np.isfinite(H_new)):
                 bad = next(s.name for s, h in zip(scene.subsystems, H_new) if not np.isfinite(h)) \
                     if not np.all(np.isfinite(H_new)) else "an output"
@@ -165,9 +243,16 @@ def run(scenario, out_dir=None, label=None, progress=None, certificates=True, re
         scene.close()
     result = RunResult(label=label, master=settings.algorithm, K=settings.K, columns=columns,
                        t=np.array(t_rows), outputs=np.array(out_rows).reshape(len(t_rows), len(columns)),
-                       steps=steps, status=status, message=message)
+                       steps=steps, status=status, message=message, units=units,
+                       error_columns=list(scenario.error))
     result.summary = _summary(result, scenario, master_time, time.perf_counter() - started, calls, names)
-    if reference is not None and len(reference.t) and scenario.error:
+    result.summary.update(getattr(master, "run_info", dict)())   # e.g. DR: fast path and threads used
+    if cls.wave:
+        result.summary.update(tuner.summary(steps["gamma"]) if tuner else
+                              {"gamma_mode": "fixed", "gamma_initial": scene.gamma, "gamma_final": scene.gamma})
+    if watch:
+        result.summary.update(watch.summary())
+    if reference is not None and len(reference.t) and len(result.t) and scenario.error:
         err, metrics = error_metrics(result, reference, scenario.error)
         result.summary.update(metrics)
         result.steps["error"] = err

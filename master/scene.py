@@ -167,6 +167,19 @@ def coupling_structure(scenario: Scenario, sizes):
                                     f"{E.shape} and {F.shape}")
             ic.check_dirac(E, F, where)
             blocks.append((k, E, F, chans))
+    label = [f"{n}[{j}]" for n, m in zip(names, sizes) for j in range(m)]     # global channel -> "A[0]"
+    owner = {}
+    for name, _, _, chans in blocks:
+        k = str(name).split(".")[0]
+        for ch in chans:
+            if ch in owner:
+                raise CouplingError(f"{scenario.source}: couplings[{k}].ports: channel {label[ch]} is already "
+                                    f"connected by couplings[{owner[ch]}]")
+            owner[ch] = k
+    loose = [label[ch] for ch in range(len(label)) if ch not in owner]
+    if loose:
+        raise CouplingError(f"{scenario.source}: couplings: port channel(s) {', '.join(loose)} are not connected "
+                            f"by any coupling")
     E, F = ic.assemble(blocks, int(sum(sizes)), where=f"{scenario.source}: couplings")
     ic.check_dirac(E, F, f"{scenario.source}: couplings")
     return E, F, offsets
@@ -186,7 +199,9 @@ def build_scene(scenario: Scenario, wave=True, gamma=None, needs_rollback=True) 
             try:
                 fmu = Fmu(path, sub.name, reals, integers, optional=("gamma", "port_mode"))
             except FmuError as exc:
-                raise ConfigError(f"{scenario.source}: subsystems.{sub.name}.fmu: {exc}") from None
+                var = getattr(exc, "variable", None)         # a parameter/start/integer name the FMU lacks
+                key = next((f"{k}.{var}" for k in ("parameters", "start", "integers") if var in getattr(sub, k)), "fmu")
+                raise ConfigError(f"{scenario.source}: subsystems.{sub.name}.{key}: {exc}") from None
             if wave and "port_mode" not in fmu.variables:
                 fmu.close()
                 raise ConfigError(f"{scenario.source}: subsystems.{sub.name}.fmu: {path.name} has no wave port (integer parameter "

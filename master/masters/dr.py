@@ -41,13 +41,22 @@ class DRMaster(Master):
         self.b = [0.0] * scene.n_channels                              # b^0 = 0
         self.K, self.eps = settings.K, settings.eps
         self.deadline_s = settings.deadline_us * 1e-6 if settings.deadline_us else None
+        self.trace = None                                              # set to [] to record (u, S(u)) pairs
 
     def S(self, u):
         """Stacked frozen port map S^n = diag(S_A, S_B, ...) (eq. 12)."""
         b = []
         for sub, a_i in zip(self.subsystems, self.scene.split(u)):
             b.extend(sub.query(a_i))
+        if self.trace is not None:                                    # for the Condition 1 watch (fne_watch)
+            self.trace.append((u, b))
         return b
+
+    def set_gamma(self, gamma, b):
+        """Between macro-steps only: recompile P, J_L for a new gamma and take b^n re-scattered to it."""
+        self.coupling = self.scene.wave_map(gamma)
+        self.P, self.J_L = self.coupling.P.tolist(), self.coupling.J_L.tolist()
+        self.b = list(b)
 
     def freeze(self, n, t):
         for sub in self.subsystems:                                   # line 3: S^n from x^n
@@ -55,6 +64,8 @@ class DRMaster(Master):
 
     def step(self, n, t) -> StepLog:
         self.freeze(n, t)
+        if self.trace is not None:
+            self.trace = []
         deadline = time.perf_counter() + self.deadline_s if self.deadline_s else None
         log = algorithm1(self.S, self.P, self.J_L, self.b, self.K, self.eps, deadline)
         b_next = []

@@ -64,6 +64,11 @@ class NewtonMaster(Master):
         self.sizes = [s.m for s in self.subsystems]
         self.calls = 0
 
+    def set_gamma(self, gamma, b):
+        """Between macro-steps only: recompile P for a new gamma and take b^n re-scattered to it."""
+        self.P = self.scene.wave_map(gamma).P
+        self.b = list(b)
+
     def S(self, u):
         b = []
         for sub, a_i in zip(self.subsystems, self.scene.split(u)):

@@ -1,0 +1,446 @@
+/* Algorithm 1 of the paper for one macro-step, in C, calling the FMUs through their own fmi2
+ * function pointers (see drkernel.h). The Python reference is master/masters/dr.py::algorithm1
+ * with master/frozen_port_map.py::Subsystem; each line below names the line it mirrors. */
+#define _POSIX_C_SOURCE 200809L
+#include <math.h>
+#include <pthread.h>
+#include <sched.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "drkernel.h"
+
+/* A thread waiting for the other spins this long, then sleeps on a condition variable: spinning
+ * answers within a microsecond when both have a core, sleeping leaves the core to the other
+ * thread (or another process) when they do not. */
+#define SPIN_NS 50000.0
+
+typedef struct {
+    DRFunctions fn;
+    fmi2Component comp;
+    fmi2FMUstate state;            /* x_i^n, saved once per macro-step into the same handle */
+    fmi2ValueReference *in_vr, *out_vr;
+    size_t m, offset;
+    int thread;
+    int frozen, dirty;             /* x_i^n saved this macro-step / instance moved away from it */
+    int failed_function, failed_status;
+    long n_do_step, n_save, n_restore;
+    double busy_ns;
+    long evals;
+} Sub;
+
+typedef struct {
+    DRKernel *k;
+    int id, started;
+    pthread_t thread;
+    pthread_mutex_t mutex;
+    pthread_cond_t cond, done_cond;
+    unsigned posted, done;         /* task generations, accessed atomically */
+    int sleeping, caller_sleeping, stop; /* accessed atomically */
+    int failed;                    /* first failing subsystem of this thread's last task, or -1 */
+} Worker;
+
+struct DRKernel {
+    int n_sub;
+    size_t n;
+    Sub *sub;
+    double *P, *J_L;
+    double *b, *a_hat, *u0, *uK;   /* the caller's */
+    double *u, *u_next, *b_hat, *z, *w;
+    double *trace;                 /* the caller's, or NULL */
+    int trace_capacity;
+    int n_threads;
+    unsigned generation;
+    Worker worker[DR_MAX_THREADS]; /* worker[0] is unused: thread 0 is the caller */
+    /* the task all threads work on: evaluate their subsystems at task_in -> task_out */
+    const double *task_in;
+    double *task_out;
+    double task_t, task_h;
+    int task_commit, task_measure;
+};
+
+static double now_ns(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return 1e9 * (double)ts.tv_sec + (double)ts.tv_nsec;
+}
+
+static void cpu_relax(void) {
+#if defined(__x86_64__) || defined(__i386__)
+    __builtin_ia32_pause();
+#endif
+}
+
+/* ---- the arithmetic of master/linalg.py, in the same operation order ---- */
+
+/* y_i = sum_j M_ij x_j, summed left to right from 0.0 (linalg.matvec). */
+static void matvec(const double *M, const double *x, double *y, size_t n) {
+    for (size_t i = 0; i < n; i++) {
+        double acc = 0.0;
+        for (size_t j = 0; j < n; j++) acc += M[i * n + j] * x[j];
+        y[i] = acc;
+    }
+}
+
+/* |x - y|, squares summed left to right (linalg.distance). */
+static double distance(const double *x, const double *y, size_t n) {
+    double acc = 0.0;
+    for (size_t j = 0; j < n; j++) {
+        double d = x[j] - y[j];
+        acc += d * d;
+    }
+    return sqrt(acc);
+}
+
+/* ---- one subsystem: the frozen port map (frozen_port_map.Subsystem) ---- */
+
+static int failed(Sub *s, int function, fmi2Status status) {
+    if (status <= fmi2Warning) return 0;
+    s->failed_function = function;
+    s->failed_status = (int)status;
+    return 1;
+}
+
+/* S_i^n(a) (commit = 0, eq. 11) or Phi_i(x_i^n, a) (commit = 1, eq. 23) on the channels of s:
+ * save x_i^n on the first call of the macro-step (line 3), restore it if an earlier query moved
+ * the instance, set the incident waves, one doStep, read the outgoing waves. */
+static int evaluate(Sub *s, const double *in, double *out, double t, double h, int commit, int measure) {
+    double t0 = measure ? now_ns() : 0.0;
+    if (!s->frozen) {
+        if (failed(s, DR_FN_GET_STATE, s->fn.getFMUstate(s->comp, &s->state))) return 1;
+        s->n_save++;
+        s->frozen = 1;
+        s->dirty = 0;
+    }
+    if (s->dirty) {
+        if (failed(s, DR_FN_SET_STATE, s->fn.setFMUstate(s->comp, s->state))) return 1;
+        s->n_restore++;
+    }
+    s->dirty = !commit;
+    if (failed(s, DR_FN_SET_REAL, s->fn.setReal(s->comp, s->in_vr, s->m, in + s->offset))) return 1;
+    /* noSetFMUStatePriorToCurrentPoint = true, as in the reference: a rollback goes back to x_i^n
+     * at t itself, never before t. */
+    if (failed(s, DR_FN_DO_STEP, s->fn.doStep(s->comp, t, h, fmi2True))) return 1;
+    s->n_do_step++;
+    if (failed(s, DR_FN_GET_REAL, s->fn.getReal(s->comp, s->out_vr, s->m, out + s->offset))) return 1;
+    if (measure) {
+        s->busy_ns += now_ns() - t0;
+        s->evals++;
+    }
+    return 0;
+}
+
+/* Every subsystem of one thread on the current task; the first that failed, or -1. */
+static int run_group(DRKernel *k, int thread) {
+    for (int i = 0; i < k->n_sub; i++) {
+        Sub *s = &k->sub[i];
+        if (s->thread == thread &&
+            evaluate(s, k->task_in, k->task_out, k->task_t, k->task_h, k->task_commit, k->task_measure))
+            return i;
+    }
+    return -1;
+}
+
+/* ---- persistent workers: spin on a task generation, then sleep on a condition variable ---- */
+
+/* Spin until *word != value (or stop is set), for at most SPIN_NS; returns 1 if it changed. */
+static int spin_while(const unsigned *word, unsigned value, const int *stop) {
+    double start = -1.0;
+    for (int spins = 1;; spins++) {
+        if (__atomic_load_n(word, __ATOMIC_ACQUIRE) != value) return 1;
+        if (stop && __atomic_load_n(stop, __ATOMIC_ACQUIRE)) return 1;
+        cpu_relax();
+        if (spins % 256) continue;
+        if (start < 0.0) start = now_ns();
+        else if (now_ns() - start > SPIN_NS) return 0;
+    }
+}
+
+/* Sleep until *word != value (or stop): the waker stores *word, then reads *sleeping (both
+ * seq_cst), so either it sees us asleep and signals under the mutex, or we see its store. */
+static void sleep_while(Worker *w, pthread_cond_t *cond, int *sleeping, const unsigned *word, unsigned value) {
+    pthread_mutex_lock(&w->mutex);
+    __atomic_store_n(sleeping, 1, __ATOMIC_SEQ_CST);
+    while (__atomic_load_n(word, __ATOMIC_SEQ_CST) == value && !__atomic_load_n(&w->stop, __ATOMIC_SEQ_CST))
+        pthread_cond_wait(cond, &w->mutex);
+    __atomic_store_n(sleeping, 0, __ATOMIC_SEQ_CST);
+    pthread_mutex_unlock(&w->mutex);
+}
+
+static void wake(Worker *w, pthread_cond_t *cond, int *sleeping, unsigned *word, unsigned value) {
+    __atomic_store_n(word, value, __ATOMIC_SEQ_CST);
+    if (__atomic_load_n(sleeping, __ATOMIC_SEQ_CST)) {
+        pthread_mutex_lock(&w->mutex);
+        pthread_cond_signal(cond);
+        pthread_mutex_unlock(&w->mutex);
+    }
+}
+
+static void *worker_main(void *arg) {
+    Worker *w = arg;
+    unsigned seen = 0;
+    for (;;) {
+        if (!spin_while(&w->posted, seen, &w->stop)) sleep_while(w, &w->cond, &w->sleeping, &w->posted, seen);
+        if (__atomic_load_n(&w->stop, __ATOMIC_ACQUIRE)) return NULL;
+        unsigned g = __atomic_load_n(&w->posted, __ATOMIC_ACQUIRE);
+        if (g == seen) continue;
+        seen = g;
+        w->failed = run_group(w->k, w->id);
+        wake(w, &w->done_cond, &w->caller_sleeping, &w->done, g);
+    }
+}
+
+static void post(Worker *w, unsigned g) {
+    wake(w, &w->cond, &w->sleeping, &w->posted, g);
+}
+
+static void wait_done(Worker *w, unsigned g) {
+    unsigned last = g - 1;       /* done holds the previous generation until this task is finished */
+    if (!spin_while(&w->done, last, NULL)) sleep_while(w, &w->done_cond, &w->caller_sleeping, &w->done, last);
+}
+
+static void stop_workers(DRKernel *k) {
+    for (int id = 1; id < DR_MAX_THREADS; id++) {
+        Worker *w = &k->worker[id];
+        if (!w->started) continue;
+        __atomic_store_n(&w->stop, 1, __ATOMIC_SEQ_CST);
+        pthread_mutex_lock(&w->mutex);
+        pthread_cond_broadcast(&w->cond);
+        pthread_mutex_unlock(&w->mutex);
+        pthread_join(w->thread, NULL);
+        pthread_cond_destroy(&w->done_cond);
+        pthread_cond_destroy(&w->cond);
+        pthread_mutex_destroy(&w->mutex);
+        w->started = 0;
+    }
+    k->n_threads = 1;
+    for (int i = 0; i < k->n_sub; i++) k->sub[i].thread = 0;
+}
+
+/* Evaluate every subsystem at in -> out (line 10 when commit = 0, lines 20-22 when commit = 1);
+ * the first failing subsystem in subsystem order, or -1. */
+static int evaluate_all(DRKernel *k, const double *in, double *out, double t, double h, int commit, int measure) {
+    k->task_in = in;
+    k->task_out = out;
+    k->task_t = t;
+    k->task_h = h;
+    k->task_commit = commit;
+    k->task_measure = measure;
+    if (k->n_threads == 1) return run_group(k, 0);
+    unsigned g = ++k->generation;
+    for (int id = 1; id < k->n_threads; id++) post(&k->worker[id], g);
+    int first = run_group(k, 0);
+    for (int id = 1; id < k->n_threads; id++) {
+        wait_done(&k->worker[id], g);
+        int f = k->worker[id].failed;
+        if (f >= 0 && (first < 0 || f < first)) first = f;
+    }
+    return first;
+}
+
+static int report_failure(DRKernel *k, DRStep *io, int i) {
+    io->failed_subsystem = i;
+    io->failed_function = k->sub[i].failed_function;
+    io->failed_status = k->sub[i].failed_status;
+    return -1;
+}
+
+static void begin_macro_step(DRKernel *k, DRStep *io) {
+    for (int i = 0; i < k->n_sub; i++) {
+        k->sub[i].frozen = 0;
+        k->sub[i].failed_function = DR_FN_NONE;
+        k->sub[i].failed_status = 0;
+    }
+    io->failed_subsystem = -1;
+    io->failed_function = DR_FN_NONE;
+    io->failed_status = 0;
+}
+
+/* ---- the public API ---- */
+
+int dr_macro_step(DRKernel *k, DRStep *io) {
+    size_t n = k->n;
+    begin_macro_step(k, io);
+    double deadline = io->deadline_s > 0.0 ? now_ns() + 1e9 * io->deadline_s : 0.0;
+    double *u = k->u, *u_next = k->u_next;
+    matvec(k->P, k->b, u, n);                                    /* line 6, eq. (21): u^0 = P b^n */
+    memcpy(k->u0, u, n * sizeof *u);
+    const double *b_star = k->b;                                 /* line 7, eq. (21): b^* = b^n */
+    int it = 0, reason = DR_BUDGET;
+    double residual = NAN;
+    while (it < io->K) {                                         /* line 9 */
+        int f = evaluate_all(k, u, k->b_hat, io->t, io->dt, 0, io->measure); /* line 10, eq. (17) */
+        if (f >= 0) return report_failure(k, io, f);
+        if (k->trace && it < k->trace_capacity) {
+            memcpy(k->trace + 2 * n * (size_t)it, u, n * sizeof *u);
+            memcpy(k->trace + 2 * n * (size_t)it + n, k->b_hat, n * sizeof *u);
+        }
+        for (size_t j = 0; j < n; j++) k->z[j] = 2.0 * k->b_hat[j] - u[j];
+        matvec(k->J_L, k->z, k->w, n);                           /* line 11, eq. (18): w = J_L(2b - u) */
+        for (size_t j = 0; j < n; j++) u_next[j] = u[j] + k->w[j] - k->b_hat[j]; /* line 12, eq. (19) */
+        b_star = k->b_hat;                                       /* line 13, eq. (22): b^* = last b */
+        residual = distance(u_next, u, n);
+        double *swap = u;
+        u = u_next;
+        u_next = swap;
+        it++;
+        if (io->eps >= 0.0 && residual <= io->eps) {            /* lines 14-16: optional exit */
+            reason = DR_TOLERANCE;
+            break;
+        }
+        if (deadline > 0.0 && now_ns() >= deadline) {
+            reason = DR_DEADLINE;
+            break;
+        }
+    }
+    matvec(k->P, b_star, k->a_hat, n);                           /* line 19, eq. (23): a = P b^* */
+    memcpy(k->uK, u, n * sizeof *u);
+    io->iterations = it;
+    io->residual = residual;
+    io->reason = io->K ? reason : DR_EXPLICIT;
+    /* lines 20-22, eq. (23): commit Phi_i(x_i^n, a_i); the outgoing waves are b^{n+1} */
+    int f = evaluate_all(k, k->a_hat, k->b, io->t, io->dt, 1, io->measure);
+    return f >= 0 ? report_failure(k, io, f) : 0;
+}
+
+int dr_floor(DRKernel *k, DRStep *io, const double *inputs, int n_steps) {
+    size_t n = k->n;
+    for (int step = 0; step < n_steps; step++) {
+        double t = io->t + step * io->dt;
+        begin_macro_step(k, io);
+        for (int it = 0; it <= io->K; it++) {
+            int commit = it == io->K;
+            const double *in = inputs ? inputs + ((size_t)step * (size_t)(io->K + 1) + (size_t)it) * n : k->b;
+            double *out = inputs && !commit ? k->b_hat : k->b;
+            for (int i = 0; i < k->n_sub; i++)
+                if (evaluate(&k->sub[i], in, out, t, io->dt, commit, 0)) return report_failure(k, io, i);
+        }
+    }
+    return 0;
+}
+
+DRKernel *dr_create(int n_sub, int n, const double *P, const double *J_L, double *b, double *a_hat,
+                    double *u0, double *uK) {
+    if (n_sub < 1 || n < 1) return NULL;
+    DRKernel *k = calloc(1, sizeof *k);
+    if (!k) return NULL;
+    size_t nn = (size_t)n;
+    k->n_sub = n_sub;
+    k->n = nn;
+    k->sub = calloc((size_t)n_sub, sizeof *k->sub);
+    k->P = malloc(nn * nn * sizeof(double));
+    k->J_L = malloc(nn * nn * sizeof(double));
+    k->u = calloc(5 * nn, sizeof(double));
+    if (!k->sub || !k->P || !k->J_L || !k->u) {
+        dr_destroy(k);
+        return NULL;
+    }
+    memcpy(k->P, P, nn * nn * sizeof(double));
+    memcpy(k->J_L, J_L, nn * nn * sizeof(double));
+    k->u_next = k->u + nn;
+    k->b_hat = k->u + 2 * nn;
+    k->z = k->u + 3 * nn;
+    k->w = k->u + 4 * nn;
+    k->b = b;
+    k->a_hat = a_hat;
+    k->u0 = u0;
+    k->uK = uK;
+    k->n_threads = 1;
+    return k;
+}
+
+int dr_set_subsystem(DRKernel *k, int i, const DRFunctions *fn, fmi2Component comp,
+                     const fmi2ValueReference *in_vr, const fmi2ValueReference *out_vr, int m, int offset) {
+    if (i < 0 || i >= k->n_sub || m < 1 || offset < 0 || (size_t)offset + (size_t)m > k->n) return -1;
+    if (!fn->getFMUstate || !fn->setFMUstate || !fn->freeFMUstate || !fn->setReal || !fn->doStep || !fn->getReal)
+        return -1;
+    Sub *s = &k->sub[i];
+    if (s->state) s->fn.freeFMUstate(s->comp, &s->state);
+    free(s->in_vr);
+    s->in_vr = malloc(2 * (size_t)m * sizeof *s->in_vr);
+    if (!s->in_vr) return -1;
+    s->out_vr = s->in_vr + m;
+    memcpy(s->in_vr, in_vr, (size_t)m * sizeof *in_vr);
+    memcpy(s->out_vr, out_vr, (size_t)m * sizeof *out_vr);
+    s->fn = *fn;
+    s->comp = comp;
+    s->state = NULL;
+    s->m = (size_t)m;
+    s->offset = (size_t)offset;
+    return 0;
+}
+
+void dr_set_maps(DRKernel *k, const double *P, const double *J_L) {
+    memcpy(k->P, P, k->n * k->n * sizeof(double));
+    memcpy(k->J_L, J_L, k->n * k->n * sizeof(double));
+}
+
+void dr_set_trace(DRKernel *k, double *trace, int capacity) {
+    k->trace = capacity > 0 ? trace : NULL;
+    k->trace_capacity = capacity > 0 ? capacity : 0;
+}
+
+int dr_set_threads(DRKernel *k, int n_threads, const int *thread_of) {
+    stop_workers(k);
+    if (n_threads < 1 || n_threads > DR_MAX_THREADS) return -1;
+    for (int i = 0; i < k->n_sub; i++)
+        if (n_threads > 1 && (thread_of[i] < 0 || thread_of[i] >= n_threads)) return -1;
+    if (n_threads == 1) return 0;
+    for (int id = 1; id < n_threads; id++) {
+        Worker *w = &k->worker[id];
+        memset(w, 0, sizeof *w);
+        w->k = k;
+        w->id = id;
+        w->failed = -1;
+        pthread_mutex_init(&w->mutex, NULL);
+        pthread_cond_init(&w->cond, NULL);
+        pthread_cond_init(&w->done_cond, NULL);
+        if (pthread_create(&w->thread, NULL, worker_main, w) != 0) {
+            pthread_cond_destroy(&w->done_cond);
+            pthread_cond_destroy(&w->cond);
+            pthread_mutex_destroy(&w->mutex);
+            stop_workers(k);
+            return -1;
+        }
+        w->started = 1;
+    }
+    k->generation = 0;
+    for (int i = 0; i < k->n_sub; i++) k->sub[i].thread = thread_of[i];
+    k->n_threads = n_threads;
+    return 0;
+}
+
+void dr_costs(DRKernel *k, double *us_per_eval) {
+    for (int i = 0; i < k->n_sub; i++) {
+        Sub *s = &k->sub[i];
+        us_per_eval[i] = s->evals ? 1e-3 * s->busy_ns / (double)s->evals : 0.0;
+        s->busy_ns = 0.0;
+        s->evals = 0;
+    }
+}
+
+void dr_counts(const DRKernel *k, long *counts) {
+    for (int i = 0; i < k->n_sub; i++) {
+        counts[3 * i] = k->sub[i].n_do_step;
+        counts[3 * i + 1] = k->sub[i].n_save;
+        counts[3 * i + 2] = k->sub[i].n_restore;
+    }
+}
+
+void dr_destroy(DRKernel *k) {
+    if (!k) return;
+    stop_workers(k);
+    if (k->sub) {
+        for (int i = 0; i < k->n_sub; i++) {
+            Sub *s = &k->sub[i];
+            if (s->state) s->fn.freeFMUstate(s->comp, &s->state);
+            free(s->in_vr);
+        }
+    }
+    free(k->sub);
+    free(k->P);
+    free(k->J_L);
+    free(k->u);
+    free(k);
+}

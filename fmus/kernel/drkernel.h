@@ -1,0 +1,100 @@
+/* The fast path of the DR master (master/fast_path.py drives it through ctypes).
+ *
+ * One call of dr_macro_step() runs Algorithm 1 of the paper for one macro-step, lines 3-22: save
+ * x_i^n, K inner iterations (each queries every frozen port map S_i^n once), a = P b^*, and the
+ * commit Phi_i(x_i^n, a_i). FMUs are called through their own fmi2 function pointers, so the
+ * kernel works for any FMI 2.0 co-simulation FMU that can get and set its state.
+ *
+ * The arithmetic follows master/linalg.py and master/masters/dr.py operation by operation
+ * (sums from 0.0, left to right; compiled with -ffp-contract=off), so the numbers are
+ * bit-identical to the Python reference.
+ *
+ * Threads: subsystem i is evaluated by thread thread_of[i] (0 = the caller). Every thread writes
+ * only its own subsystems' slices and the caller does the DR arithmetic alone, so any thread
+ * plan gives the same numbers as the serial one.
+ */
+#ifndef WAVECOSIM_DRKERNEL_H
+#define WAVECOSIM_DRKERNEL_H
+
+#include <stddef.h>
+#include "fmi2FunctionTypes.h"
+
+#define DR_MAX_THREADS 8
+
+/* Termination reasons (StepLog.reason in Python). */
+enum { DR_BUDGET = 0, DR_TOLERANCE = 1, DR_DEADLINE = 2, DR_EXPLICIT = 3 };
+
+/* FMU functions, as reported in DRStep.failed_function. */
+enum { DR_FN_NONE = 0, DR_FN_GET_STATE, DR_FN_SET_STATE, DR_FN_SET_REAL, DR_FN_DO_STEP, DR_FN_GET_REAL };
+
+/* The FMU functions the kernel calls, taken from the FMU's own shared library. */
+typedef struct {
+    fmi2GetFMUstateTYPE *getFMUstate;
+    fmi2SetFMUstateTYPE *setFMUstate;
+    fmi2FreeFMUstateTYPE *freeFMUstate;
+    fmi2SetRealTYPE *setReal;
+    fmi2DoStepTYPE *doStep;
+    fmi2GetRealTYPE *getReal;
+} DRFunctions;
+
+/* One macro-step: the caller fills the inputs, the kernel the results. */
+typedef struct {
+    double t, dt;        /* in: t_n and the macro-step size */
+    int K;               /* in: inner-iteration budget */
+    double eps;          /* in: tolerance of lines 14-16; < 0 = off */
+    double deadline_s;   /* in: wall-clock budget of the inner loop; <= 0 = none */
+    int measure;         /* in: time every evaluation (per-subsystem cost, see dr_costs) */
+    int iterations;      /* out: inner iterations done */
+    int reason;          /* out: DR_BUDGET, DR_TOLERANCE, DR_DEADLINE or DR_EXPLICIT (K = 0) */
+    double residual;     /* out: |u^k - u^{k-1}| of the last iteration (NaN if none) */
+    int failed_subsystem; /* out: -1, or the first subsystem whose FMU call failed */
+    int failed_function; /* out: DR_FN_* of that call */
+    int failed_status;   /* out: the fmi2Status it returned */
+} DRStep;
+
+typedef struct DRKernel DRKernel;
+
+/* A kernel for n_sub subsystems with n channels in all. P and J_L (n x n, row-major) are copied.
+ * b (b^n, updated to b^{n+1} by each macro-step), a_hat, u0 and uK (length n) stay the caller's. */
+DRKernel *dr_create(int n_sub, int n, const double *P, const double *J_L, double *b, double *a_hat,
+                    double *u0, double *uK);
+
+/* Subsystem i: its functions, instance, value references of the wave inputs and outputs (m each)
+ * and the offset of its first channel in the stacked vectors. Returns 0, or -1 on bad arguments. */
+int dr_set_subsystem(DRKernel *k, int i, const DRFunctions *fn, fmi2Component comp,
+                     const fmi2ValueReference *in_vr, const fmi2ValueReference *out_vr, int m, int offset);
+
+/* New P and J_L (n x n, row-major, copied), e.g. after gamma was re-tuned between macro-steps. */
+void dr_set_maps(DRKernel *k, const double *P, const double *J_L);
+
+/* Record the inner loop's queries: trace[2 n k .. 2 n k + n) = u^k and the next n values S(u^k),
+ * for k < capacity; trace = NULL stops recording. The buffer stays the caller's. */
+void dr_set_trace(DRKernel *k, double *trace, int capacity);
+
+/* Evaluate subsystem i on thread thread_of[i] of n_threads (0 = the caller); starts or stops the
+ * persistent worker threads as needed. Returns 0, or -1 if a thread cannot be started (the kernel
+ * then stays serial). */
+int dr_set_threads(DRKernel *k, int n_threads, const int *thread_of);
+
+/* Algorithm 1, lines 3-22, for one macro-step. Returns 0, or -1 when an FMU call failed
+ * (see io->failed_*); the instances are then left where the failure happened. */
+int dr_macro_step(DRKernel *k, DRStep *io);
+
+/* The floor: n_steps macro-steps making the same FMU calls as dr_macro_step with K = io->K
+ * (serial), with no DR arithmetic; t = io->t + s dt at step s. The inputs of step s are
+ * inputs[((K + 1) s + k) n ..] for query k < K and the commit k = K (e.g. u^k and a recorded from
+ * a run, which then replays that run's FMU work exactly); inputs = NULL feeds every subsystem its
+ * own last outgoing wave. Returns like dr_macro_step. */
+int dr_floor(DRKernel *k, DRStep *io, const double *inputs, int n_steps);
+
+/* Mean wall time (microseconds) of one evaluation of each subsystem over the macro-steps run
+ * with io->measure set, then resets the measurement. */
+void dr_costs(DRKernel *k, double *us_per_eval);
+
+/* Calls made so far per subsystem: counts[3 i + 0..2] = doStep, getFMUstate, setFMUstate. */
+void dr_counts(const DRKernel *k, long *counts);
+
+/* Stops the workers, frees the saved FMU states (before the instances are freed) and the kernel. */
+void dr_destroy(DRKernel *k);
+
+#endif

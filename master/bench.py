@@ -1,0 +1,250 @@
+"""`wavecosim bench`: what an inner iteration costs, four ways side by side in one run.
+
+On the paper's Table I scene (configs/two_oscillators.yaml), for K = 0, 8, 50, it times N
+macro-steps (master time only: no recording, no certificates) of
+  naive_fmpy  Algorithm 1 written as a user would, with fmpy's FMU2Slave methods
+              (getFMUstate/setFMUstate/setReal/doStep/getReal) and numpy;
+  python      the readable reference DRMaster (master/masters/dr.py);
+  fast        FastDRMaster on the C kernel (master/fast_path.py, fmus/kernel/drkernel.c);
+  floor       the C driver dr_floor replaying the fast run's FMU inputs: the same FMU calls with
+              the same numbers, and no master logic at all.
+Every run starts from a freshly instantiated scene; each figure is the best of a few repeats,
+taken in turn so that load on the machine hits all paths alike.
+
+The cost of one inner iteration (both subsystems queried once, plus the DR update) is the
+marginal cost (t(K=50) - t(K=0)) / 50 per macro-step, so the per-step freeze and commit do not
+dilute it. Also measured: the master time of the full Table I sweep (K = 0..50, 1000 steps each,
+through the runner, certificates and FNE watch off), and the parallel speedup of the fast path on
+the heavy scene (configs/heavy_chain.yaml): master time with threads = 1 over threads = 2.
+"""
+import dataclasses
+import os
+import time
+
+import numpy as np
+
+from .config import ROOT, load_scenario
+from .fast_path import Kernel, available_cpus
+from .masters.dr import DRMaster
+from .masters.dr_fast import FastDRMaster
+from .runner import run
+from .scene import build_scene
+
+TABLE_I = ROOT / "configs" / "two_oscillators.yaml"
+HEAVY = ROOT / "configs" / "heavy_chain.yaml"
+KS = (0, 8, 50)
+PATHS = ("naive_fmpy", "python", "fast", "floor")
+TARGETS = {"fast_over_floor_max": 1.5, "naive_over_fast_min": 10.0, "sweep_master_s_max": 1.0,
+           "parallel_speedup_min": 1.6}
+
+
+def naive_fmpy(scene, K, n_steps):
+    """Algorithm 1 the way a user writes it with fmpy and numpy; returns seconds for n_steps."""
+    fmus = [s.fmu._slave for s in scene.subsystems]            # fmpy FMU2Slave objects
+    a_vrs = [[s.fmu.vr(v) for v in s.port.wave_in] for s in scene.subsystems]
+    b_vrs = [[s.fmu.vr(v) for v in s.port.wave_out] for s in scene.subsystems]
+    parts = [slice(off, off + s.m) for s, off in zip(scene.subsystems, scene.offsets)]
+    coupling = scene.wave_map()
+    P, J_L = coupling.P, coupling.J_L
+    dt = scene.scenario.dt
+    b = np.zeros(scene.n_channels)
+    started = time.perf_counter()
+    for step in range(n_steps):
+        t = step * dt
+        states = [fmu.getFMUstate() for fmu in fmus]
+        u = P @ b
+        b_star = b
+        for k in range(K):
+            b_hat = np.zeros_like(u)
+            for fmu, state, a_vr, b_vr, part in zip(fmus, states, a_vrs, b_vrs, parts):
+                fmu.setFMUstate(state)
+                fmu.setReal(a_vr, u[part])
+                fmu.doStep(t, dt)
+                b_hat[part] = fmu.getReal(b_vr)
+            w = J_L @ (2 * b_hat - u)
+            u_next = u + w - b_hat
+            residual = np.linalg.norm(u_next - u)  # noqa: F841  (a user would look at it)
+            u, b_star = u_next, b_hat
+        a = P @ b_star
+        b = np.zeros_like(u)
+        for fmu, state, a_vr, b_vr, part in zip(fmus, states, a_vrs, b_vrs, parts):
+            fmu.setFMUstate(state)
+            fmu.setReal(a_vr, a[part])
+            fmu.doStep(t, dt)
+            b[part] = fmu.getReal(b_vr)
+        for fmu, state in zip(fmus, states):
+            fmu.freeFMUstate(state)
+    return time.perf_counter() - started
+
+
+def _settings(scenario, K, **changes):
+    return dataclasses.replace(scenario.master, K=K, eps=None, deadline_us=None, **changes)
+
+
+def master_seconds(master, n_steps, dt):
+    started = time.perf_counter()
+    for n in range(n_steps):
+        master.step(n, n * dt)
+    return time.perf_counter() - started
+
+
+def timed(scenario, path, K, n_steps, inputs=None):
+    """Seconds for n_steps macro-steps of one path from a fresh scene (FMUs instantiated anew)."""
+    scene = build_scene(scenario)
+    master = None
+    try:
+        if path == "naive_fmpy":
+            return naive_fmpy(scene, K, n_steps)
+        if path == "python":
+            master = DRMaster(scene, _settings(scenario, K))
+            return master_seconds(master, n_steps, scenario.dt)
+        if path == "fast":
+            master = FastDRMaster(scene, _settings(scenario, K, fast="true", threads="1"))
+            return master_seconds(master, n_steps, scenario.dt)
+        coupling = scene.wave_map()
+        kernel = Kernel(scene, coupling.P.tolist(), coupling.J_L.tolist())
+        kernel.configure(scenario.dt, K)
+        try:
+            return kernel.floor(n_steps, K, inputs)
+        finally:
+            kernel.close()
+    finally:
+        if master is not None:
+            master.close()
+        scene.close()
+
+
+def recorded_inputs(scenario, K, n_steps):
+    """The FMU inputs of a fast run (u^k of each query, then the committed a), flat, and its b^N."""
+    scene = build_scene(scenario)
+    master = FastDRMaster(scene, _settings(scenario, K, fast="true", threads="1"))
+    master.trace = []
+    inputs = []
+    try:
+        for n in range(n_steps):
+            log = master.step(n, n * scenario.dt)
+            for u, _ in master.trace:
+                inputs.extend(u)
+            inputs.extend(log.a_hat)
+        return inputs, list(master.b)
+    finally:
+        master.close()
+        scene.close()
+
+
+def python_final_b(scenario, K, n_steps):
+    scene = build_scene(scenario)
+    master = DRMaster(scene, _settings(scenario, K))
+    try:
+        for n in range(n_steps):
+            master.step(n, n * scenario.dt)
+        return list(master.b)
+    finally:
+        scene.close()
+
+
+def table_i(scenario, n_steps, repeats, progress=print):
+    """µs per macro-step of every path at every K (best of `repeats`), and a bit-identity check."""
+    best = {p: {K: float("inf") for K in KS} for p in PATHS}
+    inputs, identical = {}, True
+    for K in KS:
+        inputs[K], b_fast = recorded_inputs(scenario, K, n_steps)
+        identical &= b_fast == python_final_b(scenario, K, n_steps)
+    for r in range(repeats):
+        progress(f"  Table I scene: repeat {r + 1}/{repeats}")
+        for K in KS:
+            for path in PATHS:
+                seconds = timed(scenario, path, K, n_steps, inputs[K] if path == "floor" else None)
+                best[path][K] = min(best[path][K], 1e6 * seconds / n_steps)
+    return best, identical
+
+
+def sweep_master_time(scenario, Ks=range(51)):
+    """Master seconds of the Table I sweep through the runner (certificates and FNE watch off)."""
+    scenario = dataclasses.replace(scenario, fne_watch=False) if hasattr(scenario, "fne_watch") else scenario
+    total = 0.0
+    for K in Ks:
+        result = run(scenario.with_master(algorithm="dr", K=K, fast="auto"), certificates=False)
+        total += result.summary["wall_time_s"]
+    return total
+
+
+def parallel(scenario, n_steps, repeats, progress=print):
+    """Fast-path master seconds with threads = 1 and 2 on the heavy scene, and what auto picks."""
+    best = {"1": float("inf"), "2": float("inf")}
+    for r in range(repeats):
+        progress(f"  heavy scene: repeat {r + 1}/{repeats}")
+        for threads in best:
+            scene = build_scene(scenario)
+            master = FastDRMaster(scene, _settings(scenario, scenario.master.K, fast="true", threads=threads))
+            try:
+                best[threads] = min(best[threads], master_seconds(master, n_steps, scenario.dt))
+            finally:
+                master.close()
+                scene.close()
+    scene = build_scene(scenario)
+    master = FastDRMaster(scene, _settings(scenario, scenario.master.K, fast="true", threads="auto"))
+    try:
+        master.step(0, 0.0)
+        auto = master.thread_note
+        costs = master.costs_us
+    finally:
+        master.close()
+        scene.close()
+    return {"scene": scenario.name, "K": scenario.master.K, "steps": n_steps, "serial_s": best["1"],
+            "parallel_s": best["2"], "speedup": best["1"] / best["2"], "auto": auto, "us_per_eval": costs,
+            "cpus": available_cpus(), "load_average_1min": os.getloadavg()[0]}
+
+
+def run_bench(quick=False, progress=print):
+    """All measurements; returns the JSON-ready result."""
+    n_steps, repeats = (200, 2) if quick else (1000, 3)
+    heavy_steps, heavy_repeats = (30, 2) if quick else (100, 3)
+    scenario = load_scenario(TABLE_I)
+    per_step, identical = table_i(scenario, n_steps, repeats, progress)
+    per_iter = {p: (per_step[p][50] - per_step[p][0]) / 50 for p in PATHS}
+    progress("  Table I sweep K = 0..50 through the runner")
+    sweep_s = sweep_master_time(scenario)
+    par = parallel(load_scenario(HEAVY), heavy_steps, heavy_repeats, progress)
+    ratios = {"fast_over_floor": per_iter["fast"] / per_iter["floor"],
+              "naive_over_fast": per_iter["naive_fmpy"] / per_iter["fast"],
+              "python_over_fast": per_iter["python"] / per_iter["fast"]}
+    return {
+        "scene": scenario.name, "steps": n_steps, "repeats": repeats, "quick": quick,
+        "us_per_step": {p: {str(K): v for K, v in per_step[p].items()} for p in PATHS},
+        "us_per_iter": per_iter,
+        "us_per_iter_definition": "(t_step(K=50) - t_step(K=0)) / 50, both subsystems, best of repeats",
+        "ratios": ratios,
+        "fast_bit_identical_to_python": identical,
+        "sweep": {"Ks": "0..50", "steps_per_run": scenario.n_steps, "master_time_s": sweep_s},
+        "parallel": par,
+        "parallel_speedup": par["speedup"],
+        "targets": {
+            "fast_over_floor <= 1.5": ratios["fast_over_floor"] <= TARGETS["fast_over_floor_max"],
+            "naive_over_fast >= 10": ratios["naive_over_fast"] >= TARGETS["naive_over_fast_min"],
+            "sweep master time < 1 s": sweep_s < TARGETS["sweep_master_s_max"],
+            "parallel speedup >= 1.6": par["speedup"] >= TARGETS["parallel_speedup_min"],
+        },
+    }
+
+
+def report(result):
+    """The printed table."""
+    lines = [f"{result['scene']}: {result['steps']} macro-steps per run, best of {result['repeats']}",
+             f"{'path':<12}" + "".join(f"{'µs/step K=' + str(K):>15}" for K in KS) + f"{'µs/iteration':>15}"]
+    for p in PATHS:
+        lines.append(f"{p:<12}" + "".join(f"{result['us_per_step'][p][str(K)]:>15.2f}" for K in KS)
+                     + f"{result['us_per_iter'][p]:>15.3f}")
+    r = result["ratios"]
+    lines.append(f"fast / floor = {r['fast_over_floor']:.2f}   naive_fmpy / fast = {r['naive_over_fast']:.1f}   "
+                 f"python / fast = {r['python_over_fast']:.1f}   (per inner iteration)")
+    lines.append(f"fast path bit-identical to the Python reference: {result['fast_bit_identical_to_python']}")
+    s = result["sweep"]
+    lines.append(f"Table I sweep K = {s['Ks']} x {s['steps_per_run']} steps: master time {s['master_time_s']:.3f} s")
+    p = result["parallel"]
+    lines.append(f"{p['scene']} (K = {p['K']}, {p['steps']} steps, {p['cpus']} CPUs, load average "
+                 f"{p['load_average_1min']:.2f}): threads=1 {p['serial_s']:.3f} s, threads=2 {p['parallel_s']:.3f} s, "
+                 f"speedup {p['speedup']:.2f}x")
+    lines.append(f"  threads: auto -> {p['auto']}")
+    lines.append("targets: " + ", ".join(f"{k}: {'met' if v else 'MISSED'}" for k, v in result["targets"].items()))
+    return lines

@@ -1,0 +1,247 @@
+"""The fast path of the DR master: Algorithm 1 for a whole macro-step in one call into C.
+
+The C kernel (fmus/kernel/drkernel.c, built with the FMUs into build/lib/libdrkernel.so) calls
+each FMU through its own fmi2 function pointers with preallocated buffers, and does the DR
+arithmetic in the operation order of master/linalg.py, so its numbers are bit-identical to the
+readable reference `DRMaster` (master/masters/dr.py). This module wires the kernel up through
+ctypes: `Kernel` owns one C kernel for a scene's subsystems and the buffers it shares with
+Python. The master that uses it is master/masters/dr_fast.py::FastDRMaster.
+"""
+import ctypes
+import os
+import time
+
+import numpy as np
+
+from .config import ROOT
+from .errors import FmuError
+
+LIBRARY = ROOT / "build" / "lib" / "libdrkernel.so"
+PARALLEL_MIN_US = 150.0
+REASONS = ("budget", "tolerance", "deadline", "explicit")
+FUNCTIONS = (None, "fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2SetReal", "fmi2DoStep", "fmi2GetReal")
+_FMI_NAMES = ("fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate", "fmi2SetReal", "fmi2DoStep",
+              "fmi2GetReal")
+
+
+class Trace:
+    """The queries (u^k, S(u^k)) of one macro-step's inner loop, read like the reference's list of
+    pairs; a pair is unpacked into lists only when it is read (most steps nobody reads them)."""
+
+    def __init__(self, pairs):
+        self._pairs, self._more = pairs, []
+
+    def __len__(self):
+        return len(self._pairs) + len(self._more)
+
+    def __getitem__(self, k):
+        if isinstance(k, slice):
+            return [self[i] for i in range(*k.indices(len(self)))]
+        k = k + len(self) if k < 0 else k
+        if not 0 <= k < len(self):
+            raise IndexError("trace index out of range")
+        if k >= len(self._pairs):
+            return self._more[k - len(self._pairs)]
+        u, b = self._pairs[k].tolist()
+        return u, b
+
+    def __iter__(self):
+        return (self[k] for k in range(len(self)))
+
+    def append(self, pair):
+        """Queries made through DRMaster.S after the step (certificates) are kept like the reference."""
+        self._more.append(pair)
+
+
+class DRFunctions(ctypes.Structure):
+    """drkernel.h: the FMU functions the kernel calls."""
+    _fields_ = [(name, ctypes.c_void_p) for name in
+                ("getFMUstate", "setFMUstate", "freeFMUstate", "setReal", "doStep", "getReal")]
+
+
+class DRStep(ctypes.Structure):
+    """drkernel.h: inputs and results of one macro-step."""
+    _fields_ = [("t", ctypes.c_double), ("dt", ctypes.c_double), ("K", ctypes.c_int), ("eps", ctypes.c_double),
+                ("deadline_s", ctypes.c_double), ("measure", ctypes.c_int), ("iterations", ctypes.c_int),
+                ("reason", ctypes.c_int), ("residual", ctypes.c_double), ("failed_subsystem", ctypes.c_int),
+                ("failed_function", ctypes.c_int), ("failed_status", ctypes.c_int)]
+
+
+_lib = None
+
+
+def load_library():
+    """The kernel library, built (with the FMUs) if missing or stale; raises FmuError if it cannot be."""
+    global _lib
+    if _lib is None:
+        from .scene import builtin_fmus
+        builtin_fmus()                       # fmus/build.py also compiles fmus/kernel/*.c
+        if not LIBRARY.exists():
+            raise FmuError(f"the kernel library {LIBRARY} was not built")
+        lib = ctypes.CDLL(str(LIBRARY))
+        p, i, d = ctypes.c_void_p, ctypes.c_int, ctypes.POINTER(ctypes.c_double)
+        lib.dr_create.restype = p
+        lib.dr_create.argtypes = [i, i, d, d, d, d, d, d]
+        lib.dr_set_subsystem.argtypes = [p, i, ctypes.POINTER(DRFunctions), p, ctypes.POINTER(ctypes.c_uint),
+                                         ctypes.POINTER(ctypes.c_uint), i, i]
+        lib.dr_set_threads.argtypes = [p, i, ctypes.POINTER(ctypes.c_int)]
+        lib.dr_costs.argtypes = [p, d]
+        lib.dr_costs.restype = None
+        lib.dr_counts.argtypes = [p, ctypes.POINTER(ctypes.c_long)]
+        lib.dr_counts.restype = None
+        lib.dr_destroy.argtypes = [p]
+        lib.dr_destroy.restype = None
+        lib.dr_floor.argtypes = [p, ctypes.POINTER(DRStep), d, i]
+        lib.dr_set_maps.argtypes = [p, d, d]
+        lib.dr_set_maps.restype = None
+        lib.dr_set_trace.argtypes = [p, d, i]
+        lib.dr_set_trace.restype = None
+        _lib = lib
+    return _lib
+
+
+def unusable(scene):
+    """Why the kernel cannot run this scene, or None if it can."""
+    for s in scene.subsystems:
+        if not s.fmu.can_save_state:
+            return f"subsystem {s.name} cannot get and set its FMU state"
+        for name in _FMI_NAMES:
+            try:
+                s.fmu.function_pointer(name)
+            except AttributeError:
+                return f"subsystem {s.name}: the FMU does not export {name}"
+    try:
+        load_library()
+    except FmuError as exc:
+        return str(exc)
+    return None
+
+
+def available_cpus():
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:
+        return os.cpu_count() or 1
+
+
+def thread_plan(costs_us, n_threads):
+    """Subsystem -> thread (0 = the caller): longest evaluation first onto the least loaded thread."""
+    load, plan = [0.0] * n_threads, [0] * len(costs_us)
+    for i in sorted(range(len(costs_us)), key=lambda i: -costs_us[i]):
+        k = min(range(n_threads), key=lambda k: (load[k], k))
+        plan[i] = k
+        load[k] += costs_us[i]
+    return plan, load
+
+
+class Kernel:
+    """One C kernel over a scene's subsystems (wave mode), with its buffers b, a_hat, u^0, u^K."""
+
+    def __init__(self, scene, P, J_L):
+        lib = self.lib = load_library()
+        n = scene.n_channels
+        self.subsystems = scene.subsystems
+        array = ctypes.c_double * n
+        self.n = n
+        self.b, self.a_hat, self.u0, self.uK = array(), array(), array(), array()
+        self.handle = lib.dr_create(len(self.subsystems), n, self._flat(P), self._flat(J_L), self.b, self.a_hat,
+                                    self.u0, self.uK)
+        if not self.handle:
+            raise FmuError("the DR kernel could not be created (out of memory)")
+        self._handle = ctypes.c_void_p(self.handle)
+        self._keep = []
+        for i, (s, off) in enumerate(zip(self.subsystems, scene.offsets)):
+            fns = DRFunctions(*[s.fmu.function_pointer(name) for name in _FMI_NAMES])
+            vr_in = (ctypes.c_uint * s.m)(*[s.fmu.vr(v) for v in s.port.wave_in])
+            vr_out = (ctypes.c_uint * s.m)(*[s.fmu.vr(v) for v in s.port.wave_out])
+            if lib.dr_set_subsystem(self.handle, i, ctypes.byref(fns), s.fmu.component, vr_in, vr_out, s.m, int(off)):
+                self.close()
+                raise FmuError(f"subsystem {s.name}: the DR kernel refused its port")
+        self.io = DRStep(measure=0, eps=-1.0, deadline_s=0.0)
+        self._io = ctypes.byref(self.io)
+        self._macro_step = lib.dr_macro_step       # called with pre-converted arguments
+        self.threads = 1
+        self.trace, self.trace_capacity = None, 0
+
+    def _flat(self, M):
+        return (ctypes.c_double * (self.n * self.n))(*[float(x) for row in M for x in row])
+
+    def set_maps(self, P, J_L):
+        self.lib.dr_set_maps(self.handle, self._flat(P), self._flat(J_L))
+
+    def record(self, capacity):
+        """Record up to `capacity` inner-loop queries (u^k, S(u^k)) per macro-step (0 = stop)."""
+        if capacity > self.trace_capacity:
+            self.trace = (ctypes.c_double * (2 * self.n * capacity))()
+        self.trace_capacity = max(capacity, 0)
+        self.lib.dr_set_trace(self.handle, self.trace, self.trace_capacity)
+
+    def recorded(self, iterations):
+        """[(u^k, S(u^k))] of the last macro-step, as the reference DRMaster.S records them."""
+        count = min(iterations, self.trace_capacity)
+        return Trace(np.frombuffer(self.trace, count=2 * self.n * count).reshape(count, 2, self.n).copy())
+
+    def configure(self, dt, K, eps=None, deadline_s=None):
+        self.io.dt, self.io.K = dt, K
+        self.io.eps = -1.0 if eps is None else eps
+        self.io.deadline_s = deadline_s or 0.0
+
+    def macro_step(self, n, t, measure=False):
+        """Algorithm 1, lines 3-22, in C; raises the FmuError the reference path would raise."""
+        io = self.io
+        io.t, io.measure = t, measure
+        if self._macro_step(self._handle, self._io):
+            raise self.failure(n, t)
+        return io
+
+    def floor(self, n_steps, K, inputs=None, t0=0.0):
+        """The FMU calls of n_steps macro-steps with budget K and no DR logic (the floor); returns
+        the seconds spent in the C driver.
+
+        inputs: None, or per step K + 1 stacked input vectors (the u^k of the queries, then the
+        a of the commit), flat, as recorded from a run; replaying them repeats its FMU work."""
+        buf = None
+        if inputs is not None:
+            if len(inputs) != n_steps * (K + 1) * self.n:
+                raise ValueError(f"floor: need {n_steps * (K + 1) * self.n} inputs, got {len(inputs)}")
+            buf = (ctypes.c_double * len(inputs))(*inputs)
+        io = self.io
+        K_run, io.t, io.K = io.K, t0, K
+        try:
+            started = time.perf_counter()
+            failed = self.lib.dr_floor(self._handle, self._io, buf, n_steps)
+            elapsed = time.perf_counter() - started
+        finally:
+            io.K = K_run
+        if failed:
+            raise self.failure(None, None)
+        return elapsed
+
+    def failure(self, n, t):
+        io = self.io
+        sub = self.subsystems[io.failed_subsystem]
+        return sub.fmu.status_error(FUNCTIONS[io.failed_function], io.failed_status, n, t)
+
+    def costs(self):
+        """Mean µs per evaluation of each subsystem since the last call (steps run with measure)."""
+        out = (ctypes.c_double * len(self.subsystems))()
+        self.lib.dr_costs(self.handle, out)
+        return list(out)
+
+    def counts(self):
+        """[(doStep, save, restore)] made by the kernel per subsystem."""
+        out = (ctypes.c_long * (3 * len(self.subsystems)))()
+        self.lib.dr_counts(self.handle, out)
+        return [tuple(out[3 * i:3 * i + 3]) for i in range(len(self.subsystems))]
+
+    def set_threads(self, plan):
+        """Evaluate subsystem i on thread plan[i] (0 = the caller); False if threads cannot start."""
+        n_threads = max(plan) + 1
+        ok = self.lib.dr_set_threads(self.handle, n_threads, (ctypes.c_int * len(plan))(*plan)) == 0
+        self.threads = n_threads if ok else 1
+        return ok
+
+    def close(self):
+        if self.handle:
+            self.lib.dr_destroy(self.handle)
+            self.handle = None

@@ -1,0 +1,111 @@
+"""`master.algorithm: dr`: the reference DRMaster with the macro-step run by the C kernel.
+
+With `master.fast: auto` (the default) the kernel (master/fast_path.py) runs Algorithm 1 when its
+library is built and every FMU can get and set its state; with `fast: false`, or when the kernel
+cannot be used, `step` is the Python reference unchanged. Both give the same numbers to the last
+bit, and the same FMU call counts.
+
+Threads (`master.threads`): the first macro-step runs serially and times one evaluation of each
+subsystem; then `1` stays serial, `2` evaluates the subsystems on two threads, and `auto` does so
+only when the work a second thread would take over costs at least PARALLEL_MIN_US per evaluation
+(below that, hand-offs and a busy second core cost more than they save). Each thread writes only
+its own subsystems' outputs and the caller does all the arithmetic, so the thread plan never
+changes a number.
+"""
+from ..errors import ConfigError
+from ..fast_path import PARALLEL_MIN_US, REASONS, Kernel, available_cpus, thread_plan, unusable
+from .base import StepLog
+from .dr import DRMaster
+
+
+class FastDRMaster(DRMaster):
+    """`master.algorithm: dr`. Algorithm 1 runs in the C kernel when `fast` allows it, otherwise in
+    the reference DRMaster.step; the result is the same to the last bit either way.
+
+    `fast` (bool) says which path runs and `fast_note` why; `threads` and `thread_note` tell the
+    thread plan once it is chosen (after the first macro-step)."""
+
+    def __init__(self, scene, settings, gamma=None):
+        super().__init__(scene, settings, gamma)
+        self.kernel, self.fast, self.threads = None, False, 1
+        self.thread_note = "serial"
+        mode = str(settings.fast).lower()
+        if mode == "false":
+            self.fast_note = "master.fast is false"
+            return
+        why = unusable(scene)
+        if why is not None:
+            if mode == "true":
+                raise ConfigError(f"{scene.scenario.source}: master.fast: true, but {why}")
+            self.fast_note = why
+            return
+        self.kernel = Kernel(scene, self.P, self.J_L)
+        self.kernel.configure(self.dt, self.K, self.eps, self.deadline_s)
+        self.fast, self.fast_note = True, "C kernel"
+        self._maps, self._b = (self.P, self.J_L), self.b
+        self.thread_mode = str(settings.threads)
+        self._choose_after = 0 if self.thread_mode != "1" and len(self.subsystems) > 1 else -1
+
+    def step(self, n, t) -> StepLog:
+        if self.kernel is None:
+            return super().step(n, t)
+        kernel = self.kernel
+        if self.P is not self._maps[0] or self.J_L is not self._maps[1] or self.b is not self._b:
+            # set_gamma (or other code) replaced P, J_L or b^n between macro-steps
+            self._sync()
+        tracing = getattr(self, "trace", None) is not None              # fne_watch: keep the (u, S(u)) pairs
+        if tracing != (kernel.trace_capacity > 0):
+            kernel.record(max(self.K, 1) if tracing else 0)
+        measure = n == self._choose_after
+        io = kernel.macro_step(n, t, measure)
+        k = io.iterations
+        for s in self.subsystems:        # the calls Subsystem.freeze/query/advance would have counted
+            calls = s.calls
+            calls["save"] += 1
+            calls["doStep"] += k + 1
+            calls["restore"] += k
+            s.step_index, s.t = n, t
+        self.b = self._b = kernel.b[:]
+        if tracing:
+            self.trace = kernel.recorded(k)
+        if measure:
+            self.choose_threads(kernel.costs())
+        return StepLog(iterations=k, residual=io.residual, reason=REASONS[io.reason], a_hat=kernel.a_hat[:],
+                       u0=kernel.u0[:], uK=kernel.uK[:])
+
+    def _sync(self):
+        if self.P is not self._maps[0] or self.J_L is not self._maps[1]:
+            self.kernel.set_maps(self.P, self.J_L)
+        self.kernel.b[:] = [float(x) for x in self.b]
+        self._maps, self._b = (self.P, self.J_L), self.b
+
+    def choose_threads(self, costs_us):
+        """Pick the thread plan from the measured µs per evaluation of each subsystem."""
+        self.costs_us = costs_us
+        plan, load = thread_plan(costs_us, 2)
+        if self.thread_mode == "auto":
+            cpus = available_cpus()
+            if cpus < 2:
+                self.thread_note = f"serial: {cpus} CPU available"
+                return
+            if min(load) < PARALLEL_MIN_US:
+                self.thread_note = (f"serial: a second thread would take over {min(load):.3g} µs per inner "
+                                    f"iteration (< {PARALLEL_MIN_US:g} µs)")
+                return
+        if self.kernel.set_threads(plan):
+            self.threads = 2
+            costs = ", ".join(f"{c:.3g}" for c in costs_us)
+            self.thread_note = f"2 threads: subsystems on threads {plan} (µs per evaluation: {costs})"
+        else:
+            self.thread_note = "serial: the worker thread could not be started"
+
+    def run_info(self):
+        """For the run summary: which path and thread plan ran."""
+        return {"fast_path": self.fast, "fast_note": self.fast_note, "threads": self.threads,
+                "thread_note": self.thread_note}
+
+    def close(self):
+        if self.kernel is not None:
+            self.kernel.close()
+            self.kernel = None
+        super().close()

@@ -1,0 +1,259 @@
+"""PNG figures of a run, a K-sweep (the paper's Figs. 4-6) and a comparison of masters (Agg backend).
+
+Every function takes finished (or partial) RunResults, writes into `out` and returns the paths.
+Log axes cannot show zero or negative values: such points are drawn at FLOOR and the axis says so.
+"""
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.ticker import NullFormatter  # noqa: E402
+
+FLOOR = 1e-17
+DPI = 130
+MASTER_STYLE = {"explicit": ("tab:red", "v"), "gauss-seidel": ("tab:orange", "^"),
+                "jacobi-iter": ("tab:purple", "s"), "gauss-seidel-iter": ("tab:brown", "D"),
+                "newton": ("black", "*"), "dr": ("tab:blue", "o")}
+
+
+def _save(fig, path):
+    fig.savefig(path, dpi=DPI, bbox_inches="tight")
+    plt.close(fig)
+    return path
+
+
+def _finite(x, y):
+    x, y = np.asarray(x, float)[:len(y)], np.asarray(y, float)
+    keep = np.isfinite(y)
+    return x[keep], y[keep]
+
+
+def _floored(values):
+    """Values for a log axis: <= 0 (and anything below FLOOR) at FLOOR; nan stays missing."""
+    v = np.asarray(values, float)
+    return np.where(np.isnan(v) | (v > FLOOR), v, FLOOR)
+
+
+def _unit(result, col):
+    u = result.units.get(col, "")
+    return f"{col} ({u})" if u else col
+
+
+def _error_label(result):
+    cols = result.error_columns
+    units = {result.units.get(c, "") for c in cols}
+    unit = f" ({units.pop()})" if len(units) == 1 and "" not in units else ""
+    return "‖(" + ", ".join(f"Δ{c}" for c in cols) + f")‖₂{unit}"
+
+
+def _columns(result):
+    return result.error_columns or result.columns[:2]
+
+
+def _colors(n):
+    return plt.cm.viridis(np.linspace(0.0, 0.9, max(n, 1)))
+
+
+def _energy_t(result):
+    return result.t[:len(result.steps["H"])]
+
+
+def _k_label(result):
+    return f"K = {result.K}"
+
+
+# ---------------------------------------------------------------- one run
+
+def run_plots(result, reference, out):
+    """trajectories.png (error columns with the monolithic reference), energy.png, error.png."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    cols = _columns(result)
+    fig, axes = plt.subplots(len(cols), 1, figsize=(7, 2.4 * len(cols)), sharex=True, squeeze=False)
+    for ax, col in zip(axes[:, 0], cols):
+        ax.plot(*_finite(result.t, result.column(col)), label=f"{result.master}, K = {result.K}")
+        if reference is not None:
+            ax.plot(reference.t, reference.column(col), "k--", lw=1, label="monolithic")
+        ax.set_ylabel(_unit(result, col))
+        ax.grid(alpha=0.3)
+    axes[0, 0].legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    axes[0, 0].set_title(f"{result.summary.get('scenario', '')}: trajectories ({result.status})")
+    axes[-1, 0].set_xlabel("t (s)")
+    paths.append(_save(fig, out / "trajectories.png"))
+
+    fig, ax = plt.subplots(figsize=(7, 3.2))
+    ax.plot(*_finite(_energy_t(result), result.steps["H"]), label=f"{result.master}, K = {result.K}")
+    if reference is not None:
+        ax.plot(_energy_t(reference), reference.steps["H"], "k--", lw=1, label="monolithic")
+    ax.set(xlabel="t (s)", ylabel="stored energy H (J)", title="Total stored energy")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    paths.append(_save(fig, out / "energy.png"))
+
+    if "error" in result.steps:
+        fig, ax = plt.subplots(figsize=(7, 3.2))
+        ax.semilogy(result.t[:len(result.steps["error"])], _floored(result.steps["error"]))
+        ax.set(xlabel="t (s)", ylabel=_error_label(result), title="Error against the monolithic reference")
+        ax.grid(alpha=0.3, which="both")
+        paths.append(_save(fig, out / "error.png"))
+    return paths
+
+
+# ---------------------------------------------------------------- K sweep (paper Figs. 4-6)
+
+def sweep_plots(results, reference, out):
+    """fig4_trajectories.png, fig5_certificates.png, fig6_error.png and energy_by_K.png of a DR sweep."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    Ks = [r.K for r in results]
+    colors = _colors(len(results))
+    return [_fig4(results, reference, colors, out / "fig4_trajectories.png"),
+            _fig5(results, Ks, out / "fig5_certificates.png"),
+            _fig6(results, Ks, colors, out / "fig6_error.png"),
+            _energy_by_run(results, reference, colors, out / "energy_by_K.png")]
+
+
+def _fig4(results, reference, colors, path):
+    cols = _columns(results[0])
+    fig, axes = plt.subplots(len(cols), 1, figsize=(7.5, 2.6 * len(cols)), sharex=True, squeeze=False)
+    for ax, col in zip(axes[:, 0], cols):
+        for r, c in zip(results, colors):
+            ax.plot(*_finite(r.t, r.column(col)), color=c, lw=1.1, label=_k_label(r))
+        ax.plot(reference.t, reference.column(col), "k--", lw=1.2, label="monolithic")
+        ax.set_ylabel(_unit(results[0], col))
+        ax.grid(alpha=0.3)
+    axes[0, 0].legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    axes[0, 0].set_title("Fig. 4: trajectories for each inner budget K and the monolithic reference")
+    axes[-1, 0].set_xlabel("t (s)")
+    return _save(fig, path)
+
+
+def _fig5(results, Ks, path):
+    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 3.8))
+    fne = [r.summary.get("min_fne_margin", np.nan) for r in results]
+    a.plot(Ks, fne, "o-", label="min sampled FNE margin (all subsystems, all steps)")
+    a.axhline(0.0, color="k", lw=0.8, ls="--", label="FNE threshold 0")
+    a.set(xlabel="inner budget K", ylabel="normalized FNE margin Δ/‖α−β‖²",
+          title="(a) Condition 1: FNE margins")
+    a.grid(alpha=0.3)
+    a.legend(fontsize=8)
+    top = 1e-6
+    for key, label, marker in (("max_passivity_pos", r"passivity: $\max_{n,i}\,(r_i^n)_+$, eq. (27)", "o"),
+                               ("max_augmented_pos", r"augmented storage: $\max_n\,(\cdot)_+$, eq. (31)", "s")):
+        vals = [r.summary.get(key, np.nan) for r in results]
+        b.semilogy(Ks, _floored(vals), marker + "-", label=label)
+        top = max([top] + [10 * v for v in vals if np.isfinite(v)])
+    b.set(xlabel="inner budget K", ylabel=f"largest positive part (J); ≤ 0 drawn at {FLOOR:g}",
+          title="(b) Condition 2 and Theorem 1", ylim=(FLOOR / 3, top))
+    b.grid(alpha=0.3, which="both")
+    b.legend(fontsize=8)
+    return _save(fig, path)
+
+
+def _fig6(results, Ks, colors, path):
+    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 3.8))
+    for r, c in zip(results, colors):
+        if "error" in r.steps:
+            a.semilogy(r.t[:len(r.steps["error"])], _floored(r.steps["error"]), color=c, lw=1, label=_k_label(r))
+    a.set(xlabel="t (s)", ylabel=_error_label(results[0]), title="(a) Error history")
+    a.grid(alpha=0.3, which="both")
+    a.legend(ncol=2, fontsize=8)
+    for key, label, marker in (("max_error", "max", "o"), ("rms_error", "time-RMS", "s"),
+                               ("final_error", "final", "^")):
+        b.semilogy(Ks, _floored([r.summary.get(key, np.nan) for r in results]), marker + "-", label=label)
+    b.set(xlabel="inner budget K", ylabel=_error_label(results[0]), title="(b) Error versus K")
+    b.grid(alpha=0.3, which="both")
+    b.legend(fontsize=8)
+    return _save(fig, path)
+
+
+def _energy_by_run(results, reference, colors, path):
+    fig, ax = plt.subplots(figsize=(7.5, 3.6))
+    for r, c in zip(results, colors):
+        ax.plot(*_finite(_energy_t(r), r.steps["H"]), color=c, lw=1.1, label=_k_label(r))
+    ax.plot(_energy_t(reference), reference.steps["H"], "k--", lw=1.2, label="monolithic")
+    ax.set(xlabel="t (s)", ylabel="stored energy H (J)", title="Total stored energy H(t)")
+    ax.grid(alpha=0.3)
+    ax.legend(ncol=2, fontsize=8)
+    return _save(fig, path)
+
+
+# ---------------------------------------------------------------- comparison of masters
+
+def compare_plots(rows, results, reference, out):
+    """pareto.png (error against wall time and FMU calls) and energy_by_master.png (H(t) per master)."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    scenario = reference.summary.get("scenario", "")
+    return [_pareto(rows, _error_label(reference), scenario, out / "pareto.png"),
+            _energy_per_master(rows, results, reference, scenario, out / "energy_by_master.png")]
+
+
+def _by_master(rows, results):
+    """{master: [(row, result), ...]} in the order of the rows."""
+    groups = {}
+    for row, res in zip(rows, results):
+        groups.setdefault(row["master"], []).append((row, res))
+    return groups
+
+
+def _pareto(rows, error_label, scenario, path):
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.4), sharey=True)
+    for name, members in _by_master(rows, rows).items():
+        color, marker = MASTER_STYLE.get(name, ("gray", "o"))
+        ok = [r for r, _ in members if r["diverged"] == "no" and np.isfinite(r["max_error"])]
+        bad = [str(r["K"]) for r, _ in members if r not in ok]
+        label = name if not bad else f"{name} (diverged{'' if bad == ['-'] else ' at K = ' + ', '.join(bad)})"
+        for ax, xkey in zip(axes, ("wall_time_s", "doStep")):
+            x = [float(r[xkey]) for r in ok]
+            y = _floored([r["max_error"] for r in ok])
+            ax.loglog(x, y, marker=marker, color=color, ls="-", label=label)
+            if len(ok) > 1 or ok and ok[0]["K"] != "-":
+                for xi, yi, r in zip(x, y, ok):
+                    ax.annotate(f"{r['K']}", (xi, yi), textcoords="offset points", xytext=(4, 3), fontsize=7,
+                                color=color)
+    axes[0].set(xlabel="master wall time (s), log", ylabel=f"max error {error_label}, log (0 drawn at {FLOOR:g})",
+                title="Error against wall time (numbers: budget K)")
+    axes[1].set(xlabel="FMU doStep calls, log", title="Error against FMU calls")
+    for ax in axes:
+        ax.grid(alpha=0.3, which="both")
+        ax.xaxis.set_minor_formatter(NullFormatter())
+    fig.suptitle(f"{scenario}: accuracy against cost, every master and budget")
+    axes[0].legend(fontsize=8)
+    return _save(fig, path)
+
+
+def _energy_per_master(rows, results, reference, scenario, path):
+    """H(t) of each master at its smallest and largest budget; a diverging run leaves the top of the axes."""
+    fig, axes = plt.subplots(1, 2, figsize=(12, 5.2), sharey=True)
+    H0 = reference.steps["H"][0]
+    lows, highs = [np.nanmin(reference.steps["H"])], [np.nanmax(reference.steps["H"])]
+    for ax, pick, title in ((axes[0], 0, "(a) smallest budget of each master"),
+                            (axes[1], -1, "(b) largest budget of each master")):
+        for name, members in _by_master(rows, results).items():
+            if name == "newton":                        # it is the monolithic reference, drawn dashed
+                continue
+            row, res = members[pick]
+            color, _ = MASTER_STYLE.get(name, ("gray", "o"))
+            t, H = _finite(_energy_t(res), res.steps["H"])
+            keep = H > 0
+            tag = name if row["K"] == "-" else f"{name}, K = {row['K']}"
+            if row["diverged"] == "yes":
+                tag += f" (diverged, max H/H(0) = {row['H_growth']:.1e})"
+            elif H[keep].size:
+                lows.append(H[keep].min())
+                highs.append(H[keep].max())
+            ax.semilogy(t[keep], H[keep], color=color, lw=1.2, label=tag)
+        ax.semilogy(_energy_t(reference), reference.steps["H"], "k--", lw=1.2, label="monolithic (newton)")
+        ax.set(xlabel="t (s)", title=title)
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2)
+    diverging = any(r["diverged"] == "yes" for r in rows)
+    axes[0].set_ylim(min(lows) / 2, H0 * 1e3 if diverging else max(highs) * 2)
+    axes[0].set_ylabel("stored energy H (J), log")
+    fig.suptitle(f"{scenario}: total stored energy H(t) per master (H(0) = {H0:.4g} J)")
+    return _save(fig, path)
