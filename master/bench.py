@@ -8,12 +8,13 @@ macro-steps (master time only: no recording, no certificates) of
   fast        FastDRMaster on the C kernel (master/fast_path.py, fmus/kernel/drkernel.c);
   floor       the C driver dr_floor replaying the fast run's FMU inputs: the same FMU calls with
               the same numbers, and no master logic at all.
-Every run starts from a freshly instantiated scene; each figure is the best of a few repeats,
-taken in turn so that load on the machine hits all paths alike.
+Every run starts from a freshly instantiated scene and times macro-steps 1 .. N-1 (step 0 warms
+up: first calls, cold caches); each figure is the best of a few repeats, taken in turn so that
+load on the machine hits all paths alike.
 
 The cost of one inner iteration (both subsystems queried once, plus the DR update) is the
-marginal cost (t(K=50) - t(K=0)) / 50 per macro-step, so the per-step freeze and commit do not
-dilute it. Also measured: the master time of the full Table I sweep (K = 0..50, 1000 steps each,
+marginal cost: the slope of the time per macro-step against K (least squares over K = 0, 8, 50),
+so the per-step freeze, commit and call overhead do not dilute it. Also measured: the master time of the full Table I sweep (K = 0..50, 1000 steps each,
 through the runner, certificates and FNE watch off), and the parallel speedup of the fast path on
 the heavy scene (configs/heavy_chain.yaml): master time with threads = 1 over threads = 2.
 """
@@ -39,7 +40,8 @@ TARGETS = {"fast_over_floor_max": 1.5, "naive_over_fast_min": 10.0, "sweep_maste
 
 
 def naive_fmpy(scene, K, n_steps):
-    """Algorithm 1 the way a user writes it with fmpy and numpy; returns seconds for n_steps."""
+    """Algorithm 1 the way a user writes it with fmpy and numpy; returns seconds for steps 1 ..
+    n_steps - 1."""
     fmus = [s.fmu._slave for s in scene.subsystems]            # fmpy FMU2Slave objects
     a_vrs = [[s.fmu.vr(v) for v in s.port.wave_in] for s in scene.subsystems]
     b_vrs = [[s.fmu.vr(v) for v in s.port.wave_out] for s in scene.subsystems]
@@ -50,6 +52,8 @@ def naive_fmpy(scene, K, n_steps):
     b = np.zeros(scene.n_channels)
     started = time.perf_counter()
     for step in range(n_steps):
+        if step == 1:
+            started = time.perf_counter()      # step 0 warms up, as for every path
         t = step * dt
         states = [fmu.getFMUstate() for fmu in fmus]
         u = P @ b
@@ -82,14 +86,17 @@ def _settings(scenario, K, **changes):
 
 
 def master_seconds(master, n_steps, dt):
+    """Seconds for macro-steps 1 .. n_steps - 1 (step 0 warms up: first calls, caches)."""
+    master.step(0, 0.0)
     started = time.perf_counter()
-    for n in range(n_steps):
+    for n in range(1, n_steps):
         master.step(n, n * dt)
     return time.perf_counter() - started
 
 
 def timed(scenario, path, K, n_steps, inputs=None):
-    """Seconds for n_steps macro-steps of one path from a fresh scene (FMUs instantiated anew)."""
+    """Seconds for macro-steps 1 .. n_steps - 1 of one path from a fresh scene (FMUs instantiated
+    anew); step 0 runs untimed."""
     scene = build_scene(scenario)
     master = None
     try:
@@ -104,8 +111,10 @@ def timed(scenario, path, K, n_steps, inputs=None):
         coupling = scene.wave_map()
         kernel = Kernel(scene, coupling.P.tolist(), coupling.J_L.tolist())
         kernel.configure(scenario.dt, K)
+        first = (K + 1) * scene.n_channels
         try:
-            return kernel.floor(n_steps, K, inputs)
+            kernel.floor(1, K, inputs[:first])
+            return kernel.floor(n_steps - 1, K, inputs[first:], t0=scenario.dt)
         finally:
             kernel.close()
     finally:
@@ -155,7 +164,7 @@ def table_i(scenario, n_steps, repeats, progress=print):
         for K in KS:
             for path in PATHS:
                 seconds = timed(scenario, path, K, n_steps, inputs[K] if path == "floor" else None)
-                best[path][K] = min(best[path][K], 1e6 * seconds / n_steps)
+                best[path][K] = min(best[path][K], 1e6 * seconds / (n_steps - 1))
     return best, identical
 
 
@@ -185,7 +194,8 @@ def parallel(scenario, n_steps, repeats, progress=print):
     scene = build_scene(scenario)
     master = FastDRMaster(scene, _settings(scenario, scenario.master.K, fast="true", threads="auto"))
     try:
-        master.step(0, 0.0)
+        for n in range(3):                   # step 0 times the subsystems, step 1 tries two threads
+            master.step(n, n * scenario.dt)
         auto = master.thread_note
         costs = master.costs_us
     finally:
@@ -196,13 +206,19 @@ def parallel(scenario, n_steps, repeats, progress=print):
             "cpus": available_cpus(), "load_average_1min": os.getloadavg()[0]}
 
 
+def slope(x, y):
+    """Least-squares slope of y against x: the marginal cost of one more inner iteration."""
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    return float(np.polyfit(x, y, 1)[0])
+
+
 def run_bench(quick=False, progress=print):
     """All measurements; returns the JSON-ready result."""
     n_steps, repeats = (200, 2) if quick else (1000, 3)
     heavy_steps, heavy_repeats = (30, 2) if quick else (100, 3)
     scenario = load_scenario(TABLE_I)
     per_step, identical = table_i(scenario, n_steps, repeats, progress)
-    per_iter = {p: (per_step[p][50] - per_step[p][0]) / 50 for p in PATHS}
+    per_iter = {p: slope(KS, [per_step[p][K] for K in KS]) for p in PATHS}
     progress("  Table I sweep K = 0..50 through the runner")
     sweep_s = sweep_master_time(scenario)
     par = parallel(load_scenario(HEAVY), heavy_steps, heavy_repeats, progress)
@@ -213,7 +229,8 @@ def run_bench(quick=False, progress=print):
         "scene": scenario.name, "steps": n_steps, "repeats": repeats, "quick": quick,
         "us_per_step": {p: {str(K): v for K, v in per_step[p].items()} for p in PATHS},
         "us_per_iter": per_iter,
-        "us_per_iter_definition": "(t_step(K=50) - t_step(K=0)) / 50, both subsystems, best of repeats",
+        "us_per_iter_definition": "slope of µs per macro-step against K (least squares over K = 0, 8, 50; "
+                                  "each point the best of the repeats): one inner iteration, both subsystems",
         "ratios": ratios,
         "fast_bit_identical_to_python": identical,
         "sweep": {"Ks": "0..50", "steps_per_run": scenario.n_steps, "master_time_s": sweep_s},

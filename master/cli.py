@@ -115,9 +115,12 @@ def run_cmd(config, K, eps, gamma, dt, T, quiet, algorithm, out, no_certificates
     s = result.summary
     click.echo(f"{scenario.name}: {s['master']} K={s['K']} dt={scenario.dt} T={scenario.T} -> {out}")
     if s.get("gamma_mode", "fixed") != "fixed":
-        click.echo(f"gamma: {s['gamma_mode']} -> {s['gamma_initial']:.6g} (final {s['gamma_final']:.6g}, "
-                   f"{s['gamma_changes']} changes; FNE bound {s['gamma_fne_bound']:.6g}; predicted inner rate "
-                   f"{s['gamma_rate_estimate']:.3f}; Theorem 1 {'holds' if s['gamma_guaranteed'] else 'NOT guaranteed'})")
+        each = lambda d: ", ".join(f"{k} {v:.6g}" for k, v in d.items())
+        click.echo(f"gamma: {s['gamma_mode']} -> {each(s['gamma_initial'])} (FNE bounds {each(s['gamma_fne_bounds'])}; "
+                   f"predicted inner rate {s['gamma_rate_estimate']:.3f}; final {each(s['gamma_final'])} after "
+                   f"{s['gamma_changes']} changes; "
+                   f"{'inside the FNE bounds' if s['gamma_guaranteed'] else 'OUTSIDE an FNE bound: Theorem 1 not guaranteed'}"
+                   f"{'' if s.get('fne_watch_ok', True) else '; the Condition 1 watch found a violation'})")
     print_table([s], ["steps", "max_error", "rms_error", "final_error", "max_passivity_pos", "max_augmented_pos",
                       "min_fne_margin", "iterations_mean", "wall_time_s"])
     if plots:

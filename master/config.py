@@ -48,6 +48,7 @@ class MasterConfig:
     deadline_us: float = None
     fast: str = "auto"
     threads: str = "auto"
+    energy_guard: bool = True
 
 
 @dataclass
@@ -285,7 +286,8 @@ def parse_scenario(raw, source="<scenario>", base_dir=Path(".")) -> Scenario:
     if not isinstance(couplings, list) or not couplings:
         ck.fail("couplings", "must be a non-empty list of couplings")
     couplings = [_coupling(ck, k, c, names) for k, c in enumerate(couplings)]
-    m = ck.mapping(raw.get("master") or {}, "master", ("algorithm", "K", "eps", "deadline_us", "fast", "threads"))
+    m = ck.mapping(raw.get("master") or {}, "master", ("algorithm", "K", "eps", "deadline_us", "fast", "threads",
+                                                       "energy_guard"))
     master = MasterConfig()
     if "algorithm" in m:
         master.algorithm = ck.string(m["algorithm"], "master.algorithm", ALGORITHMS)
@@ -297,6 +299,10 @@ def parse_scenario(raw, source="<scenario>", base_dir=Path(".")) -> Scenario:
         master.deadline_us = ck.number(m["deadline_us"], "master.deadline_us", positive=True)
     if "fast" in m:
         master.fast = ck.string(str(m["fast"]).lower(), "master.fast", ("auto", "true", "false"))
+    if "energy_guard" in m:
+        if not isinstance(m["energy_guard"], bool):
+            ck.fail("master.energy_guard", f"must be true or false, got {m['energy_guard']!r}")
+        master.energy_guard = m["energy_guard"]
     if "threads" in m:
         master.threads = ck.string(str(m["threads"]), "master.threads", ("auto", "1", "2"))
     c = ck.mapping(raw.get("certificates") or {}, "certificates", ("augmented", "fne_pairs", "fne_seed", "fne_scale"))

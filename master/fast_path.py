@@ -143,13 +143,14 @@ class Kernel:
         self.subsystems = scene.subsystems
         array = ctypes.c_double * n
         self.n = n
-        self.b, self.a_hat, self.u0, self.uK = array(), array(), array(), array()
+        # b^n, a, u^0, u^K side by side, so that one slice reads all four after a macro-step
+        self.results = (ctypes.c_double * (4 * n))()
+        self.b, self.a_hat, self.u0, self.uK = [array.from_buffer(self.results, 8 * n * j) for j in range(4)]
         self.handle = lib.dr_create(len(self.subsystems), n, self._flat(P), self._flat(J_L), self.b, self.a_hat,
                                     self.u0, self.uK)
         if not self.handle:
             raise FmuError("the DR kernel could not be created (out of memory)")
         self._handle = ctypes.c_void_p(self.handle)
-        self._keep = []
         for i, (s, off) in enumerate(zip(self.subsystems, scene.offsets)):
             fns = DRFunctions(*[s.fmu.function_pointer(name) for name in _FMI_NAMES])
             vr_in = (ctypes.c_uint * s.m)(*[s.fmu.vr(v) for v in s.port.wave_in])

@@ -3,10 +3,12 @@
 Per macro-step and subsystem, the scale-free margin (<dS, da> - |dS|^2) / |da|^2 (>= 0 when S_i^n
 is FNE; rho - rho^2 for b = rho a) comes from:
 - the DR iterates themselves, for free: consecutive queries (u^k, S(u^k)) of the inner loop are
-  pairs of incident and outgoing waves of the same frozen map (secant margins);
-- otherwise (K < 2, a master that does not expose its queries, or iterates too close to tell
-  apart) one finite-difference probe of the frozen map (m + 1 queries, gamma_tuning.probe_port),
-  giving the tangent margin lambda_min(sym J_S - J_S^T J_S).
+  pairs of incident and outgoing waves of the same frozen map (secant margins; O(log K) pairs
+  per step, see pair_indices); a step whose iterates roundoff cannot tell apart (it started at
+  its fixed point) gets no estimate (NaN);
+- otherwise (K < 2, or a master that does not expose its queries) one finite-difference probe of
+  the frozen map (m + 1 queries, gamma_tuning.probe_port), giving the tangent margin
+  lambda_min(sym J_S - J_S^T J_S).
 The first failure (margin < -TOL) is reported once, naming the step, the time and the subsystem.
 """
 import math
@@ -19,32 +21,52 @@ TOL = 1e-6      # margins above -TOL count as FNE (roundoff of the FMUs' inner s
 FLOOR = 1e-5    # a pair is used only when |da| > FLOOR (|a| + |b|): below, roundoff dominates
 
 
+def pair_indices(n):
+    """k of the pairs (k - 1, k) read from n queries: 1, 2, 3, 4, 6, 9, 13, 19, 28, ... and the last,
+    so both the large first moves and the slope near the fixed point are seen at O(log n) cost."""
+    ks, k = [], 1
+    while k < n:
+        ks.append(k)
+        k = max(k + 1, (3 * k) // 2)
+    if n >= 2 and ks[-1] != n - 1:
+        ks.append(n - 1)
+    return ks
+
+
 def _pairs(scene, trace):
-    """(subsystem, da, dS) of consecutive inner-loop queries (u, S(u)) that roundoff does not swamp."""
-    for k in range(1, len(trace)):
-        (u0, b0), (u1, b1) = trace[k - 1], trace[k]
-        for s, a0, a1, s0, s1 in zip(scene.subsystems, scene.split(u0), scene.split(u1), scene.split(b0),
-                                     scene.split(b1)):
-            a0, a1, s0, s1 = (np.asarray(x, float) for x in (a0, a1, s0, s1))
-            da = a1 - a0
-            size = float(np.abs(a0).max() + np.abs(s0).max()) if a0.size else 0.0
-            norm = float(np.sqrt(da @ da))
-            if norm > 0.0 and norm > FLOOR * size:
-                yield s, da, s1 - s0
+    """(subsystem, da, dS) per subsystem: rows are pairs of inner-loop queries (u, S(u)) at
+    pair_indices(), keeping those that roundoff does not swamp."""
+    ks = pair_indices(len(trace))
+    if not ks:
+        return
+    rows = {j: trace[j] for k in ks for j in (k - 1, k)}
+    before = np.asarray([rows[k - 1] for k in ks], float)          # (pairs, 2, channels)
+    after = np.asarray([rows[k] for k in ks], float)
+    U, B = before[:, 0, :], before[:, 1, :]
+    dU, dB = after[:, 0, :] - U, after[:, 1, :] - B
+    for s, off in zip(scene.subsystems, scene.offsets):
+        cols = slice(off, off + s.m)
+        da, ds = dU[:, cols], dB[:, cols]
+        size = np.abs(U[:, cols]).max(axis=1) + np.abs(B[:, cols]).max(axis=1)
+        norm = np.sqrt(np.einsum("ij,ij->i", da, da))
+        keep = (norm > 0.0) & (norm > FLOOR * size)
+        if keep.any():
+            yield s, da[keep], ds[keep]
 
 
-def trace_impedances(scene, trace, gamma):
-    """{subsystem: smallest secant port impedance} seen by the inner loop at `gamma`.
+def trace_impedances(scene, trace, gammas):
+    """{subsystem: smallest secant port impedance} seen by the inner loop at `gammas` ({subsystem: gamma}).
 
     Along a pair, <de, df> / |df|^2 = gamma (|da|^2 - |dS|^2) / |da - dS|^2 (eq. 6): a Rayleigh
     quotient of Z_d over the range the iterates really visited, so Condition 1 needs gamma below it."""
     out = {}
     for s, da, ds in _pairs(scene, trace):
         dd = da - ds
-        den = float(dd @ dd)
-        if den > 0.0:
-            z = gamma * (float(da @ da) - float(ds @ ds)) / den
-            out[s.name] = min(out.get(s.name, math.inf), z)
+        den = np.einsum("ij,ij->i", dd, dd)
+        ok = den > 0.0
+        if ok.any():
+            z = gammas[s.name] * (np.einsum("ij,ij->i", da, da) - np.einsum("ij,ij->i", ds, ds))[ok] / den[ok]
+            out[s.name] = float(z.min())
     return out
 
 
@@ -52,8 +74,8 @@ def trace_margins(scene, trace):
     """{subsystem: smallest secant margin} over consecutive inner-loop queries (u, S(u))."""
     out = {}
     for s, da, ds in _pairs(scene, trace):
-        margin = (float(ds @ da) - float(ds @ ds)) / float(da @ da)
-        out[s.name] = min(out.get(s.name, math.inf), margin)
+        m = (np.einsum("ij,ij->i", ds, da) - np.einsum("ij,ij->i", ds, ds)) / np.einsum("ij,ij->i", da, da)
+        out[s.name] = float(m.min())
     return out
 
 
@@ -72,8 +94,8 @@ class FneWatch:
     def probe(self, b, n, t, P=None):
         """Margins from one finite-difference probe of every frozen map at x^n (state unchanged)."""
         self.probed_steps += 1
-        g = self.scene.gamma
-        return {p.name: p.fne_margin(g) for p in gt.probe_scene(self.scene, b, n, t, P)}
+        g = gt.scene_gammas(self.scene)
+        return {p.name: p.fne_margin(g[p.name]) for p in gt.probe_scene(self.scene, b, n, t, P)}
 
     def record(self, n, t, margins):
         """Book this step's margins; returns the smallest (NaN when nothing could be estimated)."""
@@ -86,9 +108,10 @@ class FneWatch:
         if worst < -self.tol:
             self.failed_steps += 1
             if self.first is None:
-                self.first = {"step": n, "t": t, "subsystem": name, "margin": worst, "gamma": self.scene.gamma}
+                g = gt.scene_gammas(self.scene)[name]
+                self.first = {"step": n, "t": t, "subsystem": name, "margin": worst, "gamma": g}
                 self.warn(f"Condition 1 (FNE) fails at step {n} (t = {t:.6g}) in subsystem {name}: margin "
-                          f"{worst:.3g} < 0 at gamma = {self.scene.gamma:.4g}; Theorem 1 and DR convergence are not "
+                          f"{worst:.3g} < 0 at gamma = {g:.4g}; Theorem 1 and DR convergence are not "
                           f"guaranteed (lower gamma; gamma: auto-retune follows the bound down)")
         return worst
 

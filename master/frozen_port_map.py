@@ -99,6 +99,11 @@ class Subsystem:
             self._restore()
             self._dirty = False
 
+    def restore_frozen(self):
+        """Back to x_i^n even after the commit: the energy guard undoes a macro-step with it."""
+        self._restore()
+        self._dirty = False
+
     def read(self, names):
         return self.fmu.get_real(self.fmu.vrs(names))
 

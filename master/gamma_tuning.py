@@ -1,33 +1,36 @@
-"""Automatic choice of the scattering impedance gamma (paper Remark 2, gamma-tuning).
+"""Automatic choice of the scattering impedances (paper Remark 2, gamma-tuning).
 
 With a reciprocal incremental port response de = Z_d df, the frozen port map has the Jacobian
 J_S = (Z_d - gamma I)(Z_d + gamma I)^-1, and Condition 1 (FNE) holds locally iff gamma <= lambda_min(Z_d)
-(eq. 33). Inside that bound we pick the gamma whose linearized Douglas-Rachford operator
-T = 1/2 (I + R_L R_S), R = 2 J - I (paper Section IV-B), has the smallest spectral radius.
+(eq. 33). The condition is per subsystem, and the wave map P stays orthogonal for any positive
+impedance on each channel (Remark 1), so each subsystem i gets its own gamma_i <= lambda_min(Z_d,i);
+among those we pick the gammas whose linearized Douglas-Rachford operator
+T = 1/2 (I + R_L R_S), R = 2 J - I (Section IV-B), has the smallest spectral radius.
 
 Z_d is measured, not assumed: each frozen subsystem is queried at the operating point and at
 m perturbed incident waves, and the stage outputs e, f give dE = Z_d dF directly, which does not
 depend on gamma (the closure e + gamma f = sqrt(2 gamma / dt) a only selects the point). So one
 probe predicts J_S at every gamma: J_S(gamma) = (dE - gamma dF)(dE + gamma dF)^-1.
 
-Modes (YAML `gamma:` or `--gamma`):
+Modes (YAML `gamma:` or `--gamma`; they override per-subsystem `gamma:` keys):
 - a number: fixed;
-- `auto`: chosen once at t = 0, at most SAFETY times the smallest FNE bound, so Theorem 1 keeps holding;
-- `auto-retune`: the same, and lowered between macro-steps whenever the bound drops below it
-  (the committed wave b is re-scattered to the new gamma); it never goes up again;
-- `fast-unsafe`: the gamma with the fastest contraction at any value, usually above the FNE bound
-  (near the geometric mean of the port impedances). It leaves Condition 1 and Theorem 1; the
-  run warns and reports the augmented residual.
+- `auto`: chosen once at t = 0, every gamma_i at most SAFETY times its subsystem's FNE bound, so
+  Theorem 1 keeps holding;
+- `auto-retune`: the same, and lowered between macro-steps whenever a bound drops below its gamma
+  (the committed wave b is re-scattered to the new gammas); gammas never go up again;
+- `fast-unsafe`: one common gamma with the fastest contraction at any value, usually above the
+  smaller FNE bound (near the geometric mean of the port impedances). It leaves Condition 1 and
+  Theorem 1; the run warns and reports the augmented residual.
 """
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
+from . import interconnection as ic
 from .errors import ConfigError, NumericalError
 
 MODES = ("auto", "auto-retune", "fast-unsafe")
-PROVISIONAL = 0.4       # gamma the FMUs are instantiated with before the first probe
 SAFETY = 0.9            # auto stays this far inside the FNE bound (Z_d drifts along the trajectory)
 RETUNE_ABOVE = 0.95     # auto-retune lowers gamma when it exceeds this fraction of the bound
 PROBE_REL = 1e-6        # size of the incident-wave perturbation, relative to the operating point
@@ -112,75 +115,122 @@ def probe_scene(scene, b, n, t, P=None):
     return probes
 
 
-def dr_rate(scene, probes, gamma):
-    """Spectral radius of the linearized DR operator T = 1/2 (I + R_L R_S) at `gamma`."""
+def dr_rate(scene, probes, gammas):
+    """Spectral radius of the linearized DR operator T = 1/2 (I + R_L R_S) with impedance gammas[i]
+    on the channels of subsystem i (P and J_L compiled for those impedances)."""
     n = scene.n_channels
     J_S = np.zeros((n, n))
-    for p, off, s in zip(probes, scene.offsets, scene.subsystems):
-        J_S[off:off + s.m, off:off + s.m] = p.jacobian(gamma)
-    J_L = scene.wave_map(gamma).J_L
+    for p, off, s, g in zip(probes, scene.offsets, scene.subsystems, gammas):
+        J_S[off:off + s.m, off:off + s.m] = p.jacobian(g)
+    channel = [g for g, s in zip(gammas, scene.subsystems) for _ in range(s.m)]
+    J_L = ic.compile_wave_map(scene.E, scene.F, channel).J_L
     T = 0.5 * (np.eye(n) + (2.0 * J_L - np.eye(n)) @ (2.0 * J_S - np.eye(n)))
     return float(np.abs(np.linalg.eigvals(T)).max())
 
 
 @dataclass
 class GammaChoice:
-    """One decision: the gamma, the FNE bound it respects (or not), and the predicted DR rate."""
-    gamma: float
+    """One decision: the impedance of each subsystem's port, the FNE bounds it respects (or not),
+    and the predicted contraction rate of the inner iteration."""
+    gammas: dict
     mode: str
-    bound: float
-    bound_subsystem: str
+    bounds: dict
     rate: float
     guaranteed: bool
-    bounds: dict = field(default_factory=dict)
+
+    @property
+    def violations(self):
+        """{subsystem: (gamma, bound)} where gamma is above the FNE bound."""
+        return {k: (g, self.bounds[k]) for k, g in self.gammas.items() if g > self.bounds[k]}
 
 
-def choose_gamma(scene, probes, mode, where="gamma", secant=None):
-    """The gamma of `mode` for these probes (see the module docstring); `secant` ({subsystem: Z})
-    caps each subsystem's bound by the impedance the last inner loop really met."""
+def _search(rate, lo, hi, starts):
+    """Minimize rate(gammas) over the box [lo_i, hi_i]: the best start, then Nelder-Mead in log gamma
+    (the spectral radius has kinks where eigenvalues cross, which coordinate searches stall on)."""
+    from scipy.optimize import minimize
+    lo, hi = np.log(lo), np.log(hi)
+
+    def f(x):
+        return rate([float(v) for v in np.exp(np.clip(x, lo, hi))])
+    x0 = min((np.clip(np.log(s), lo, hi) for s in starts), key=f)
+    if np.all(hi - lo <= 0):
+        return [float(v) for v in np.exp(x0)], f(x0)
+    res = minimize(f, x0, method="Nelder-Mead",
+                   options={"xatol": 1e-4, "fatol": 1e-9, "maxfev": 300 * len(x0), "initial_simplex":
+                            np.vstack([x0] + [x0 - 0.5 * np.eye(len(x0))[i] for i in range(len(x0))])})
+    x = np.clip(res.x, lo, hi) if res.fun <= f(x0) else x0
+    return [float(v) for v in np.exp(x)], f(x)
+
+
+def choose_gamma(scene, probes, mode, where="gamma", secant=None, ceiling=None):
+    """Each subsystem's gamma for `mode` (see the module docstring). Condition 1 is per subsystem
+    (gamma_i <= lambda_min(Z_d,i)) and P stays orthogonal for any positive channel impedances
+    (paper Remark 1), so auto searches every gamma_i in (0, SAFETY * bound_i] for the fastest
+    contraction, starting from the common gamma SAFETY * min_i bound_i. `secant` ({subsystem: Z})
+    caps a bound by the impedance the last inner loop really met; `ceiling` ({subsystem: gamma})
+    keeps every gamma at or below it (auto-retune only lowers)."""
+    names = [p.name for p in probes]
     bounds = {p.name: min(p.fne_bound(), (secant or {}).get(p.name, math.inf)) for p in probes}
     culprit = min(bounds, key=bounds.get)
-    bound = bounds[culprit]
-    if not bound > 0:
+    if not bounds[culprit] > 0:
         raise ConfigError(f"{where}: {mode}: subsystem {culprit} has no positive incremental port impedance "
-                          f"(lambda_min(Z_d) = {bound:.3g}), so no gamma satisfies Condition 1; give gamma a number")
-    if math.isinf(bound):
+                          f"(lambda_min(Z_d) = {bounds[culprit]:.3g}), so no gamma satisfies Condition 1; give gamma "
+                          f"a number")
+    finite = [b for b in bounds.values() if math.isfinite(b)]
+    if not finite:
         raise ConfigError(f"{where}: {mode}: no subsystem port moves under a wave perturbation, so there is no "
                           f"impedance to tune to; give gamma a number")
+    ref = min(finite)
+    cap = {k: (b if math.isfinite(b) else 1e3 * max(finite)) for k, b in bounds.items()}
+    rate = (lambda g: dr_rate(scene, probes, g))
     if mode == "fast-unsafe":
-        scales = [p.scale() for p in probes]
-        hi = max(s for s in scales if math.isfinite(s)) if any(math.isfinite(s) for s in scales) else bound
-        grid = np.geomspace(bound * 1e-3, max(hi, bound) * 1e3, 121)
+        # one common gamma, the fastest contraction at any value (usually above the bound)
+        top = max([p.scale() for p in probes if math.isfinite(p.scale())] + finite)
+        grid = np.geomspace(1e-3 * ref, 1e3 * top, 121)
+        rates = [rate([g] * len(names)) for g in grid]
+        k = min(range(len(grid)), key=lambda j: (round(rates[j], 12), -grid[j]))
+        common, best = _search(lambda g: rate(g * len(names)), [grid[max(k - 1, 0)]],
+                               [grid[min(k + 1, len(grid) - 1)]], [[grid[k]]])
+        gammas = common * len(names)
     else:
-        grid = np.geomspace(SAFETY * bound * 1e-3, SAFETY * bound, 31)
-    rates = [dr_rate(scene, probes, g) for g in grid]
-    best = min(range(len(grid)), key=lambda k: (round(rates[k], 12), -grid[k]))
-    g = float(grid[best])
-    return GammaChoice(gamma=g, mode=mode, bound=bound, bound_subsystem=culprit, rate=rates[best],
-                       guaranteed=g <= bound, bounds=bounds)
+        hi = [min(SAFETY * cap[k], (ceiling or {}).get(k, math.inf)) for k in names]
+        lo = [1e-3 * h for h in hi]
+        common = min(SAFETY * ref, *hi)
+        gammas, best = _search(rate, lo, hi, [[common] * len(names), hi])
+    chosen = dict(zip(names, gammas))
+    return GammaChoice(gammas=chosen, mode=mode, bounds=bounds, rate=best,
+                       guaranteed=all(chosen[k] <= bounds[k] for k in names))
 
 
-def set_fmu_gamma(scene, gamma):
-    """Set the tunable parameter gamma of every FMU (only between macro-steps) and the scene's gamma."""
+def set_fmu_gamma(scene, gammas):
+    """Set the tunable parameter gamma of every FMU ({subsystem: gamma}; only between macro-steps)
+    and the scene's per-subsystem impedances, which wave_map() then compiles P for."""
     for s in scene.subsystems:
         if "gamma" not in s.fmu.variables:
             raise ConfigError(f"{scene.scenario.source}: subsystems.{s.name}.fmu: {s.fmu.path.name} has no tunable "
                               f"parameter gamma, so gamma cannot be tuned")
-        s.fmu.set_real(s.fmu.vrs(["gamma"]), [gamma])
-    scene.gamma = float(gamma)
+        s.fmu.set_real(s.fmu.vrs(["gamma"]), [gammas[s.name]])
+    scene.gammas = [float(gammas[s.name]) for s in scene.subsystems]
+    scene.gamma = min(scene.gammas)
 
 
-def rescatter(scene, gamma_new):
-    """The committed wave b^n at a new gamma, from the stage port values (e, f) of the last step.
+def scene_gammas(scene):
+    """{subsystem: gamma} in force in the scene."""
+    return {s.name: float(g) for s, g in zip(scene.subsystems, scene.gammas or [scene.gamma] * len(scene.subsystems))}
+
+
+def rescatter(scene, gammas):
+    """The committed wave b^n at new impedances ({subsystem: gamma}), from the stage (e, f) of the last step.
 
     Each FMU computes b = sqrt(dt / (2 gamma)) (e - gamma f) from its stage e, f (fmus/layer,
     fmi2DoStep), so b at gamma' is the same formula with gamma'; this equals converting b with
     the old gamma to (e, f) through eq. (6) (with the incident a) and back through eq. (5)."""
-    k = math.sqrt(scene.scenario.dt / (2.0 * gamma_new))
     b = []
     for s in scene.subsystems:
+        g = gammas[s.name]
+        k = math.sqrt(scene.scenario.dt / (2.0 * g))
         v = s.read(list(s.port.effort) + list(s.port.flow))
-        b.extend(k * (e - gamma_new * f) for e, f in zip(v[:s.m], v[s.m:]))
+        b.extend(k * (e - g * f) for e, f in zip(v[:s.m], v[s.m:]))
     return b
 
 
@@ -202,57 +252,58 @@ class GammaTuner:
 
     def initial(self, b0):
         """Probe at x^0 (twice: the second probe runs at the first choice, where it is best
-        conditioned), set the FMUs' gamma and return the choice."""
+        conditioned), set the FMUs' gammas and return the choice."""
         choice = None
         for _ in range(2):
             probes = probe_scene(self.scene, b0, 0, 0.0)
             choice = choose_gamma(self.scene, probes, self.mode, self.where)
-            set_fmu_gamma(self.scene, choice.gamma)
+            set_fmu_gamma(self.scene, choice.gammas)
         self.choices.append((0, choice))
-        if not choice.guaranteed:
-            self.warn(f"gamma: fast-unsafe chose gamma = {choice.gamma:.4g}, above the FNE bound "
-                      f"{choice.bound:.4g} of subsystem {choice.bound_subsystem}: Condition 1 and Theorem 1 no "
-                      f"longer hold; the augmented residual is reported (max_augmented_pos)")
+        for name, (g, bound) in choice.violations.items():
+            self.warn(f"gamma: fast-unsafe chose gamma = {g:.4g} for subsystem {name}, above its FNE bound "
+                      f"{bound:.4g}: Condition 1 and Theorem 1 no longer hold; the augmented residual is reported "
+                      f"(max_augmented_pos)")
         return choice
 
     def between_steps(self, master, n, t):
-        """auto-retune: before macro-step n, re-probe at x^n and lower gamma (re-scattering b^n) when it
-        exceeds RETUNE_ABOVE times the FNE bound, the smaller of the tangent bound at u^0 and the
-        secant impedances the last inner loop met.
+        """auto-retune: before macro-step n, re-probe at x^n; when a subsystem's gamma exceeds
+        RETUNE_ABOVE times its FNE bound (the smaller of the tangent bound at u^0 and the secant
+        impedances the last inner loop met), choose again below the current gammas, re-scatter
+        b^n to the new ones and hand both to the master.
 
-        gamma only goes down: the impedance of a nonlinear port can swing within one macro-step by
+        Gammas only go down: the impedance of a nonlinear port can swing within one macro-step by
         more than any estimate from the last one shows (measured on the stiff Duffing at dt = 0.1:
         raising gamma to follow the bound up broke Condition 1 a few steps later)."""
         if not self.retune or n == 0:
             return None
-        g = self.scene.gamma
+        now = scene_gammas(self.scene)
         probes = probe_scene(self.scene, master.b, n, t, master.P)
-        bound = min(min(p.fne_bound(), self.secant.get(p.name, math.inf)) for p in probes)
-        if g <= RETUNE_ABOVE * bound:
+        bounds = {p.name: min(p.fne_bound(), self.secant.get(p.name, math.inf)) for p in probes}
+        if all(now[k] <= RETUNE_ABOVE * bounds[k] for k in now):
             return None
         try:
-            choice = choose_gamma(self.scene, probes, self.mode, self.where, self.secant)
+            choice = choose_gamma(self.scene, probes, self.mode, self.where, self.secant, ceiling=now)
         except ConfigError as exc:
             raise NumericalError(f"{exc} (at step {n}, t = {t:.6g})") from None
-        if choice.gamma >= g:
+        if choice.gammas == now:
             return None
-        b_new = rescatter(self.scene, choice.gamma)
-        set_fmu_gamma(self.scene, choice.gamma)
-        master.set_gamma(choice.gamma, b_new)
+        b_new = rescatter(self.scene, choice.gammas)
+        set_fmu_gamma(self.scene, choice.gammas)
+        master.set_gamma(None, b_new)                 # None: compile P for the scene's per-subsystem gammas
         self.choices.append((n, choice))
         return choice
 
-    def summary(self, gammas):
+    def summary(self, history):
+        """Summary fields; `history` holds the per-step lists of gammas (subsystem order)."""
         first = self.choices[0][1]
-        g = np.asarray(gammas, float)
+        names = [s.name for s in self.scene.subsystems]
+        h = np.asarray(history, float).reshape(-1, len(names))
         return {
             "gamma_mode": self.mode,
-            "gamma_initial": first.gamma,
-            "gamma_final": float(self.scene.gamma),
-            "gamma_min": float(g.min()) if g.size else first.gamma,
-            "gamma_max": float(g.max()) if g.size else first.gamma,
+            "gamma_initial": first.gammas,
+            "gamma_final": scene_gammas(self.scene),
+            "gamma_min": {k: float(h[:, i].min()) for i, k in enumerate(names)} if h.size else first.gammas,
             "gamma_changes": len(self.choices) - 1,
-            "gamma_fne_bound": first.bound,
             "gamma_fne_bounds": first.bounds,
             "gamma_rate_estimate": first.rate,
             "gamma_guaranteed": all(c.guaranteed for _, c in self.choices),

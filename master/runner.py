@@ -11,9 +11,10 @@ import numpy as np
 from . import certificates as cert
 from .errors import ConfigError, Interrupted, NumericalError, WavecosimError
 from .fne_watch import FneWatch, trace_impedances, trace_margins
-from .gamma_tuning import GammaTuner
+from .gamma_tuning import GammaTuner, scene_gammas
 from .masters import MASTERS
 from .masters.newton import solve_interface
+from .energy_guard import EnergyGuard
 from .recorder import CsvStream, write_json
 from .scene import build_scene
 
@@ -122,7 +123,7 @@ def run(scenario, out_dir=None, label=None, progress=None, certificates=True, re
     if cls.wave and gamma is None and isinstance(scenario.gamma, str):
         try:
             tuner = GammaTuner(scene, scenario.gamma, warn if settings.algorithm == "dr" else None)
-            gamma = tuner.initial([0.0] * scene.n_channels).gamma
+            tuner.initial([0.0] * scene.n_channels)                  # sets the scene's per-subsystem gammas
         except BaseException:
             scene.close()
             raise
@@ -138,7 +139,7 @@ def run(scenario, out_dir=None, label=None, progress=None, certificates=True, re
     master_time = 0.0
     calls = {"doStep": 0, "save": 0, "restore": 0}
     started = time.perf_counter()
-    master = None
+    master = guard = None
     try:
         master = cls(scene, settings, gamma=gamma) if cls.wave else cls(scene, settings)
         if tuner and tuner.retune and not hasattr(master, "set_gamma"):
@@ -155,13 +156,15 @@ def run(scenario, out_dir=None, label=None, progress=None, certificates=True, re
             traj = CsvStream(out_dir / f"trajectory{suffix}.csv", ["t", *columns])
             diag = CsvStream(out_dir / f"steps{suffix}.csv",
                              ["t", "iterations", "inner_residual", "reason", *[f"r_{n}" for n in names],
-                              "augmented", "interface_supply", "H_total", "fne_min", "gamma", "fne_watch"])
+                              "augmented", "interface_supply", "H_total", "fne_min",
+                              *([f"gamma_{n}" for n in names] if cls.wave else []), "fne_watch"])
         H, _, _, _, out = _read(plan, sizes)
         t_rows.append(0.0)
         out_rows.append([out[c] for c in columns])
         if traj:
             traj.write([0.0, *out_rows[-1]])
         steps["H"].append(sum(H))
+        guard = EnergyGuard(scene, master, sum(H)) if settings.algorithm == "dr" and settings.energy_guard else None
         rng = np.random.default_rng(scenario.certificates.fne_seed)
         wave_certs = certificates and cls.wave
         for n in range(N):
@@ -188,18 +191,27 @@ def run(scenario, out_dir=None, label=None, progress=None, certificates=True, re
                     s.thaw()
             before = {k: sum(s.calls[k] for s in scene.subsystems) for k in calls}
             t0 = time.perf_counter()
+            if guard:
+                guard.before(n, t)
             log = master.step(n, t)
             master_time += time.perf_counter() - t0
+            H_new, E, F, B, out = _read(plan, sizes)
+            if guard:
+                t0 = time.perf_counter()
+                redo = guard.after(n, t, sum(H_new))
+                master_time += time.perf_counter() - t0
+                if redo is not None:
+                    log = redo
+                    H_new, E, F, B, out = _read(plan, sizes)
             for k in calls:
                 calls[k] += sum(s.calls[k] for s in scene.subsystems) - before[k]
             if tuner and tuner.retune and getattr(master, "trace", None):
-                tuner.observe(trace_impedances(scene, master.trace, scene.gamma))
+                tuner.observe(trace_impedances(scene, master.trace, scene_gammas(scene)))
             watched = float("nan")
             if watch:
                 if probed is None and not master.trace and log.iterations >= 2:
                     master.trace = None                              # this master does not expose its queries
                 watched = watch.record(n, t, probed if probed is not None else trace_margins(scene, master.trace or []))
-            H_new, E, F, B, out = _read(plan, sizes)
             if cls.wave:
                 a_parts = scene.split(log.a_hat)
                 r = [cert.wave_passivity_residual(h0, h1, a, b) for h0, h1, a, b in zip(H, H_new, a_parts, B)]
@@ -208,21 +220,22 @@ def run(scenario, out_dir=None, label=None, progress=None, certificates=True, re
                 r = [cert.physical_passivity_residual(h0, h1, e, f, dt) for h0, h1, e, f in zip(H, H_new, E, F)]
                 supply = sum(dt * sum(ei * fi for ei, fi in zip(e, f)) for e, f in zip(E, F))
             aug = float("nan")
-            if u_star is not None:
+            if u_star is not None and log.u0 is not None:
                 aug = cert.augmented_residual(sum(H_new) - sum(H), log.u0, log.uK, u_star, log.a_hat,
                                               [x for bi in B for x in bi])
             row = [out[c] for c in columns]
+            gammas = list(scene_gammas(scene).values()) if cls.wave else []
             with _DeferInterrupt():
                 t_rows.append((n + 1) * dt)
                 out_rows.append(row)
                 for key, val in (("iterations", log.iterations), ("residual", log.residual), ("passivity", r),
                                  ("augmented", aug), ("fne", fne_min), ("supply", supply), ("H", sum(H_new)),
-                                 ("gamma", scene.gamma), ("fne_watch", watched)):
+                                 ("gamma", gammas), ("fne_watch", watched)):
                     steps[key].append(val)
                 if traj:
                     traj.write([(n + 1) * dt, *row])
                     diag.write([(n + 1) * dt, log.iterations, log.residual, log.reason, *r, aug, supply,
-                                sum(H_new), fne_min, scene.gamma, watched])
+                                sum(H_new), fne_min, *gammas, watched])
             if not np.all(np.isfinite(row)) or not np.all(np.isfinite(H_new)):
                 bad = next(s.name for s, h in zip(scene.subsystems, H_new) if not np.isfinite(h)) \
                     if not np.all(np.isfinite(H_new)) else "an output"
@@ -249,9 +262,12 @@ def run(scenario, out_dir=None, label=None, progress=None, certificates=True, re
     result.summary.update(getattr(master, "run_info", dict)())   # e.g. DR: fast path and threads used
     if cls.wave:
         result.summary.update(tuner.summary(steps["gamma"]) if tuner else
-                              {"gamma_mode": "fixed", "gamma_initial": scene.gamma, "gamma_final": scene.gamma})
+                              {"gamma_mode": "fixed", "gamma_initial": scene_gammas(scene),
+                               "gamma_final": scene_gammas(scene)})
     if watch:
         result.summary.update(watch.summary())
+    if guard is not None:
+        result.summary["energy_guard_steps"] = guard.redone
     if reference is not None and len(reference.t) and len(result.t) and scenario.error:
         err, metrics = error_metrics(result, reference, scenario.error)
         result.summary.update(metrics)

@@ -112,6 +112,7 @@ CASES = [
     ("gamma-nan", _set(["gamma"], float("nan")), ["gamma: must be finite"]),
     ("gamma-unknown-mode", _set(["gamma"], "automatic"), ["gamma: must be one of auto, auto-retune, fast-unsafe"]),
     ("gamma-list", _set(["gamma"], [0.4]), ["gamma: must be a number"]),
+    ("subsystem-gamma-zero", _set(["subsystems", "B", "gamma"], 0.0), ["subsystems.B.gamma: must be > 0"]),
     ("K-negative", _set(["master", "K"], -1), ["master.K: must be >= 0"]),
     ("K-real", _set(["master", "K"], 2.5), ["master.K: must be an integer"]),
     ("K-bool", _set(["master", "K"], True), ["master.K: must be an integer"]),

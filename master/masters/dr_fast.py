@@ -6,16 +6,23 @@ cannot be used, `step` is the Python reference unchanged. Both give the same num
 bit, and the same FMU call counts.
 
 Threads (`master.threads`): the first macro-step runs serially and times one evaluation of each
-subsystem; then `1` stays serial, `2` evaluates the subsystems on two threads, and `auto` does so
-only when the work a second thread would take over costs at least PARALLEL_MIN_US per evaluation
-(below that, hand-offs and a busy second core cost more than they save). Each thread writes only
-its own subsystems' outputs and the caller does all the arithmetic, so the thread plan never
-changes a number.
+subsystem; then `1` stays serial, `2` evaluates the subsystems on two threads (the costliest
+first, each onto the less loaded thread), and `auto` does so only when the work the second
+thread would take over costs at least PARALLEL_MIN_US per inner iteration (below that, hand-offs
+and a busy second core cost more than they save), and keeps two threads only if the second
+macro-step, run on them, was at least 1 / KEEP_PARALLEL times faster per evaluation round than
+the first (the threads meet at every iteration, so on a busy machine, where one of them is often
+descheduled, serial is faster). Each thread writes only its own subsystems' outputs and the caller does all the arithmetic, so
+the thread plan never changes a number.
 """
+import time
+
 from ..errors import ConfigError
 from ..fast_path import PARALLEL_MIN_US, REASONS, Kernel, available_cpus, thread_plan, unusable
 from .base import StepLog
 from .dr import DRMaster
+
+KEEP_PARALLEL = 0.85      # threads=auto keeps two threads if a round takes at most this much of serial
 
 
 class FastDRMaster(DRMaster):
@@ -44,7 +51,9 @@ class FastDRMaster(DRMaster):
         self.fast, self.fast_note = True, "C kernel"
         self._maps, self._b = (self.P, self.J_L), self.b
         self.thread_mode = str(settings.threads)
-        self._choose_after = 0 if self.thread_mode != "1" and len(self.subsystems) > 1 else -1
+        # the first macro-step this master makes picks the thread plan (None: not made yet)
+        self._choose_after = None if self.thread_mode != "1" and len(self.subsystems) > 1 else -1
+        self._on_trial = False
 
     def step(self, n, t) -> StepLog:
         if self.kernel is None:
@@ -56,22 +65,32 @@ class FastDRMaster(DRMaster):
         tracing = getattr(self, "trace", None) is not None              # fne_watch: keep the (u, S(u)) pairs
         if tracing != (kernel.trace_capacity > 0):
             kernel.record(max(self.K, 1) if tracing else 0)
+        if self._choose_after is None:
+            self._choose_after = n
         measure = n == self._choose_after
+        timing = self._choose_after >= 0 and n - self._choose_after in (0, 1)
+        started = time.perf_counter() if timing else 0.0
         io = kernel.macro_step(n, t, measure)
         k = io.iterations
+        if timing:
+            per_round = (time.perf_counter() - started) / (k + 1)      # K queries and the commit
         for s in self.subsystems:        # the calls Subsystem.freeze/query/advance would have counted
             calls = s.calls
             calls["save"] += 1
             calls["doStep"] += k + 1
             calls["restore"] += k
             s.step_index, s.t = n, t
-        self.b = self._b = kernel.b[:]
+        n_ch = kernel.n
+        out = kernel.results[:]                  # b^{n+1}, a, u^0, u^K
+        self.b = self._b = out[:n_ch]
         if tracing:
             self.trace = kernel.recorded(k)
         if measure:
-            self.choose_threads(kernel.costs())
-        return StepLog(iterations=k, residual=io.residual, reason=REASONS[io.reason], a_hat=kernel.a_hat[:],
-                       u0=kernel.u0[:], uK=kernel.uK[:])
+            self.choose_threads(kernel.costs(), per_round)
+        elif timing and self._on_trial:
+            self.confirm_threads(per_round)
+        return StepLog(iterations=k, residual=io.residual, reason=REASONS[io.reason], a_hat=out[n_ch:2 * n_ch],
+                       u0=out[2 * n_ch:3 * n_ch], uK=out[3 * n_ch:])
 
     def _sync(self):
         if self.P is not self._maps[0] or self.J_L is not self._maps[1]:
@@ -79,25 +98,37 @@ class FastDRMaster(DRMaster):
         self.kernel.b[:] = [float(x) for x in self.b]
         self._maps, self._b = (self.P, self.J_L), self.b
 
-    def choose_threads(self, costs_us):
-        """Pick the thread plan from the measured µs per evaluation of each subsystem."""
-        self.costs_us = costs_us
+    def choose_threads(self, costs_us, serial_round_s):
+        """After the first (serial) macro-step: pick the thread plan from the measured µs per
+        evaluation of each subsystem; with threads=auto, two threads go on trial for one step."""
+        self.costs_us, self._serial_round_s = costs_us, serial_round_s
         plan, load = thread_plan(costs_us, 2)
         if self.thread_mode == "auto":
             cpus = available_cpus()
-            if cpus < 2:
-                self.thread_note = f"serial: {cpus} CPU available"
-                return
             if min(load) < PARALLEL_MIN_US:
                 self.thread_note = (f"serial: a second thread would take over {min(load):.3g} µs per inner "
                                     f"iteration (< {PARALLEL_MIN_US:g} µs)")
                 return
-        if self.kernel.set_threads(plan):
-            self.threads = 2
-            costs = ", ".join(f"{c:.3g}" for c in costs_us)
-            self.thread_note = f"2 threads: subsystems on threads {plan} (µs per evaluation: {costs})"
-        else:
+            if cpus < 2:
+                self.thread_note = f"serial: {cpus} CPU available"
+                return
+        if not self.kernel.set_threads(plan):
             self.thread_note = "serial: the worker thread could not be started"
+            return
+        self.threads, self._on_trial = 2, self.thread_mode == "auto"
+        costs = ", ".join(f"{c:.3g}" for c in costs_us)
+        self.thread_note = f"2 threads: subsystems on threads {plan} (µs per evaluation: {costs})"
+
+    def confirm_threads(self, parallel_round_s):
+        """threads=auto, after the second macro-step (on two threads): keep them only if faster."""
+        self._on_trial = False
+        rounds = f"{1e6 * self._serial_round_s:.3g} µs per round serial, {1e6 * parallel_round_s:.3g} µs on two threads"
+        if parallel_round_s <= KEEP_PARALLEL * self._serial_round_s:
+            self.thread_note += f"; {rounds}"
+            return
+        self.kernel.set_threads([0] * len(self.subsystems))
+        self.threads = 1
+        self.thread_note = f"serial: two threads were not faster here ({rounds})"
 
     def run_info(self):
         """For the run summary: which path and thread plan ran."""
