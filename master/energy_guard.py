@@ -16,7 +16,7 @@ RTOL = 1e-12
 
 
 class EnergyGuard:
-    """Wraps the commit of a wave master: `before` saves x^n and b^n, `after` checks H^{n+1}."""
+    """Wraps the commit of the DR master: `before` keeps b^n, `after` checks H^{n+1}."""
 
     def __init__(self, scene, master, H0):
         self.scene, self.master = scene, master
@@ -26,8 +26,7 @@ class EnergyGuard:
         self._b_n = None
 
     def before(self, n, t):
-        for s in self.scene.subsystems:
-            s.freeze(n, t)
+        """Keep b^n; x^n needs no copy: the DR masters freeze it in each Subsystem before the commit."""
         self._b_n = list(self.master.b)
 
     def after(self, n, t, H_total):

@@ -11,8 +11,6 @@ import ctypes
 import os
 import time
 
-import numpy as np
-
 from .config import ROOT
 from .errors import FmuError
 
@@ -28,11 +26,11 @@ class Trace:
     """The queries (u^k, S(u^k)) of one macro-step's inner loop, read like the reference's list of
     pairs; a pair is unpacked into lists only when it is read (most steps nobody reads them)."""
 
-    def __init__(self, pairs):
-        self._pairs, self._more = pairs, []
+    def __init__(self, values, n, count):
+        self._values, self._n, self._count, self._more = values, n, count, []
 
     def __len__(self):
-        return len(self._pairs) + len(self._more)
+        return self._count + len(self._more)
 
     def __getitem__(self, k):
         if isinstance(k, slice):
@@ -40,10 +38,10 @@ class Trace:
         k = k + len(self) if k < 0 else k
         if not 0 <= k < len(self):
             raise IndexError("trace index out of range")
-        if k >= len(self._pairs):
-            return self._more[k - len(self._pairs)]
-        u, b = self._pairs[k].tolist()
-        return u, b
+        if k >= self._count:
+            return self._more[k - self._count]
+        n, v = self._n, self._values
+        return v[2 * n * k:2 * n * k + n], v[2 * n * k + n:2 * n * (k + 1)]
 
     def __iter__(self):
         return (self[k] for k in range(len(self)))
@@ -82,7 +80,7 @@ def load_library():
         p, i, d = ctypes.c_void_p, ctypes.c_int, ctypes.POINTER(ctypes.c_double)
         lib.dr_create.restype = p
         lib.dr_create.argtypes = [i, i, d, d, d, d, d, d]
-        lib.dr_set_subsystem.argtypes = [p, i, ctypes.POINTER(DRFunctions), p, ctypes.POINTER(ctypes.c_uint),
+        lib.dr_set_subsystem.argtypes = [p, i, ctypes.POINTER(DRFunctions), p, p, ctypes.POINTER(ctypes.c_uint),
                                          ctypes.POINTER(ctypes.c_uint), i, i]
         lib.dr_set_threads.argtypes = [p, i, ctypes.POINTER(ctypes.c_int)]
         lib.dr_costs.argtypes = [p, d]
@@ -155,7 +153,11 @@ class Kernel:
             fns = DRFunctions(*[s.fmu.function_pointer(name) for name in _FMI_NAMES])
             vr_in = (ctypes.c_uint * s.m)(*[s.fmu.vr(v) for v in s.port.wave_in])
             vr_out = (ctypes.c_uint * s.m)(*[s.fmu.vr(v) for v in s.port.wave_out])
-            if lib.dr_set_subsystem(self.handle, i, ctypes.byref(fns), s.fmu.component, vr_in, vr_out, s.m, int(off)):
+            # x_i^n goes into the Subsystem's own handle, so that after a fast macro-step the
+            # Subsystem holds x_i^n exactly as after the reference one (restore_frozen, thaw work)
+            state = ctypes.addressof(s._state)
+            if lib.dr_set_subsystem(self.handle, i, ctypes.byref(fns), s.fmu.component, state, vr_in, vr_out, s.m,
+                                    int(off)):
                 self.close()
                 raise FmuError(f"subsystem {s.name}: the DR kernel refused its port")
         self.io = DRStep(measure=0, eps=-1.0, deadline_s=0.0)
@@ -173,14 +175,28 @@ class Kernel:
     def record(self, capacity):
         """Record up to `capacity` inner-loop queries (u^k, S(u^k)) per macro-step (0 = stop)."""
         if capacity > self.trace_capacity:
-            self.trace = (ctypes.c_double * (2 * self.n * capacity))()
+            self._trace_type = ctypes.c_double * (2 * self.n * capacity)
+            self.trace = self._trace_type()
         self.trace_capacity = max(capacity, 0)
         self.lib.dr_set_trace(self.handle, self.trace, self.trace_capacity)
 
     def recorded(self, iterations):
         """[(u^k, S(u^k))] of the last macro-step, as the reference DRMaster.S records them."""
         count = min(iterations, self.trace_capacity)
-        return Trace(np.frombuffer(self.trace, count=2 * self.n * count).reshape(count, 2, self.n).copy())
+        copy = self._trace_type()
+        ctypes.memmove(copy, self.trace, 16 * self.n * count)
+        return Trace(copy, self.n, count)
+
+    def book(self, n, t, iterations):
+        """After a macro-step: leave each Subsystem as its freeze/query/advance would have, with
+        x_i^n saved (in its own handle, done by the kernel) at step n, time t, and the calls counted."""
+        t_c = ctypes.c_double(t)
+        for s in self.subsystems:
+            s.step_index, s.t, s._t = n, t, t_c
+            calls = s.calls
+            calls["save"] += 1
+            calls["doStep"] += iterations + 1
+            calls["restore"] += iterations
 
     def configure(self, dt, K, eps=None, deadline_s=None):
         self.io.dt, self.io.K = dt, K
@@ -224,7 +240,7 @@ class Kernel:
         return sub.fmu.status_error(FUNCTIONS[io.failed_function], io.failed_status, n, t)
 
     def costs(self):
-        """Mean µs per evaluation of each subsystem since the last call (steps run with measure)."""
+        """Median µs per evaluation of each subsystem since the last call (steps run with measure)."""
         out = (ctypes.c_double * len(self.subsystems))()
         self.lib.dr_costs(self.handle, out)
         return list(out)

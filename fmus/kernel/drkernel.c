@@ -16,18 +16,22 @@
  * thread (or another process) when they do not. */
 #define SPIN_NS 50000.0
 
+/* Evaluations timed per subsystem for dr_costs (the median is robust to a preemption). */
+#define MAX_SAMPLES 64
+
 typedef struct {
     DRFunctions fn;
     fmi2Component comp;
-    fmi2FMUstate state;            /* x_i^n, saved once per macro-step into the same handle */
+    fmi2FMUstate *state;           /* x_i^n, saved once per macro-step into this handle: */
+    fmi2FMUstate own_state;        /* the kernel's own, or the caller's (see dr_set_subsystem) */
     fmi2ValueReference *in_vr, *out_vr;
     size_t m, offset;
     int thread;
     int frozen, dirty;             /* x_i^n saved this macro-step / instance moved away from it */
     int failed_function, failed_status;
     long n_do_step, n_save, n_restore;
-    double busy_ns;
-    long evals;
+    double sample_ns[MAX_SAMPLES];
+    int n_samples;
 } Sub;
 
 typedef struct {
@@ -108,13 +112,13 @@ static int failed(Sub *s, int function, fmi2Status status) {
 static int evaluate(Sub *s, const double *in, double *out, double t, double h, int commit, int measure) {
     double t0 = measure ? now_ns() : 0.0;
     if (!s->frozen) {
-        if (failed(s, DR_FN_GET_STATE, s->fn.getFMUstate(s->comp, &s->state))) return 1;
+        if (failed(s, DR_FN_GET_STATE, s->fn.getFMUstate(s->comp, s->state))) return 1;
         s->n_save++;
         s->frozen = 1;
         s->dirty = 0;
     }
     if (s->dirty) {
-        if (failed(s, DR_FN_SET_STATE, s->fn.setFMUstate(s->comp, s->state))) return 1;
+        if (failed(s, DR_FN_SET_STATE, s->fn.setFMUstate(s->comp, *s->state))) return 1;
         s->n_restore++;
     }
     s->dirty = !commit;
@@ -124,10 +128,7 @@ static int evaluate(Sub *s, const double *in, double *out, double t, double h, i
     if (failed(s, DR_FN_DO_STEP, s->fn.doStep(s->comp, t, h, fmi2True))) return 1;
     s->n_do_step++;
     if (failed(s, DR_FN_GET_REAL, s->fn.getReal(s->comp, s->out_vr, s->m, out + s->offset))) return 1;
-    if (measure) {
-        s->busy_ns += now_ns() - t0;
-        s->evals++;
-    }
+    if (measure && s->n_samples < MAX_SAMPLES) s->sample_ns[s->n_samples++] = now_ns() - t0;
     return 0;
 }
 
@@ -350,13 +351,13 @@ DRKernel *dr_create(int n_sub, int n, const double *P, const double *J_L, double
     return k;
 }
 
-int dr_set_subsystem(DRKernel *k, int i, const DRFunctions *fn, fmi2Component comp,
+int dr_set_subsystem(DRKernel *k, int i, const DRFunctions *fn, fmi2Component comp, fmi2FMUstate *state,
                      const fmi2ValueReference *in_vr, const fmi2ValueReference *out_vr, int m, int offset) {
     if (i < 0 || i >= k->n_sub || m < 1 || offset < 0 || (size_t)offset + (size_t)m > k->n) return -1;
     if (!fn->getFMUstate || !fn->setFMUstate || !fn->freeFMUstate || !fn->setReal || !fn->doStep || !fn->getReal)
         return -1;
     Sub *s = &k->sub[i];
-    if (s->state) s->fn.freeFMUstate(s->comp, &s->state);
+    if (s->own_state) s->fn.freeFMUstate(s->comp, &s->own_state);
     free(s->in_vr);
     s->in_vr = malloc(2 * (size_t)m * sizeof *s->in_vr);
     if (!s->in_vr) return -1;
@@ -365,7 +366,7 @@ int dr_set_subsystem(DRKernel *k, int i, const DRFunctions *fn, fmi2Component co
     memcpy(s->out_vr, out_vr, (size_t)m * sizeof *out_vr);
     s->fn = *fn;
     s->comp = comp;
-    s->state = NULL;
+    s->state = state ? state : &s->own_state;
     s->m = (size_t)m;
     s->offset = (size_t)offset;
     return 0;
@@ -411,12 +412,19 @@ int dr_set_threads(DRKernel *k, int n_threads, const int *thread_of) {
     return 0;
 }
 
+static int compare_doubles(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
 void dr_costs(DRKernel *k, double *us_per_eval) {
     for (int i = 0; i < k->n_sub; i++) {
         Sub *s = &k->sub[i];
-        us_per_eval[i] = s->evals ? 1e-3 * s->busy_ns / (double)s->evals : 0.0;
-        s->busy_ns = 0.0;
-        s->evals = 0;
+        int m = s->n_samples;
+        qsort(s->sample_ns, (size_t)m, sizeof(double), compare_doubles);
+        us_per_eval[i] = m == 0 ? 0.0 : 1e-3 * (m % 2 ? s->sample_ns[m / 2]
+                                                      : 0.5 * (s->sample_ns[m / 2 - 1] + s->sample_ns[m / 2]));
+        s->n_samples = 0;
     }
 }
 
@@ -434,7 +442,7 @@ void dr_destroy(DRKernel *k) {
     if (k->sub) {
         for (int i = 0; i < k->n_sub; i++) {
             Sub *s = &k->sub[i];
-            if (s->state) s->fn.freeFMUstate(s->comp, &s->state);
+            if (s->own_state) s->fn.freeFMUstate(s->comp, &s->own_state);
             free(s->in_vr);
         }
     }

@@ -60,8 +60,10 @@ DRKernel *dr_create(int n_sub, int n, const double *P, const double *J_L, double
                     double *u0, double *uK);
 
 /* Subsystem i: its functions, instance, value references of the wave inputs and outputs (m each)
- * and the offset of its first channel in the stacked vectors. Returns 0, or -1 on bad arguments. */
-int dr_set_subsystem(DRKernel *k, int i, const DRFunctions *fn, fmi2Component comp,
+ * and the offset of its first channel in the stacked vectors. x_i^n is saved into *state (the
+ * caller's handle, which the caller frees) or, if state is NULL, into a handle of the kernel's
+ * own (freed by dr_destroy). Returns 0, or -1 on bad arguments. */
+int dr_set_subsystem(DRKernel *k, int i, const DRFunctions *fn, fmi2Component comp, fmi2FMUstate *state,
                      const fmi2ValueReference *in_vr, const fmi2ValueReference *out_vr, int m, int offset);
 
 /* New P and J_L (n x n, row-major, copied), e.g. after gamma was re-tuned between macro-steps. */
@@ -87,14 +89,15 @@ int dr_macro_step(DRKernel *k, DRStep *io);
  * own last outgoing wave. Returns like dr_macro_step. */
 int dr_floor(DRKernel *k, DRStep *io, const double *inputs, int n_steps);
 
-/* Mean wall time (microseconds) of one evaluation of each subsystem over the macro-steps run
- * with io->measure set, then resets the measurement. */
+/* Median wall time (microseconds) of one evaluation of each subsystem over the macro-steps run
+ * with io->measure set (the first 64 evaluations), then resets the measurement. */
 void dr_costs(DRKernel *k, double *us_per_eval);
 
 /* Calls made so far per subsystem: counts[3 i + 0..2] = doStep, getFMUstate, setFMUstate. */
 void dr_counts(const DRKernel *k, long *counts);
 
-/* Stops the workers, frees the saved FMU states (before the instances are freed) and the kernel. */
+/* Stops the workers, frees the kernel's own saved FMU states (call it before the instances are
+ * freed) and the kernel. */
 void dr_destroy(DRKernel *k);
 
 #endif

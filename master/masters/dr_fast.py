@@ -74,12 +74,7 @@ class FastDRMaster(DRMaster):
         k = io.iterations
         if timing:
             per_round = (time.perf_counter() - started) / (k + 1)      # K queries and the commit
-        for s in self.subsystems:        # the calls Subsystem.freeze/query/advance would have counted
-            calls = s.calls
-            calls["save"] += 1
-            calls["doStep"] += k + 1
-            calls["restore"] += k
-            s.step_index, s.t = n, t
+        kernel.book(n, t, k)             # the Subsystems' bookkeeping: frozen at x^n, calls counted
         n_ch = kernel.n
         out = kernel.results[:]                  # b^{n+1}, a, u^0, u^K
         self.b = self._b = out[:n_ch]
