@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from .config import ALGORITHMS, DEFAULT_CONFIG, load_scenario
+from .config import ALGORITHMS, load_scenario
 from .errors import ConfigError, Interrupted, WavecosimError
 from .recorder import write_json
 

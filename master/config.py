@@ -206,7 +206,7 @@ def _coupling(ck, k, raw, subsystem_names):
         if c.ratio == 0:
             ck.fail(f"{path}.ratio", "must be non-zero")
     elif "ratio" in raw:
-        ck.fail(f"{path}.ratio", f"only a transformer or gyrator takes a ratio")
+        ck.fail(f"{path}.ratio", "only a transformer or gyrator takes a ratio")
     if ctype == "dirac":
         for key in ("E", "F"):
             mat = raw.get(key)

@@ -5,9 +5,7 @@ with no traceback. FMU archives are extracted safely into temporary folders that
 YAML is read without Python tags."""
 import copy
 import os
-import shutil
 import subprocess
-import sys
 import tempfile
 import zipfile
 from pathlib import Path

@@ -8,10 +8,8 @@ grows until its energy is no longer finite at macro-step 166."""
 import copy
 import csv
 import json
-import os
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 

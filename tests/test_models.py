@@ -29,6 +29,7 @@ MODELS = {
     "RLCCircuit": ("rlc_circuit", "R", {"q_C": 0.1, "i_L": 1.0}, 10.0),
     "DCMotorLoad": ("dc_motor_load", "friction", {"theta": 1.0, "omega": 5.0}, 1.0),
     "HeavyChain": ("heavy_chain", "c", {}, 10.0),
+    "ChainLink": ("chain_link", "c", {"q": 0.5, "v": 1.0, "d": 0.3}, 1.0),
 }
 PASSIVITY_RTOL = 1e-12
 

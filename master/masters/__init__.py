@@ -1,5 +1,4 @@
 """Name-to-class table of masters, shared by YAML (`master.algorithm`) and the CLI (`--master`)."""
-from .dr import DRMaster
 from .explicit import ExplicitMaster
 from .fixed_point import GaussSeidelIterMaster, JacobiIterMaster
 from .gauss_seidel import GaussSeidelMaster
