@@ -1,8 +1,8 @@
 """Energy certificates of a macro-step (paper Section IV).
 
 - Condition 2: r_i = dH_i - 1/2 (|a_i|^2 - |b_i|^2) <= 0 (eq. 27), or dH_i - dt e_i.f_i in physical mode.
-- Theorem 1: dH + 1/2|u^K - u*|^2 - 1/2|u^0 - u*|^2 - 1/2(|a|^2 - |b|^2) <= 0 (eq. 31), u* = P b*.
-- Condition 1: FNE margin <S(x)-S(y), x-y> - |S(x)-S(y)|^2 (eq. 24), reported divided by |x-y|^2
+- Theorem 1: dH + 1/2|u^K - u*|^2 - 1/2|u^0 - u*|^2 - 1/2(|a|^2 - |b|^2) <= 0 (eq. 32), u* = P b* (eq. 18).
+- Condition 1: FNE margin <S(x)-S(y), x-y> - |S(x)-S(y)|^2 (eq. 22), reported divided by |x-y|^2
   so it is scale-free (a linear map b = rho a gives rho - rho^2).
 """
 import numpy as np
@@ -22,7 +22,7 @@ def physical_passivity_residual(H_before, H_after, e, f, dt):
 
 
 def augmented_residual(dH_total, u0, uK, u_star, a_hat, b_next):
-    """Theorem 1 residual (eq. 31) with u* a DR fixed point of this macro-step."""
+    """Theorem 1 residual (eq. 32) with u* a DR fixed point of this macro-step."""
     fejer = 0.5 * distance(uK, u_star) ** 2 - 0.5 * distance(u0, u_star) ** 2
     supply = 0.5 * (sum(x * x for x in a_hat) - sum(x * x for x in b_next))
     return dH_total + fejer - supply

@@ -122,7 +122,8 @@ def run_cmd(config, K, eps, gamma, dt, T, quiet, algorithm, out, no_certificates
                    f"{'inside the FNE bounds' if s['gamma_guaranteed'] else 'OUTSIDE an FNE bound: Theorem 1 not guaranteed'}"
                    f"{'' if s.get('fne_watch_ok', True) else '; the Condition 1 watch found a violation'})")
     print_table([s], ["steps", "max_error", "rms_error", "final_error", "max_passivity_pos", "max_augmented_pos",
-                      "min_fne_margin", "iterations_mean", "wall_time_s"])
+                      "min_fne_margin", "iterations_mean", "wall_time_s",
+                      *(["energy_guard_steps"] if "energy_guard_steps" in s else [])])
     if plots:
         from .plots import run_plots
         for p in run_plots(result, reference, out):

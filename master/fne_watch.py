@@ -1,4 +1,4 @@
-"""Condition 1 watch: a cheap online estimate of each frozen port map's FNE margin (paper eq. 24).
+"""Condition 1 watch: a cheap online estimate of each frozen port map's FNE margin (paper eq. 22).
 
 Per macro-step and subsystem, the scale-free margin (<dS, da> - |dS|^2) / |da|^2 (>= 0 when S_i^n
 is FNE; rho - rho^2 for b = rho a) comes from:
@@ -57,7 +57,7 @@ def _pairs(scene, trace):
 def trace_impedances(scene, trace, gammas):
     """{subsystem: smallest secant port impedance} seen by the inner loop at `gammas` ({subsystem: gamma}).
 
-    Along a pair, <de, df> / |df|^2 = gamma (|da|^2 - |dS|^2) / |da - dS|^2 (eq. 6): a Rayleigh
+    Along a pair, <de, df> / |df|^2 = gamma (|da|^2 - |dS|^2) / |da - dS|^2 (eq. 4): a Rayleigh
     quotient of Z_d over the range the iterates really visited, so Condition 1 needs gamma below it."""
     out = {}
     for s, da, ds in _pairs(scene, trace):

@@ -1,7 +1,7 @@
 """A subsystem as the masters see it: an FMU, its port channels, and its frozen port map S_i^n.
 
-`freeze()` saves x_i^n; `query(a)` is S_i^n(a) (paper eq. 11): restore x_i^n, apply a, one doStep,
-read b, discard the state; `advance(a)` is Phi_i (eq. 23): the same from x_i^n, but the state is
+`freeze()` saves x_i^n; `query(a)` is S_i^n(a) (paper eq. 12): restore x_i^n, apply a, one doStep,
+read b, discard the state; `advance(a)` is Phi_i (eq. 21): the same from x_i^n, but the state is
 kept. Calls go straight to the FMU's C functions with pre-converted arguments.
 """
 import ctypes

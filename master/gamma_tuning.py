@@ -2,7 +2,7 @@
 
 With a reciprocal incremental port response de = Z_d df, the frozen port map has the Jacobian
 J_S = (Z_d - gamma I)(Z_d + gamma I)^-1, and Condition 1 (FNE) holds locally iff gamma <= lambda_min(Z_d)
-(eq. 33). The condition is per subsystem, and the wave map P stays orthogonal for any positive
+(eq. 26). The condition is per subsystem, and the wave map P stays orthogonal for any positive
 impedance on each channel (Remark 1), so each subsystem i gets its own gamma_i <= lambda_min(Z_d,i);
 among those we pick the gammas whose linearized Douglas-Rachford operator
 T = 1/2 (I + R_L R_S), R = 2 J - I (Section IV-B), has the smallest spectral radius.
@@ -224,7 +224,7 @@ def rescatter(scene, gammas):
 
     Each FMU computes b = sqrt(dt / (2 gamma)) (e - gamma f) from its stage e, f (fmus/layer,
     fmi2DoStep), so b at gamma' is the same formula with gamma'; this equals converting b with
-    the old gamma to (e, f) through eq. (6) (with the incident a) and back through eq. (5)."""
+    the old gamma to (e, f) through eq. (4) (with the incident a) and back through eq. (3)."""
     b = []
     for s in scene.subsystems:
         g = gammas[s.name]

@@ -1,8 +1,8 @@
 """Lossless interconnections: a Dirac structure E e + F f = 0 compiled to the wave map a = P b.
 
-With per-channel impedances Gamma, substituting eq. (6) gives
+With per-channel impedances Gamma, substituting eq. (4) gives
 P = (F Gamma^-1/2 + E Gamma^1/2)^-1 (F Gamma^-1/2 - E Gamma^1/2), orthogonal when E F^T + F E^T = 0
-and [E F] has full row rank (paper eq. 10, Remark 1). J_L = (2I - P)^-1 (eq. 15) is cached.
+and [E F] has full row rank (paper eqs. 9-10, Remark 1). J_L = (2I - P)^-1 (eq. 16) is cached.
 """
 from dataclasses import dataclass
 
@@ -14,7 +14,7 @@ TOL = 1e-10
 
 
 def equal_effort_opposite_flow(m=1):
-    """Two ports of m channels: e_A = e_B, f_A + f_B = 0 (paper eq. 9)."""
+    """Two ports of m channels: e_A = e_B, f_A + f_B = 0 (paper eqs. 7-8)."""
     i, z = np.eye(m), np.zeros((m, m))
     return np.block([[i, -i], [z, z]]), np.block([[z, z], [i, i]])
 

@@ -143,7 +143,7 @@ def _fig5(results, Ks, path):
     a.legend(fontsize=8)
     top = 1e-6
     for key, label, marker in (("max_passivity_pos", r"passivity: $\max_{n,i}\,(r_i^n)_+$, eq. (27)", "o"),
-                               ("max_augmented_pos", r"augmented storage: $\max_n\,(\cdot)_+$, eq. (31)", "s")):
+                               ("max_augmented_pos", r"augmented storage: $\max_n\,(\cdot)_+$, eq. (32)", "s")):
         vals = [r.summary.get(key, np.nan) for r in results]
         b.semilogy(Ks, _floored(vals), marker + "-", label=label)
         top = max([top] + [10 * v for v in vals if np.isfinite(v)])

@@ -1,4 +1,4 @@
-"""Algorithm 1 (paper eqs. 17-23) on a linear case with a known answer and on the real FMUs."""
+"""Algorithm 1 (paper eqs. 17-21) on a linear case with a known answer and on the real FMUs."""
 import numpy as np
 import pytest
 
@@ -39,7 +39,7 @@ def test_linear_case_converges_to_the_known_fixed_point():
     b_star = np.linalg.solve(M, c)
     log = algorithm1(affine_map(rho, c), SWAP, J_SWAP, [0.0, 0.0], K=200)
     assert np.allclose(log.a_hat, np.array(SWAP) @ b_star, atol=1e-13)
-    assert np.allclose(log.uK, np.array(SWAP) @ b_star, atol=1e-13)  # u* = P b* (eq. 20)
+    assert np.allclose(log.uK, np.array(SWAP) @ b_star, atol=1e-13)  # u* = P b* (eq. 18)
 
 
 def test_tolerance_exit_reports_reason_and_iterations():
@@ -75,7 +75,7 @@ def test_fejer_monotonicity_of_inner_iterates(frozen_benchmark):
     dist = [float(np.sum((u - u_dag) ** 2)) for u in iterates]
     for k in range(len(iterates) - 1):
         step = float(np.sum((iterates[k + 1] - iterates[k]) ** 2))
-        assert dist[k + 1] <= dist[k] - step + 1e-12 * (1 + dist[0])   # eq. (30)
+        assert dist[k + 1] <= dist[k] - step + 1e-12 * (1 + dist[0])   # eq. (28)
     assert dist[-1] < 1e-6 * dist[0]
 
 

@@ -175,7 +175,7 @@ def test_one_probe_predicts_the_slope_at_another_gamma():
 
 def test_rescatter_matches_the_scattering_equations():
     """Re-scattering b^n to a new gamma through the FMUs' stage (e, f) equals converting (a, b) with
-    the old gamma by eq. (6) and back with the new one by eq. (5)."""
+    the old gamma by eq. (4) and back with the new one by eq. (3)."""
     sc = scenario(0.4)
     scene = build_scene(sc)
     try:

@@ -1,4 +1,4 @@
-"""Dirac structure E e + F f = 0 compiled to the orthogonal wave map P (paper eqs. 9-10, Remark 1)."""
+"""Dirac structure E e + F f = 0 compiled to the orthogonal wave map P (paper eqs. 7-10, Remark 1)."""
 import numpy as np
 import pytest
 

@@ -106,7 +106,7 @@ static int failed(Sub *s, int function, fmi2Status status) {
     return 1;
 }
 
-/* S_i^n(a) (commit = 0, eq. 11) or Phi_i(x_i^n, a) (commit = 1, eq. 23) on the channels of s:
+/* S_i^n(a) (commit = 0, eq. 12) or Phi_i(x_i^n, a) (commit = 1, eq. 21) on the channels of s:
  * save x_i^n on the first call of the macro-step (line 3), restore it if an earlier query moved
  * the instance, set the incident waves, one doStep, read the outgoing waves. */
 static int evaluate(Sub *s, const double *in, double *out, double t, double h, int commit, int measure) {
@@ -265,22 +265,22 @@ int dr_macro_step(DRKernel *k, DRStep *io) {
     begin_macro_step(k, io);
     double deadline = io->deadline_s > 0.0 ? now_ns() + 1e9 * io->deadline_s : 0.0;
     double *u = k->u, *u_next = k->u_next;
-    matvec(k->P, k->b, u, n);                                    /* line 6, eq. (21): u^0 = P b^n */
+    matvec(k->P, k->b, u, n);                                    /* line 6, eq. (19): u^0 = P b^n */
     memcpy(k->u0, u, n * sizeof *u);
-    const double *b_star = k->b;                                 /* line 7, eq. (21): b^* = b^n */
+    const double *b_star = k->b;                                 /* line 7, eq. (19): b^* = b^n */
     int it = 0, reason = DR_BUDGET;
     double residual = NAN;
     while (it < io->K) {                                         /* line 9 */
-        int f = evaluate_all(k, u, k->b_hat, io->t, io->dt, 0, io->measure); /* line 10, eq. (17) */
+        int f = evaluate_all(k, u, k->b_hat, io->t, io->dt, 0, io->measure); /* line 10, eq. (17) response */
         if (f >= 0) return report_failure(k, io, f);
         if (k->trace && it < k->trace_capacity) {
             memcpy(k->trace + 2 * n * (size_t)it, u, n * sizeof *u);
             memcpy(k->trace + 2 * n * (size_t)it + n, k->b_hat, n * sizeof *u);
         }
         for (size_t j = 0; j < n; j++) k->z[j] = 2.0 * k->b_hat[j] - u[j];
-        matvec(k->J_L, k->z, k->w, n);                           /* line 11, eq. (18): w = J_L(2b - u) */
-        for (size_t j = 0; j < n; j++) u_next[j] = u[j] + k->w[j] - k->b_hat[j]; /* line 12, eq. (19) */
-        b_star = k->b_hat;                                       /* line 13, eq. (22): b^* = last b */
+        matvec(k->J_L, k->z, k->w, n);                           /* line 11, eq. (17): w = J_L(2b - u) */
+        for (size_t j = 0; j < n; j++) u_next[j] = u[j] + k->w[j] - k->b_hat[j]; /* line 12, eq. (17) update */
+        b_star = k->b_hat;                                       /* line 13, eq. (20): b^* = last b */
         residual = distance(u_next, u, n);
         double *swap = u;
         u = u_next;
@@ -295,12 +295,12 @@ int dr_macro_step(DRKernel *k, DRStep *io) {
             break;
         }
     }
-    matvec(k->P, b_star, k->a_hat, n);                           /* line 19, eq. (23): a = P b^* */
+    matvec(k->P, b_star, k->a_hat, n);                           /* line 19, eq. (21): a = P b^* */
     memcpy(k->uK, u, n * sizeof *u);
     io->iterations = it;
     io->residual = residual;
     io->reason = io->K ? reason : DR_EXPLICIT;
-    /* lines 20-22, eq. (23): commit Phi_i(x_i^n, a_i); the outgoing waves are b^{n+1} */
+    /* lines 20-22, eq. (21): commit Phi_i(x_i^n, a_i); the outgoing waves are b^{n+1} */
     int f = evaluate_all(k, k->a_hat, k->b, io->t, io->dt, 1, io->measure);
     return f >= 0 ? report_failure(k, io, f) : 0;
 }

@@ -1,4 +1,4 @@
-"""Interface Newton with rollback: solves the monolithic interface condition b = S^n(P b) (eq. 14).
+"""Interface Newton with rollback: solves the monolithic interface condition b = S^n(P b) (eqs. 14-15).
 
 This is the monolithic reference of the DR master (the true monolithic discrete-time step, not a
 long DR run) and a master in its own right. The Jacobian of the block-diagonal S^n is taken by
