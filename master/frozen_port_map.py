@@ -59,9 +59,13 @@ class Subsystem:
         if status > 1:
             raise self.fmu.status_error(name, status, self.step_index, self.t)
 
+    def begin(self, step_index, t):
+        """Start macro-step n at time t without saving the state (masters that never roll back)."""
+        self.step_index, self.t, self._t = step_index, t, ctypes.c_double(t)
+
     def freeze(self, step_index, t):
         """Save x_i^n, the state every query of this macro-step starts from."""
-        self.step_index, self.t, self._t = step_index, t, ctypes.c_double(t)
+        self.begin(step_index, t)
         self._call(self._get_state, "fmi2GetFMUstate", self._comp, ctypes.byref(self._state))
         self.calls["save"] += 1
         self._dirty = False

@@ -119,14 +119,20 @@ def run(scenario, out_dir=None, label=None, progress=None, certificates=True, re
     N, dt = scenario.n_steps, scenario.dt
     columns = list(scenario.outputs)
     scene = build_scene(scenario, wave=cls.wave, gamma=gamma, needs_rollback=cls.needs_rollback)
-    tuner = None
-    if cls.wave and gamma is None and isinstance(scenario.gamma, str):
-        try:
+    tuner = master = None
+    try:                                      # set-up problems are input errors: raised as they are
+        if cls.wave and gamma is None and isinstance(scenario.gamma, str):
             tuner = GammaTuner(scene, scenario.gamma, warn if settings.algorithm == "dr" else None)
             tuner.initial([0.0] * scene.n_channels)                  # sets the scene's per-subsystem gammas
-        except BaseException:
-            scene.close()
-            raise
+        master = cls(scene, settings, gamma=gamma) if cls.wave else cls(scene, settings)
+        if tuner and tuner.retune and not hasattr(master, "set_gamma"):
+            raise ConfigError(f"{scenario.source}: gamma: auto-retune needs a master that can change gamma between "
+                              f"macro-steps (dr, newton), not {settings.algorithm}")
+    except BaseException:
+        if master is not None:
+            master.close()
+        scene.close()
+        raise
     units = _units(scene, scenario)
     sizes = [s.m for s in scene.subsystems]
     names = [s.name for s in scene.subsystems]
@@ -139,12 +145,8 @@ def run(scenario, out_dir=None, label=None, progress=None, certificates=True, re
     master_time = 0.0
     calls = {"doStep": 0, "save": 0, "restore": 0}
     started = time.perf_counter()
-    master = guard = None
+    guard = None
     try:
-        master = cls(scene, settings, gamma=gamma) if cls.wave else cls(scene, settings)
-        if tuner and tuner.retune and not hasattr(master, "set_gamma"):
-            raise ConfigError(f"{scenario.source}: gamma: auto-retune needs a master that can change gamma between "
-                              f"macro-steps (dr, newton), not {settings.algorithm}")
         if scenario.fne_watch and settings.algorithm == "dr":
             watch = FneWatch(scene, warn)
         if (watch or tuner and tuner.retune) and hasattr(master, "trace"):

@@ -5,8 +5,6 @@ input); G comes from the Dirac structure split by causality (Scene.input_map). A
 subsystem its inputs G y: all from the old y (Jacobi), or with the outputs its predecessors just
 produced (Gauss-Seidel, `sequential`).
 """
-import ctypes
-
 import numpy as np
 
 from .base import Master
@@ -34,5 +32,5 @@ class PhysicalMaster(Master):
 
 def step_forward(sub, n, t, inputs):
     """One doStep from the current state, nothing saved first (for masters that never roll back)."""
-    sub.step_index, sub.t, sub._t = n, t, ctypes.c_double(t)
+    sub.begin(n, t)
     return sub.advance(inputs)
