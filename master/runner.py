@@ -106,6 +106,28 @@ class _DeferInterrupt:
         return False
 
 
+def _sample_certificates(scene, master, scenario, rng, n, t):
+    """Before macro-step n: the sampled FNE margin of every S_i^n (Condition 1) and a DR fixed point
+    u* = P b* (eq. 18) for the augmented residual; the FMUs are left at x^n."""
+    certs, fne_min, u_star = scenario.certificates, float("nan"), None
+    if not (certs.fne_pairs or certs.augmented):
+        return fne_min, u_star
+    sizes = [s.m for s in scene.subsystems]
+    for s in scene.subsystems:
+        s.freeze(n, t)
+    if certs.augmented and scenario.master.algorithm == "dr":
+        b_star = solve_interface(master.S, master.P, master.b, max(sizes), scene.offsets, sizes,
+                                 where=f" at step {n} (t = {t:.6g})")[0]
+        u_star = list(np.asarray(master.P) @ b_star)
+    if certs.fne_pairs:
+        centre = scene.split(list(np.asarray(master.P) @ np.asarray(master.b)))
+        fne_min = min(cert.fne_margins(s, c, certs.fne_pairs, rng, certs.fne_scale, scenario.dt)
+                      for s, c in zip(scene.subsystems, centre))
+    for s in scene.subsystems:
+        s.thaw()
+    return fne_min, u_star
+
+
 def run(scenario, out_dir=None, label=None, progress=None, certificates=True, reference=None, gamma=None,
         file_suffix=True, warn=None) -> RunResult:
     """Run `scenario` with its master settings; stream `trajectory.csv` and `steps.csv` into out_dir.
@@ -177,20 +199,8 @@ def run(scenario, out_dir=None, label=None, progress=None, certificates=True, re
             probed = None
             if watch and (settings.K < 2 or getattr(master, "trace", None) is None):
                 probed = watch.probe(master.b, n, t, master.P)       # no inner iterates to read margins from
-            if wave_certs and (scenario.certificates.fne_pairs or scenario.certificates.augmented):
-                for s in scene.subsystems:
-                    s.freeze(n, t)
-                if scenario.certificates.augmented and settings.algorithm == "dr":
-                    b_star = solve_interface(master.S, master.P, master.b, max(sizes), scene.offsets, sizes,
-                                             where=f" at step {n} (t = {t:.6g})")[0]
-                    u_star = list(np.asarray(master.P) @ b_star)
-                if scenario.certificates.fne_pairs:
-                    centre = scene.split(list(np.asarray(master.P) @ np.asarray(master.b)))
-                    fne_min = min(cert.fne_margins(s, c, scenario.certificates.fne_pairs, rng,
-                                                   scenario.certificates.fne_scale, dt)
-                                  for s, c in zip(scene.subsystems, centre))
-                for s in scene.subsystems:
-                    s.thaw()
+            if wave_certs:
+                fne_min, u_star = _sample_certificates(scene, master, scenario, rng, n, t)
             before = {k: sum(s.calls[k] for s in scene.subsystems) for k in calls}
             t0 = time.perf_counter()
             if guard:

@@ -175,7 +175,11 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component comp) {
         c->phase = ST_ERROR;
         return fail(c, "fmi2ExitInitializationMode", "%s must be > 0", "gamma");
     }
-    model_initialize(&c->d);
+    char msg[300] = "";
+    if (model_initialize(&c->d, msg, sizeof msg) != 0) {
+        c->phase = ST_ERROR;
+        return fail(c, "fmi2ExitInitializationMode", "%s", msg);
+    }
     initial_outputs(&c->d);
     for (int k = 0; k < N_REALS; k++) {
         if (!isfinite(c->d.r[k])) {

@@ -63,8 +63,9 @@ typedef struct {
     double s[N_CHANNELS];
 } PortClosure;
 
-/* Called after start values and parameters are final (exit of initialization mode). */
-void model_initialize(ModelData *m);
+/* Called after start values and parameters are final (exit of initialization mode). Returns 0, or
+ * non-zero with a message naming the bad parameter. */
+int model_initialize(ModelData *m, char *msg, size_t msg_size);
 
 /* Stored energy H(x) of the current state. */
 double model_energy(const ModelData *m);

@@ -5,7 +5,10 @@
  * in closed form, as in DuffingSide without the quartic term. */
 #include "model.h"
 
-void model_initialize(ModelData *m) { (void)m; }
+int model_initialize(ModelData *m, char *msg, size_t n) {
+    (void)m; (void)msg; (void)n;
+    return 0;
+}
 
 double model_energy(const ModelData *m) {
     const double *r = m->r;

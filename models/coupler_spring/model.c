@@ -3,7 +3,10 @@
  * State delta, H = k delta^2/2; implicit midpoint in closed form. */
 #include "model.h"
 
-void model_initialize(ModelData *m) { (void)m; }
+int model_initialize(ModelData *m, char *msg, size_t n) {
+    (void)m; (void)msg; (void)n;
+    return 0;
+}
 
 double model_energy(const ModelData *m) {
     return 0.5 * m->r[VR_k] * m->r[VR_delta] * m->r[VR_delta];

@@ -3,7 +3,10 @@
  * RLCCircuit. State (theta, omega), H = J omega^2/2 + stiffness theta^2/2; closed-form midpoint. */
 #include "model.h"
 
-void model_initialize(ModelData *m) { (void)m; }
+int model_initialize(ModelData *m, char *msg, size_t n) {
+    (void)m; (void)msg; (void)n;
+    return 0;
+}
 
 double model_energy(const ModelData *m) {
     const double *r = m->r;

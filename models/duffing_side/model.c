@@ -7,7 +7,10 @@
 #include "model.h"
 #include "newton.h"
 
-void model_initialize(ModelData *m) { (void)m; }
+int model_initialize(ModelData *m, char *msg, size_t n) {
+    (void)m; (void)msg; (void)n;
+    return 0;
+}
 
 double model_energy(const ModelData *m) {
     const double *r = m->r;

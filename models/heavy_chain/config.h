@@ -37,7 +37,7 @@
 #define INTEGER_VARIABLES(X) \
     X(port_mode, 0, "0 = wave port (input a, output b), 1 = physical port (input F)") \
     X(newton_max_iter, 50, "iteration limit of the Newton step (beyond newton_sweeps)") \
-    X(n, 200, "number of masses, 1..1000 (another value fails initialization: H is not finite)") \
+    X(n, 200, "number of masses, 1..1000 (another value fails initialization)") \
     X(newton_sweeps, 100, "minimum Newton iterations per step: the cost knob of the benchmark")
 
 #define PORT_CHANNELS(X) X(a, b, e, f, F, EFFORT_INPUT)

@@ -17,8 +17,12 @@ static double spring_energy(const double *r, double d) {
 /* Elongation of spring j: q_{j+1} - q_j, and the wall spring n-1: 0 - q_{n-1}. */
 static double elongation(const double *q, int j, int n) { return (j < n - 1 ? q[j + 1] : 0.0) - q[j]; }
 
-void model_initialize(ModelData *m) {
-    int n = valid_n(m) ? m->i[VRI_n] : 0;
+int model_initialize(ModelData *m, char *msg, size_t msg_size) {
+    if (!valid_n(m)) {
+        snprintf(msg, msg_size, "parameter n must be between 1 and %d, got %d", NMAX, m->i[VRI_n]);
+        return 1;
+    }
+    int n = m->i[VRI_n];
     double centre = 0.5 * (n - 1), width = n >= 20 ? n / 20.0 : 1.0;
     for (int i = 0; i < NMAX; i++) {
         double z = (i - centre) / width;
@@ -26,10 +30,11 @@ void model_initialize(ModelData *m) {
         m->v[i] = 0.0;
     }
     m->r[VR_q_first] = m->q[0];
-    m->r[VR_q_last] = n ? m->q[n - 1] : 0.0;
+    m->r[VR_q_last] = m->q[n - 1];
+    return 0;
 }
 
-/* NaN for an invalid n: the layer then refuses initialization ("H is not finite at the start"). */
+/* NaN for an invalid n (initialization refuses it first; a state restored from elsewhere might not). */
 double model_energy(const ModelData *m) {
     if (!valid_n(m)) return NAN;
     const double *r = m->r;

@@ -2,7 +2,10 @@
  * step with the port closure F = c - s f, f = -vbar, is linear in vbar and solved in closed form. */
 #include "model.h"
 
-void model_initialize(ModelData *m) { (void)m; }
+int model_initialize(ModelData *m, char *msg, size_t n) {
+    (void)m; (void)msg; (void)n;
+    return 0;
+}
 
 double model_energy(const ModelData *m) {
     const double *r = m->r;

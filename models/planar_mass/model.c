@@ -3,7 +3,10 @@
  * State (x, y, vx, vy), H = m |v|^2/2; implicit midpoint, one closed form per channel. */
 #include "model.h"
 
-void model_initialize(ModelData *m) { (void)m; }
+int model_initialize(ModelData *m, char *msg, size_t n) {
+    (void)m; (void)msg; (void)n;
+    return 0;
+}
 
 double model_energy(const ModelData *m) {
     const double *r = m->r;

@@ -3,7 +3,10 @@
  * State (q_C, i_L), H = L i^2/2 + q^2/(2C); implicit midpoint in closed form. */
 #include "model.h"
 
-void model_initialize(ModelData *m) { (void)m; }
+int model_initialize(ModelData *m, char *msg, size_t n) {
+    (void)m; (void)msg; (void)n;
+    return 0;
+}
 
 double model_energy(const ModelData *m) {
     const double *r = m->r;
