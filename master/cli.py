@@ -55,6 +55,17 @@ def _apply_overrides(scenario, K=None, eps=None, gamma=None, dt=None, T=None, al
     return scenario
 
 
+def parse_budgets(ks):
+    """--Ks "0,3,8" -> [0, 3, 8], each an integer >= 0."""
+    try:
+        Ks = [int(k) for k in ks.split(",") if k.strip()]
+    except ValueError:
+        raise ConfigError(f"--Ks: must be comma-separated integers, got {ks!r}") from None
+    if not Ks or min(Ks) < 0:
+        raise ConfigError(f"--Ks: budgets must be integers >= 0, got {ks!r}")
+    return Ks
+
+
 def _fmt(x):
     return f"{x:.3e}" if isinstance(x, float) else str(x)
 
@@ -141,12 +152,7 @@ def run_cmd(config, K, eps, gamma, dt, T, quiet, algorithm, out, no_certificates
 def sweep_cmd(config, K, eps, gamma, dt, T, quiet, ks, out, no_certificates, plots):
     """Reproduce the paper's experiment: DR for each K against the monolithic reference."""
     from .sweep import SWEEP_FIELDS, sweep
-    try:
-        Ks = [int(k) for k in ks.split(",") if k.strip()]
-    except ValueError:
-        raise ConfigError(f"--Ks: must be comma-separated integers, got {ks!r}") from None
-    if not Ks or min(Ks) < 0:
-        raise ConfigError(f"--Ks: budgets must be integers >= 0, got {ks!r}")
+    Ks = parse_budgets(ks)
     scenario = _apply_overrides(load_scenario(config), None, eps, gamma, dt, T)
     progress = (lambda label: _progress(label, quiet))
     reference, results, runs = sweep(scenario, Ks, out, progress=progress, certificates=not no_certificates)
@@ -179,12 +185,7 @@ def compare_cmd(config, K, eps, gamma, dt, T, quiet, masters, ks, out, no_certif
         raise ConfigError("--K and --Ks: give one budget (--K) or a list (--Ks), not both")
     Ks = [K] if K is not None else None
     if ks is not None:
-        try:
-            Ks = [int(k) for k in ks.split(",") if k.strip()]
-        except ValueError:
-            raise ConfigError(f"--Ks: must be comma-separated integers, got {ks!r}") from None
-        if not Ks or min(Ks) < 0:
-            raise ConfigError(f"--Ks: budgets must be integers >= 0, got {ks!r}")
+        Ks = parse_budgets(ks)
     scenario = _apply_overrides(load_scenario(config), None, eps, gamma, dt, T)
     progress = (lambda label: _progress(label, quiet))
     reference, results, rows = compare(scenario, out, names, Ks, progress=progress, certificates=not no_certificates)

@@ -2,7 +2,7 @@
 
 Keeps FMI names, converts arguments, turns bad statuses into FmuError carrying the FMU's own
 log message, and exposes the raw C function pointers for the fast path. Nothing above this
-module imports ctypes except the fast path itself.
+module imports ctypes except the hot paths (frozen_port_map.py, fast_path.py).
 """
 import atexit
 import ctypes
