@@ -134,8 +134,10 @@ def _fig4(results, reference, colors, path):
 
 def _fig5(results, Ks, path):
     fig, (a, b) = plt.subplots(1, 2, figsize=(11, 3.8))
-    fne = [r.summary.get("min_fne_margin", np.nan) for r in results]
-    a.plot(Ks, fne, "o-", label="min sampled FNE margin (all subsystems, all steps)")
+    names = list(results[0].summary.get("min_fne_margin_by_subsystem", {}))
+    for name in names:
+        fne = [r.summary["min_fne_margin_by_subsystem"].get(name, np.nan) for r in results]
+        a.plot(Ks, fne, "o-", label=f"subsystem {name}: min over steps and sampled pairs")
     a.axhline(0.0, color="k", lw=0.8, ls="--", label="FNE threshold 0")
     a.set(xlabel="inner budget K", ylabel="normalized FNE margin Δ/‖α−β‖²",
           title="(a) Condition 1: FNE margins")

@@ -107,11 +107,12 @@ class _DeferInterrupt:
 
 
 def _sample_certificates(scene, master, scenario, rng, n, t):
-    """Before macro-step n: the sampled FNE margin of every S_i^n (Condition 1) and a DR fixed point
+    """Before macro-step n: the sampled FNE margin of each S_i^n (Condition 1) and a DR fixed point
     u* = P b* (eq. 18) for the augmented residual; the FMUs are left at x^n."""
-    certs, fne_min, u_star = scenario.certificates, float("nan"), None
+    certs, u_star = scenario.certificates, None
+    fne = [float("nan")] * len(scene.subsystems)
     if not (certs.fne_pairs or certs.augmented):
-        return fne_min, u_star
+        return fne, u_star
     sizes = [s.m for s in scene.subsystems]
     for s in scene.subsystems:
         s.freeze(n, t)
@@ -121,11 +122,11 @@ def _sample_certificates(scene, master, scenario, rng, n, t):
         u_star = list(np.asarray(master.P) @ b_star)
     if certs.fne_pairs:
         centre = scene.split(list(np.asarray(master.P) @ np.asarray(master.b)))
-        fne_min = min(cert.fne_margins(s, c, certs.fne_pairs, rng, certs.fne_scale, scenario.dt)
-                      for s, c in zip(scene.subsystems, centre))
+        fne = [cert.fne_margins(s, c, certs.fne_pairs, rng, certs.fne_scale, scenario.dt)
+               for s, c in zip(scene.subsystems, centre)]
     for s in scene.subsystems:
         s.thaw()
-    return fne_min, u_star
+    return fne, u_star
 
 
 def run(scenario, out_dir=None, label=None, progress=None, certificates=True, reference=None, gamma=None,
@@ -193,14 +194,15 @@ def run(scenario, out_dir=None, label=None, progress=None, certificates=True, re
         wave_certs = certificates and cls.wave
         for n in range(N):
             t = n * dt
-            fne_min, u_star = float("nan"), None
+            fne, u_star = [float("nan")] * len(names), None
             if tuner:
                 tuner.between_steps(master, n, t)                    # gamma changes only between macro-steps
             probed = None
             if watch and (settings.K < 2 or getattr(master, "trace", None) is None):
                 probed = watch.probe(master.b, n, t, master.P)       # no inner iterates to read margins from
             if wave_certs:
-                fne_min, u_star = _sample_certificates(scene, master, scenario, rng, n, t)
+                fne, u_star = _sample_certificates(scene, master, scenario, rng, n, t)
+            fne_min = min(fne) if all(v == v for v in fne) else float("nan")
             before = {k: sum(s.calls[k] for s in scene.subsystems) for k in calls}
             t0 = time.perf_counter()
             if guard:
@@ -241,7 +243,7 @@ def run(scenario, out_dir=None, label=None, progress=None, certificates=True, re
                 t_rows.append((n + 1) * dt)
                 out_rows.append(row)
                 for key, val in (("iterations", log.iterations), ("residual", log.residual), ("passivity", r),
-                                 ("augmented", aug), ("fne", fne_min), ("supply", supply), ("H", sum(H_new)),
+                                 ("augmented", aug), ("fne", fne), ("supply", supply), ("H", sum(H_new)),
                                  ("gamma", gammas), ("fne_watch", watched)):
                     steps[key].append(val)
                 if traj:
@@ -311,13 +313,18 @@ def _pos_max(values):
     return float(max(0.0, arr.max())) if arr.size else float("nan")
 
 
+def _finite_min(values):
+    arr = np.asarray([v for v in values if v == v], float)
+    return float(arr.min()) if arr.size else float("nan")
+
+
 def _summary(result, scenario, master_time, total_time, calls, names):
     s = result.steps
     passivity = np.array(s["passivity"], float).reshape(-1, len(names)) if s["passivity"] else np.zeros((0, len(names)))
     H = np.array(s["H"], float)
     supply = np.array(s["supply"], float)
     n = len(s["iterations"])
-    fne = [v for v in s["fne"] if v == v]
+    fne = np.array(s["fne"], float).reshape(-1, len(names)) if s["fne"] else np.zeros((0, len(names)))
     return {
         "label": result.label, "scenario": scenario.name, "master": result.master, "K": result.K,
         "eps": scenario.master.eps, "dt": scenario.dt, "T": scenario.T, "steps": n, "status": result.status,
@@ -325,7 +332,8 @@ def _summary(result, scenario, master_time, total_time, calls, names):
         "max_passivity_pos": _pos_max(passivity.ravel()),
         "max_passivity_pos_by_subsystem": {nm: _pos_max(passivity[:, i]) for i, nm in enumerate(names)},
         "max_augmented_pos": _pos_max(s["augmented"]),
-        "min_fne_margin": float(min(fne)) if fne else float("nan"),
+        "min_fne_margin": _finite_min(fne.ravel()),
+        "min_fne_margin_by_subsystem": {nm: _finite_min(fne[:, i]) for i, nm in enumerate(names)},
         "iterations_mean": float(np.mean(s["iterations"])) if n else 0.0,
         "iterations_max": int(max(s["iterations"])) if n else 0,
         "wall_time_s": master_time, "total_time_s": total_time,
