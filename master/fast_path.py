@@ -11,6 +11,8 @@ import ctypes
 import os
 import time
 
+import numpy as np
+
 from .config import ROOT
 from .errors import FmuError
 
@@ -45,6 +47,12 @@ class Trace:
 
     def __iter__(self):
         return (self[k] for k in range(len(self)))
+
+    def as_array(self):
+        """All pairs as one (count, 2, n) array, without a Python object per pair."""
+        arr = np.frombuffer(self._values, dtype=np.float64, count=2 * self._n * self._count)
+        arr = arr.reshape(self._count, 2, self._n)
+        return np.concatenate([arr, np.asarray(self._more, float).reshape(-1, 2, self._n)]) if self._more else arr
 
     def append(self, pair):
         """Queries made through DRMaster.S after the step (certificates) are kept like the reference."""

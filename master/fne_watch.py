@@ -39,9 +39,13 @@ def _pairs(scene, trace):
     ks = pair_indices(len(trace))
     if not ks:
         return
-    rows = {j: trace[j] for k in ks for j in (k - 1, k)}
-    before = np.asarray([rows[k - 1] for k in ks], float)          # (pairs, 2, channels)
-    after = np.asarray([rows[k] for k in ks], float)
+    if hasattr(trace, "as_array"):                                  # the fast path's trace
+        arr, idx = trace.as_array(), np.asarray(ks)
+        before, after = arr[idx - 1], arr[idx]                      # (pairs, 2, channels)
+    else:
+        rows = {j: trace[j] for k in ks for j in (k - 1, k)}
+        before = np.asarray([rows[k - 1] for k in ks], float)
+        after = np.asarray([rows[k] for k in ks], float)
     U, B = before[:, 0, :], before[:, 1, :]
     dU, dB = after[:, 0, :] - U, after[:, 1, :] - B
     for s, off in zip(scene.subsystems, scene.offsets):
