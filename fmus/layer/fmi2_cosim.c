@@ -113,6 +113,7 @@ static int first_non_finite(const ModelData *d) {
     return -1;
 }
 
+/* H = model_energy of the current state, for models that expose their stored energy. */
 static void write_energy(ModelData *d) {
 #if HAS_ENERGY_OUTPUT
     d->r[VR_H] = model_energy(d);

@@ -42,6 +42,10 @@
 #define HAS_ENERGY_OUTPUT 1
 #endif
 
+#if HAS_WAVE_PORT && !defined(PORT_CHANNELS)
+#error "config.h: a model with a wave port declares PORT_CHANNELS, gamma and port_mode (or sets HAS_WAVE_PORT 0)"
+#endif
+
 #define PARAMETER 0
 #define TUNABLE 1
 #define STATE 2
