@@ -113,6 +113,12 @@ static int first_non_finite(const ModelData *d) {
     return -1;
 }
 
+/* Writes the message naming the non-finite input k and its value; returns 1. */
+static int non_finite_input(const ModelData *d, int k, char *msg, size_t n) {
+    snprintf(msg, n, "input %s is not finite (%s = %g)", real_name[k], real_name[k], d->r[k]);
+    return 1;
+}
+
 /* H = model_energy of the current state, for models that expose their stored energy. */
 static void write_energy(ModelData *d) {
 #if HAS_ENERGY_OUTPUT
@@ -175,10 +181,7 @@ static int port_closure(const ModelData *d, double h, PortClosure *p, char *msg,
     for (int j = 0; j < N_CHANNELS; j++) {
         int in_vr = wave ? ch_wave_in[j] : ch_phys[j];
         double v = d->r[in_vr];
-        if (!isfinite(v)) {
-            snprintf(msg, n, "input %s is not finite (%s = %g)", real_name[in_vr], real_name[in_vr], v);
-            return 1;
-        }
+        if (!isfinite(v)) return non_finite_input(d, in_vr, msg, n);
         if (!wave) {
             p->c[j] = v;
             p->s[j] = 0.0;
@@ -224,10 +227,7 @@ static int check_port_parameters(const ModelData *d, char *msg, size_t n) {
 /* One step of a plain physical-causality model: every input must be finite. */
 static int advance(ModelData *d, double h, char *msg, size_t n) {
     for (int k = 0; k < N_REALS; k++) {
-        if (real_kind[k] == INPUT && !isfinite(d->r[k])) {
-            snprintf(msg, n, "input %s is not finite (%s = %g)", real_name[k], real_name[k], d->r[k]);
-            return 1;
-        }
+        if (real_kind[k] == INPUT && !isfinite(d->r[k])) return non_finite_input(d, k, msg, n);
     }
     return model_step_io(d, h, msg, n);
 }
