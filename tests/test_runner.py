@@ -52,7 +52,7 @@ def test_lockstep_reference_gives_the_stored_reference_errors(tmp_path, table_i)
     lockstep = run(sc, tmp_path, certificates=False, reference="lockstep", file_suffix=False)
     for key in ("max_error", "final_error"):
         assert stored.summary[key] == lockstep.summary[key]
-    assert np.array_equal(stored.steps["error"], lockstep.steps["error"])
+    assert np.array_equal(stored.error, lockstep.error)
     assert lockstep.reference.summary["master"] == "newton"
     assert (tmp_path / "trajectory_monolithic.csv").exists() and (tmp_path / "summary_monolithic.json").exists()
 
@@ -79,6 +79,6 @@ def test_result_arrays_match_the_files(tmp_path, table_i):
     steps = read_csv(tmp_path / "steps.csv")
     cols = steps[0]
     H = [float(r[cols.index("H_total")]) for r in steps[1:]]
-    assert result.steps["H"][1:].tolist() == H and len(result.steps["H"]) == 101
-    assert result.steps["passivity"].shape == (100, 2) and result.steps["fne"].shape == (100, 2)
+    assert result.energy[1:].tolist() == H and len(result.energy) == 101
+    assert result.per_subsystem("r_").shape == (100, 2) and result.per_subsystem("fne_").shape == (100, 2)
     assert [r[cols.index("reason")] for r in steps[1:]] == ["budget"] * 100
