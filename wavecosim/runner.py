@@ -36,12 +36,18 @@ FORMATS = ("csv", "mat")
 STEP_COLUMNS = ("time", "iterations", "inner_residual", "reason")
 
 
-def grid_times(k, dt):
-    """The grid value k dt (k an array): k / (1/dt) when 1/dt is a whole number, so t = 0.3 is 0.3."""
+def grid_clock(dt):
+    """k -> the grid value k dt: k / (1/dt) when 1/dt is a whole number (so t = 0.3 is 0.3, not
+    0.30000000000000004), else k * dt."""
     inverse = round(1.0 / dt)
     if inverse > 0 and abs(inverse * dt - 1.0) < 1e-12:
-        return np.asarray(k, float) / inverse
-    return np.asarray(k, float) * dt
+        return lambda k: k / inverse
+    return lambda k: k * dt
+
+
+def grid_times(k, dt):
+    """grid_clock for an array of step indices."""
+    return grid_clock(dt)(np.asarray(k, float))
 
 
 def _structured(table):
@@ -199,7 +205,7 @@ class LiveRun:
         for o in self.observers:
             self.slices.append(self.scratch[at:at + len(o.columns)])
             at += len(o.columns)
-        self.times = grid_times(np.arange(self.n_steps + 1), self.dt)
+        self.time_of = grid_clock(self.dt)
 
     def start(self):
         """Read the FMUs at t = 0, start the observers, record the first trajectory row."""
@@ -253,13 +259,13 @@ class LiveRun:
         self.iterations[0] += log.iterations
         self.iterations[1] = max(self.iterations[1], log.iterations)
         s = self.scratch
-        s[0], s[1], s[2], s[3] = self.times[n + 1], log.iterations, log.residual, REASONS.index(log.reason)
+        s[0], s[1], s[2], s[3] = self.time_of(n + 1), log.iterations, log.residual, REASONS.index(log.reason)
         if (n + 1) % self.every and n + 1 != self.n_steps:
             return
         self.steps.next_row()[:] = s
         self.steps.commit_row()
         row = self.trajectory.next_row()
-        row[0], row[1:] = self.times[n + 1], reading.outputs
+        row[0], row[1:] = self.time_of(n + 1), reading.outputs
         self.trajectory.commit_row()
 
     def _check_finite(self, reading, n):
