@@ -37,6 +37,7 @@ class Spec:
         self.psym = {k: sp.Symbol(k, real=True) for k in self.params}
         self.xsym = [sp.Symbol(k, real=True) for k in self.states]
         self.ports = _ports(self)
+        _check_names(self, _mapping(self, "outputs"))
         self.H = _expr(self, "H", data.get("H"))
         n, m = len(self.states), len(self.ports)
         self.J = _matrix(self, "J", n, n, required=True)
@@ -57,6 +58,19 @@ class Spec:
 
     def parameter_values(self):
         return {self.psym[k]: float(v[0]) for k, v in self.params.items()}
+
+
+def _check_names(spec, outputs):
+    """Every FMU variable name (parameters, states, port variables, outputs) is used once."""
+    seen = set(RESERVED)
+    port_vars = [[f"{v}{p['suffix']}" for v in "abef"] + [p["input"]] for p in spec.ports]
+    groups = [("parameters", spec.params), ("states", spec.states),
+              *((f"ports[{j}]", names) for j, names in enumerate(port_vars)), ("outputs", outputs)]
+    for key, names in groups:
+        for name in names:
+            if name in seen:
+                raise spec.error(f"{key}.{name}", "name already used by another variable")
+            seen.add(name)
 
 
 def _require(spec, data, key, kind):
@@ -270,7 +284,7 @@ def _dgrad_body(spec, kind, x, xn, xm):
     return (f"    double dH, d2 = 0.0, xx = 0.0, gd = 0.0;\n{head}\n"
             f"    for (int i = 0; i < NX; i++) {{\n        double d = w[i] - x[i];\n"
             f"        d2 += d * d; xx += x[i] * x[i] + w[i] * w[i]; gd += z[i] * d;\n    }}\n"
-            f"    if (d2 > {SMALL_DELTA ** 2} * xx) {{\n        double k = (dH - gd) / d2;\n"
+            f"    if (d2 > {SMALL_DELTA ** 2:g} * xx) {{\n        double k = (dH - gd) / d2;\n"
             f"        for (int i = 0; i < NX; i++) z[i] += k * (w[i] - x[i]);\n    }}")
 
 
