@@ -154,33 +154,36 @@ def test_discrete_passivity(fmus, ident, mode):
     print(f"\n{ident} {'wave' if mode == 0 else 'physical'}: worst passivity residual {worst:.2e}")
 
 
+def check_rollback(inst, chans, rng):
+    """Step, save, step, restore (directly and via serialization), step: identical outputs."""
+    h = 0.01
+    for _ in range(3):
+        inst.set(**{c[0]: 0.1 * rng.standard_normal() for c in chans})
+        inst.step(h)
+    inputs = {c[0]: 0.1 * rng.standard_normal() for c in chans}
+    state = inst.fmu.getFMUState()
+    blob = inst.fmu.serializeFMUState(state)
+    restored = inst.fmu.deserializeFMUState(blob)
+    runs = []
+    for saved in (None, state, restored):
+        if saved is not None:
+            inst.fmu.setFMUState(saved)
+            inst.t -= 2 * h
+        inst.set(**inputs)
+        inst.step(h)
+        inst.step(h)
+        runs.append(inst.get(*inst.reals).tobytes())
+    inst.fmu.freeFMUState(state)
+    inst.fmu.freeFMUState(restored)
+    assert runs[0] == runs[1] == runs[2]
+
+
 @pytest.mark.parametrize("ident", MODELS)
 def test_rollback_is_bit_identical(fmus, ident):
-    """Step, save, step, restore (directly and via serialization), step: identical outputs."""
     rng = np.random.default_rng(7)
-    chans = channels(MODELS[ident][0])
     inst = random_instance(fmus, ident, rng, mode=0, damped=True)
     try:
-        h = 0.01
-        for _ in range(3):
-            inst.set(**{c[0]: 0.1 * rng.standard_normal() for c in chans})
-            inst.step(h)
-        inputs = {c[0]: 0.1 * rng.standard_normal() for c in chans}
-        state = inst.fmu.getFMUState()
-        blob = inst.fmu.serializeFMUState(state)
-        restored = inst.fmu.deserializeFMUState(blob)
-        runs = []
-        for saved in (None, state, restored):
-            if saved is not None:
-                inst.fmu.setFMUState(saved)
-                inst.t -= 2 * h
-            inst.set(**inputs)
-            inst.step(h)
-            inst.step(h)
-            runs.append(inst.get(*inst.reals).tobytes())
-        inst.fmu.freeFMUState(state)
-        inst.fmu.freeFMUState(restored)
-        assert runs[0] == runs[1] == runs[2], ident
+        check_rollback(inst, channels(MODELS[ident][0]), rng)
     finally:
         inst.free()
 

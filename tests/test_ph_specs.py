@@ -11,7 +11,7 @@ from fmpy import extract
 from fmpy.validation import validate_fmu
 
 from master.errors import ConfigError
-from test_models import Instance, channels, check_discrete_passivity, random_instance
+from test_models import Instance, channels, check_discrete_passivity, check_rollback, random_instance
 
 ROOT = Path(__file__).resolve().parent.parent
 GEN = ROOT / "build" / "gen"
@@ -68,6 +68,17 @@ def test_discrete_passivity(fmus, ident, mode):
     worst = check_discrete_passivity(lambda damped: random_instance(fmus, ident, rng, mode, damped, SPECS),
                                      chans, SPECS[ident][3], mode, rng)
     print(f"\n{ident} {'wave' if mode == 0 else 'physical'}: worst passivity residual {worst:.2e}")
+
+
+@pytest.mark.parametrize("ident", SPECS)
+def test_rollback_is_bit_identical(fmus, ident):
+    """With the linear steps' cached affine map inside the saved state."""
+    rng = np.random.default_rng(7)
+    inst = random_instance(fmus, ident, rng, 0, True, SPECS)
+    try:
+        check_rollback(inst, channels(SPECS[ident][0], models=GEN), rng)
+    finally:
+        inst.free()
 
 
 def _drive(fmus, ident, reals, mode, inputs, h, names):
