@@ -212,6 +212,21 @@ def classify(spec):
     return "separable"
 
 
+def _far(i):
+    """C condition: x'_i is far enough from x_i for the difference quotient."""
+    return f"fabs(w[{i}] - x[{i}]) > {SMALL_DELTA} * (fabs(x[{i}]) + fabs(w[{i}]))"
+
+
+def _quotient_coordinates(spec):
+    """(i, h_i) of the non-quadratic terms of a separable H: those get the difference quotient."""
+    out = []
+    for i, h_i in enumerate(_separable_parts(spec)):
+        xi = spec.xsym[i]
+        if not (h_i.is_polynomial(xi) and sp.Poly(h_i, xi).total_degree() <= 2):
+            out.append((i, h_i))
+    return out
+
+
 def _separable_parts(spec):
     """h_i(x_i) for H = sum_i h_i(x_i) + const."""
     parts = [sp.Integer(0)] * len(spec.xsym)
@@ -266,17 +281,11 @@ def _dgrad_body(spec, kind, x, xn, xm):
     if kind == "quadratic":
         return pr.assign([f"z[{i}]" for i in range(n)], grad_m)
     if kind == "separable":
-        lines = []
-        for i, h_i in enumerate(_separable_parts(spec)):
+        lines = [pr.assign([f"z[{i}]" for i in range(n)], grad_m)]
+        for i, h_i in _quotient_coordinates(spec):
             xi = spec.xsym[i]
-            quad = h_i == 0 or sp.Poly(h_i, xi).total_degree() <= 2 if h_i.is_polynomial(xi) else False
-            if quad:
-                lines.append(pr.assign([f"z[{i}]"], [grad_m[i]]))
-                continue
             quotient = (h_i.subs(xi, xn[i]) - h_i.subs(xi, x[i])) / (xn[i] - x[i])
-            lines.append(f"    if (fabs(w[{i}] - x[{i}]) <= {SMALL_DELTA} * (fabs(x[{i}]) + fabs(w[{i}]))) {{\n"
-                         f"    {pr.assign([f'z[{i}]'], [grad_m[i]])}\n    }} else {{\n"
-                         f"    {pr.assign([f'z[{i}]'], [quotient])}\n    }}")
+            lines.append(f"    if ({_far(i)}) {{\n    {pr.assign([f'z[{i}]'], [quotient])}\n    }}")
         return "\n".join(lines)
     H = spec.H
     Hx, Hxn = H.xreplace(dict(zip(spec.xsym, x))), H.xreplace(dict(zip(spec.xsym, xn)))
@@ -318,14 +327,14 @@ def gen_structure(spec):
 
 
 def _hz_entries(spec, xm):
-    """d z / d x' as {(i, k): expr}: half the Hessian at xm (exact for the midpoint rule, and the
-    limit of the other discrete gradients as x' -> x, so Newton converges fast there too)."""
+    """d z / d x' as {(i, k): expr}: half the Hessian at xm (exact for the midpoint rule, the limit
+    of the others as x' -> x; separable H gets the exact derivative of its quotients on top)."""
     n = len(spec.xsym)
     hess = sp.hessian(spec.H, spec.xsym).xreplace(dict(zip(spec.xsym, xm)))
     return {(i, k): hess[i, k] / 2 for i in range(n) for k in range(n) if hess[i, k] != 0}
 
 
-def gen_jacobian_terms(spec):
+def gen_jacobian_terms(spec, kind):
     n, m = len(spec.xsym), len(spec.ports)
     x, xn, xm = (_state_copies(spec, t) for t in ("x", "w", "xm"))
     z = [sp.Symbol(f"z__{i}") for i in range(n)]
@@ -347,6 +356,10 @@ def gen_jacobian_terms(spec):
                     names.append(f"{label}[{i * n + k}]")
                     exprs.append(d)
     body = pr.assign(names, exprs) if names else ""
+    if kind == "separable":
+        for i, h_i in _quotient_coordinates(spec):
+            exact = (sp.diff(h_i, spec.xsym[i]).subs(spec.xsym[i], xn[i]) - z[i]) / (xn[i] - x[i])
+            body += f"\n    if ({_far(i)}) {{\n    {pr.assign([f'Hz[{i * n + i}]'], [exact])}\n    }}"
     return ("/* Hz = dz/dx', dA = d(A z + B u)/dx', dC = d(C z + D u)/dx' at fixed z, u. */\n"
             "static void jacobian_terms(const double *r, const double *x, const double *w, const double *xm,\n"
             "                           const double *z, double *Hz, double *dA, double *dC) {\n"
@@ -378,7 +391,7 @@ def model_c(spec):
         "#include <math.h>", '#include "model.h"', "",
         "#define NX PH_NX", "#define NU PH_NU", f"#define LINEAR {int(is_linear(spec, kind))}",
         f"static const int state_vr[NX] = {{{states}}};", f"static const int effort_in[NU] = {{{effort}}};", "",
-        gen_energy(spec), gen_dgrad(spec, kind), gen_structure(spec), gen_jacobian_terms(spec),
+        gen_energy(spec), gen_dgrad(spec, kind), gen_structure(spec), gen_jacobian_terms(spec, kind),
         gen_extra_outputs(spec), '#include "ph_step.h"', ""])
 
 
