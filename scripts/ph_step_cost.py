@@ -13,7 +13,8 @@ from pathlib import Path
 from fmpy import read_model_description
 
 ROOT = Path(__file__).resolve().parent.parent
-PAIRS = [("LinearSidePH", "LinearSide"), ("ChainLinkPH", "ChainLink"), ("RLCCircuitPH", "RLCCircuit")]
+PAIRS = [("LinearSidePH", "LinearSide"), ("ChainLinkPH", "ChainLink"), ("RLCCircuitPH", "RLCCircuit"),
+         ("DuffingSidePH", "DuffingSide")]
 EXTRA = ["Pendulum", "PendulumCart"]
 
 

@@ -21,6 +21,7 @@ SPECS = {
     "LinearSidePH": ("linear_side", "c2", {"q2": 0.5, "v2": 1.0}, 1.0),
     "ChainLinkPH": ("chain_link", "c", {"q": 0.5, "v": 1.0, "d": 0.3}, 1.0),
     "RLCCircuitPH": ("rlc_circuit", "R", {"q_C": 0.1, "i_L": 1.0}, 10.0),
+    "DuffingSidePH": ("duffing_side", "c12", {"q1": 0.5, "v1": 1.0, "d": 0.3}, 1.0),
     "Pendulum": ("pendulum", "friction", {"theta": 2.0, "p": 3.0}, 1.0),
     "PendulumCart": ("pendulum_cart", "friction", {"x": 1.0, "theta": 2.0, "p_x": 1.0, "p_theta": 1.0}, 1.0),
 }
@@ -30,6 +31,8 @@ TWINS = {
     "ChainLinkPH": ("ChainLink", "chain_link", {"m": (0.5, 2), "k": (10, 300), "c": (0, 2), "k0": (0, 50),
                                                 "c0": (0, 1)}),
     "RLCCircuitPH": ("RLCCircuit", "rlc_circuit", {"L": (0.05, 0.2), "R": (0, 2), "C": (0.005, 0.02)}),
+    "DuffingSidePH": ("DuffingSide", "duffing_side", {"m1": (4, 10), "k1": (50, 150), "c1": (0, 1),
+                                                      "k12": (50, 200), "c12": (0, 0.5), "knl": (1e3, 1e4)}),
 }
 
 
@@ -120,7 +123,7 @@ def test_generated_matches_hand_written(fmus, ident, mode):
 def test_discrete_gradient_follows_the_form_of_H():
     kinds = {stem: ph.classify(ph.load(ROOT / "specs" / f"{stem}.yaml")) for stem, *_ in SPECS.values()}
     assert kinds == {"linear_side": "quadratic", "chain_link": "quadratic", "rlc_circuit": "quadratic",
-                     "pendulum": "separable", "pendulum_cart": "general"}
+                     "duffing_side": "separable", "pendulum": "separable", "pendulum_cart": "general"}
 
 
 def test_pendulum_swings_at_constant_energy(fmus):

@@ -217,13 +217,18 @@ def _far(i):
     return f"fabs(w[{i}] - x[{i}]) > {SMALL_DELTA} * (fabs(x[{i}]) + fabs(w[{i}]))"
 
 
-def _quotient_coordinates(spec):
-    """(i, h_i) of the non-quadratic terms of a separable H: those get the difference quotient."""
+def _quotients(spec, x, xn):
+    """(i, (quotient, polynomial form or None)) for the non-quadratic terms h_i of a separable H:
+    (h_i(x'_i) - h_i(x_i)) / (x'_i - x_i), divided out exactly when h_i is a polynomial (no
+    cancellation, valid at x'_i = x_i)."""
     out = []
     for i, h_i in enumerate(_separable_parts(spec)):
         xi = spec.xsym[i]
-        if not (h_i.is_polynomial(xi) and sp.Poly(h_i, xi).total_degree() <= 2):
-            out.append((i, h_i))
+        poly = h_i.is_polynomial(xi)
+        if poly and sp.Poly(h_i, xi).total_degree() <= 2:
+            continue
+        raw = (h_i.subs(xi, xn[i]) - h_i.subs(xi, x[i])) / (xn[i] - x[i])
+        out.append((i, (raw, sp.expand(sp.cancel(raw)) if poly else None)))
     return out
 
 
@@ -281,11 +286,13 @@ def _dgrad_body(spec, kind, x, xn, xm):
     if kind == "quadratic":
         return pr.assign([f"z[{i}]" for i in range(n)], grad_m)
     if kind == "separable":
-        lines = [pr.assign([f"z[{i}]" for i in range(n)], grad_m)]
-        for i, h_i in _quotient_coordinates(spec):
-            xi = spec.xsym[i]
-            quotient = (h_i.subs(xi, xn[i]) - h_i.subs(xi, x[i])) / (xn[i] - x[i])
-            lines.append(f"    if ({_far(i)}) {{\n    {pr.assign([f'z[{i}]'], [quotient])}\n    }}")
+        quotients = dict(_quotients(spec, x, xn))
+        lines = [pr.assign([f"z[{i}]" for i in range(n)],
+                           [q if q is not None else grad_m[i] for i, q in
+                            ((i, quotients.get(i, (None, None))[1]) for i in range(n))])]
+        for i, (raw, poly) in quotients.items():
+            if poly is None:
+                lines.append(f"    if ({_far(i)}) {{\n    {pr.assign([f'z[{i}]'], [raw])}\n    }}")
         return "\n".join(lines)
     H = spec.H
     Hx, Hxn = H.xreplace(dict(zip(spec.xsym, x))), H.xreplace(dict(zip(spec.xsym, xn)))
@@ -357,8 +364,12 @@ def gen_jacobian_terms(spec, kind):
                     exprs.append(d)
     body = pr.assign(names, exprs) if names else ""
     if kind == "separable":
-        for i, h_i in _quotient_coordinates(spec):
-            exact = (sp.diff(h_i, spec.xsym[i]).subs(spec.xsym[i], xn[i]) - z[i]) / (xn[i] - x[i])
+        parts = _separable_parts(spec)
+        for i, (raw, poly) in _quotients(spec, x, xn):
+            if poly is not None:
+                body += "\n" + pr.assign([f"Hz[{i * n + i}]"], [sp.diff(poly, xn[i])])
+                continue
+            exact = (sp.diff(parts[i], spec.xsym[i]).subs(spec.xsym[i], xn[i]) - z[i]) / (xn[i] - x[i])
             body += f"\n    if ({_far(i)}) {{\n    {pr.assign([f'Hz[{i * n + i}]'], [exact])}\n    }}"
     return ("/* Hz = dz/dx', dA = d(A z + B u)/dx', dC = d(C z + D u)/dx' at fixed z, u. */\n"
             "static void jacobian_terms(const double *r, const double *x, const double *w, const double *xm,\n"
