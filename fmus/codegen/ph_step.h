@@ -1,6 +1,6 @@
 /* The discrete-gradient step shared by every model generated from a port-Hamiltonian spec
  * (fmus/codegen/ph.py). The generated model.c defines NX states, NU port channels, LINEAR, the
- * tables state_vr[] and effort_in[], and the functions energy, dgrad, structure, jacobian_terms
+ * tables state_vr[] and effort_in[], CONST_STRUCTURE (J, R, G, P, S, N free of states), and the functions energy, dgrad, structure, jacobian_terms
  * and extra_outputs, then includes this file; its config.h defines PhStructure and, when LINEAR,
  * the PhCache kept in ModelData.
  *
@@ -77,7 +77,7 @@ static int lu_factor(double *M, int *piv) {
             if (fabs(M[i * NW + c]) > fabs(M[best * NW + c])) best = i;
         piv[c] = best;
         if (!(M[best * NW + c] != 0.0)) return 1;
-        for (int k = 0; k < NW; k++) {
+        for (int k = 0; best != c && k < NW; k++) {
             double t = M[c * NW + k]; M[c * NW + k] = M[best * NW + k]; M[best * NW + k] = t;
         }
         double inv = 1.0 / M[c * NW + c];
@@ -167,12 +167,14 @@ static int ph_solve(ModelData *m, const double *x, double *w, const PortClosure 
     return 1;
 }
 #else
-/* Structure at the midpoint of w, then the stage. */
+/* Structure at the midpoint of w (unless it is constant and already in S), then the stage. */
 static void stage_at(const double *r, const double *x, const double *w, const PortClosure *p, double h,
                      PhStructure *S, Stage *st) {
-    double xm[NX];
-    for (int i = 0; i < NX; i++) xm[i] = 0.5 * (x[i] + w[i]);
-    structure(r, xm, S->A, S->B, S->C, S->D);
+    if (!CONST_STRUCTURE) {
+        double xm[NX];
+        for (int i = 0; i < NX; i++) xm[i] = 0.5 * (x[i] + w[i]);
+        structure(r, xm, S->A, S->B, S->C, S->D);
+    }
     stage(r, x, w, p, h, S, st);
 }
 
@@ -180,34 +182,50 @@ static void stage_at(const double *r, const double *x, const double *w, const Po
 static double update_size(const double *w, const double *dw) {
     double big[2] = {0.0, 0.0}, step[2] = {0.0, 0.0};
     for (int k = 0; k < NW; k++) {
-        big[k >= NX] = fmax(big[k >= NX], fabs(w[k]));
-        step[k >= NX] = fmax(step[k >= NX], fabs(dw[k]));
+        double a = fabs(w[k]), d = fabs(dw[k]);
+        if (a > big[k >= NX]) big[k >= NX] = a;
+        if (d > step[k >= NX]) step[k >= NX] = d;
     }
-    return fmax(step[0] / (big[0] + 1e-300), step[1] / (big[1] + 1e-300));
+    double xs = step[0] / (big[0] + 1e-300), us = step[1] / (big[1] + 1e-300);
+    return xs > us ? xs : us;
 }
 
-/* Newton on F(w) = 0 from w = (x, c). Converged when the update is below 1e-14 relative, or when
- * it stops shrinking below 1e-7 (the roundoff floor of a difference quotient or an
- * ill-conditioned step). Leaves the stage at the solution in st. */
+/* Newton converged after an update of relative size `size` following one of size `last`: the
+ * update is at roundoff, or (from the second update on) the contraction theta = size / last predicts a remaining error
+ * theta / (1 - theta) * size at roundoff, or the updates stopped shrinking below 1e-7 (the
+ * roundoff floor of a difference quotient or of an ill-conditioned step). */
+static int converged(double size, double last) {
+    double theta = size / last;
+    if (size <= 1e-14) return 1;
+    if (!isfinite(last)) return 0;
+    return (theta < 0.5 && theta / (1.0 - theta) * size <= 1e-15) || (size <= 1e-7 && theta >= 0.5);
+}
+
+/* Newton on F(w) = 0 from w = (x, c), keeping the factored matrix of the first iterate while
+ * each update shrinks at least fourfold; returns the iterations used, or -1. */
 static int ph_solve(ModelData *m, const double *x, double *w, const PortClosure *p, double h, double *y) {
     double M[NW * NW], dw[NW], last = INFINITY;
-    int piv[NW];
+    int piv[NW], slow = 0;
     PhStructure S;
     Stage st;
+    if (CONST_STRUCTURE) structure(m->r, x, S.A, S.B, S.C, S.D);
     for (int it = 1; it <= m->i[VRI_newton_max_iter]; it++) {
         stage_at(m->r, x, w, p, h, &S, &st);
-        newton_matrix(m->r, x, w, p, h, &S, &st, M);
+        if (it == 1 || slow) {
+            newton_matrix(m->r, x, w, p, h, &S, &st, M);
+            if (lu_factor(M, piv)) return -1;
+        }
         for (int k = 0; k < NW; k++) dw[k] = -st.F[k];
-        if (lu_factor(M, piv)) return -1;
         lu_solve(M, piv, dw);
         for (int k = 0; k < NW; k++) w[k] += dw[k];
         double size = update_size(w, dw);
         if (!isfinite(size)) return -1;
-        if (size <= 1e-14 || (size <= 1e-7 && size >= 0.5 * last)) {
+        if (converged(size, last)) {
             stage_at(m->r, x, w, p, h, &S, &st);
             for (int j = 0; j < NU; j++) y[j] = st.y[j];
             return it;
         }
+        slow = size > 0.25 * last;
         last = size;
     }
     return -1;
