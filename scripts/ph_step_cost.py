@@ -1,10 +1,12 @@
 """Cost of a generated step against the hand-written one: ns per fmi2DoStep from a small C driver
-(scripts/step_cost.c) on each (generated, hand-written) pair, in both port modes.
+(scripts/step_cost.c) on each (generated, hand-written) pair, in both port modes; with
+--instructions, machine instructions per doStep counted by valgrind (steady on a loaded machine).
 
-    .venv/bin/python scripts/ph_step_cost.py [--steps N]
+    .venv/bin/python scripts/ph_step_cost.py [--steps N] [--instructions]
 """
 import argparse
 import importlib.util
+import re
 import subprocess
 import tempfile
 import zipfile
@@ -32,8 +34,9 @@ def compile_driver(build, tmp):
     return exe
 
 
-def ns_per_step(exe, fmu, tmp, mode, steps):
-    """Runs the driver on one FMU; inputs are the wave inputs (mode 0) or the physical ones (1)."""
+def cost_per_step(exe, fmu, tmp, mode, steps, instructions):
+    """Runs the driver on one FMU; inputs are the wave inputs (mode 0) or the physical ones (1).
+    Returns ns per doStep, or instructions per doStep under valgrind (7 runs of `steps` each)."""
     md = read_model_description(str(fmu))
     ident = md.coSimulation.modelIdentifier
     lib = tmp / f"{ident}.so"
@@ -44,26 +47,33 @@ def ns_per_step(exe, fmu, tmp, mode, steps):
               if v.causality == "input" and (v.name.startswith("a") and v.unit is None) == (mode == 0)]
     args = [str(exe), str(lib), md.guid, str(by_name["port_mode"].valueReference), str(mode), str(steps),
             *map(str, inputs)]
-    return float(subprocess.run(args, check=True, capture_output=True, text=True).stdout)
+    if not instructions:
+        return float(subprocess.run(args, check=True, capture_output=True, text=True).stdout)
+    out = subprocess.run(["valgrind", "--tool=callgrind", f"--callgrind-out-file={tmp / 'cg.out'}",
+                          "--toggle-collect=fmi2DoStep", *args], check=True, capture_output=True, text=True)
+    return float(re.search(r"refs:\s+([\d,]+)", out.stderr).group(1).replace(",", "")) / (7 * steps)
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=200000)
+    parser.add_argument("--instructions", action="store_true")
     args = parser.parse_args()
+    steps = min(args.steps, 2000) if args.instructions else args.steps
+    unit = "instructions" if args.instructions else "ns"
     build = load_build()
     fmus = build.build_all(log=lambda *_: None)
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         exe = compile_driver(build, tmp)
-        print("| FMU | mode | ns per doStep | hand-written | ratio |\n|---|---|---|---|---|")
+        print(f"| FMU | mode | {unit} per doStep | hand-written | ratio |\n|---|---|---|---|---|")
         for gen, hand in PAIRS + [(x, None) for x in EXTRA]:
             for mode, label in ((0, "wave"), (1, "physical")):
-                g = ns_per_step(exe, fmus[gen], tmp, mode, args.steps)
+                g = cost_per_step(exe, fmus[gen], tmp, mode, steps, args.instructions)
                 if hand is None:
                     print(f"| {gen} | {label} | {g:.0f} | – | – |")
                     continue
-                w = ns_per_step(exe, fmus[hand], tmp, mode, args.steps)
+                w = cost_per_step(exe, fmus[hand], tmp, mode, steps, args.instructions)
                 print(f"| {gen} | {label} | {g:.0f} | {w:.0f} | {g / w:.2f} |")
 
 
