@@ -8,7 +8,6 @@ fmus/codegen/ph_step.h. See specs/README.md for the format.
 
     python fmus/codegen/ph.py specs/<name>.yaml OUT_DIR
 """
-import hashlib
 import sys
 import uuid
 from pathlib import Path
@@ -55,9 +54,11 @@ class Spec:
         return ConfigError(f"{self.path}: {key}: {problem}")
 
     def symbols(self):
+        """{name: sympy symbol} of parameters and states."""
         return {**self.psym, **dict(zip(self.states, self.xsym))}
 
     def parameter_values(self):
+        """{parameter symbol: start value}, used by the sampled checks."""
         return {self.psym[k]: float(v[0]) for k, v in self.params.items()}
 
 
@@ -75,6 +76,7 @@ def _check_names(spec, outputs):
 
 
 def _require(spec, data, key, kind):
+    """data[key], which must exist and be of type kind."""
     if key not in data:
         raise spec.error(key, "missing")
     if not isinstance(data[key], kind):
@@ -83,6 +85,7 @@ def _require(spec, data, key, kind):
 
 
 def _mapping(spec, key):
+    """{name: list} of a mapping key (scalars become one-element lists)."""
     value = spec.data.get(key) or {}
     if not isinstance(value, dict):
         raise spec.error(key, "must be a mapping")
@@ -90,6 +93,7 @@ def _mapping(spec, key):
 
 
 def _pad(values, n):
+    """values as strings, padded with "" to length n."""
     return [str(v) for v in values] + [""] * (n - len(values))
 
 
@@ -109,6 +113,7 @@ def _variables(spec, key, required):
 
 
 def _ports(spec):
+    """Port channels: variable suffix, physical input, causality, units."""
     ports = spec.data.get("ports")
     if not isinstance(ports, list) or not ports:
         raise spec.error("ports", "must be a non-empty list")
@@ -127,6 +132,7 @@ def _ports(spec):
 
 
 def _expr(spec, key, text):
+    """A sympy expression of parameters and states."""
     if text is None:
         raise spec.error(key, "missing")
     try:
@@ -140,6 +146,7 @@ def _expr(spec, key, text):
 
 
 def _matrix(spec, key, rows, cols, required=False):
+    """A rows x cols sympy matrix from a list of rows (zeros when absent and optional)."""
     value = spec.data.get(key)
     if value is None:
         if required:
@@ -190,13 +197,15 @@ def check(spec):
         D = np.array(diss_f(*x), dtype=float)
         D = 0.5 * (D + D.T)
         if np.linalg.eigvalsh(D).min() < -1e-12 * max(1.0, np.abs(D).max()):
-            raise spec.error("R", f"[[R, P], [P^T, S]] is not positive semi-definite at state {_fmt(spec, x)}")
+            raise spec.error("R", f"[[R, P], [P^T, S]] is not positive semi-definite at state "
+                                  f"{_fmt(spec, x)}")
         H = float(H_f(*x))
         if not H >= h_min - 1e-12 * abs(h_min):
             raise spec.error("H", f"H = {H:.6g} < H_min = {h_min:g} at state {_fmt(spec, x)}")
 
 
 def _fmt(spec, x):
+    """A sampled state for an error message."""
     return "{" + ", ".join(f"{k}: {v:.4g}" for k, v in zip(spec.states, x)) + "}"
 
 
@@ -276,16 +285,19 @@ class Printer:
 
 
 def _printer(spec, **arrays):
+    """A Printer with the given state copies mapped to C arrays."""
     p = Printer(spec)
     p.arrays(**arrays)
     return p
 
 
 def _state_copies(spec, tag):
+    """Fresh symbols for one copy of the state (old x, new w, midpoint xm)."""
     return [sp.Symbol(f"{k}__{tag}", real=True) for k in spec.states]
 
 
 def gen_energy(spec):
+    """C function energy(r, x) = H(x)."""
     body = _printer(spec, x=spec.xsym).assign(["H"], [spec.H])
     return ("static double energy(const double *r, const double *x) {\n    double H;\n"
             f"{body}\n    return H;\n}}\n")
@@ -300,9 +312,8 @@ def _dgrad_body(spec, kind, x, xn, xm):
         return pr.assign([f"z[{i}]" for i in range(n)], grad_m)
     if kind == "separable":
         quotients = dict(_quotients(spec, x, xn))
-        lines = [pr.assign([f"z[{i}]" for i in range(n)],
-                           [q if q is not None else grad_m[i] for i, q in
-                            ((i, quotients.get(i, (None, None))[1]) for i in range(n))])]
+        exact = {i: poly for i, (_, poly) in quotients.items() if poly is not None}
+        lines = [pr.assign([f"z[{i}]" for i in range(n)], [exact.get(i, grad_m[i]) for i in range(n)])]
         for i, (raw, poly) in quotients.items():
             if poly is None:
                 lines.append(f"    if ({_far(i)}) {{\n    {pr.assign([f'z[{i}]'], [raw])}\n    }}")
@@ -332,6 +343,7 @@ def _structure(spec):
 
 
 def gen_structure(spec):
+    """C function structure(r, xm, A, B, C, D)."""
     xm = _state_copies(spec, "xm")
     rep = dict(zip(spec.xsym, xm))
     pr = _printer(spec, xm=xm)
@@ -355,6 +367,7 @@ def _hz_entries(spec, xm):
 
 
 def gen_jacobian_terms(spec, kind):
+    """C function jacobian_terms: the pieces of the Newton matrix that depend on H and the state."""
     n, m = len(spec.xsym), len(spec.ports)
     x, xn, xm = (_state_copies(spec, t) for t in ("x", "w", "xm"))
     z = [sp.Symbol(f"z__{i}") for i in range(n)]
@@ -394,6 +407,7 @@ def gen_jacobian_terms(spec, kind):
 
 
 def gen_extra_outputs(spec):
+    """C function extra_outputs(r): the spec's `outputs` from the current state."""
     names = [f"r[VR_{k}]" for k in spec.outputs]
     body = _printer(spec, x=spec.xsym).assign(names, [v[0] for v in spec.outputs.values()]) if names else ""
     reads = "".join(f"    x[{i}] = r[VR_{k}];\n" for i, k in enumerate(spec.states)) if names else ""
@@ -407,6 +421,7 @@ def constant_structure(spec):
 
 
 def is_linear(spec, kind):
+    """Quadratic H and constant structure: the step is an affine map."""
     return kind == "quadratic" and constant_structure(spec)
 
 
@@ -426,14 +441,18 @@ def model_c(spec):
 
 
 def _c_str(text):
+    """A C string literal."""
     return '"' + str(text).replace("\\", "\\\\").replace('"', '\\"') + '"'
 
 
 def _real(name, kind, start, unit, desc):
+    """One row of REAL_VARIABLES."""
     return f"    X({name}, {kind}, {float(start)!r}, {_c_str(unit)}, {_c_str(desc)})"
 
 
 def _real_rows(spec):
+    """REAL_VARIABLES rows in the hand-written models' order: parameters, gamma, states, inputs,
+    outputs, H."""
     d = spec.data
     gamma = d.get("gamma", 1.0)
     gamma = gamma if isinstance(gamma, list) else [gamma]
@@ -496,14 +515,6 @@ def generate(spec_path, out_dir) -> Path:
         if not target.exists() or target.read_text() != text:
             target.write_text(text)
     return out_dir
-
-
-def source_hash() -> str:
-    """Hash of the generator itself, for build stamps."""
-    h = hashlib.sha256()
-    for f in (Path(__file__), STEP_HEADER):
-        h.update(f.read_bytes())
-    return h.hexdigest()
 
 
 if __name__ == "__main__":

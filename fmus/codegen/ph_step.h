@@ -1,8 +1,8 @@
 /* The discrete-gradient step shared by every model generated from a port-Hamiltonian spec
- * (fmus/codegen/ph.py). The generated model.c defines NX states, NU port channels, LINEAR, the
- * tables state_vr[] and effort_in[], CONST_STRUCTURE (J, R, G, P, S, N free of states), and the functions energy, dgrad, structure, jacobian_terms
- * and extra_outputs, then includes this file; its config.h defines PhStructure and, when LINEAR,
- * the PhCache kept in ModelData.
+ * (fmus/codegen/ph.py). The generated model.c defines NX states, NU port channels, LINEAR,
+ * CONST_STRUCTURE (J, R, G, P, S, N free of the states), the tables state_vr[] and effort_in[],
+ * and the functions energy, dgrad, structure, jacobian_terms and extra_outputs, then includes this
+ * file; its config.h defines PhStructure and, when LINEAR, the PhCache kept in ModelData.
  *
  * Unknowns w = (x', u): the new state and the held port inputs. With z the discrete gradient of H
  * between x and x', A = J - R, B = G - P, C = (G + P)^T, D = S + N at the midpoint:
@@ -191,9 +191,9 @@ static double update_size(const double *w, const double *dw) {
 }
 
 /* Newton converged after an update of relative size `size` following one of size `last`: the
- * update is at roundoff, or (from the second update on) the contraction theta = size / last predicts a remaining error
- * theta / (1 - theta) * size at roundoff, or the updates stopped shrinking below 1e-7 (the
- * roundoff floor of a difference quotient or of an ill-conditioned step). */
+ * update is at roundoff, or (from the second update on) the contraction theta = size / last
+ * predicts a remaining error theta / (1 - theta) * size at roundoff, or the updates stopped
+ * shrinking below 1e-7 (the roundoff floor of a difference quotient or an ill-conditioned step). */
 static int converged(double size, double last) {
     double theta = size / last;
     if (size <= 1e-14) return 1;
