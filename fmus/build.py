@@ -60,6 +60,12 @@ def _sources(model_dir: Path):
            [p for p in model_dir.iterdir() if p.suffix in (".c", ".h")]
 
 
+def _packed_sources(model_dir: Path):
+    """What goes into the FMU's sources/: the binary's C files (the <SourceFiles> that describe.c
+    lists) and the headers they include; describe.c is a build tool, not part of the model."""
+    return [p for p in _sources(model_dir) if p.name != "describe.c"]
+
+
 def model_identifier(model_dir: Path) -> str:
     text = (model_dir / "config.h").read_text()
     m = re.search(r"#define\s+MODEL_IDENTIFIER\s+(\w+)", text)
@@ -92,7 +98,7 @@ def build_model(model_dir: Path, force=False, log=print) -> Path:
         with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
             z.writestr("modelDescription.xml", xml)
             z.write(bindir / f"{ident}.so", f"binaries/{PLATFORM}/{ident}.so")
-            for src in _sources(model_dir):
+            for src in _packed_sources(model_dir):
                 z.write(src, f"sources/{src.name}")
         os.replace(part, target)
     stamp_file.write_text(stamp)

@@ -1,6 +1,7 @@
-"""Energy certificates of a macro-step (paper Section IV).
+"""Energy certificates of a macro-step (paper Section IV): the formulas.
 
-- Condition 2: r_i = dH_i - 1/2 (|a_i|^2 - |b_i|^2) <= 0 (eq. 27), or dH_i - dt e_i.f_i in physical mode.
+- Condition 2: r_i = dH_i - 1/2 (|a_i|^2 - |b_i|^2) <= 0 (eq. 27), or dH_i - dt e_i.f_i in physical mode
+  (computed each step by master/observers/passivity.py with master/waves.py).
 - Theorem 1: dH + 1/2|u^K - u*|^2 - 1/2|u^0 - u*|^2 - 1/2(|a|^2 - |b|^2) <= 0 (eq. 32), u* = P b* (eq. 18).
 - Condition 1: FNE margin <S(x)-S(y), x-y> - |S(x)-S(y)|^2 (eq. 22), reported divided by |x-y|^2
   so it is scale-free (a linear map b = rho a gives rho - rho^2).
@@ -8,24 +9,13 @@
 import numpy as np
 
 from .linalg import distance
-
-
-def wave_passivity_residual(H_before, H_after, a, b):
-    """Condition 2 residual of one subsystem for incident a and outgoing b (discrete waves)."""
-    supply = 0.5 * (sum(x * x for x in a) - sum(x * x for x in b))
-    return (H_after - H_before) - supply
-
-
-def physical_passivity_residual(H_before, H_after, e, f, dt):
-    supply = dt * sum(ei * fi for ei, fi in zip(e, f))
-    return (H_after - H_before) - supply
+from .waves import port_energy
 
 
 def augmented_residual(dH_total, u0, uK, u_star, a_hat, b_next):
     """Theorem 1 residual (eq. 32) with u* a DR fixed point of this macro-step."""
     fejer = 0.5 * distance(uK, u_star) ** 2 - 0.5 * distance(u0, u_star) ** 2
-    supply = 0.5 * (sum(x * x for x in a_hat) - sum(x * x for x in b_next))
-    return dH_total + fejer - supply
+    return dH_total + fejer - port_energy(a_hat, b_next)
 
 
 def fne_margins(subsystem, centre, pairs, rng, scale, dt):

@@ -7,9 +7,11 @@ from pathlib import Path
 
 import click
 
-from .config import ALGORITHMS, load_scenario
+from .config import load_scenario
 from .errors import ConfigError, Interrupted, WavecosimError
-from .recorder import write_json
+from .gamma_tuning import parse_gamma
+from .masters import ALGORITHMS
+from .observers.recorder import write_json
 
 
 def _progress(label, quiet):
@@ -30,29 +32,14 @@ def _progress(label, quiet):
 
 
 def _apply_overrides(scenario, K=None, eps=None, gamma=None, dt=None, T=None, algorithm=None):
+    """The scenario with the command line's values in place of the file's."""
     master = {k: v for k, v in (("K", K), ("eps", eps), ("algorithm", algorithm)) if v is not None}
     if master:
         scenario = scenario.with_master(**master)
-    changes = {}
+    changes = {k: v for k, v in (("dt", dt), ("T", T)) if v is not None}
     if gamma is not None:
-        if gamma not in ("auto", "auto-retune", "fast-unsafe"):
-            try:
-                changes["gamma"] = float(gamma)
-            except ValueError:
-                raise ConfigError(f"--gamma: must be a number > 0 or auto, auto-retune, fast-unsafe; got {gamma!r}")
-            if not changes["gamma"] > 0:
-                raise ConfigError(f"--gamma: must be > 0, got {gamma}")
-        else:
-            changes["gamma"] = gamma
-    if dt is not None:
-        changes["dt"] = dt
-    if T is not None:
-        changes["T"] = T
-    scenario = dataclasses.replace(scenario, **changes)
-    steps = scenario.T / scenario.dt
-    if abs(steps - round(steps)) > 1e-9 * steps or round(steps) < 1:
-        raise ConfigError(f"--T/--dt: T = {scenario.T} must be a whole number (>= 1) of steps dt = {scenario.dt}")
-    return scenario
+        changes["gamma"] = parse_gamma(gamma, "--gamma")
+    return scenario.with_changes("--T/--dt", **changes)
 
 
 def parse_budgets(ks):
@@ -104,41 +91,59 @@ def cli():
     configs/two_oscillators.yaml)."""
 
 
+output_options = [
+    click.option("--output-interval", type=click.IntRange(min=1), default=1, show_default=True,
+                 help="Record every N-th macro-step (and the last) in the CSV files; figures use every step."),
+    click.option("--format", "formats", type=click.Choice(["csv", "mat"]), multiple=True,
+                 help="Also write MATLAB files (trajectory.mat, steps.mat) with --format mat; CSV is always written."),
+]
+
+
+def with_output(f):
+    for opt in reversed(output_options):
+        f = opt(f)
+    return f
+
+
 @cli.command("run")
 @config_argument
 @with_common
+@with_output
 @click.option("--master", "algorithm", type=click.Choice(ALGORITHMS), help="Master algorithm (default: from CONFIG).")
 @click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("out/run"), show_default=True,
-              help="Output folder for trajectory.csv, steps.csv and summary.json.")
-@click.option("--no-certificates", is_flag=True, help="Skip FNE sampling and the augmented-storage check (faster).")
+              help="Output folder for trajectory.csv, steps.csv, summary.json and metadata.json.")
+@click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and the Condition 1 watch (faster).")
 @click.option("--no-reference", is_flag=True, help="Skip the monolithic reference run (no error figures).")
 @click.option("--plots", is_flag=True, help="Also write PNG figures into the output folder.")
-def run_cmd(config, K, eps, gamma, dt, T, quiet, algorithm, out, no_certificates, no_reference, plots):
-    """Run one scenario and write its trajectory, per-step certificates and a summary."""
+def run_cmd(config, K, eps, gamma, dt, T, quiet, output_interval, formats, algorithm, out, no_certificates,
+            no_reference, plots):
+    """Run one scenario (with the monolithic reference alongside) and write its trajectory, per-step
+    certificates, summary and metadata."""
     from .runner import run
-    from .sweep import reference_run
     scenario = _apply_overrides(load_scenario(config), K, eps, gamma, dt, T, algorithm)
-    reference = None
-    if not no_reference:
-        reference = reference_run(scenario, out, _progress("monolithic reference", quiet))
-    result = run(scenario, out_dir=out, label=scenario.master.algorithm, progress=_progress("run", quiet),
-                 certificates=not no_certificates, reference=reference, file_suffix=False)
+    result = run(scenario, out, label=scenario.master.algorithm, progress=_progress("run", quiet),
+                 certificates=not no_certificates, reference=None if no_reference else "lockstep",
+                 file_suffix=False, output_interval=output_interval, formats=("csv", *formats))
+    _report_run(scenario, result, out)
+    if plots:
+        from .plots import run_plots
+        for p in run_plots(result, result.reference, out):
+            click.echo(f"wrote {p}")
+
+
+def _report_run(scenario, result, out):
     s = result.summary
     click.echo(f"{scenario.name}: {s['master']} K={s['K']} dt={scenario.dt} T={scenario.T} -> {out}")
     if s.get("gamma_mode", "fixed") != "fixed":
-        each = lambda d: ", ".join(f"{k} {v:.6g}" for k, v in d.items())
+        each = lambda d: ", ".join(f"{k} {v:.6g}" for k, v in d.items())      # noqa: E731
         click.echo(f"gamma: {s['gamma_mode']} -> {each(s['gamma_initial'])} (FNE bounds {each(s['gamma_fne_bounds'])}; "
                    f"predicted inner rate {s['gamma_rate_estimate']:.3f}; final {each(s['gamma_final'])} after "
                    f"{s['gamma_changes']} changes; "
                    f"{'inside the FNE bounds' if s['gamma_guaranteed'] else 'OUTSIDE an FNE bound: Theorem 1 not guaranteed'}"
                    f"{'' if s.get('fne_watch_ok', True) else '; the Condition 1 watch found a violation'})")
     print_table([s], ["steps", "max_error", "rms_error", "final_error", "max_passivity_pos", "max_augmented_pos",
-                      "min_fne_margin", "iterations_mean", "wall_time_s",
+                      "min_fne_margin", "iterations_mean", "wall_time_s", "total_time_s",
                       *(["energy_guard_steps"] if "energy_guard_steps" in s else [])])
-    if plots:
-        from .plots import run_plots
-        for p in run_plots(result, reference, out):
-            click.echo(f"wrote {p}")
 
 
 @cli.command("sweep")
@@ -147,7 +152,7 @@ def run_cmd(config, K, eps, gamma, dt, T, quiet, algorithm, out, no_certificates
 @click.option("--Ks", "--K-list", "ks", default="0,3,8,20,35,50", show_default=True,
               help="Comma-separated budgets K.")
 @click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("out/sweep"), show_default=True)
-@click.option("--no-certificates", is_flag=True, help="Skip FNE sampling and the augmented-storage check.")
+@click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and the Condition 1 watch.")
 @click.option("--plots", is_flag=True, help="Also write the paper's figures (Figs. 4-6) as PNG.")
 def sweep_cmd(config, K, eps, gamma, dt, T, quiet, ks, out, no_certificates, plots):
     """Reproduce the paper's experiment: DR for each K against the monolithic reference."""
@@ -167,12 +172,12 @@ def sweep_cmd(config, K, eps, gamma, dt, T, quiet, ks, out, no_certificates, plo
 @cli.command("compare")
 @config_argument
 @with_common
-@click.option("--masters", default="explicit,gauss-seidel,jacobi-iter,gauss-seidel-iter,newton,dr", show_default=True,
+@click.option("--masters", default=",".join(ALGORITHMS), show_default=True,
               help="Comma-separated masters to compare.")
 @click.option("--Ks", "--K-list", "ks", default=None,
               help="Comma-separated budgets K for the iterative masters (default: a grid per master).")
 @click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("out/compare"), show_default=True)
-@click.option("--no-certificates", is_flag=True, help="Skip FNE sampling and the augmented-storage check.")
+@click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and the Condition 1 watch.")
 @click.option("--plots", is_flag=True, help="Also write pareto.png and energy_by_master.png.")
 def compare_cmd(config, K, eps, gamma, dt, T, quiet, masters, ks, out, no_certificates, plots):
     """Every master over a grid of budgets against the monolithic reference: error, energy, cost."""
@@ -219,12 +224,8 @@ def validate_cmd(config):
 @click.option("--force", is_flag=True, help="Rebuild even when sources are unchanged.")
 def build_cmd(force):
     """Build the FMUs in models/ (done on demand by every other command)."""
-    from . import scene
-    import importlib.util
-    spec = importlib.util.spec_from_file_location("wavecosim_fmu_build", Path(scene.ROOT) / "fmus" / "build.py")
-    build = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(build)
-    for ident, path in build.build_all(force=force).items():
+    from .builtin import build_all
+    for ident, path in build_all(force=force, log=lambda msg: click.echo(msg, err=True)).items():
         click.echo(f"{ident}: {path}")
 
 

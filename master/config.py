@@ -4,19 +4,19 @@ Every problem becomes a ConfigError whose one line names the file and the key pa
 """
 import math
 import re
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import yaml
 
+from .builtin import ROOT
 from .errors import ConfigError
+from .gamma_tuning import MODES as GAMMA_MODES
+from .interconnection import COUPLINGS, TAKES_RATIO
+from .masters import ALGORITHMS
 
-ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_CONFIG = ROOT / "configs" / "two_oscillators.yaml"
-ALGORITHMS = ("dr", "newton", "explicit", "gauss-seidel", "jacobi-iter", "gauss-seidel-iter")
-COUPLING_TYPES = ("equal_effort_opposite_flow", "zero_junction", "one_junction", "transformer", "gyrator",
-                  "free_end", "clamped_end", "dirac")
-GAMMA_MODES = ("auto", "auto-retune", "fast-unsafe")
+COUPLING_TYPES = tuple(COUPLINGS)
 
 
 @dataclass
@@ -74,7 +74,6 @@ class Scenario:
     error: list
     description: str = ""
     fne_watch: bool = True
-    extra: dict = field(default_factory=dict)
 
     @property
     def n_steps(self):
@@ -82,6 +81,24 @@ class Scenario:
 
     def with_master(self, **changes):
         return replace(self, master=replace(self.master, **changes))
+
+    def with_changes(self, where="options", **changes):
+        """A copy with top-level values changed (dt, T, gamma), checked like the file's own."""
+        changed = replace(self, **changes)
+        check_whole_steps(changed.T, changed.dt, lambda msg: _fail(where, msg))
+        return changed
+
+
+def _fail(where, message):
+    raise ConfigError(f"{where}: {message}")
+
+
+def check_whole_steps(T, dt, fail):
+    """T must be a whole number (>= 1) of macro-steps dt; `fail(message)` raises."""
+    if T < dt:
+        fail(f"T must be at least one step dt = {dt}, got {T}")
+    if abs(T / dt - round(T / dt)) > 1e-9 * (T / dt):
+        fail(f"T must be a whole number of steps dt = {dt}, got {T}")
 
 
 class _Checker:
@@ -199,7 +216,7 @@ def _coupling(ck, k, raw, subsystem_names):
         if m.group(1) not in subsystem_names:
             ck.fail(f"{path}.ports", f"{p!r} names no subsystem (have: {', '.join(subsystem_names)})")
     c = CouplingConfig(type=ctype, ports=[str(p) for p in ports])
-    if ctype in ("transformer", "gyrator"):
+    if ctype in TAKES_RATIO:
         if "ratio" not in raw:
             ck.fail(f"{path}.ratio", f"missing required key for a {ctype}")
         c.ratio = ck.number(raw["ratio"], f"{path}.ratio")
@@ -267,10 +284,7 @@ def parse_scenario(raw, source="<scenario>", base_dir=Path(".")) -> Scenario:
     ck.mapping(raw, "", top, required=("dt", "T", "gamma", "subsystems", "couplings"))
     dt = ck.number(raw["dt"], "dt", positive=True)
     T = ck.number(raw["T"], "T", positive=True)
-    if T < dt:
-        ck.fail("T", f"must be at least one step dt = {dt}, got {T}")
-    if abs(T / dt - round(T / dt)) > 1e-9 * (T / dt):
-        ck.fail("T", f"must be a whole number of steps dt = {dt}, got {T}")
+    check_whole_steps(T, dt, lambda msg: ck.fail("T", msg.removeprefix("T ")))
     gamma = raw["gamma"]
     if isinstance(gamma, str):
         ck.string(gamma, "gamma", GAMMA_MODES)
@@ -320,7 +334,7 @@ def parse_scenario(raw, source="<scenario>", base_dir=Path(".")) -> Scenario:
     outputs = raw.get("outputs") or {}
     ck.mapping(outputs, "outputs", list(outputs))
     for col, ref in outputs.items():
-        if not isinstance(ref, str) or ref.count(".") != 1 or ref.split(".")[0] not in names:
+        if not isinstance(ref, str) or "." not in ref or ref.split(".", 1)[0] not in names:
             ck.fail(f"outputs.{col}", f"must be SUBSYSTEM.variable with a known subsystem, got {ref!r}")
     error = raw.get("error", [])
     if not isinstance(error, list) or not all(e in outputs for e in error):

@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 
-from .config import ROOT
+from .builtin import ROOT, builtin_fmus
 from .errors import FmuError
 
 LIBRARY = ROOT / "build" / "lib" / "libdrkernel.so"
@@ -29,10 +29,10 @@ class Trace:
     pairs; a pair is unpacked into lists only when it is read (most steps nobody reads them)."""
 
     def __init__(self, values, n, count):
-        self._values, self._n, self._count, self._more = values, n, count, []
+        self._values, self._n, self._count = values, n, count
 
     def __len__(self):
-        return self._count + len(self._more)
+        return self._count
 
     def __getitem__(self, k):
         if isinstance(k, slice):
@@ -40,8 +40,6 @@ class Trace:
         k = k + len(self) if k < 0 else k
         if not 0 <= k < len(self):
             raise IndexError("trace index out of range")
-        if k >= self._count:
-            return self._more[k - self._count]
         n, v = self._n, self._values
         return v[2 * n * k:2 * n * k + n], v[2 * n * k + n:2 * n * (k + 1)]
 
@@ -51,12 +49,7 @@ class Trace:
     def as_array(self):
         """All pairs as one (count, 2, n) array, without a Python object per pair."""
         arr = np.frombuffer(self._values, dtype=np.float64, count=2 * self._n * self._count)
-        arr = arr.reshape(self._count, 2, self._n)
-        return np.concatenate([arr, np.asarray(self._more, float).reshape(-1, 2, self._n)]) if self._more else arr
-
-    def append(self, pair):
-        """Queries made through DRMaster.S after the step (certificates) are kept like the reference."""
-        self._more.append(pair)
+        return arr.reshape(self._count, 2, self._n)
 
 
 class DRFunctions(ctypes.Structure):
@@ -80,7 +73,6 @@ def load_library():
     """The kernel library, built (with the FMUs) if missing or stale; raises FmuError if it cannot be."""
     global _lib
     if _lib is None:
-        from .scene import builtin_fmus
         builtin_fmus()                       # fmus/build.py also compiles fmus/kernel/*.c
         if not LIBRARY.exists():
             raise FmuError(f"the kernel library {LIBRARY} was not built")
@@ -163,7 +155,7 @@ class Kernel:
             vr_out = (ctypes.c_uint * s.m)(*[s.fmu.vr(v) for v in s.port.wave_out])
             # x_i^n goes into the Subsystem's own handle, so that after a fast macro-step the
             # Subsystem holds x_i^n exactly as after the reference one (restore_frozen, thaw work)
-            state = ctypes.addressof(s._state)
+            state = s.state_handle_address()
             if lib.dr_set_subsystem(self.handle, i, ctypes.byref(fns), s.fmu.component, state, vr_in, vr_out, s.m,
                                     int(off)):
                 self.close()
@@ -194,17 +186,6 @@ class Kernel:
         copy = self._trace_type()
         ctypes.memmove(copy, self.trace, 16 * self.n * count)
         return Trace(copy, self.n, count)
-
-    def book(self, n, t, iterations):
-        """After a macro-step: leave each Subsystem as its freeze/query/advance would have, with
-        x_i^n saved (in its own handle, done by the kernel) at step n, time t, and the calls counted."""
-        t_c = ctypes.c_double(t)
-        for s in self.subsystems:
-            s.step_index, s.t, s._t = n, t, t_c
-            calls = s.calls
-            calls["save"] += 1
-            calls["doStep"] += iterations + 1
-            calls["restore"] += iterations
 
     def configure(self, dt, K, eps=None, deadline_s=None):
         self.io.dt, self.io.K = dt, K

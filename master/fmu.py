@@ -121,9 +121,8 @@ class Fmu:
 
     def variable(self, name):
         if name not in self.variables:
-            exc = FmuError(f"{self.name}: the FMU {self.path.name} has no variable {name!r}", subsystem=self.name)
-            exc.variable = name
-            raise exc
+            raise FmuError(f"{self.name}: the FMU {self.path.name} has no variable {name!r}", subsystem=self.name,
+                           variable=name)
         return self.variables[name]
 
     def vr(self, name) -> int:
@@ -142,27 +141,14 @@ class Fmu:
             raise FmuError(f"{self.name}: refusing to set a non-finite input {values}", subsystem=self.name)
         self._checked(self._slave.setReal, "fmi2SetReal", list(map(int, vrs)), values)
 
-    def do_step(self, t, h):
-        self._checked(self._slave.doStep, "fmi2DoStep", currentCommunicationPoint=t, communicationStepSize=h)
+    def free_state_handle(self, handle):
+        """Free a saved state held in a ctypes fmi2FMUstate handle (the frozen port map's x_i^n)."""
+        self._checked(self._slave.fmi2FreeFMUstate, "fmi2FreeFMUstate", self.component, ctypes.byref(handle))
 
-    def get_state(self):
-        """A new saved state (fmi2FMUstate handle) of the current instance."""
-        return self._checked(self._slave.getFMUstate, "fmi2GetFMUstate")
-
-    def set_state(self, state):
-        self._checked(self._slave.setFMUstate, "fmi2SetFMUstate", state)
-
-    def free_state(self, state):
-        self._checked(self._slave.freeFMUstate, "fmi2FreeFMUstate", state)
-
-    def serialize_state(self, state) -> bytes:
-        return bytes(self._checked(self._slave.serializeFMUstate, "fmi2SerializeFMUstate", state))
-
-    def deserialize_state(self, data: bytes):
-        return self._checked(self._slave.deSerializeFMUstate, "fmi2DeSerializeFMUstate", bytearray(data))
-
-    def set_integer(self, vrs, values):
-        self._checked(self._slave.setInteger, "fmi2SetInteger", list(map(int, vrs)), list(map(int, values)))
+    @property
+    def slave(self):
+        """The fmpy FMU2Slave (for code that wants fmpy's own calls, e.g. the bench's plain loop)."""
+        return self._slave
 
     def raw_function(self, fname):
         """A fresh ctypes function object without argtypes: callers pass pre-converted arguments."""

@@ -111,9 +111,34 @@ class Subsystem:
     def read(self, names):
         return self.fmu.get_real(self.fmu.vrs(names))
 
+    def reader(self, names):
+        """(read, buffer): read() fills the fixed ctypes buffer with `names` in one raw fmi2GetReal."""
+        k = len(names)
+        vr = (ctypes.c_uint * k)(*[self.fmu.vr(n) for n in names])
+        buf, size = (ctypes.c_double * k)(), ctypes.c_size_t(k)
+        get_real, comp, call = self._get_real, self._comp, self._call
+
+        def read():
+            call(get_real, "fmi2GetReal", comp, vr, size, buf)
+            return buf
+        return read, buf
+
+    def state_handle_address(self):
+        """Address of the handle x_i^n is saved into; the C kernel saves into it too, so after a
+        kernel macro-step this Subsystem holds x_i^n exactly as after a Python one."""
+        return ctypes.addressof(self._state)
+
+    def note_kernel_step(self, step_index, t, iterations):
+        """Book a macro-step the C kernel made: frozen at x^n at step n, K queries and one commit."""
+        self.begin(step_index, t)
+        self.calls["save"] += 1
+        self.calls["doStep"] += iterations + 1
+        self.calls["restore"] += iterations
+        self._dirty = False
+
     def release(self):
         if self._state.value:
-            self.fmu._slave.fmi2FreeFMUstate(self.fmu.component, ctypes.byref(self._state))
+            self.fmu.free_state_handle(self._state)
             self._state = ctypes.c_void_p()
 
     def close(self):

@@ -28,12 +28,35 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import interconnection as ic
+from .waves import outgoing_wave
 from .errors import ConfigError, NumericalError
 
-MODES = ("auto", "auto-retune", "fast-unsafe")
+MODES = ("auto", "auto-retune", "fast-unsafe")       # the one list of gamma modes
+PROBE_GAMMA = 0.4       # the gamma FMUs start at (when the scenario gives no number) before a mode probes them
 SAFETY = 0.9            # auto stays this far inside the FNE bound (Z_d drifts along the trajectory)
 RETUNE_ABOVE = 0.95     # auto-retune lowers gamma when it exceeds this fraction of the bound
 PROBE_REL = 1e-6        # size of the incident-wave perturbation, relative to the operating point
+
+
+def parse_gamma(value, where="gamma"):
+    """A gamma as given on the command line or in the API: a number > 0 or one of MODES."""
+    if isinstance(value, str) and value in MODES:
+        return value
+    try:
+        gamma = float(value)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{where}: must be a number > 0 or {', '.join(MODES)}; got {value!r}") from None
+    if not (gamma > 0 and math.isfinite(gamma)):
+        raise ConfigError(f"{where}: must be > 0, got {value}")
+    return gamma
+
+
+def initial_gammas(scenario):
+    """{subsystem: gamma} the FMUs are instantiated with. The one precedence rule: a subsystem's own
+    `gamma` wins over the scenario's number; with a mode (auto, ...) the tuner then replaces every
+    one, starting from these (PROBE_GAMMA where no number is given)."""
+    default = scenario.gamma if not isinstance(scenario.gamma, str) else PROBE_GAMMA
+    return {s.name: float(s.gamma if s.gamma is not None else default) for s in scenario.subsystems}
 
 
 @dataclass
@@ -202,23 +225,6 @@ def choose_gamma(scene, probes, mode, where="gamma", secant=None, ceiling=None):
                        guaranteed=all(chosen[k] <= bounds[k] for k in names))
 
 
-def set_fmu_gamma(scene, gammas):
-    """Set the tunable parameter gamma of every FMU ({subsystem: gamma}; only between macro-steps)
-    and the scene's per-subsystem impedances, which wave_map() then compiles P for."""
-    for s in scene.subsystems:
-        if "gamma" not in s.fmu.variables:
-            raise ConfigError(f"{scene.scenario.source}: subsystems.{s.name}.fmu: {s.fmu.path.name} has no tunable "
-                              f"parameter gamma, so gamma cannot be tuned")
-        s.fmu.set_real(s.fmu.vrs(["gamma"]), [gammas[s.name]])
-    scene.gammas = [float(gammas[s.name]) for s in scene.subsystems]
-    scene.gamma = min(scene.gammas)
-
-
-def scene_gammas(scene):
-    """{subsystem: gamma} in force in the scene."""
-    return {s.name: float(g) for s, g in zip(scene.subsystems, scene.gammas or [scene.gamma] * len(scene.subsystems))}
-
-
 def rescatter(scene, gammas):
     """The committed wave b^n at new impedances ({subsystem: gamma}), from the stage (e, f) of the last step.
 
@@ -228,9 +234,8 @@ def rescatter(scene, gammas):
     b = []
     for s in scene.subsystems:
         g = gammas[s.name]
-        k = math.sqrt(scene.scenario.dt / (2.0 * g))
         v = s.read(list(s.port.effort) + list(s.port.flow))
-        b.extend(k * (e - g * f) for e, f in zip(v[:s.m], v[s.m:]))
+        b.extend(outgoing_wave(e, f, g, scene.scenario.dt) for e, f in zip(v[:s.m], v[s.m:]))
     return b
 
 
@@ -257,7 +262,7 @@ class GammaTuner:
         for _ in range(2):
             probes = probe_scene(self.scene, b0, 0, 0.0)
             choice = choose_gamma(self.scene, probes, self.mode, self.where)
-            set_fmu_gamma(self.scene, choice.gammas)
+            self.scene.set_gammas(choice.gammas)
         self.choices.append((0, choice))
         for name, (g, bound) in choice.violations.items():
             self.warn(f"gamma: fast-unsafe chose gamma = {g:.4g} for subsystem {name}, above its FNE bound "
@@ -276,7 +281,7 @@ class GammaTuner:
         raising gamma to follow the bound up broke Condition 1 a few steps later)."""
         if not self.retune or n == 0:
             return None
-        now = scene_gammas(self.scene)
+        now = dict(self.scene.gammas)
         probes = probe_scene(self.scene, master.b, n, t, master.P)
         bounds = {p.name: min(p.fne_bound(), self.secant.get(p.name, math.inf)) for p in probes}
         if all(now[k] <= RETUNE_ABOVE * bounds[k] for k in now):
@@ -288,21 +293,19 @@ class GammaTuner:
         if choice.gammas == now:
             return None
         b_new = rescatter(self.scene, choice.gammas)
-        set_fmu_gamma(self.scene, choice.gammas)
-        master.set_gamma(None, b_new)                 # None: compile P for the scene's per-subsystem gammas
+        self.scene.set_gammas(choice.gammas)
+        master.retune(b_new)                          # P, J_L for the new gammas, b^n re-scattered
         self.choices.append((n, choice))
         return choice
 
-    def summary(self, history):
-        """Summary fields; `history` holds the per-step lists of gammas (subsystem order)."""
+    def summary(self, gamma_min):
+        """Summary fields; `gamma_min` is {subsystem: smallest gamma used} over the steps run."""
         first = self.choices[0][1]
-        names = [s.name for s in self.scene.subsystems]
-        h = np.asarray(history, float).reshape(-1, len(names))
         return {
             "gamma_mode": self.mode,
             "gamma_initial": first.gammas,
-            "gamma_final": scene_gammas(self.scene),
-            "gamma_min": {k: float(h[:, i].min()) for i, k in enumerate(names)} if h.size else first.gammas,
+            "gamma_final": dict(self.scene.gammas),
+            "gamma_min": gamma_min or first.gammas,
             "gamma_changes": len(self.choices) - 1,
             "gamma_fne_bounds": first.bounds,
             "gamma_rate_estimate": first.rate,

@@ -54,13 +54,67 @@ def clamped_end():
     return np.array([[0.0]]), np.array([[1.0]])
 
 
+def _two_ports(c, groups, where):
+    if len(groups) != 2 or len(groups[0]) != len(groups[1]):
+        raise CouplingError(f"{where}: equal_effort_opposite_flow joins two ports of equal dimension, "
+                            f"got sizes {[len(g) for g in groups]}")
+    return [("", *equal_effort_opposite_flow(len(groups[0])))]
+
+
+def _junction(make):
+    def blocks(c, groups, where):
+        if sum(map(len, groups)) < 2:
+            raise CouplingError(f"{where}: a junction needs at least two channels")
+        return [("", *make(sum(map(len, groups))))]
+    return blocks
+
+
+def _two_port_element(make):
+    def blocks(c, groups, where):
+        n = sum(map(len, groups))
+        if n != 2:
+            raise CouplingError(f"{where}: a {c.type} joins exactly two scalar channels, got {n}")
+        return [("", *make(c.ratio))]
+    return blocks
+
+
+def _termination(make):
+    def blocks(c, groups, where):
+        return [(f".{j}", *make()) for j in range(sum(map(len, groups)))]
+    return blocks
+
+
+def _dirac(c, groups, where):
+    n = sum(map(len, groups))
+    E, F = np.asarray(c.E, float), np.asarray(c.F, float)
+    if E.shape != (n, n) or F.shape != (n, n):
+        raise CouplingError(f"{where}: E and F must be {n}x{n} for the {n} listed channels, got "
+                            f"{E.shape} and {F.shape}")
+    check_dirac(E, F, where)
+    return [("", E, F)]
+
+
+# coupling type -> blocks(coupling, channel groups, where): [(suffix, E, F)]; a termination gives one
+# block per channel (suffix ".j"), every other type one block over all its channels.
+COUPLINGS = {
+    "equal_effort_opposite_flow": _two_ports,
+    "zero_junction": _junction(zero_junction),
+    "one_junction": _junction(one_junction),
+    "transformer": _two_port_element(transformer),
+    "gyrator": _two_port_element(gyrator),
+    "free_end": _termination(free_end),
+    "clamped_end": _termination(clamped_end),
+    "dirac": _dirac,
+}
+TAKES_RATIO = ("transformer", "gyrator")
+
+
 @dataclass
 class WaveInterconnection:
-    """The compiled interconnection: P (orthogonal), J_L = (2I - P)^-1 and its diagnostics."""
+    """The compiled interconnection: P (orthogonal), J_L = (2I - P)^-1 and |P^T P - I|."""
     P: np.ndarray
     J_L: np.ndarray
     orthogonality_residual: float
-    lossless_residual: float
 
 
 def check_dirac(E, F, where="coupling"):
@@ -88,7 +142,7 @@ def _snap(M):
 def compile_wave_map(E, F, gammas, where="coupling") -> WaveInterconnection:
     """P from E e + F f = 0 for channel impedances `gammas` (one per channel, all > 0)."""
     E, F = np.asarray(E, float), np.asarray(F, float)
-    lossless = check_dirac(E, F, where)
+    check_dirac(E, F, where)
     g = np.asarray(gammas, float)
     if g.shape != (E.shape[0],) or not np.all(g > 0) or not np.all(np.isfinite(g)):
         raise CouplingError(f"{where}: gamma must be finite and > 0 on each of the {E.shape[0]} channels")
@@ -103,7 +157,7 @@ def compile_wave_map(E, F, gammas, where="coupling") -> WaveInterconnection:
     if ortho > 1e-9:
         raise CouplingError(f"{where}: compiled wave map is not orthogonal (|P^T P - I| = {ortho:.3g})")
     J_L = np.linalg.inv(2.0 * np.eye(n) - P)
-    return WaveInterconnection(P=P, J_L=J_L, orthogonality_residual=ortho, lossless_residual=lossless)
+    return WaveInterconnection(P=P, J_L=J_L, orthogonality_residual=ortho)
 
 
 def assemble(blocks, n_channels, where="coupling"):

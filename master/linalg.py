@@ -14,15 +14,8 @@ def matvec(M, x):
     return y
 
 
-def norm(x):
-    """Euclidean norm, squares summed left to right."""
-    acc = 0.0
-    for v in x:
-        acc += v * v
-    return math.sqrt(acc)
-
-
 def distance(x, y):
+    """|x - y|, squares summed left to right."""
     acc = 0.0
     for xi, yi in zip(x, y):
         d = xi - yi

@@ -12,11 +12,16 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.ticker import NullFormatter  # noqa: E402
 
+from .masters import MASTERS  # noqa: E402
+
 FLOOR = 1e-17
 DPI = 130
-MASTER_STYLE = {"explicit": ("tab:red", "v"), "gauss-seidel": ("tab:orange", "^"),
-                "jacobi-iter": ("tab:purple", "s"), "gauss-seidel-iter": ("tab:brown", "D"),
-                "newton": ("black", "*"), "dr": ("tab:blue", "o")}
+
+
+
+def _style(name):
+    """(colour, marker) of a master in the comparison plots."""
+    return MASTERS[name].style if name in MASTERS else ("gray", "o")
 
 
 def _save(fig, path):
@@ -206,7 +211,7 @@ def _by_master(rows, results):
 def _pareto(rows, error_label, scenario, path):
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.4), sharey=True)
     for name, members in _by_master(rows, rows).items():
-        color, marker = MASTER_STYLE.get(name, ("gray", "o"))
+        color, marker = _style(name)
         ok = [r for r, _ in members if r["diverged"] == "no" and np.isfinite(r["max_error"])]
         bad = [str(r["K"]) for r, _ in members if r not in ok]
         label = name if not bad else f"{name} (diverged{'' if bad == ['-'] else ' at K = ' + ', '.join(bad)})"
@@ -240,7 +245,7 @@ def _energy_per_master(rows, results, reference, scenario, path):
             if name == "newton":                        # it is the monolithic reference, drawn dashed
                 continue
             row, res = members[pick]
-            color, _ = MASTER_STYLE.get(name, ("gray", "o"))
+            color, _ = _style(name)
             t, H = _finite(_energy_t(res), res.steps["H"])
             keep = H > 0
             tag = name if row["K"] == "-" else f"{name}, K = {row['K']}"

@@ -1,30 +1,15 @@
 """A scenario made concrete: FMU instances as Subsystems, stacked channels, the compiled coupling."""
-import importlib.util
 from dataclasses import dataclass
 
 import numpy as np
 
 from . import interconnection as ic
-from .config import ROOT, Scenario
+from .builtin import builtin_fmus
+from .config import Scenario
 from .errors import ConfigError, CouplingError, FmuError
 from .fmu import Fmu
 from .frozen_port_map import PortSpec, Subsystem
-
-_built = None
-
-
-def builtin_fmus(log=None) -> dict:
-    """{identifier: path} of the FMUs built from models/, rebuilt when their sources changed."""
-    global _built
-    if _built is None:
-        spec = importlib.util.spec_from_file_location("wavecosim_fmu_build", ROOT / "fmus" / "build.py")
-        build = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(build)
-        try:
-            _built = build.build_all(log=log or (lambda msg: None))
-        except build.BuildError as exc:
-            raise FmuError(str(exc).splitlines()[0]) from None
-    return _built
+from .gamma_tuning import initial_gammas
 
 
 def resolve_fmu(sub, source="<scenario>") -> str:
@@ -68,29 +53,69 @@ def _port_spec(sub, fmu) -> PortSpec:
 
 @dataclass
 class Scene:
-    """Instantiated subsystems of one run and the compiled interconnection between their channels."""
+    """Instantiated subsystems of one run, the compiled interconnection between their channels, and
+    the stacked maps every master uses: S(u) (eq. 13) and the commit advance(a) (eq. 21)."""
     scenario: Scenario
     subsystems: list
     offsets: list
     E: np.ndarray
     F: np.ndarray
-    gamma: float
     wave: bool
-    gammas: list = None
-
-    def channel_gammas(self, gamma=None):
-        """Impedance of every channel: a scalar override, else each subsystem's own gamma."""
-        per_sub = [gamma] * len(self.subsystems) if gamma is not None else (self.gammas or
-                                                                            [self.gamma] * len(self.subsystems))
-        return [g for g, s in zip(per_sub, self.subsystems) for _ in range(s.m)]
+    gammas: dict                       # {subsystem: gamma}, the impedances P is compiled for
 
     @property
     def n_channels(self):
         return self.E.shape[0]
 
-    def wave_map(self, gamma=None):
-        return ic.compile_wave_map(self.E, self.F, self.channel_gammas(gamma),
-                                   where=f"{self.scenario.source}: couplings")
+    @property
+    def sizes(self):
+        return [s.m for s in self.subsystems]
+
+    def channel_gammas(self):
+        """Impedance of every stacked channel: its subsystem's gamma."""
+        return [self.gammas[s.name] for s in self.subsystems for _ in range(s.m)]
+
+    def wave_map(self):
+        """P and J_L compiled for the gammas in force."""
+        return ic.compile_wave_map(self.E, self.F, self.channel_gammas(), where=f"{self.scenario.source}: couplings")
+
+    def set_gammas(self, gammas):
+        """New impedances ({subsystem: gamma}), only between macro-steps: each FMU's tunable gamma too."""
+        for s in self.subsystems:
+            if "gamma" not in s.fmu.variables:
+                raise ConfigError(f"{self.scenario.source}: subsystems.{s.name}.fmu: {s.fmu.path.name} has no "
+                                  f"tunable parameter gamma, so gamma cannot be tuned")
+            s.fmu.set_real(s.fmu.vrs(["gamma"]), [gammas[s.name]])
+        self.gammas = {s.name: float(gammas[s.name]) for s in self.subsystems}
+
+    def freeze(self, n, t):
+        """Save every x_i^n (Algorithm 1, line 3)."""
+        for s in self.subsystems:
+            s.freeze(n, t)
+
+    def S(self, u):
+        """Stacked frozen port map S^n(u) = (S_A(u_A), S_B(u_B), ...) (eq. 13); the states are discarded."""
+        b = []
+        for s, u_i in zip(self.subsystems, self.split(u)):
+            b.extend(s.query(u_i))
+        return b
+
+    def advance(self, a):
+        """The one commit of a macro-step: every subsystem from x_i^n with a_i (eq. 21); returns b^{n+1}."""
+        b = []
+        for s, a_i in zip(self.subsystems, self.split(a)):
+            b.extend(s.advance(a_i))
+        return b
+
+    def thaw(self):
+        """Every instance back at x_i^n after queries made outside a master (certificates, probes)."""
+        for s in self.subsystems:
+            s.thaw()
+
+    def restore_frozen(self):
+        """Every instance back at x_i^n even after the commit (a step is redone)."""
+        for s in self.subsystems:
+            s.restore_frozen()
 
     def input_map(self):
         """G with inputs = G outputs for physical masters, from E e + F f = 0 split by causality."""
@@ -140,33 +165,11 @@ def coupling_structure(scenario: Scenario, sizes):
         where = f"{scenario.source}: couplings[{k}]"
         groups = [_channels(p, index, offsets, sizes, where) for p in c.ports]
         chans = [ch for g in groups for ch in g]
-        n = len(chans)
-        if c.type == "equal_effort_opposite_flow":
-            if len(groups) != 2 or len(groups[0]) != len(groups[1]):
-                raise CouplingError(f"{where}: equal_effort_opposite_flow joins two ports of equal dimension, "
-                                    f"got sizes {[len(g) for g in groups]}")
-            E, F = ic.equal_effort_opposite_flow(len(groups[0]))
-            blocks.append((k, E, F, chans))
-        elif c.type in ("zero_junction", "one_junction"):
-            if n < 2:
-                raise CouplingError(f"{where}: a junction needs at least two channels")
-            E, F = (ic.zero_junction if c.type == "zero_junction" else ic.one_junction)(n)
-            blocks.append((k, E, F, chans))
-        elif c.type in ("transformer", "gyrator"):
-            if n != 2:
-                raise CouplingError(f"{where}: a {c.type} joins exactly two scalar channels, got {n}")
-            E, F = (ic.transformer if c.type == "transformer" else ic.gyrator)(c.ratio)
-            blocks.append((k, E, F, chans))
-        elif c.type in ("free_end", "clamped_end"):
-            E, F = ic.free_end() if c.type == "free_end" else ic.clamped_end()
-            blocks.extend((f"{k}.{j}", E, F, [ch]) for j, ch in enumerate(chans))
+        made = ic.COUPLINGS[c.type](c, groups, where)
+        if len(made) == 1:
+            blocks.append((k, made[0][1], made[0][2], chans))
         else:
-            E, F = np.asarray(c.E, float), np.asarray(c.F, float)
-            if E.shape != (n, n) or F.shape != (n, n):
-                raise CouplingError(f"{where}: E and F must be {n}x{n} for the {n} listed channels, got "
-                                    f"{E.shape} and {F.shape}")
-            ic.check_dirac(E, F, where)
-            blocks.append((k, E, F, chans))
+            blocks.extend((f"{k}{suffix}", E, F, [ch]) for (suffix, E, F), ch in zip(made, chans))
     label = [f"{n}[{j}]" for n, m in zip(names, sizes) for j in range(m)]     # global channel -> "A[0]"
     owner = {}
     for name, _, _, chans in blocks:
@@ -185,45 +188,58 @@ def coupling_structure(scenario: Scenario, sizes):
     return E, F, offsets
 
 
-def build_scene(scenario: Scenario, wave=True, gamma=None, needs_rollback=True) -> Scene:
-    """Instantiate every subsystem (wave or physical port mode) and compile the coupling."""
-    g = gamma if gamma is not None else (scenario.gamma if not isinstance(scenario.gamma, str) else 0.4)
-    subsystems, gammas = [], []
+def _open_fmu(scenario, sub, path, gamma, wave):
+    """One FMU instance with the subsystem's parameters, start values and port mode; a name the FMU
+    lacks is reported at its key."""
+    reals = {**sub.parameters, **sub.start, "gamma": gamma}
+    integers = {**sub.integers, "port_mode": 0 if wave else 1}
+    try:
+        return Fmu(path, sub.name, reals, integers, optional=("gamma", "port_mode"))
+    except FmuError as exc:
+        key = next((f"{k}.{exc.variable}" for k in ("parameters", "start", "integers")
+                    if exc.variable in getattr(sub, k)), "fmu")
+        raise ConfigError(f"{scenario.source}: subsystems.{sub.name}.{key}: {exc}") from None
+
+
+def _check_fmu(scenario, sub, fmu, wave, needs_rollback):
+    """Refuse an FMU this master cannot drive, in one line naming it."""
+    where = f"{scenario.source}: subsystems.{sub.name}.fmu: {fmu.path.name}"
+    if wave and "port_mode" not in fmu.variables:
+        raise ConfigError(f"{where} has no wave port (integer parameter port_mode); use a physical-domain master")
+    if needs_rollback and not fmu.can_save_state:
+        raise ConfigError(f"{where} cannot get and set its state, which every master here needs to freeze "
+                          f"and roll back")
+
+
+def _subsystem(scenario, sub, gamma, wave, needs_rollback):
+    fmu = _open_fmu(scenario, sub, resolve_fmu(sub, scenario.source), gamma, wave)
+    try:
+        _check_fmu(scenario, sub, fmu, wave, needs_rollback)
+        return Subsystem(sub.name, fmu, _port_spec(sub, fmu), scenario.dt, wave=wave)
+    except ConfigError as exc:
+        fmu.close()
+        text = str(exc)
+        raise ConfigError(text if text.startswith(scenario.source) else f"{scenario.source}: {text}") from None
+
+
+def _check_outputs(scenario, subsystems):
+    by_name = {s.name: s for s in subsystems}
+    for col, ref in scenario.outputs.items():
+        name, var = ref.split(".", 1)
+        if var not in by_name[name].fmu.variables:
+            raise ConfigError(f"{scenario.source}: outputs.{col}: subsystem {name} has no variable {var!r}")
+
+
+def build_scene(scenario: Scenario, wave=True, needs_rollback=True) -> Scene:
+    """Instantiate every subsystem (wave or physical port mode) at its initial gamma and compile the coupling."""
+    gammas = initial_gammas(scenario)
+    subsystems = []
     try:
         for sub in scenario.subsystems:
-            path = resolve_fmu(sub, scenario.source)
-            g_sub = sub.gamma if (sub.gamma is not None and gamma is None) else g
-            gammas.append(g_sub)
-            reals = {**sub.parameters, **sub.start, "gamma": g_sub}
-            integers = {**sub.integers, "port_mode": 0 if wave else 1}
-            try:
-                fmu = Fmu(path, sub.name, reals, integers, optional=("gamma", "port_mode"))
-            except FmuError as exc:
-                var = getattr(exc, "variable", None)         # a parameter/start/integer name the FMU lacks
-                key = next((f"{k}.{var}" for k in ("parameters", "start", "integers") if var in getattr(sub, k)), "fmu")
-                raise ConfigError(f"{scenario.source}: subsystems.{sub.name}.{key}: {exc}") from None
-            if wave and "port_mode" not in fmu.variables:
-                fmu.close()
-                raise ConfigError(f"{scenario.source}: subsystems.{sub.name}.fmu: {path.name} has no wave port (integer parameter "
-                                  f"port_mode); use a physical-domain master")
-            if needs_rollback and not fmu.can_save_state:
-                fmu.close()
-                raise ConfigError(f"{scenario.source}: subsystems.{sub.name}.fmu: {path.name} cannot get and set its state, which "
-                                  f"every master here needs to freeze and roll back")
-            try:
-                port = _port_spec(sub, fmu)
-            except ConfigError as exc:
-                fmu.close()
-                raise ConfigError(f"{scenario.source}: {exc}") from None
-            subsystems.append(Subsystem(sub.name, fmu, port, scenario.dt, wave=wave))
-        for col, ref in scenario.outputs.items():
-            name, var = ref.split(".")
-            s = next(s for s in subsystems if s.name == name)
-            if var not in s.fmu.variables:
-                raise ConfigError(f"{scenario.source}: outputs.{col}: subsystem {name} has no variable {var!r}")
-        sizes = [s.m for s in subsystems]
-        E, F, offsets = coupling_structure(scenario, sizes)
-        scene = Scene(scenario, subsystems, offsets, E, F, g, wave, gammas)
+            subsystems.append(_subsystem(scenario, sub, gammas[sub.name], wave, needs_rollback))
+        _check_outputs(scenario, subsystems)
+        E, F, offsets = coupling_structure(scenario, [s.m for s in subsystems])
+        scene = Scene(scenario, subsystems, offsets, E, F, wave, gammas)
         if wave:
             scene.wave_map()
         return scene

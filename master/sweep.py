@@ -1,17 +1,17 @@
 """The paper's experiment: the monolithic reference and one DR run per budget K, with errors."""
 from pathlib import Path
 
-from .recorder import write_json
-from .runner import error_metrics, run
+from .observers.recorder import write_json
+from .runner import reference_scenario, run
 
 SWEEP_FIELDS = ("K", "max_error", "rms_error", "final_error", "max_passivity_pos", "max_augmented_pos",
                 "min_fne_margin", "wall_time_s")
 
 
-def reference_run(scenario, out_dir=None, progress=None, gamma=None):
+def reference_run(scenario, out_dir=None, progress=None):
     """The monolithic discrete-time trajectory: interface Newton at every macro-step."""
-    ref = scenario.with_master(algorithm="newton")
-    return run(ref, out_dir=out_dir, label="monolithic", progress=progress, certificates=False, gamma=gamma)
+    return run(reference_scenario(scenario), out_dir=out_dir, label="monolithic", progress=progress,
+               certificates=False)
 
 
 def sweep(scenario, Ks, out_dir, progress=None, certificates=True, reference=None, on_run=None):
@@ -34,4 +34,4 @@ def sweep(scenario, Ks, out_dir, progress=None, certificates=True, reference=Non
     return reference, results, runs
 
 
-__all__ = ["sweep", "reference_run", "error_metrics", "SWEEP_FIELDS"]
+__all__ = ["sweep", "reference_run", "SWEEP_FIELDS"]

@@ -4,7 +4,7 @@ import pytest
 
 from master.config import load_scenario
 from master.masters.dr import DRMaster, algorithm1
-from master.masters.newton import solve_interface
+from master.monolithic import solve_interface
 from master.scene import build_scene
 
 SWAP = [[0.0, 1.0], [1.0, 0.0]]
@@ -55,21 +55,20 @@ def frozen_benchmark():
     master = DRMaster(scene, scenario.master)
     for n in range(40):
         master.step(n, n * scenario.dt)
-    for s in scene.subsystems:
-        s.freeze(40, 40 * scenario.dt)
+    scene.freeze(40, 40 * scenario.dt)
     yield scene, master
     scene.close()
 
 
 def test_fejer_monotonicity_of_inner_iterates(frozen_benchmark):
     scene, master = frozen_benchmark
-    b_star = solve_interface(master.S, master.P, master.b, 1, scene.offsets, [1, 1])[0]
+    b_star = solve_interface(scene, master.P, master.b)[0]
     u_dag = np.array(master.P) @ b_star
     iterates = []
 
     def recording_S(u):
         iterates.append(np.array(u))
-        return master.S(u)
+        return scene.S(u)
     log = algorithm1(recording_S, master.P, master.J_L, master.b, K=60)
     iterates.append(np.array(log.uK))
     dist = [float(np.sum((u - u_dag) ** 2)) for u in iterates]
@@ -81,12 +80,12 @@ def test_fejer_monotonicity_of_inner_iterates(frozen_benchmark):
 
 def test_monolithic_newton_matches_converged_dr(frozen_benchmark):
     scene, master = frozen_benchmark
-    b_star, iters, res, _ = solve_interface(master.S, master.P, master.b, 1, scene.offsets, [1, 1])
-    log = algorithm1(master.S, master.P, master.J_L, master.b, K=400)
+    b_star, iters, res, _ = solve_interface(scene, master.P, master.b)
+    log = algorithm1(scene.S, master.P, master.J_L, master.b, K=400)
     assert res < 1e-12 and iters < 10
     assert np.allclose(np.array(master.P) @ b_star, log.a_hat, rtol=0, atol=1e-11)
     # and the fixed point really is one: b* = S(P b*)
-    assert np.allclose(master.S(list(np.array(master.P) @ b_star)), b_star, rtol=0, atol=1e-12)
+    assert np.allclose(scene.S(list(np.array(master.P) @ b_star)), b_star, rtol=0, atol=1e-12)
 
 
 def test_frozen_map_never_changes_the_committed_state(frozen_benchmark):

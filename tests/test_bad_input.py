@@ -227,7 +227,7 @@ def test_python_tags_are_rejected(tmp_path, capsys):
     (["--gamma", "-1"], ["--gamma: must be > 0"]),
     (["--gamma", "fast"], ["--gamma: must be a number > 0 or auto"]),
     (["--dt", "0"], ["Invalid value for '--dt'"]),
-    (["--T", "0.015", "--dt", "0.01"], ["--T/--dt: T = 0.015 must be a whole number"]),
+    (["--T", "0.015", "--dt", "0.01"], ["--T/--dt: T must be a whole number of steps dt = 0.01, got 0.015"]),
     (["--master", "magic"], ["Invalid value for '--master'"]),
     (["--no-such-option"], ["No such option '--no-such-option'"]),
 ], ids=["K", "gamma-negative", "gamma-word", "dt", "T-dt", "master", "option"])

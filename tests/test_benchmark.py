@@ -57,7 +57,7 @@ def test_trajectory_files_have_the_documented_columns(sweep_dir):
     for name in ["monolithic", *[f"K{K}" for K in KS]]:
         with open(sweep_dir / f"trajectory_{name}.csv") as fh:
             rows = list(csv.reader(fh))
-        assert rows[0] == ["t", "q1", "v1", "d", "q2", "v2", "bA", "bB"]
+        assert rows[0] == ["time", "q1", "v1", "d", "q2", "v2", "bA", "bB"]
         assert len(rows) == 1002 and float(rows[1][0]) == 0.0 and float(rows[-1][0]) == pytest.approx(10.0)
 
 

@@ -60,7 +60,7 @@ def run_cli(tmp_path, raw, capsys, *extra):
 def test_fmu_inner_solve_failure_names_subsystem_step_time(fast, tmp_path, capsys):
     code, err, out = run_cli(tmp_path, newton_failure(fast), capsys, "--no-reference")
     line = err.strip().splitlines()[-1]
-    assert code not in (0, 2) and "Traceback" not in err
+    assert code == 3 and "Traceback" not in err               # FmuError: the FMU returned Error
     assert line.startswith("error: subsystem A: fmi2DoStep returned Error at step 18 (t = 0.18): ")
     assert "Newton step of the Duffing side did not converge in 4 iterations" in line
     summary = json.loads((out / "summary.json").read_text())
@@ -74,7 +74,7 @@ def test_fmu_inner_solve_failure_names_subsystem_step_time(fast, tmp_path, capsy
 def test_nothing_computed_is_lost(tmp_path, capsys):
     """The 18 committed steps on disk are exactly those of the same run with an unlimited Newton."""
     code, _, out = run_cli(tmp_path, newton_failure(), capsys, "--no-reference")
-    assert code != 0
+    assert code == 3
     raw = newton_failure()
     raw["subsystems"]["A"]["integers"] = {"newton_max_iter": 50}
     raw["T"] = 0.2
@@ -87,7 +87,7 @@ def test_nothing_computed_is_lost(tmp_path, capsys):
 def test_failing_reference_keeps_its_rows(tmp_path, capsys):
     """Without --no-reference the monolithic reference runs first and meets the same failure."""
     code, err, out = run_cli(tmp_path, newton_failure(), capsys)
-    assert code not in (0, 2)
+    assert code == 3
     assert err.strip().splitlines()[-1].startswith("error: subsystem A: fmi2DoStep returned Error at step 18 (t = 0.18)")
     assert len(rows(out / "trajectory_monolithic.csv")) == 19
     assert json.loads((out / "summary_monolithic.json").read_text())["status"] == "failed"
@@ -96,7 +96,7 @@ def test_failing_reference_keeps_its_rows(tmp_path, capsys):
 def test_non_finite_state_stops_the_run(tmp_path, capsys):
     code, err, out = run_cli(tmp_path, nan_failure(), capsys, "--no-reference")
     line = err.strip().splitlines()[-1]
-    assert code not in (0, 2)
+    assert code == 3
     assert line.startswith("error: subsystem B: fmi2DoStep returned Error at step 166 (t = 1.66): ")
     assert line.endswith("H is not finite after the step")
     summary = json.loads((out / "summary.json").read_text())

@@ -16,10 +16,11 @@ import yaml
 
 from master import gamma_tuning as gt
 from master.config import DEFAULT_CONFIG, parse_scenario
-from master.fne_watch import TOL
+from master.observers.fne_watch import TOL
 from master.masters.dr import DRMaster
-from master.runner import error_metrics, run
-from master.scattering import power_variables, waves
+from master.observers.errors import error_metrics
+from master.runner import run
+from master.waves import power_variables, waves
 from master.scene import build_scene
 from master.sweep import reference_run
 
@@ -76,7 +77,7 @@ def test_stiff_scene_auto_gamma_reaches_the_monolithic_answer(stiff_auto, stiff_
     assert 50.0 < bounds["A"] < 62.0                              # ~ k12 dt / 2 + c12 = 60.05, softened by m1
     assert bounds["B"] == pytest.approx(2 * 4.0 / 0.01 + 50.0 * 0.01 / 2, rel=1e-6)
     assert s["gamma_rate_estimate"] < 0.4
-    assert all(row == [g["A"], g["B"]] for row in result.steps["gamma"])
+    assert all(list(row) == [g["A"], g["B"]] for row in result.steps["gamma"])
     err, metrics = error_metrics(result, stiff_reference, ["q1", "q2"])
     assert metrics["max_error"] <= 1e-8
     # Theorem 1 keeps holding (the augmented storage inequality at roundoff of the energy scale)
@@ -161,7 +162,7 @@ def test_one_probe_predicts_the_slope_at_another_gamma():
     try:
         probe = gt.probe_scene(scene, [0.0, 0.0], 0, 0.0)[0]
         predicted = float(probe.jacobian(30.0)[0, 0])
-        gt.set_fmu_gamma(scene, {"A": 30.0, "B": 30.0})
+        scene.set_gammas({"A": 30.0, "B": 30.0})
         A = scene.subsystems[0]
         A.freeze(0, 0.0)
         h = 1e-6

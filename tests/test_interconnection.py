@@ -4,7 +4,7 @@ import pytest
 
 from master import interconnection as ic
 from master.errors import CouplingError
-from master.scattering import port_energy, power_variables, waves
+from master.waves import port_energy, power_variables, waves
 
 
 def test_two_port_coupling_compiles_to_the_swap_exactly():

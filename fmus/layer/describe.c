@@ -12,8 +12,6 @@ static const char *causality(int kind) {
     }
 }
 
-static int index_counter = 0;
-
 /* Prints text with the XML special characters escaped. */
 static void print_escaped(const char *text) {
     for (; *text; text++) {
@@ -29,12 +27,25 @@ static void print_escaped(const char *text) {
 
 #define PRINT_REAL(name, kind, start, unit, desc) print_real(#name, VR_##name, kind, start, unit, desc);
 #define PRINT_INT(name, start, desc) print_int(#name, INTEGER_VR_BASE + VRI_##name, start, desc);
-#define LIST_OUTPUT(name, kind, start, unit, desc) \
-    index_counter++; \
-    if (kind == STATE || kind == OUTPUT) printf("      <Unknown index=\"%d\"/>\n", index_counter);
-#define LIST_INITIAL(name, kind, start, unit, desc) \
-    index_counter++; \
-    if (kind == OUTPUT) printf("      <Unknown index=\"%d\"/>\n", index_counter);
+#define REAL_KIND(name, kind, start, unit, desc) kind,
+static const int real_kind[] = {REAL_VARIABLES(REAL_KIND)};
+
+/* Is a real of this kind listed: among the outputs (states are exposed as outputs), or among the
+ * initial unknowns (calculated outputs only)? */
+static int is_output(int kind) { return kind == STATE || kind == OUTPUT; }
+static int is_initial_unknown(int kind) { return kind == OUTPUT; }
+
+/* Prints <element> with one Unknown per selected real (1-based index), or nothing when none is
+ * selected: the schema does not allow the element empty. */
+static void print_unknowns(const char *element, int (*selected)(int kind)) {
+    int any = 0;
+    for (int k = 0; k < N_REALS; k++) any |= selected(real_kind[k]);
+    if (!any) return;
+    printf("    <%s>\n", element);
+    for (int k = 0; k < N_REALS; k++)
+        if (selected(real_kind[k])) printf("      <Unknown index=\"%d\"/>\n", k + 1);
+    printf("    </%s>\n", element);
+}
 
 static void print_real(const char *name, int vr, int kind, double start, const char *unit, const char *desc) {
     const char *variability = kind == PARAMETER ? "fixed" : kind == TUNABLE ? "tunable" : "continuous";
@@ -58,6 +69,17 @@ static void print_int(const char *name, int vr, int start, const char *desc) {
     printf("\">\n      <Integer start=\"%d\"/>\n    </ScalarVariable>\n", start);
 }
 
+/* The C files fmus/build.py compiles into the binary; sources/ in the FMU holds them and every
+ * header they include, so `fmpy compile` can rebuild the binary on another platform. */
+static const char *source_files[] = {"fmi2_cosim.c", "model.c"};
+
+static void print_source_files(void) {
+    printf("    <SourceFiles>\n");
+    for (size_t k = 0; k < sizeof source_files / sizeof source_files[0]; k++)
+        printf("      <File name=\"%s\"/>\n", source_files[k]);
+    printf("    </SourceFiles>\n");
+}
+
 #define UNIT_DEF(name, kind, start, unit, desc) collect_unit(unit);
 static const char *units[64];
 static int n_units = 0;
@@ -77,8 +99,10 @@ int main(void) {
            "generationTool=\"wavecosim fmus/layer\" variableNamingConvention=\"flat\" numberOfEventIndicators=\"0\">\n",
            MODEL_IDENTIFIER_STR, MODEL_GUID, MODEL_DESCRIPTION);
     printf("  <CoSimulation modelIdentifier=\"%s\" canHandleVariableCommunicationStepSize=\"true\" "
-           "canGetAndSetFMUstate=\"true\" canSerializeFMUstate=\"true\" canNotUseMemoryManagementFunctions=\"true\"/>\n",
+           "canGetAndSetFMUstate=\"true\" canSerializeFMUstate=\"true\" canNotUseMemoryManagementFunctions=\"true\">\n",
            MODEL_IDENTIFIER_STR);
+    print_source_files();
+    printf("  </CoSimulation>\n");
     REAL_VARIABLES(UNIT_DEF)
     if (n_units) {
         printf("  <UnitDefinitions>\n");
@@ -89,12 +113,9 @@ int main(void) {
     printf("  <ModelVariables>\n");
     REAL_VARIABLES(PRINT_REAL)
     INTEGER_VARIABLES(PRINT_INT)
-    printf("  </ModelVariables>\n  <ModelStructure>\n    <Outputs>\n");
-    index_counter = 0;
-    REAL_VARIABLES(LIST_OUTPUT)
-    printf("    </Outputs>\n    <InitialUnknowns>\n");
-    index_counter = 0;
-    REAL_VARIABLES(LIST_INITIAL)
-    printf("    </InitialUnknowns>\n  </ModelStructure>\n</fmiModelDescription>\n");
+    printf("  </ModelVariables>\n  <ModelStructure>\n");
+    print_unknowns("Outputs", is_output);
+    print_unknowns("InitialUnknowns", is_initial_unknown);
+    printf("  </ModelStructure>\n</fmiModelDescription>\n");
     return 0;
 }

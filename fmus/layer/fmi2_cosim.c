@@ -10,8 +10,11 @@
 #include "fmi2Functions.h"
 #include "model.h"
 
-#define PORT_MODE_WAVE 0
-#define PORT_MODE_PHYSICAL 1
+#if defined(__GNUC__)
+#define PRINTF_LIKE(fmt_index, args_index) __attribute__((format(printf, fmt_index, args_index)))
+#else
+#define PRINTF_LIKE(fmt_index, args_index)
+#endif
 
 typedef enum { ST_INSTANTIATED, ST_INIT, ST_STEP, ST_TERMINATED, ST_ERROR } Phase;
 
@@ -23,30 +26,39 @@ typedef struct {
     fmi2Boolean logging;
 } Instance;
 
-#define CH_WAVE_IN(a, b, e, f, p, k) VR_##a,
-#define CH_WAVE_OUT(a, b, e, f, p, k) VR_##b,
-#define CH_EFFORT(a, b, e, f, p, k) VR_##e,
-#define CH_FLOW(a, b, e, f, p, k) VR_##f,
-#define CH_PHYS(a, b, e, f, p, k) VR_##p,
-#define CH_KIND(a, b, e, f, p, k) k,
-static const int ch_wave_in[N_CHANNELS] = {PORT_CHANNELS(CH_WAVE_IN)};
-static const int ch_wave_out[N_CHANNELS] = {PORT_CHANNELS(CH_WAVE_OUT)};
-static const int ch_effort[N_CHANNELS] = {PORT_CHANNELS(CH_EFFORT)};
-static const int ch_flow[N_CHANNELS] = {PORT_CHANNELS(CH_FLOW)};
-static const int ch_phys[N_CHANNELS] = {PORT_CHANNELS(CH_PHYS)};
-static const int ch_kind[N_CHANNELS] = {PORT_CHANNELS(CH_KIND)};
+/* Phases in which each entry point may be called, as bit masks over Phase (MASK_<function>);
+ * entry points with the same rule share one mask. */
+#define PHASES_ANY ((1 << ST_INSTANTIATED) | (1 << ST_INIT) | (1 << ST_STEP) | (1 << ST_TERMINATED) | (1 << ST_ERROR))
+#define PHASES_INSTANTIATED (1 << ST_INSTANTIATED)
+#define PHASES_BEFORE_STEP ((1 << ST_INSTANTIATED) | (1 << ST_INIT))
+#define PHASES_UNTIL_STEP ((1 << ST_INSTANTIATED) | (1 << ST_INIT) | (1 << ST_STEP))
+#define MASK_fmi2SetDebugLogging PHASES_ANY
+#define MASK_fmi2SetupExperiment PHASES_INSTANTIATED
+#define MASK_fmi2EnterInitializationMode PHASES_INSTANTIATED
+#define MASK_fmi2ExitInitializationMode (1 << ST_INIT)
+#define MASK_fmi2Terminate ((1 << ST_STEP) | (1 << ST_ERROR))
+#define MASK_fmi2Reset PHASES_ANY
+#define MASK_fmi2GetReal PHASES_ANY
+#define MASK_fmi2GetInteger PHASES_ANY
+#define MASK_fmi2SetReal PHASES_UNTIL_STEP
+#define MASK_fmi2SetInteger PHASES_BEFORE_STEP
+#define MASK_fmi2GetFMUstate PHASES_ANY
+#define MASK_fmi2SetFMUstate PHASES_ANY
+#define MASK_fmi2DoStep (1 << ST_STEP)
+
+/* Non-zero (after logging an error that names fn and the phase) when fn may not be called now. */
+#define BAD_CALL(c, fn) bad_call((c), #fn, MASK_##fn)
 
 #define REAL_START(name, kind, start, unit, desc) start,
 #define REAL_KIND(name, kind, start, unit, desc) kind,
 #define REAL_NAME(name, kind, start, unit, desc) #name,
 #define INT_START(name, start, desc) start,
-#define INT_NAME(name, start, desc) #name,
 static const double real_start[N_REALS] = {REAL_VARIABLES(REAL_START)};
 static const int real_kind[N_REALS] = {REAL_VARIABLES(REAL_KIND)};
 static const char *real_name[N_REALS] = {REAL_VARIABLES(REAL_NAME)};
 static const int int_start[N_INTEGERS] = {INTEGER_VARIABLES(INT_START)};
-static const char *int_name[N_INTEGERS] = {INTEGER_VARIABLES(INT_NAME)};
 
+static void log_msg(Instance *c, fmi2Status status, const char *category, const char *fmt, ...) PRINTF_LIKE(4, 5);
 static void log_msg(Instance *c, fmi2Status status, const char *category, const char *fmt, ...) {
     if (!c || !c->cb.logger) return;
     if (status == fmi2OK && !c->logging) return;
@@ -62,28 +74,31 @@ static void log_msg(Instance *c, fmi2Status status, const char *category, const 
     c->cb.logger(c->cb.componentEnvironment, c->name, status, category, buf);
 }
 
-static fmi2Status fail(Instance *c, const char *fn, const char *fmt, const char *detail) {
+/* Logs "fn: <formatted message>" as an error and returns fmi2Error. */
+static fmi2Status fail(Instance *c, const char *fn, const char *fmt, ...) PRINTF_LIKE(3, 4);
+static fmi2Status fail(Instance *c, const char *fn, const char *fmt, ...) {
     char buf[400];
-    snprintf(buf, sizeof buf, fmt, detail);
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(buf, sizeof buf, fmt, ap);
+    va_end(ap);
     log_msg(c, fmi2Error, "logStatusError", "%s: %s", fn, buf);
     return fmi2Error;
+}
+
+static const char *phase_name(Phase phase) {
+    static const char *names[] = {"instantiated", "initialization mode", "step mode", "terminated", "error"};
+    return names[phase];
 }
 
 static int bad_call(Instance *c, const char *fn, int allowed_mask) {
     if (!c) return 1;
     if (!((1 << c->phase) & allowed_mask)) {
-        fail(c, fn, "not allowed in the current state (%s)",
-             c->phase == ST_ERROR ? "error" : c->phase == ST_TERMINATED ? "terminated" : "other");
+        fail(c, fn, "not allowed in the current state (%s)", phase_name(c->phase));
         return 1;
     }
     return 0;
 }
-
-#define M_ANY ((1 << ST_INSTANTIATED) | (1 << ST_INIT) | (1 << ST_STEP) | (1 << ST_TERMINATED) | (1 << ST_ERROR))
-#define M_SET_REAL ((1 << ST_INSTANTIATED) | (1 << ST_INIT) | (1 << ST_STEP))
-#define M_GET ((1 << ST_INIT) | (1 << ST_STEP) | (1 << ST_TERMINATED) | (1 << ST_ERROR))
-#define M_STEP (1 << ST_STEP)
-#define M_STATE ((1 << ST_INSTANTIATED) | (1 << ST_INIT) | (1 << ST_STEP) | (1 << ST_TERMINATED) | (1 << ST_ERROR))
 
 static void set_start_values(ModelData *d) {
     memset(d, 0, sizeof *d);
@@ -91,22 +106,139 @@ static void set_start_values(ModelData *d) {
     for (int k = 0; k < N_INTEGERS; k++) d->i[k] = int_start[k];
 }
 
+/* Index of the first real that is not finite, or -1. */
+static int first_non_finite(const ModelData *d) {
+    for (int k = 0; k < N_REALS; k++)
+        if (!isfinite(d->r[k])) return k;
+    return -1;
+}
+
+/* Writes the message naming the non-finite input k and its value; returns 1. */
+static int non_finite_input(const ModelData *d, int k, char *msg, size_t n) {
+    snprintf(msg, n, "input %s is not finite (%s = %g)", real_name[k], real_name[k], d->r[k]);
+    return 1;
+}
+
+/* H = model_energy of the current state, for models that expose their stored energy. */
+static void write_energy(ModelData *d) {
+#if HAS_ENERGY_OUTPUT
+    d->r[VR_H] = model_energy(d);
+#else
+    (void)d;
+#endif
+}
+
+#if HAS_WAVE_PORT
+#define PORT_MODE_WAVE 0
+#define PORT_MODE_PHYSICAL 1
+
+#define CH_WAVE_IN(a, b, e, f, p, k) VR_##a,
+#define CH_WAVE_OUT(a, b, e, f, p, k) VR_##b,
+#define CH_EFFORT(a, b, e, f, p, k) VR_##e,
+#define CH_FLOW(a, b, e, f, p, k) VR_##f,
+#define CH_PHYS(a, b, e, f, p, k) VR_##p,
+#define CH_KIND(a, b, e, f, p, k) k,
+static const int ch_wave_in[N_CHANNELS] = {PORT_CHANNELS(CH_WAVE_IN)};
+static const int ch_wave_out[N_CHANNELS] = {PORT_CHANNELS(CH_WAVE_OUT)};
+static const int ch_effort[N_CHANNELS] = {PORT_CHANNELS(CH_EFFORT)};
+static const int ch_flow[N_CHANNELS] = {PORT_CHANNELS(CH_FLOW)};
+static const int ch_phys[N_CHANNELS] = {PORT_CHANNELS(CH_PHYS)};
+static const int ch_kind[N_CHANNELS] = {PORT_CHANNELS(CH_KIND)};
+
 /* Outputs at the initial state: the port is at rest (e = f = b = 0, so b^0 = 0). */
-static void initial_outputs(ModelData *d) {
+static void initial_port_outputs(ModelData *d) {
     for (int j = 0; j < N_CHANNELS; j++) {
         d->r[ch_effort[j]] = 0.0;
         d->r[ch_flow[j]] = 0.0;
         d->r[ch_wave_out[j]] = 0.0;
     }
-    d->r[VR_H] = model_energy(d);
 }
+
+/* Checks port_mode and gamma when initialization ends; returns 0, or 1 with a message. */
+static int check_port_parameters(const ModelData *d, char *msg, size_t n) {
+    int mode = d->i[VRI_port_mode];
+    if (mode != PORT_MODE_WAVE && mode != PORT_MODE_PHYSICAL) {
+        snprintf(msg, n, "port_mode must be 0 (wave) or 1 (physical), got %d", mode);
+        return 1;
+    }
+    if (!(d->r[VR_gamma] > 0.0)) {
+        snprintf(msg, n, "gamma must be > 0, got %g", d->r[VR_gamma]);
+        return 1;
+    }
+    return 0;
+}
+
+/* The closure of every channel for one step from the port mode; returns 0, or 1 with a message
+ * naming a non-finite input or gamma. */
+static int port_closure(const ModelData *d, double h, PortClosure *p, char *msg, size_t n) {
+    double gamma = d->r[VR_gamma];
+    if (!(gamma > 0.0) || !isfinite(gamma)) {
+        snprintf(msg, n, "gamma must be finite and > 0, got %g", gamma);
+        return 1;
+    }
+    int wave = d->i[VRI_port_mode] == PORT_MODE_WAVE;
+    double scale = sqrt(2.0 * gamma / h);
+    for (int j = 0; j < N_CHANNELS; j++) {
+        int in_vr = wave ? ch_wave_in[j] : ch_phys[j];
+        double v = d->r[in_vr];
+        if (!isfinite(v)) return non_finite_input(d, in_vr, msg, n);
+        if (!wave) {
+            p->c[j] = v;
+            p->s[j] = 0.0;
+        } else if (ch_kind[j] == FLOW_INPUT) { /* e + gamma f = alpha, f is the input */
+            p->c[j] = scale * v / gamma;
+            p->s[j] = 1.0 / gamma;
+        } else { /* effort is the input: e = alpha - gamma f */
+            p->c[j] = scale * v;
+            p->s[j] = gamma;
+        }
+    }
+    return 0;
+}
+
+/* Writes the stage port values and the outgoing wave b = sqrt(h) (e - gamma f) / sqrt(2 gamma). */
+static void write_port_outputs(ModelData *d, double h, const double *e, const double *f) {
+    double gamma = d->r[VR_gamma];
+    double bscale = sqrt(h / (2.0 * gamma));
+    for (int j = 0; j < N_CHANNELS; j++) {
+        d->r[ch_effort[j]] = e[j];
+        d->r[ch_flow[j]] = f[j];
+        d->r[ch_wave_out[j]] = bscale * (e[j] - gamma * f[j]);
+    }
+}
+
+/* One step through the port: closure from the mode, the model's discrete-gradient step, outputs. */
+static int advance(ModelData *d, double h, char *msg, size_t n) {
+    PortClosure p;
+    if (port_closure(d, h, &p, msg, n) != 0) return 1;
+    double e[N_CHANNELS], f[N_CHANNELS];
+    if (model_step(d, h, &p, e, f, msg, n) != 0) return 1;
+    write_port_outputs(d, h, e, f);
+    return 0;
+}
+#else
+static void initial_port_outputs(ModelData *d) { (void)d; }
+
+static int check_port_parameters(const ModelData *d, char *msg, size_t n) {
+    (void)d; (void)msg; (void)n;
+    return 0;
+}
+
+/* One step of a plain physical-causality model: every input must be finite. */
+static int advance(ModelData *d, double h, char *msg, size_t n) {
+    for (int k = 0; k < N_REALS; k++) {
+        if (real_kind[k] == INPUT && !isfinite(d->r[k])) return non_finite_input(d, k, msg, n);
+    }
+    return model_step_io(d, h, msg, n);
+}
+#endif
 
 const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
 const char *fmi2GetVersion(void) { return fmi2Version; }
 
 fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean on, size_t n, const fmi2String cats[]) {
     (void)n; (void)cats;
-    if (!c) return fmi2Error;
+    if (BAD_CALL(c, fmi2SetDebugLogging)) return fmi2Error;
     ((Instance *)c)->logging = on;
     return fmi2OK;
 }
@@ -120,11 +252,13 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
     tmp.cb = *functions;
     tmp.name = (char *)(name ? name : "?");
     if (type != fmi2CoSimulation) {
-        fail(&tmp, "fmi2Instantiate", "%s supports co-simulation only", MODEL_IDENTIFIER_STR);
+        fail(&tmp, "fmi2Instantiate", "%s supports co-simulation only, got fmuType %d", MODEL_IDENTIFIER_STR,
+             (int)type);
         return NULL;
     }
     if (!guid || strcmp(guid, MODEL_GUID) != 0) {
-        fail(&tmp, "fmi2Instantiate", "GUID %s does not match this binary", guid ? guid : "(null)");
+        fail(&tmp, "fmi2Instantiate", "GUID %s does not match this binary's %s", guid ? guid : "(null)",
+             MODEL_GUID);
         return NULL;
     }
     Instance *c = calloc(1, sizeof *c);
@@ -150,42 +284,33 @@ fmi2Status fmi2SetupExperiment(fmi2Component comp, fmi2Boolean tolDefined, fmi2R
                                fmi2Real start, fmi2Boolean stopDefined, fmi2Real stop) {
     (void)tolDefined; (void)tol; (void)stopDefined; (void)stop;
     Instance *c = comp;
-    if (bad_call(c, "fmi2SetupExperiment", 1 << ST_INSTANTIATED)) return fmi2Error;
+    if (BAD_CALL(c, fmi2SetupExperiment)) return fmi2Error;
     c->d.time = start;
     return fmi2OK;
 }
 
 fmi2Status fmi2EnterInitializationMode(fmi2Component comp) {
     Instance *c = comp;
-    if (bad_call(c, "fmi2EnterInitializationMode", 1 << ST_INSTANTIATED)) return fmi2Error;
+    if (BAD_CALL(c, fmi2EnterInitializationMode)) return fmi2Error;
     c->phase = ST_INIT;
     return fmi2OK;
 }
 
 fmi2Status fmi2ExitInitializationMode(fmi2Component comp) {
     Instance *c = comp;
-    if (bad_call(c, "fmi2ExitInitializationMode", 1 << ST_INIT)) return fmi2Error;
-    int mode = c->d.i[VRI_port_mode];
-    if (mode != PORT_MODE_WAVE && mode != PORT_MODE_PHYSICAL) {
-        c->phase = ST_ERROR;
-        return fail(c, "fmi2ExitInitializationMode", "port_mode must be 0 (wave) or 1 (physical), %s",
-                    "got another value");
-    }
-    if (!(c->d.r[VR_gamma] > 0.0)) {
-        c->phase = ST_ERROR;
-        return fail(c, "fmi2ExitInitializationMode", "%s must be > 0", "gamma");
-    }
+    if (BAD_CALL(c, fmi2ExitInitializationMode)) return fmi2Error;
     char msg[300] = "";
-    if (model_initialize(&c->d, msg, sizeof msg) != 0) {
+    if (check_port_parameters(&c->d, msg, sizeof msg) != 0 || model_initialize(&c->d, msg, sizeof msg) != 0) {
         c->phase = ST_ERROR;
         return fail(c, "fmi2ExitInitializationMode", "%s", msg);
     }
-    initial_outputs(&c->d);
-    for (int k = 0; k < N_REALS; k++) {
-        if (!isfinite(c->d.r[k])) {
-            c->phase = ST_ERROR;
-            return fail(c, "fmi2ExitInitializationMode", "%s is not finite at the start", real_name[k]);
-        }
+    initial_port_outputs(&c->d);
+    write_energy(&c->d);
+    int bad = first_non_finite(&c->d);
+    if (bad >= 0) {
+        c->phase = ST_ERROR;
+        return fail(c, "fmi2ExitInitializationMode", "%s = %g is not finite at the start", real_name[bad],
+                    c->d.r[bad]);
     }
     c->phase = ST_STEP;
     return fmi2OK;
@@ -193,14 +318,14 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component comp) {
 
 fmi2Status fmi2Terminate(fmi2Component comp) {
     Instance *c = comp;
-    if (bad_call(c, "fmi2Terminate", (1 << ST_STEP) | (1 << ST_ERROR))) return fmi2Error;
+    if (BAD_CALL(c, fmi2Terminate)) return fmi2Error;
     c->phase = ST_TERMINATED;
     return fmi2OK;
 }
 
 fmi2Status fmi2Reset(fmi2Component comp) {
     Instance *c = comp;
-    if (bad_call(c, "fmi2Reset", M_ANY)) return fmi2Error;
+    if (BAD_CALL(c, fmi2Reset)) return fmi2Error;
     set_start_values(&c->d);
     c->phase = ST_INSTANTIATED;
     return fmi2OK;
@@ -208,10 +333,11 @@ fmi2Status fmi2Reset(fmi2Component comp) {
 
 fmi2Status fmi2GetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t n, fmi2Real value[]) {
     Instance *c = comp;
-    if (bad_call(c, "fmi2GetReal", M_GET | (1 << ST_INSTANTIATED))) return fmi2Error;
-    if (n > 0 && (!vr || !value)) return fail(c, "fmi2GetReal", "%s", "null argument");
+    if (BAD_CALL(c, fmi2GetReal)) return fmi2Error;
+    if (n > 0 && (!vr || !value)) return fail(c, "fmi2GetReal", "null argument (%zu values requested)", n);
     for (size_t k = 0; k < n; k++) {
-        if (vr[k] >= N_REALS) return fail(c, "fmi2GetReal", "unknown value reference%s", "");
+        if (vr[k] >= N_REALS)
+            return fail(c, "fmi2GetReal", "value reference %u out of range (have %d reals)", vr[k], N_REALS);
         value[k] = c->d.r[vr[k]];
     }
     return fmi2OK;
@@ -219,11 +345,12 @@ fmi2Status fmi2GetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t
 
 fmi2Status fmi2GetInteger(fmi2Component comp, const fmi2ValueReference vr[], size_t n, fmi2Integer value[]) {
     Instance *c = comp;
-    if (bad_call(c, "fmi2GetInteger", M_GET | (1 << ST_INSTANTIATED))) return fmi2Error;
-    if (n > 0 && (!vr || !value)) return fail(c, "fmi2GetInteger", "%s", "null argument");
+    if (BAD_CALL(c, fmi2GetInteger)) return fmi2Error;
+    if (n > 0 && (!vr || !value)) return fail(c, "fmi2GetInteger", "null argument (%zu values requested)", n);
     for (size_t k = 0; k < n; k++) {
         if (vr[k] < INTEGER_VR_BASE || vr[k] >= INTEGER_VR_BASE + N_INTEGERS)
-            return fail(c, "fmi2GetInteger", "unknown value reference%s", "");
+            return fail(c, "fmi2GetInteger", "value reference %u out of range (have %d..%d)", vr[k],
+                        INTEGER_VR_BASE, INTEGER_VR_BASE + N_INTEGERS - 1);
         value[k] = c->d.i[vr[k] - INTEGER_VR_BASE];
     }
     return fmi2OK;
@@ -231,23 +358,25 @@ fmi2Status fmi2GetInteger(fmi2Component comp, const fmi2ValueReference vr[], siz
 
 fmi2Status fmi2GetBoolean(fmi2Component comp, const fmi2ValueReference vr[], size_t n, fmi2Boolean value[]) {
     (void)vr; (void)value;
-    return n == 0 ? fmi2OK : fail(comp, "fmi2GetBoolean", "%s", "this model has no Boolean variables");
+    return n == 0 ? fmi2OK : fail(comp, "fmi2GetBoolean", "this model has no Boolean variables (%zu requested)", n);
 }
 
 fmi2Status fmi2GetString(fmi2Component comp, const fmi2ValueReference vr[], size_t n, fmi2String value[]) {
     (void)vr; (void)value;
-    return n == 0 ? fmi2OK : fail(comp, "fmi2GetString", "%s", "this model has no String variables");
+    return n == 0 ? fmi2OK : fail(comp, "fmi2GetString", "this model has no String variables (%zu requested)", n);
 }
 
 fmi2Status fmi2SetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t n, const fmi2Real value[]) {
     Instance *c = comp;
-    if (bad_call(c, "fmi2SetReal", M_SET_REAL)) return fmi2Error;
-    if (n > 0 && (!vr || !value)) return fail(c, "fmi2SetReal", "%s", "null argument");
+    if (BAD_CALL(c, fmi2SetReal)) return fmi2Error;
+    if (n > 0 && (!vr || !value)) return fail(c, "fmi2SetReal", "null argument (%zu values requested)", n);
     for (size_t k = 0; k < n; k++) {
-        if (vr[k] >= N_REALS) return fail(c, "fmi2SetReal", "unknown value reference%s", "");
+        if (vr[k] >= N_REALS)
+            return fail(c, "fmi2SetReal", "value reference %u out of range (have %d reals)", vr[k], N_REALS);
         int kind = real_kind[vr[k]];
         if (kind == OUTPUT || (c->phase == ST_STEP && kind != INPUT && kind != TUNABLE))
-            return fail(c, "fmi2SetReal", "variable %s cannot be set now", real_name[vr[k]]);
+            return fail(c, "fmi2SetReal", "variable %s (value reference %u) cannot be set in %s",
+                        real_name[vr[k]], vr[k], phase_name(c->phase));
         c->d.r[vr[k]] = value[k];
     }
     return fmi2OK;
@@ -255,25 +384,25 @@ fmi2Status fmi2SetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t
 
 fmi2Status fmi2SetInteger(fmi2Component comp, const fmi2ValueReference vr[], size_t n, const fmi2Integer value[]) {
     Instance *c = comp;
-    if (bad_call(c, "fmi2SetInteger", (1 << ST_INSTANTIATED) | (1 << ST_INIT))) return fmi2Error;
-    if (n > 0 && (!vr || !value)) return fail(c, "fmi2SetInteger", "%s", "null argument");
+    if (BAD_CALL(c, fmi2SetInteger)) return fmi2Error;
+    if (n > 0 && (!vr || !value)) return fail(c, "fmi2SetInteger", "null argument (%zu values requested)", n);
     for (size_t k = 0; k < n; k++) {
         if (vr[k] < INTEGER_VR_BASE || vr[k] >= INTEGER_VR_BASE + N_INTEGERS)
-            return fail(c, "fmi2SetInteger", "unknown value reference%s", "");
+            return fail(c, "fmi2SetInteger", "value reference %u out of range (have %d..%d)", vr[k],
+                        INTEGER_VR_BASE, INTEGER_VR_BASE + N_INTEGERS - 1);
         c->d.i[vr[k] - INTEGER_VR_BASE] = value[k];
     }
-    (void)int_name;
     return fmi2OK;
 }
 
 fmi2Status fmi2SetBoolean(fmi2Component comp, const fmi2ValueReference vr[], size_t n, const fmi2Boolean value[]) {
     (void)vr; (void)value;
-    return n == 0 ? fmi2OK : fail(comp, "fmi2SetBoolean", "%s", "this model has no Boolean variables");
+    return n == 0 ? fmi2OK : fail(comp, "fmi2SetBoolean", "this model has no Boolean variables (%zu requested)", n);
 }
 
 fmi2Status fmi2SetString(fmi2Component comp, const fmi2ValueReference vr[], size_t n, const fmi2String value[]) {
     (void)vr; (void)value;
-    return n == 0 ? fmi2OK : fail(comp, "fmi2SetString", "%s", "this model has no String variables");
+    return n == 0 ? fmi2OK : fail(comp, "fmi2SetString", "this model has no String variables (%zu requested)", n);
 }
 
 /* ---- state: a saved state is a heap copy of ModelData plus the phase ---- */
@@ -287,12 +416,12 @@ typedef struct {
 
 fmi2Status fmi2GetFMUstate(fmi2Component comp, fmi2FMUstate *state) {
     Instance *c = comp;
-    if (bad_call(c, "fmi2GetFMUstate", M_STATE)) return fmi2Error;
-    if (!state) return fail(c, "fmi2GetFMUstate", "%s", "null argument");
+    if (BAD_CALL(c, fmi2GetFMUstate)) return fmi2Error;
+    if (!state) return fail(c, "fmi2GetFMUstate", "null state pointer");
     SavedState *s = *state;
     if (!s) {
         s = malloc(sizeof *s);
-        if (!s) return fail(c, "fmi2GetFMUstate", "%s", "out of memory");
+        if (!s) return fail(c, "fmi2GetFMUstate", "out of memory for %zu bytes", sizeof(SavedState));
         *state = s;
     }
     s->magic = STATE_MAGIC;
@@ -303,9 +432,9 @@ fmi2Status fmi2GetFMUstate(fmi2Component comp, fmi2FMUstate *state) {
 
 fmi2Status fmi2SetFMUstate(fmi2Component comp, fmi2FMUstate state) {
     Instance *c = comp;
-    if (bad_call(c, "fmi2SetFMUstate", M_STATE)) return fmi2Error;
+    if (BAD_CALL(c, fmi2SetFMUstate)) return fmi2Error;
     const SavedState *s = state;
-    if (!s || s->magic != STATE_MAGIC) return fail(c, "fmi2SetFMUstate", "%s", "not a state of this model");
+    if (!s || s->magic != STATE_MAGIC) return fail(c, "fmi2SetFMUstate", "not a state of %s (magic 0x%08x)", MODEL_IDENTIFIER_STR, s ? s->magic : 0u);
     c->phase = s->phase;
     c->d = s->d;
     return fmi2OK;
@@ -330,7 +459,8 @@ fmi2Status fmi2SerializedFMUstateSize(fmi2Component comp, fmi2FMUstate state, si
 fmi2Status fmi2SerializeFMUstate(fmi2Component comp, fmi2FMUstate state, fmi2Byte bytes[], size_t size) {
     Instance *c = comp;
     if (!c || !state || !bytes) return fmi2Error;
-    if (size != sizeof(SavedState)) return fail(c, "fmi2SerializeFMUstate", "%s", "wrong buffer size");
+    if (size != sizeof(SavedState))
+        return fail(c, "fmi2SerializeFMUstate", "buffer of %zu bytes, a state has %zu", size, sizeof(SavedState));
     memcpy(bytes, state, sizeof(SavedState));
     return fmi2OK;
 }
@@ -338,13 +468,16 @@ fmi2Status fmi2SerializeFMUstate(fmi2Component comp, fmi2FMUstate state, fmi2Byt
 fmi2Status fmi2DeSerializeFMUstate(fmi2Component comp, const fmi2Byte bytes[], size_t size, fmi2FMUstate *state) {
     Instance *c = comp;
     if (!c || !bytes || !state) return fmi2Error;
-    if (size != sizeof(SavedState)) return fail(c, "fmi2DeSerializeFMUstate", "%s", "wrong size for this model");
+    if (size != sizeof(SavedState))
+        return fail(c, "fmi2DeSerializeFMUstate", "%zu bytes, a state of %s has %zu", size, MODEL_IDENTIFIER_STR,
+                    sizeof(SavedState));
     SavedState tmp;
     memcpy(&tmp, bytes, sizeof tmp);
-    if (tmp.magic != STATE_MAGIC) return fail(c, "fmi2DeSerializeFMUstate", "%s", "not a state of this model");
+    if (tmp.magic != STATE_MAGIC)
+        return fail(c, "fmi2DeSerializeFMUstate", "not a state of %s (magic 0x%08x)", MODEL_IDENTIFIER_STR, tmp.magic);
     if (!*state) {
         *state = malloc(sizeof(SavedState));
-        if (!*state) return fail(c, "fmi2DeSerializeFMUstate", "%s", "out of memory");
+        if (!*state) return fail(c, "fmi2DeSerializeFMUstate", "out of memory for %zu bytes", sizeof(SavedState));
     }
     memcpy(*state, &tmp, sizeof tmp);
     return fmi2OK;
@@ -354,104 +487,75 @@ fmi2Status fmi2GetDirectionalDerivative(fmi2Component comp, const fmi2ValueRefer
                                         const fmi2ValueReference z[], size_t nz, const fmi2Real dv[],
                                         fmi2Real dz[]) {
     (void)u; (void)nu; (void)z; (void)nz; (void)dv; (void)dz;
-    return fail(comp, "fmi2GetDirectionalDerivative", "%s", "not provided");
+    return fail(comp, "fmi2GetDirectionalDerivative", "not provided by %s", MODEL_IDENTIFIER_STR);
 }
 
 fmi2Status fmi2SetRealInputDerivatives(fmi2Component comp, const fmi2ValueReference vr[], size_t n,
                                        const fmi2Integer order[], const fmi2Real value[]) {
     (void)vr; (void)n; (void)order; (void)value;
-    return fail(comp, "fmi2SetRealInputDerivatives", "%s", "inputs are held constant over a step");
+    return fail(comp, "fmi2SetRealInputDerivatives", "inputs are held constant over a step (%zu derivatives given)", n);
 }
 
 fmi2Status fmi2GetRealOutputDerivatives(fmi2Component comp, const fmi2ValueReference vr[], size_t n,
                                         const fmi2Integer order[], fmi2Real value[]) {
     (void)vr; (void)n; (void)order; (void)value;
-    return fail(comp, "fmi2GetRealOutputDerivatives", "%s", "not provided");
+    return fail(comp, "fmi2GetRealOutputDerivatives", "not provided by %s", MODEL_IDENTIFIER_STR);
 }
 
-/* The step: pick the port closure from the mode, run the model's discrete-gradient step, then
- * write the stage port values and the outgoing wave b = sqrt(h) (e - gamma f) / sqrt(2 gamma). */
+/* The step: advance the model (through the port closure when it has a wave port), write H, and
+ * keep nothing unless every real is finite afterwards. */
 fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real t, fmi2Real h, fmi2Boolean noSetPrior) {
     (void)noSetPrior;
     Instance *c = comp;
-    if (bad_call(c, "fmi2DoStep", M_STEP)) return fmi2Error;
-    if (!(h > 0.0) || !isfinite(h)) return fail(c, "fmi2DoStep", "%s", "communication step size must be > 0");
+    if (BAD_CALL(c, fmi2DoStep)) return fmi2Error;
+    if (!(h > 0.0) || !isfinite(h))
+        return fail(c, "fmi2DoStep", "communication step size must be finite and > 0, got %g", h);
     ModelData *d = &c->d;
-    double gamma = d->r[VR_gamma];
-    if (!(gamma > 0.0) || !isfinite(gamma)) return fail(c, "fmi2DoStep", "%s", "gamma must be finite and > 0");
-    int wave = d->i[VRI_port_mode] == PORT_MODE_WAVE;
-    PortClosure p;
-    double scale = sqrt(2.0 * gamma / h);
-    for (int j = 0; j < N_CHANNELS; j++) {
-        int in_vr = wave ? ch_wave_in[j] : ch_phys[j];
-        double v = d->r[in_vr];
-        if (!isfinite(v)) return fail(c, "fmi2DoStep", "input %s is not finite", real_name[in_vr]);
-        if (!wave) {
-            p.c[j] = v;
-            p.s[j] = 0.0;
-        } else if (ch_kind[j] == FLOW_INPUT) { /* e + gamma f = alpha, f is the input */
-            p.c[j] = scale * v / gamma;
-            p.s[j] = 1.0 / gamma;
-        } else { /* effort is the input: e = alpha - gamma f */
-            p.c[j] = scale * v;
-            p.s[j] = gamma;
-        }
-    }
     ModelData backup = *d;
-    double e[N_CHANNELS], f[N_CHANNELS];
     char msg[300] = "";
-    if (model_step(d, h, &p, e, f, msg, sizeof msg) != 0) {
+    if (advance(d, h, msg, sizeof msg) != 0) {
         *d = backup;
-        char where[360];
-        snprintf(where, sizeof where, "at t = %.17g: %s", t, msg);
-        return fail(c, "fmi2DoStep", "%s", where);
+        return fail(c, "fmi2DoStep", "at t = %.17g: %s", t, msg);
     }
-    double bscale = sqrt(h / (2.0 * gamma));
-    for (int j = 0; j < N_CHANNELS; j++) {
-        d->r[ch_effort[j]] = e[j];
-        d->r[ch_flow[j]] = f[j];
-        d->r[ch_wave_out[j]] = bscale * (e[j] - gamma * f[j]);
-    }
-    d->r[VR_H] = model_energy(d);
-    for (int k = 0; k < N_REALS; k++) {
-        if (!isfinite(d->r[k])) {
-            *d = backup;
-            char where[200];
-            snprintf(where, sizeof where, "at t = %.17g: %s is not finite after the step", t, real_name[k]);
-            return fail(c, "fmi2DoStep", "%s", where);
-        }
+    write_energy(d);
+    int bad = first_non_finite(d);
+    if (bad >= 0) {
+        double value = d->r[bad];
+        *d = backup;
+        return fail(c, "fmi2DoStep", "at t = %.17g: %s = %g; %s is not finite after the step", t, real_name[bad],
+                    value, real_name[bad]);
     }
     d->time = t + h;
     return fmi2OK;
 }
 
 fmi2Status fmi2CancelStep(fmi2Component comp) {
-    return fail(comp, "fmi2CancelStep", "%s", "steps are synchronous");
+    return fail(comp, "fmi2CancelStep", "steps are synchronous");
 }
 
 fmi2Status fmi2GetStatus(fmi2Component comp, const fmi2StatusKind s, fmi2Status *value) {
     (void)s; (void)value;
-    return fail(comp, "fmi2GetStatus", "%s", "steps are synchronous");
+    return fail(comp, "fmi2GetStatus", "steps are synchronous");
 }
 
 fmi2Status fmi2GetRealStatus(fmi2Component comp, const fmi2StatusKind s, fmi2Real *value) {
     Instance *c = comp;
     if (!c || !value) return fmi2Error;
     if (s == fmi2LastSuccessfulTime) { *value = c->d.time; return fmi2OK; }
-    return fail(c, "fmi2GetRealStatus", "%s", "unsupported status kind");
+    return fail(c, "fmi2GetRealStatus", "unsupported status kind %d", (int)s);
 }
 
 fmi2Status fmi2GetIntegerStatus(fmi2Component comp, const fmi2StatusKind s, fmi2Integer *value) {
     (void)s; (void)value;
-    return fail(comp, "fmi2GetIntegerStatus", "%s", "unsupported status kind");
+    return fail(comp, "fmi2GetIntegerStatus", "unsupported status kind %d", (int)s);
 }
 
 fmi2Status fmi2GetBooleanStatus(fmi2Component comp, const fmi2StatusKind s, fmi2Boolean *value) {
     (void)s; (void)value;
-    return fail(comp, "fmi2GetBooleanStatus", "%s", "unsupported status kind");
+    return fail(comp, "fmi2GetBooleanStatus", "unsupported status kind %d", (int)s);
 }
 
 fmi2Status fmi2GetStringStatus(fmi2Component comp, const fmi2StatusKind s, fmi2String *value) {
     (void)s; (void)value;
-    return fail(comp, "fmi2GetStringStatus", "%s", "unsupported status kind");
+    return fail(comp, "fmi2GetStringStatus", "unsupported status kind %d", (int)s);
 }

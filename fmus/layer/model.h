@@ -1,23 +1,50 @@
 /* The contract between one model (models/<name>/) and the shared FMI 2.0 layer (fmus/layer/).
  *
  * A model's config.h declares its variables with X-macros; this header turns them into value
- * references (VR_<name>) and one plain ModelData struct, so the layer can save, restore and
- * serialize state as a byte copy. model.c implements the four functions at the bottom.
+ * references (VR_<name>, VRI_<name>) and one plain ModelData struct, so the layer can save,
+ * restore and serialize state as a byte copy. model.c implements the functions at the bottom.
  *
- * config.h provides:
+ * config.h must declare:
  *   MODEL_IDENTIFIER, MODEL_GUID, MODEL_DESCRIPTION
- *   REAL_VARIABLES(X)    X(name, kind, start, unit, description)
- *                        kind: PARAMETER, TUNABLE, STATE, INPUT, OUTPUT
- *   INTEGER_VARIABLES(X) X(name, start, description)      (always fixed parameters)
- *   PORT_CHANNELS(X)     X(wave_in, wave_out, effort, flow, physical_in, input_kind)
- *                        input_kind: FLOW_INPUT or EFFORT_INPUT
+ *   REAL_VARIABLES(X)    X(name, kind, start, unit, description); value reference = position
+ *                        kind: PARAMETER (fixed), TUNABLE, STATE (exposed as an output with an
+ *                        exact start), INPUT, OUTPUT (calculated)
+ *   INTEGER_VARIABLES(X) X(name, start, description); at least one; fixed parameters with value
+ *                        reference INTEGER_VR_BASE + position
+ *
+ * config.h may declare (compile-time flags, each 0 or 1, default 1):
+ *   HAS_WAVE_PORT        1: the layer closes the port itself, in wave or physical mode. Then
+ *                        config.h must also declare the real TUNABLE `gamma` (scattering
+ *                        impedance, > 0), the integer `port_mode` (0 = wave, 1 = physical) and
+ *                        PORT_CHANNELS(X) X(wave_in, wave_out, effort, flow, physical_in, input_kind)
+ *                        with input_kind FLOW_INPUT or EFFORT_INPUT; model.c implements model_step.
+ *                        0: a plain physical-causality FMU (as other tools export them): the
+ *                        layer declares no port of its own and model.c implements model_step_io.
+ *   HAS_ENERGY_OUTPUT    1: config.h declares the real OUTPUT `H`; model.c implements
+ *                        model_energy, and the layer writes H = model_energy after the
+ *                        initialization and after every step.
  *   MODEL_EXTRA_FIELDS   optional: more state kept in ModelData (arrays of internal DOFs)
+ *
+ * The layer reads and writes only: every variable by value reference through get/set, `gamma`,
+ * `port_mode` and the PORT_CHANNELS variables when HAS_WAVE_PORT, `H` when HAS_ENERGY_OUTPUT.
+ * After every call below it rejects a state with a non-finite real and restores the old one.
  */
 #ifndef WAVECOSIM_MODEL_H
 #define WAVECOSIM_MODEL_H
 
 #include <stddef.h>
 #include "config.h"
+
+#ifndef HAS_WAVE_PORT
+#define HAS_WAVE_PORT 1
+#endif
+#ifndef HAS_ENERGY_OUTPUT
+#define HAS_ENERGY_OUTPUT 1
+#endif
+
+#if HAS_WAVE_PORT && !defined(PORT_CHANNELS)
+#error "config.h: a model with a wave port declares PORT_CHANNELS, gamma and port_mode (or sets HAS_WAVE_PORT 0)"
+#endif
 
 #define PARAMETER 0
 #define TUNABLE 1
@@ -40,9 +67,6 @@
 enum { REAL_VARIABLES(VR_REAL_ENUM) N_REALS };
 enum { INTEGER_VARIABLES(VR_INT_ENUM) N_INTEGERS };
 
-#define COUNT_CHANNEL(ain, bout, eff, flo, phys, kind) +1
-enum { N_CHANNELS = 0 PORT_CHANNELS(COUNT_CHANNEL) };
-
 #ifndef MODEL_EXTRA_FIELDS
 #define MODEL_EXTRA_FIELDS
 #endif
@@ -55,6 +79,20 @@ typedef struct {
     MODEL_EXTRA_FIELDS
 } ModelData;
 
+/* Called after start values and parameters are final (exit of initialization mode). Returns 0, or
+ * non-zero with a message naming the bad parameter. A model without a wave port also writes its
+ * initial OUTPUT variables here. */
+int model_initialize(ModelData *m, char *msg, size_t msg_size);
+
+#if HAS_ENERGY_OUTPUT
+/* Stored energy H(x) of the current state. */
+double model_energy(const ModelData *m);
+#endif
+
+#if HAS_WAVE_PORT
+#define COUNT_CHANNEL(ain, bout, eff, flo, phys, kind) +1
+enum { N_CHANNELS = 0 PORT_CHANNELS(COUNT_CHANNEL) };
+
 /* Port closure for one step: on each channel the held port input is `c - s * output`.
  * Physical mode: c = the given input, s = 0. Wave mode: the layer picks c, s so that
  * e + gamma f = sqrt(2 gamma / h) a holds together with the step. */
@@ -63,17 +101,17 @@ typedef struct {
     double s[N_CHANNELS];
 } PortClosure;
 
-/* Called after start values and parameters are final (exit of initialization mode). Returns 0, or
- * non-zero with a message naming the bad parameter. */
-int model_initialize(ModelData *m, char *msg, size_t msg_size);
-
-/* Stored energy H(x) of the current state. */
-double model_energy(const ModelData *m);
-
 /* One discrete-gradient step of size h with the port closure p. On success writes the new state,
- * and the stage port values e[j], f[j] of each channel, and returns 0. On failure returns
+ * and the stage port values e[j], f[j] of each channel, and returns 0; the step must satisfy
+ * H(x1) - H(x0) = h sum_j e[j] f[j] - (dissipation >= 0) to roundoff. On failure returns
  * non-zero with a message in msg and must leave m unchanged or the layer restores it. */
 int model_step(ModelData *m, double h, const PortClosure *p, double *e, double *f,
                char *msg, size_t msg_size);
+#else
+/* One step of size h of a plain physical-causality model: reads its INPUT variables (held over
+ * the step, finite), writes its new state and OUTPUT variables, and returns 0. On failure returns
+ * non-zero with a message in msg; the layer restores m. */
+int model_step_io(ModelData *m, double h, char *msg, size_t msg_size);
+#endif
 
 #endif

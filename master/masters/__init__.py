@@ -1,15 +1,17 @@
-"""Name-to-class table of masters, shared by YAML (`master.algorithm`) and the CLI (`--master`)."""
+"""MASTERS: the one list of masters, name -> class, used by YAML (`master.algorithm`), the CLI
+(`--master`, `--masters`), `compare` (each class's `budgets`) and the plots (its `style`)."""
+from .dr_fast import FastDRMaster  # DRMaster with the inner loop in C (master.fast), same numbers
 from .explicit import ExplicitMaster
 from .fixed_point import GaussSeidelIterMaster, JacobiIterMaster
 from .gauss_seidel import GaussSeidelMaster
 from .newton import NewtonMaster
-from .dr_fast import FastDRMaster  # DRMaster with the inner loop in C (master.fast), same numbers
 
 MASTERS = {
-    "dr": FastDRMaster,
-    "newton": NewtonMaster,
     "explicit": ExplicitMaster,
     "gauss-seidel": GaussSeidelMaster,
     "jacobi-iter": JacobiIterMaster,
     "gauss-seidel-iter": GaussSeidelIterMaster,
+    "newton": NewtonMaster,
+    "dr": FastDRMaster,
 }
+ALGORITHMS = tuple(MASTERS)

@@ -1,5 +1,25 @@
-"""The contract every master meets: `step(n, t)` advances all subsystems by one macro-step."""
-from dataclasses import dataclass, field
+"""The contract every master meets, so the runner never asks a master for its name.
+
+A master advances every subsystem of a Scene by one macro-step in `step(n, t)` and returns a
+StepLog. Class attributes say what it needs and how it is shown:
+  wave            the FMUs run in wave port mode (else physical port variables)
+  needs_rollback  it freezes and restores FMU states (so FMUs must get and set their state)
+  budgets         the grid of inner budgets K `compare` tries ((None,): no inner budget)
+  style           (colour, marker) in the comparison plots
+  iterates        it gives the DR iterates u^0 and u^K, so Theorem 1's residual, the Condition 1
+                  watch and the energy guard apply
+Wave masters (WaveMaster) own the compiled wave map P, J_L and the committed wave b^n: nothing
+else writes them; observers act through the methods below.
+"""
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ConfigError
+from ..monolithic import solve_interface
+
+
+REASONS = ("budget", "tolerance", "deadline", "explicit", "converged", "energy-guard", "none")
 
 
 @dataclass
@@ -13,14 +33,15 @@ class StepLog:
     a_hat: list = None
     u0: list = None
     uK: list = None
-    extra: dict = field(default_factory=dict)
 
 
 class Master:
-    """Base of all masters. Subclasses set `wave` (port mode of the FMUs) and implement step()."""
-    name = "?"
+    """Base of all masters; see the module docstring for the contract."""
     wave = True
     needs_rollback = True
+    budgets = (None,)
+    style = ("gray", "o")
+    iterates = False          # gives the DR iterates u^0, u^K (Theorem 1, Condition 1 watch, energy guard)
 
     def __init__(self, scene, settings):
         self.scene, self.settings = scene, settings
@@ -30,5 +51,73 @@ class Master:
     def step(self, n, t) -> StepLog:
         raise NotImplementedError
 
+    def enable_trace(self, on=True):
+        """Record the inner loop's queries (u, S(u)) of each macro-step; False if this master cannot."""
+        return False
+
+    @property
+    def trace(self):
+        """The last macro-step's queries [(u^k, S(u^k))], or None when not recorded."""
+        return None
+
+    def run_info(self) -> dict:
+        """Figures for the run summary (e.g. which code path ran)."""
+        return {}
+
     def close(self):
         """Release anything the master holds beyond the scene (threads, C buffers)."""
+
+
+class WaveMaster(Master):
+    """A master on the wave interface a = P b; it owns P, J_L and the committed wave b^n."""
+
+    def __init__(self, scene, settings):
+        super().__init__(scene, settings)
+        self._compile()
+        self._b = [0.0] * scene.n_channels                             # b^0 = 0
+        self._b_step_start = self._b
+
+    @property
+    def b(self):
+        """The committed outgoing waves b^n (read only)."""
+        return self._b
+
+    def _compile(self):
+        coupling = self.scene.wave_map()
+        self.P, self.J_L = coupling.P.tolist(), coupling.J_L.tolist()
+
+    def _set_b(self, b):
+        self._b = b
+
+    def commit(self, a_hat):
+        """Lines 20-22, eq. (21): advance every subsystem from x^n with a_hat; b^{n+1} becomes b^n."""
+        self._b_step_start = self._b
+        self._set_b(self.scene.advance(a_hat))
+
+    def retune(self, b):
+        """Between macro-steps, after the scene's gammas changed: recompile P, J_L and take b^n
+        re-scattered to the new impedances."""
+        self._compile()
+        self._set_b(list(b))
+
+    def undo_step(self):
+        """Put every subsystem back at x^n and b^n back, after the commit of macro-step n."""
+        self.scene.restore_frozen()
+        self._set_b(self._b_step_start)
+
+    def interface_solution(self, n, t, tag=""):
+        """The monolithic incident waves at the frozen x^n: a = P b*, b* = S^n(P b*) (eqs. 14-15),
+        solved from b^n; returns (a, iterations, residual)."""
+        b_star, iters, res, _ = solve_interface(self.scene, self.P, self._b, where=f"{tag} at step {n} (t = {t:.6g})")
+        return [float(x) for x in (np.asarray(self.P) @ b_star)], iters, res
+
+    def recommit(self, a_hat):
+        """After undo_step: commit macro-step n again with other incident waves."""
+        self.commit(a_hat)
+
+
+def require_wave_tuning(master, mode, source):
+    """auto-retune changes gamma between macro-steps: only wave masters can follow it."""
+    if mode == "auto-retune" and not isinstance(master, WaveMaster):
+        raise ConfigError(f"{source}: gamma: auto-retune needs a wave master that can change gamma between "
+                          f"macro-steps (dr, newton)")

@@ -2,7 +2,7 @@
 import time
 
 from ..linalg import distance, matvec
-from .base import Master, StepLog
+from .base import StepLog, WaveMaster
 
 
 def algorithm1(S, P, J_L, b_n, K, eps=None, deadline=None) -> StepLog:
@@ -30,46 +30,38 @@ def algorithm1(S, P, J_L, b_n, K, eps=None, deadline=None) -> StepLog:
                    u0=u0, uK=u)
 
 
-class DRMaster(Master):
+class DRMaster(WaveMaster):
     """Readable reference path: frozen maps queried from Python, Algorithm 1 above, one commit."""
-    name = "dr"
+    budgets = (0, 3, 8, 20, 35, 50)
+    style = ("tab:blue", "o")
+    iterates = True
 
-    def __init__(self, scene, settings, gamma=None):
+    def __init__(self, scene, settings):
         super().__init__(scene, settings)
-        self.coupling = scene.wave_map(gamma)
-        self.P, self.J_L = self.coupling.P.tolist(), self.coupling.J_L.tolist()
-        self.b = [0.0] * scene.n_channels                              # b^0 = 0
         self.K, self.eps = settings.K, settings.eps
         self.deadline_s = settings.deadline_us * 1e-6 if settings.deadline_us else None
-        self.trace = None                                              # set to [] to record (u, S(u)) pairs
+        self._trace = None                                             # [] while recording (u, S(u)) pairs
 
-    def S(self, u):
-        """Stacked frozen port map S^n = diag(S_A, S_B, ...) (eq. 13)."""
-        b = []
-        for sub, a_i in zip(self.subsystems, self.scene.split(u)):
-            b.extend(sub.query(a_i))
-        if self.trace is not None:                                    # for the Condition 1 watch (fne_watch)
-            self.trace.append((u, b))
+    def enable_trace(self, on=True):
+        self._trace = [] if on else None
+        return True
+
+    @property
+    def trace(self):
+        return self._trace
+
+    def _S(self, u):
+        """S^n (eq. 13), recording the query when tracing (for the Condition 1 watch and gamma tuner)."""
+        b = self.scene.S(u)
+        if self._trace is not None:
+            self._trace.append((u, b))
         return b
 
-    def set_gamma(self, gamma, b):
-        """Between macro-steps only: recompile P, J_L for a new gamma and take b^n re-scattered to it."""
-        self.coupling = self.scene.wave_map(gamma)
-        self.P, self.J_L = self.coupling.P.tolist(), self.coupling.J_L.tolist()
-        self.b = list(b)
-
-    def freeze(self, n, t):
-        for sub in self.subsystems:                                   # line 3: S^n from x^n
-            sub.freeze(n, t)
-
     def step(self, n, t) -> StepLog:
-        self.freeze(n, t)
-        if self.trace is not None:
-            self.trace = []
+        self.scene.freeze(n, t)                                        # line 3: S^n from x^n
+        if self._trace is not None:
+            self._trace = []
         deadline = time.perf_counter() + self.deadline_s if self.deadline_s else None
-        log = algorithm1(self.S, self.P, self.J_L, self.b, self.K, self.eps, deadline)
-        b_next = []
-        for sub, a_i in zip(self.subsystems, self.scene.split(log.a_hat)):
-            b_next.extend(sub.advance(a_i))                          # lines 20-22, eq. (21): commit
-        self.b = b_next
+        log = algorithm1(self._S, self.P, self.J_L, self.b, self.K, self.eps, deadline)
+        self.commit(log.a_hat)                                         # lines 20-22, eq. (21)
         return log

@@ -32,39 +32,51 @@ class FastDRMaster(DRMaster):
     `fast` (bool) says which path runs and `fast_note` why; `threads` and `thread_note` tell the
     thread plan once it is chosen (after the first macro-step)."""
 
-    def __init__(self, scene, settings, gamma=None):
-        super().__init__(scene, settings, gamma)
+    def __init__(self, scene, settings):
+        super().__init__(scene, settings)
         self.kernel, self.fast, self.threads = None, False, 1
         self.thread_note = "serial"
-        mode = str(settings.fast).lower()
-        if mode == "false":
-            self.fast_note = "master.fast is false"
-            return
-        why = unusable(scene)
-        if why is not None:
-            if mode == "true":
-                raise ConfigError(f"{scene.scenario.source}: master.fast: true, but {why}")
-            self.fast_note = why
+        self.fast_note = self._kernel_refusal(scene, str(settings.fast).lower())
+        if self.fast_note is not None:
             return
         self.kernel = Kernel(scene, self.P, self.J_L)
         self.kernel.configure(self.dt, self.K, self.eps, self.deadline_s)
         self.fast, self.fast_note = True, "C kernel"
-        self._maps, self._b = (self.P, self.J_L), self.b
         self.thread_mode = str(settings.threads)
         # the first macro-step this master makes picks the thread plan (None: not made yet)
         self._choose_after = None if self.thread_mode != "1" and len(self.subsystems) > 1 else -1
         self._on_trial = False
 
+    @staticmethod
+    def _kernel_refusal(scene, mode):
+        """Why the reference path runs (None: the kernel can run); master.fast: true insists."""
+        if mode == "false":
+            return "master.fast is false"
+        why = unusable(scene)
+        if why is not None and mode == "true":
+            raise ConfigError(f"{scene.scenario.source}: master.fast: true, but {why}")
+        return why
+
+    def _set_b(self, b):
+        super()._set_b(b)
+        if self.kernel is not None:
+            self.kernel.b[:] = [float(x) for x in b]
+
+    def _compile(self):
+        super()._compile()
+        if getattr(self, "kernel", None) is not None:
+            self.kernel.set_maps(self.P, self.J_L)
+
+    def enable_trace(self, on=True):
+        super().enable_trace(on)
+        if self.kernel is not None:
+            self.kernel.record(max(self.K, 1) if on else 0)
+        return True
+
     def step(self, n, t) -> StepLog:
         if self.kernel is None:
             return super().step(n, t)
         kernel = self.kernel
-        if self.P is not self._maps[0] or self.J_L is not self._maps[1] or self.b is not self._b:
-            # set_gamma (or other code) replaced P, J_L or b^n between macro-steps
-            self._sync()
-        tracing = getattr(self, "trace", None) is not None              # fne_watch: keep the (u, S(u)) pairs
-        if tracing != (kernel.trace_capacity > 0):
-            kernel.record(max(self.K, 1) if tracing else 0)
         if self._choose_after is None:
             self._choose_after = n
         measure = n == self._choose_after
@@ -74,24 +86,19 @@ class FastDRMaster(DRMaster):
         k = io.iterations
         if timing:
             per_round = (time.perf_counter() - started) / (k + 1)      # K queries and the commit
-        kernel.book(n, t, k)             # the Subsystems' bookkeeping: frozen at x^n, calls counted
+        for s in self.subsystems:
+            s.note_kernel_step(n, t, k)           # frozen at x^n (saved by the kernel), calls counted
         n_ch = kernel.n
         out = kernel.results[:]                  # b^{n+1}, a, u^0, u^K
-        self.b = self._b = out[:n_ch]
-        if tracing:
-            self.trace = kernel.recorded(k)
+        self._b_step_start, self._b = self._b, out[:n_ch]
+        if self._trace is not None:
+            self._trace = kernel.recorded(k)
         if measure:
             self.choose_threads(kernel.costs(), per_round)
         elif timing and self._on_trial:
             self.confirm_threads(per_round)
         return StepLog(iterations=k, residual=io.residual, reason=REASONS[io.reason], a_hat=out[n_ch:2 * n_ch],
                        u0=out[2 * n_ch:3 * n_ch], uK=out[3 * n_ch:])
-
-    def _sync(self):
-        if self.P is not self._maps[0] or self.J_L is not self._maps[1]:
-            self.kernel.set_maps(self.P, self.J_L)
-        self.kernel.b[:] = [float(x) for x in self.b]
-        self._maps, self._b = (self.P, self.J_L), self.b
 
     def choose_threads(self, costs_us, serial_round_s):
         """After the first (serial) macro-step: pick the thread plan from the measured µs per

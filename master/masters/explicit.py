@@ -5,7 +5,7 @@ from .physical import PhysicalMaster, step_forward
 
 class ExplicitMaster(PhysicalMaster):
     """y^{n+1} = Phi(x^n, G y^n) for all subsystems at once; no state is saved or restored."""
-    name = "explicit"
+    style = ("tab:red", "v")
     needs_rollback = False
 
     def step(self, n, t) -> StepLog:

@@ -14,7 +14,8 @@ from .physical import PhysicalMaster
 
 class JacobiIterMaster(PhysicalMaster):
     """Fixed-point (Picard) iteration, all subsystems queried with the previous iterate."""
-    name = "jacobi-iter"
+    budgets = (1, 2, 3, 5, 10)
+    style = ("tab:purple", "s")
 
     def __init__(self, scene, settings):
         super().__init__(scene, settings)
@@ -22,8 +23,7 @@ class JacobiIterMaster(PhysicalMaster):
         self.deadline_s = settings.deadline_us * 1e-6 if settings.deadline_us else None
 
     def step(self, n, t) -> StepLog:
-        for sub in self.subsystems:
-            sub.freeze(n, t)
+        self.scene.freeze(n, t)
         deadline = time.perf_counter() + self.deadline_s if self.deadline_s else None
         y, k, residual, reason = self.y, 0, float("nan"), "budget"
         while k < self.K:
@@ -42,5 +42,5 @@ class JacobiIterMaster(PhysicalMaster):
 
 class GaussSeidelIterMaster(JacobiIterMaster):
     """The same iteration with sequential passes (each subsystem sees its predecessors' new outputs)."""
-    name = "gauss-seidel-iter"
+    style = ("tab:brown", "D")
     sequential = True

@@ -5,5 +5,5 @@ from .explicit import ExplicitMaster
 class GaussSeidelMaster(ExplicitMaster):
     """Like ExplicitMaster, but the subsystems step in the order the scenario lists them, each with
     inputs G y from the newest y."""
-    name = "gauss-seidel"
+    style = ("tab:orange", "^")
     sequential = True

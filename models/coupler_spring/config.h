@@ -29,8 +29,7 @@
     X(H, OUTPUT, 0.0, "J", "stored energy")
 
 #define INTEGER_VARIABLES(X) \
-    X(port_mode, 0, "0 = wave ports (inputs a_*, outputs b_*), 1 = physical ports (inputs u_*)") \
-    X(newton_max_iter, 50, "unused: the step is linear and solved in closed form")
+    X(port_mode, 0, "0 = wave ports (inputs a_*, outputs b_*), 1 = physical ports (inputs u_*)")
 
 #define PORT_CHANNELS(X) \
     X(a_left, b_left, e_left, f_left, u_left, FLOW_INPUT) \

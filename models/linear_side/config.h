@@ -19,7 +19,6 @@
     X(H, OUTPUT, 0.0, "J", "stored energy")
 
 #define INTEGER_VARIABLES(X) \
-    X(port_mode, 0, "0 = wave port (input a, output b), 1 = physical port (input F)") \
-    X(newton_max_iter, 50, "unused: the step is linear and solved in closed form")
+    X(port_mode, 0, "0 = wave port (input a, output b), 1 = physical port (input F)")
 
 #define PORT_CHANNELS(X) X(a, b, e, f, F, EFFORT_INPUT)

@@ -28,7 +28,6 @@
     X(H, OUTPUT, 0.0, "J", "stored energy")
 
 #define INTEGER_VARIABLES(X) \
-    X(port_mode, 0, "0 = wave port (input a, output b), 1 = physical port (input u)") \
-    X(newton_max_iter, 50, "unused: the step is linear and solved in closed form")
+    X(port_mode, 0, "0 = wave port (input a, output b), 1 = physical port (input u)")
 
 #define PORT_CHANNELS(X) X(a, b, e, f, u, EFFORT_INPUT)

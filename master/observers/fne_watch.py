@@ -15,7 +15,8 @@ import math
 
 import numpy as np
 
-from . import gamma_tuning as gt
+from .. import gamma_tuning as gt
+from . import Observer
 
 TOL = 1e-6      # margins above -TOL count as FNE (roundoff of the FMUs' inner solves)
 FLOOR = 1e-5    # a pair is used only when |da| > FLOOR (|a| + |b|): below, roundoff dominates
@@ -83,23 +84,34 @@ def trace_margins(scene, trace):
     return out
 
 
-class FneWatch:
-    """Online Condition 1 monitor of one run; `warn` gets one line, the first time it fails."""
+class FneWatch(Observer):
+    """Online Condition 1 monitor of one run; `warn` gets one line, the first time it fails.
+    Column fne_watch: the smallest margin estimated at each step (NaN when none could be)."""
+    columns = ("fne_watch",)
+    needs_trace = True
 
-    def __init__(self, scene, warn=None, tol=TOL):
-        self.scene, self.tol = scene, tol
+    def __init__(self, scene, master, warn=None, tol=TOL):
+        self.scene, self.master, self.tol = scene, master, tol
         self.warn = warn or (lambda msg: None)
         self.names = [s.name for s in scene.subsystems]
         self.min_margin = {n: math.inf for n in self.names}
         self.first = None
         self.failed_steps = 0
         self.probed_steps = 0
+        self.probed = None
 
-    def probe(self, b, n, t, P=None):
-        """Margins from one finite-difference probe of every frozen map at x^n (state unchanged)."""
-        self.probed_steps += 1
-        g = gt.scene_gammas(self.scene)
-        return {p.name: p.fne_margin(g[p.name]) for p in gt.probe_scene(self.scene, b, n, t, P)}
+    def before_step(self, n, t):
+        """With fewer than two inner iterations there are no iterate pairs: probe the frozen maps."""
+        self.probed = None
+        if self.master.K < 2:
+            self.probed_steps += 1
+            g = self.scene.gammas
+            self.probed = {p.name: p.fne_margin(g[p.name])
+                           for p in gt.probe_scene(self.scene, self.master.b, n, t, self.master.P)}
+
+    def after_step(self, n, t, log, reading, row):
+        margins = self.probed if self.probed is not None else trace_margins(self.scene, self.master.trace or [])
+        row[0] = self.record(n, t, margins)
 
     def record(self, n, t, margins):
         """Book this step's margins; returns the smallest (NaN when nothing could be estimated)."""
@@ -112,7 +124,7 @@ class FneWatch:
         if worst < -self.tol:
             self.failed_steps += 1
             if self.first is None:
-                g = gt.scene_gammas(self.scene)[name]
+                g = self.scene.gammas[name]
                 self.first = {"step": n, "t": t, "subsystem": name, "margin": worst, "gamma": g}
                 self.warn(f"Condition 1 (FNE) fails at step {n} (t = {t:.6g}) in subsystem {name}: margin "
                           f"{worst:.3g} < 0 at gamma = {g:.4g}; Theorem 1 and DR convergence are not "

@@ -1,0 +1,39 @@
+"""metadata.json of a run: the scenario as resolved, the versions, the FMUs' checksums, the host."""
+import dataclasses
+import hashlib
+import os
+import platform
+import sys
+import time
+from importlib import metadata as importlib_metadata
+
+
+def _version(package):
+    try:
+        return importlib_metadata.version(package)
+    except importlib_metadata.PackageNotFoundError:
+        return None
+
+
+def _sha256(path):
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def run_metadata(scenario, scene) -> dict:
+    """Everything needed to tell two runs' set-ups apart (the scenario, software, FMU files, machine)."""
+    return {
+        "scenario": dataclasses.asdict(scenario),
+        "gammas": dict(scene.gammas),
+        "versions": {"wavecosim": _version("wavecosim"), "python": sys.version.split()[0],
+                     **{p: _version(p) for p in ("numpy", "scipy", "fmpy")}},
+        "fmus": {s.name: {"path": str(s.fmu.path), "sha256": _sha256(s.fmu.path),
+                          "fmiVersion": s.fmu.description.fmiVersion,
+                          "guid": s.fmu.description.guid} for s in scene.subsystems},
+        "host": {"node": platform.node(), "machine": platform.machine(), "system": platform.platform(),
+                 "cpus": os.cpu_count()},
+        "written": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+    }

@@ -1,0 +1,29 @@
+"""Runtime concerns of a run, each in one place, all behind one small interface.
+
+The runner asks each observer once, before the loop, which per-step columns it fills and whether
+it needs the master's inner queries; an observer that is off is simply not in the list, so it
+costs nothing. Per macro-step the runner calls `before_step`, then the master, then
+`after_step` in list order; an observer may redo the step (the energy guard) by returning a new
+StepLog, after which the runner reads the FMUs again.
+"""
+
+
+class Observer:
+    """Base of the runtime concerns (certificates, energy guard, gamma tuner, Condition 1 watch)."""
+    columns = ()          # per-step columns it fills (steps.csv), in order
+    needs_trace = False   # it reads the master's inner queries (u^k, S(u^k)) of each step
+
+    def start(self, first):
+        """Once, with the Reading of the FMUs at t = 0, before the first macro-step."""
+
+    def before_step(self, n, t):
+        """Before macro-step n (the FMUs are at x^n)."""
+
+    def after_step(self, n, t, log, reading, row):
+        """After macro-step n: `reading` holds the FMUs' values at x^{n+1}; write this observer's
+        columns into `row` (its own slice of the step row, in the order of `columns`) and return a new
+        StepLog only if the step was redone."""
+
+    def summary(self) -> dict:
+        """Its figures for summary.json."""
+        return {}

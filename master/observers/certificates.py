@@ -1,0 +1,60 @@
+"""Sampled certificates before each macro-step: Condition 1 margins of every frozen map S_i^n on
+random pairs, and a DR fixed point u* = P b* (eq. 18) for the Theorem 1 residual after the step."""
+import math
+
+import numpy as np
+
+from ..certificates import augmented_residual, fne_margins
+from ..monolithic import solve_interface
+from .passivity import grow_max_pos
+from . import Observer
+
+
+class CertificateSampler(Observer):
+    """Columns fne_<subsystem> (when fne_pairs > 0) and augmented (when the master gives its DR iterates)."""
+
+    def __init__(self, scene, master, settings, augmented):
+        self.scene, self.master, self.settings = scene, master, settings
+        self.names = [s.name for s in scene.subsystems]
+        self.augmented = augmented and settings.augmented
+        self.columns = (*([f"fne_{n}" for n in self.names] if settings.fne_pairs else []),
+                        *(["augmented"] if self.augmented else []))
+        self.rng = np.random.default_rng(settings.fne_seed)
+        self.fne, self.u_star = None, None
+        self.min_fne = [math.inf] * len(self.names)
+        self.max_aug = math.nan
+
+    def before_step(self, n, t):
+        """At x^n: u* by the interface Newton, then the sampled margins; the FMUs are left at x^n."""
+        self.scene.freeze(n, t)
+        master = self.master
+        if self.augmented:
+            b_star = solve_interface(self.scene, master.P, master.b, where=f" at step {n} (t = {t:.6g})")[0]
+            self.u_star = list(np.asarray(master.P) @ b_star)
+        if self.settings.fne_pairs:
+            centre = self.scene.split(list(np.asarray(master.P) @ np.asarray(master.b)))
+            self.fne = [fne_margins(s, c, self.settings.fne_pairs, self.rng, self.settings.fne_scale,
+                                    self.scene.scenario.dt) for s, c in zip(self.scene.subsystems, centre)]
+        self.scene.thaw()
+
+    def after_step(self, n, t, log, reading, row):
+        k = 0
+        if self.fne is not None:
+            row[:len(self.fne)] = self.fne
+            self.min_fne = [min(a, b) for a, b in zip(self.min_fne, self.fne)]
+            k = len(self.fne)
+        if self.augmented:
+            aug = augmented_residual(sum(reading.H) - self.H_prev, log.u0, log.uK, self.u_star, log.a_hat,
+                                     reading.B) if log.u0 is not None else math.nan
+            row[k] = aug
+            self.max_aug = grow_max_pos(self.max_aug, aug)
+        self.H_prev = sum(reading.H)
+
+    def start(self, first):
+        self.H_prev = sum(first.H)
+
+    def summary(self):
+        finite = {n: (v if math.isfinite(v) else math.nan) for n, v in zip(self.names, self.min_fne)}
+        known = [v for v in finite.values() if v == v]
+        return {"max_augmented_pos": self.max_aug, "min_fne_margin": min(known) if known else math.nan,
+                "min_fne_margin_by_subsystem": finite}

@@ -1,0 +1,166 @@
+"""The recorder: owns a run's rows, its CSV (and MAT) files and the Ctrl-C handling.
+
+Rows go into preallocated blocks of BLOCK rows and are written to disk a block at a time, so a
+failure or Ctrl-C loses nothing already computed and memory does not grow with the run: a table
+keeps all its rows in memory only while they fit in KEEP_VALUES numbers (or when it has no file);
+beyond that it reads them back from its file when asked. Every float is written with repr (the
+shortest text that reads back to the same bits).
+"""
+import json
+import math
+import re
+import signal
+import threading
+from pathlib import Path
+
+import numpy as np
+
+BLOCK = 1024
+KEEP_VALUES = 1_000_000           # 8 MB of rows per table at most stays in memory
+
+
+def _floats(col):
+    return list(map(repr, col.tolist()))
+
+
+def _ints(col):
+    return [str(int(v)) for v in col.tolist()]
+
+
+class Labels:
+    """A formatter writing code k of a column as names[k] (e.g. the reason an inner loop stopped)."""
+
+    def __init__(self, names):
+        self.names = list(names)
+
+    def __call__(self, col):
+        return [self.names[int(v)] for v in col.tolist()]
+
+    def parse(self, cells):
+        return [self.names.index(v) for v in cells]
+
+
+class Table:
+    """One table of float rows (`columns`), streamed to `path` (CSV) when given.
+
+    `formats` maps a column to a formatter (default repr of floats); see `ints` and `Labels`."""
+
+    def __init__(self, columns, path=None, formats=None, expected_rows=0):
+        self.columns, self.path = list(columns), path
+        self._fmt = [(formats or {}).get(c, _floats) for c in self.columns]
+        self._block = np.empty((BLOCK, len(self.columns)))
+        self._fill = 0
+        self._kept = [] if path is None or expected_rows * len(self.columns) <= KEEP_VALUES else None
+        self.rows = 0
+        self._file = None
+        if path is not None:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            self._file = open(path, "w", newline="")
+            self._file.write(",".join(self.columns) + "\r\n")
+
+    def next_row(self):
+        """A row to fill in place (the block's next slot); it is booked by `commit_row`."""
+        if self._fill == BLOCK:
+            self.flush()
+        return self._block[self._fill]
+
+    def commit_row(self):
+        self._fill += 1
+        self.rows += 1
+
+    def flush(self):
+        """Write the filled part of the block (and keep it when the table stays in memory)."""
+        block = self._block[:self._fill]
+        if self._fill and self._file is not None:
+            cells = [fmt(block[:, j]) for j, fmt in enumerate(self._fmt)]
+            self._file.write("".join(",".join(r) + "\r\n" for r in zip(*cells)))
+            self._file.flush()
+        if self._fill and self._kept is not None:
+            self._kept.append(block.copy())
+        self._fill = 0
+
+    def close(self):
+        self.flush()
+        if self._file is not None and not self._file.closed:
+            self._file.close()
+
+    def array(self):
+        """All rows as a 2-D float array (read back from the file when not kept in memory)."""
+        if self._kept is not None:
+            rows = self._kept + ([self._block[:self._fill].copy()] if self._fill else [])
+            return np.concatenate(rows) if rows else np.empty((0, len(self.columns)))
+        self.flush()
+        return _read_csv(self.path, self._fmt)
+
+
+def _read_csv(path, formats):
+    """A table's CSV back into floats (label columns back to their codes)."""
+    with open(path) as f:
+        f.readline()
+        rows = [line.rstrip("\r\n").split(",") for line in f if line.strip()]
+    out = np.empty((len(rows), len(formats)))
+    for j, fmt in enumerate(formats):
+        col = [r[j] for r in rows]
+        out[:, j] = fmt.parse(col) if isinstance(fmt, Labels) else np.array(col, float)
+    return out
+
+
+ints = _ints
+
+
+class Interrupts:
+    """Holds Ctrl-C (SIGINT) until the step in progress is booked: `pending` says one came, and
+    `check()` raises KeyboardInterrupt between steps. A second Ctrl-C raises at once."""
+
+    def __enter__(self):
+        self.pending, self._old = False, None
+        if threading.current_thread() is threading.main_thread():
+            self._old = signal.signal(signal.SIGINT, self._hold)
+        return self
+
+    def _hold(self, signum, frame):
+        if self.pending:
+            raise KeyboardInterrupt
+        self.pending = True
+
+    def check(self):
+        if self.pending:
+            raise KeyboardInterrupt
+
+    def __exit__(self, *exc):
+        if self._old is not None:
+            signal.signal(signal.SIGINT, self._old)
+        return False
+
+
+def clean_json(obj):
+    """JSON-safe copy: non-finite floats become strings, numpy scalars plain numbers."""
+    if isinstance(obj, dict):
+        return {str(k): clean_json(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [clean_json(v) for v in obj]
+    if hasattr(obj, "item") and not isinstance(obj, (list, dict)):
+        obj = obj.item()
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return str(obj)
+    if isinstance(obj, Path):
+        return str(obj)
+    return obj
+
+
+def write_json(path: Path, data):
+    """Write JSON atomically (a .part file renamed), so a reader never sees half a file."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".json.part")
+    tmp.write_text(json.dumps(clean_json(data), indent=2) + "\n")
+    tmp.replace(path)
+
+
+def write_mat(path: Path, table: Table):
+    """The table as a MATLAB file (scipy.io.savemat), one variable per column (names made valid)."""
+    from scipy.io import savemat
+    data = table.array()
+    names = [re.sub(r"\W", "_", c) if re.match(r"[A-Za-z]", c) else f"v_{re.sub(r'[^0-9A-Za-z]', '_', c)}"
+             for c in table.columns]
+    savemat(str(path), {n: data[:, j] for j, n in enumerate(names)}, oned_as="column")
