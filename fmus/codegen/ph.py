@@ -24,6 +24,7 @@ STEP_HEADER = Path(__file__).resolve().parent / "ph_step.h"
 RESERVED = {"gamma", "H", "port_mode", "newton_max_iter"}
 SAMPLES = 300
 SMALL_DELTA = 1e-7
+GAUSS_SWITCH = 1e-2
 
 
 class Spec:
@@ -52,6 +53,10 @@ class Spec:
     def error(self, key, problem):
         """A ConfigError naming this file and the key."""
         return ConfigError(f"{self.path}: {key}: {problem}")
+
+    def states_list(self):
+        """State names in order."""
+        return list(self.states)
 
     def symbols(self):
         """{name: sympy symbol} of parameters and states."""
@@ -222,9 +227,24 @@ def classify(spec):
     return "separable"
 
 
-def _far(i):
-    """C condition: x'_i is far enough from x_i for the difference quotient."""
-    return f"fabs(w[{i}] - x[{i}]) > {SMALL_DELTA} * (fabs(x[{i}]) + fabs(w[{i}]))"
+def _near(spec, i):
+    """C condition: x'_i is within GAUSS_SWITCH x scale of x_i, where the difference quotient would
+    lose digits to cancellation."""
+    scale = float((spec.data.get("scale") or {}).get(spec.states_list()[i], 1.0))
+    return f"fabs(w[{i}] - x[{i}]) <= {GAUSS_SWITCH * scale!r}"
+
+
+def _gauss_mean(f, xi, a, b):
+    """The mean of f(xi) over [a, b] by 4-point Gauss-Legendre: the difference quotient of an
+    antiderivative of f, without cancellation, exact to roundoff for |b - a| small."""
+    nodes, weights = np.polynomial.legendre.leggauss(4)
+    return sum(sp.Float(wk / 2) * f.subs(xi, a + sp.Float((tk + 1) / 2) * (b - a)) for tk, wk in zip(nodes, weights))
+
+
+def _branches(near, target, pr, small, large):
+    """C if/else assigning target from `small` when `near` holds, from `large` otherwise."""
+    return (f"    if ({near}) {{\n    {pr.assign([target], [small])}\n    }} else {{\n"
+            f"    {pr.assign([target], [large])}\n    }}")
 
 
 def _quotients(spec, x, xn):
@@ -312,11 +332,15 @@ def _dgrad_body(spec, kind, x, xn, xm):
         return pr.assign([f"z[{i}]" for i in range(n)], grad_m)
     if kind == "separable":
         quotients = dict(_quotients(spec, x, xn))
+        plain = [i for i in range(n) if quotients.get(i, (0, 0))[1] is not None]
         exact = {i: poly for i, (_, poly) in quotients.items() if poly is not None}
-        lines = [pr.assign([f"z[{i}]" for i in range(n)], [exact.get(i, grad_m[i]) for i in range(n)])]
+        lines = [pr.assign([f"z[{i}]" for i in plain], [exact.get(i, grad_m[i]) for i in plain])]
+        parts = _separable_parts(spec)
         for i, (raw, poly) in quotients.items():
             if poly is None:
-                lines.append(f"    if ({_far(i)}) {{\n    {pr.assign([f'z[{i}]'], [raw])}\n    }}")
+                xi = spec.xsym[i]
+                mean = _gauss_mean(sp.diff(parts[i], xi), xi, x[i], xn[i])
+                lines.append(_branches(_near(spec, i), f"z[{i}]", pr, mean, raw))
         return "\n".join(lines)
     H = spec.H
     Hx, Hxn = H.xreplace(dict(zip(spec.xsym, x))), H.xreplace(dict(zip(spec.xsym, xn)))
@@ -395,8 +419,10 @@ def gen_jacobian_terms(spec, kind):
             if poly is not None:
                 body += "\n" + pr.assign([f"Hz[{i * n + i}]"], [sp.diff(poly, xn[i])])
                 continue
-            exact = (sp.diff(parts[i], spec.xsym[i]).subs(spec.xsym[i], xn[i]) - z[i]) / (xn[i] - x[i])
-            body += f"\n    if ({_far(i)}) {{\n    {pr.assign([f'Hz[{i * n + i}]'], [exact])}\n    }}"
+            xi = spec.xsym[i]
+            exact = (sp.diff(parts[i], xi).subs(xi, xn[i]) - z[i]) / (xn[i] - x[i])
+            mean = sp.diff(_gauss_mean(sp.diff(parts[i], xi), xi, x[i], xn[i]), xn[i])
+            body += "\n" + _branches(_near(spec, i), f"Hz[{i * n + i}]", pr, mean, exact)
     return ("/* Hz = dz/dx', dA = d(A z + B u)/dx', dC = d(C z + D u)/dx' at fixed z, u. */\n"
             "static void jacobian_terms(const double *r, const double *x, const double *w, const double *xm,\n"
             "                           const double *z, double *Hz, double *dA, double *dC) {\n"

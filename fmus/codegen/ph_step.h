@@ -178,27 +178,36 @@ static void stage_at(const double *r, const double *x, const double *w, const Po
     stage(r, x, w, p, h, S, st);
 }
 
-/* Largest Newton update relative to the largest entry of its block (states, inputs). */
-static double update_size(const double *w, const double *dw) {
+/* The larger of a and b (fmax is a libm call). */
+static double max2(double a, double b) {
+    return a > b ? a : b;
+}
+
+/* Largest Newton update relative to the largest magnitude in its block: states (old and new),
+ * inputs (with the closure terms c and s y they balance). */
+static double update_size(const double *x, const double *w, const double *dw, const PortClosure *p,
+                          const Stage *st) {
     double big[2] = {0.0, 0.0}, step[2] = {0.0, 0.0};
-    for (int k = 0; k < NW; k++) {
-        double a = fabs(w[k]), d = fabs(dw[k]);
-        if (a > big[k >= NX]) big[k >= NX] = a;
-        if (d > step[k >= NX]) step[k >= NX] = d;
+    for (int i = 0; i < NX; i++) {
+        big[0] = max2(big[0], max2(fabs(x[i]), fabs(w[i])));
+        step[0] = max2(step[0], fabs(dw[i]));
     }
-    double xs = step[0] / (big[0] + 1e-300), us = step[1] / (big[1] + 1e-300);
-    return xs > us ? xs : us;
+    for (int j = 0; j < NU; j++) {
+        big[1] = max2(big[1], fabs(w[NX + j]) + fabs(p->c[j]) + fabs(p->s[j] * st->y[j]));
+        step[1] = max2(step[1], fabs(dw[NX + j]));
+    }
+    return max2(step[0] / (big[0] + 1e-300), step[1] / (big[1] + 1e-300));
 }
 
 /* Newton converged after an update of relative size `size` following one of size `last`: the
  * update is at roundoff, or (from the second update on) the contraction theta = size / last
  * predicts a remaining error theta / (1 - theta) * size at roundoff, or the updates stopped
- * shrinking below 1e-7 (the roundoff floor of a difference quotient or an ill-conditioned step). */
+ * shrinking below 1e-10 (the roundoff floor of a difference quotient or an ill-conditioned step). */
 static int converged(double size, double last) {
     double theta = size / last;
     if (size <= 1e-14) return 1;
     if (!isfinite(last)) return 0;
-    return (theta < 0.5 && theta / (1.0 - theta) * size <= 1e-15) || (size <= 1e-7 && theta >= 0.5);
+    return (theta < 0.5 && theta / (1.0 - theta) * size <= 1e-15) || (size <= 1e-10 && theta >= 0.5);
 }
 
 /* Newton on F(w) = 0 from w = (x, c), keeping the factored matrix of the first iterate while
@@ -218,7 +227,7 @@ static int ph_solve(ModelData *m, const double *x, double *w, const PortClosure 
         for (int k = 0; k < NW; k++) dw[k] = -st.F[k];
         lu_solve(M, piv, dw);
         for (int k = 0; k < NW; k++) w[k] += dw[k];
-        double size = update_size(w, dw);
+        double size = update_size(x, w, dw, p, &st);
         if (!isfinite(size)) return -1;
         if (converged(size, last)) {
             stage_at(m->r, x, w, p, h, &S, &st);
