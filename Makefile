@@ -7,7 +7,8 @@ setup:
 run: setup
 	.venv/bin/wavecosim run --out out/run
 
-test: setup
+test:
+	./scripts/setup-venv.sh test
 	.venv/bin/python -m pytest -q
 
 sweep: setup

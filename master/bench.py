@@ -20,6 +20,7 @@ the heavy scene (configs/heavy_chain.yaml): master time with threads = 1 over th
 """
 import dataclasses
 import os
+import tempfile
 import time
 
 import numpy as np
@@ -230,7 +231,6 @@ def whole_run(scenario, K, certificates, out_dir):
 
 def run_overhead(scenario, repeats, progress=print):
     """Whole run against its master at K = 0 and 50, certificates off and on (best of `repeats`)."""
-    import tempfile
     out = {}
     with tempfile.TemporaryDirectory() as tmp:
         for cert in (False, True):
@@ -258,7 +258,7 @@ def run_bench(quick=False, progress=print):
     progress("  Table I sweep K = 0..50 through the runner")
     sweep_s, sweep_alone_s = sweep_master_time(scenario)
     par = parallel(load_scenario(HEAVY), heavy_steps, heavy_repeats, progress)
-    whole = run_overhead(scenario, repeats, progress)
+    whole = run_overhead(scenario.with_changes(T=n_steps * scenario.dt), repeats, progress)
     over = {k: v["run_us_per_step"] / v["master_us_per_step"] for k, v in whole.items()}
     ratios = {"fast_over_floor": per_iter["fast"] / per_iter["floor"],
               "naive_over_fast": per_iter["naive_fmpy"] / per_iter["fast"],

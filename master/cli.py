@@ -9,6 +9,7 @@ import click
 
 from .config import load_scenario
 from .errors import ConfigError, Interrupted, WavecosimError
+from .api import simulate, with_overrides
 from .gamma_tuning import parse_gamma
 from .masters import ALGORITHMS
 from .observers.recorder import write_json
@@ -33,13 +34,8 @@ def _progress(label, quiet):
 
 def _apply_overrides(scenario, K=None, eps=None, gamma=None, dt=None, T=None, algorithm=None):
     """The scenario with the command line's values in place of the file's."""
-    master = {k: v for k, v in (("K", K), ("eps", eps), ("algorithm", algorithm)) if v is not None}
-    if master:
-        scenario = scenario.with_master(**master)
-    changes = {k: v for k, v in (("dt", dt), ("T", T)) if v is not None}
-    if gamma is not None:
-        changes["gamma"] = parse_gamma(gamma, "--gamma")
-    return scenario.with_changes("--T/--dt", **changes)
+    gamma = parse_gamma(gamma, "--gamma") if gamma is not None else None
+    return with_overrides(scenario, master=algorithm, K=K, eps=eps, gamma=gamma, dt=dt, T=T, where="--T/--dt")
 
 
 def parse_budgets(ks):
@@ -119,11 +115,10 @@ def run_cmd(config, K, eps, gamma, dt, T, quiet, output_interval, formats, algor
             no_reference, plots):
     """Run one scenario (with the monolithic reference alongside) and write its trajectory, per-step
     certificates, summary and metadata."""
-    from .runner import run
     scenario = _apply_overrides(load_scenario(config), K, eps, gamma, dt, T, algorithm)
-    result = run(scenario, out, label=scenario.master.algorithm, progress=_progress("run", quiet),
-                 certificates=not no_certificates, reference=None if no_reference else "lockstep",
-                 file_suffix=False, output_interval=output_interval, formats=("csv", *formats))
+    result = simulate(scenario, out_dir=out, progress=_progress("run", quiet) or False,
+                      certificates=not no_certificates, reference=not no_reference,
+                      output_interval=output_interval, formats=("csv", *formats))
     _report_run(scenario, result, out)
     if plots:
         from .plots import run_plots

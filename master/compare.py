@@ -52,7 +52,7 @@ def compare(scenario, out_dir, masters=None, Ks=None, progress=None, certificate
     """Run each master in `masters` over its budgets; writes DIR/compare.json after every run.
 
     Returns (reference, results, rows) with one result and row per (master, K)."""
-    out_dir = Path(out_dir)
+    out_dir = Path(out_dir) if out_dir is not None else None
     masters = list(masters or BUDGETS)
     reference = reference_run(scenario, out_dir, progress and progress("monolithic"))
     results, rows = [], []
@@ -68,8 +68,9 @@ def compare(scenario, out_dir, masters=None, Ks=None, progress=None, certificate
                 result = exc.result
             results.append(result)
             rows.append(compare_row(result, K))
-            write_json(out_dir / "compare.json", {"scenario": scenario.name, "source": scenario.source,
-                                                  "reference": reference.summary, "runs": rows})
+            if out_dir is not None:
+                write_json(out_dir / "compare.json", {"scenario": scenario.name, "source": scenario.source,
+                                                      "reference": reference.summary, "runs": rows})
             if on_run:
                 on_run(rows[-1])
     return reference, results, rows

@@ -148,6 +148,11 @@ class _Checker:
             self.fail(path, f"must be one of {', '.join(choices)}, got {value!r}")
         return value
 
+    def boolean(self, value, path):
+        if not isinstance(value, bool):
+            self.fail(path, f"must be true or false, got {value!r}")
+        return value
+
     def names(self, value, path):
         if isinstance(value, str):
             value = [value]
@@ -277,7 +282,54 @@ def load_scenario(path=None) -> Scenario:
     return parse_scenario(raw, str(path), path.parent)
 
 
+def _master(ck, m) -> MasterConfig:
+    ck.mapping(m, "master", ("algorithm", "K", "eps", "deadline_us", "fast", "threads", "energy_guard"))
+    master = MasterConfig()
+    if "algorithm" in m:
+        master.algorithm = ck.string(m["algorithm"], "master.algorithm", ALGORITHMS)
+    if "K" in m:
+        master.K = ck.integer(m["K"], "master.K", minimum=0)
+    if m.get("eps") is not None:
+        master.eps = ck.number(m["eps"], "master.eps", positive=True)
+    if m.get("deadline_us") is not None:
+        master.deadline_us = ck.number(m["deadline_us"], "master.deadline_us", positive=True)
+    if "fast" in m:
+        master.fast = ck.string(str(m["fast"]).lower(), "master.fast", ("auto", "true", "false"))
+    if "energy_guard" in m:
+        master.energy_guard = ck.boolean(m["energy_guard"], "master.energy_guard")
+    if "threads" in m:
+        master.threads = ck.string(str(m["threads"]), "master.threads", ("auto", "1", "2"))
+    return master
+
+
+def _certificates(ck, c) -> CertificateConfig:
+    ck.mapping(c, "certificates", ("augmented", "fne_pairs", "fne_seed", "fne_scale"))
+    certs = CertificateConfig()
+    if "augmented" in c:
+        certs.augmented = ck.boolean(c["augmented"], "certificates.augmented")
+    if "fne_pairs" in c:
+        certs.fne_pairs = ck.integer(c["fne_pairs"], "certificates.fne_pairs", minimum=0)
+    if "fne_seed" in c:
+        certs.fne_seed = ck.integer(c["fne_seed"], "certificates.fne_seed")
+    if "fne_scale" in c:
+        certs.fne_scale = ck.number(c["fne_scale"], "certificates.fne_scale", positive=True)
+    return certs
+
+
+def _outputs(ck, raw, names):
+    outputs = raw.get("outputs") or {}
+    ck.mapping(outputs, "outputs", list(outputs))
+    for col, ref in outputs.items():
+        if not isinstance(ref, str) or "." not in ref or ref.split(".", 1)[0] not in names:
+            ck.fail(f"outputs.{col}", f"must be SUBSYSTEM.variable with a known subsystem, got {ref!r}")
+    error = raw.get("error", [])
+    if not isinstance(error, list) or not all(e in outputs for e in error):
+        ck.fail("error", f"must list output columns (have: {', '.join(outputs)}), got {error!r}")
+    return dict(outputs), list(error)
+
+
 def parse_scenario(raw, source="<scenario>", base_dir=Path(".")) -> Scenario:
+    """Check a parsed scenario mapping key by key; the first problem is a ConfigError naming the key."""
     ck = _Checker(source)
     top = ("name", "description", "dt", "T", "gamma", "subsystems", "couplings", "master", "certificates",
            "outputs", "error", "fne_watch")
@@ -300,49 +352,9 @@ def parse_scenario(raw, source="<scenario>", base_dir=Path(".")) -> Scenario:
     if not isinstance(couplings, list) or not couplings:
         ck.fail("couplings", "must be a non-empty list of couplings")
     couplings = [_coupling(ck, k, c, names) for k, c in enumerate(couplings)]
-    m = ck.mapping(raw.get("master") or {}, "master", ("algorithm", "K", "eps", "deadline_us", "fast", "threads",
-                                                       "energy_guard"))
-    master = MasterConfig()
-    if "algorithm" in m:
-        master.algorithm = ck.string(m["algorithm"], "master.algorithm", ALGORITHMS)
-    if "K" in m:
-        master.K = ck.integer(m["K"], "master.K", minimum=0)
-    if m.get("eps") is not None:
-        master.eps = ck.number(m["eps"], "master.eps", positive=True)
-    if m.get("deadline_us") is not None:
-        master.deadline_us = ck.number(m["deadline_us"], "master.deadline_us", positive=True)
-    if "fast" in m:
-        master.fast = ck.string(str(m["fast"]).lower(), "master.fast", ("auto", "true", "false"))
-    if "energy_guard" in m:
-        if not isinstance(m["energy_guard"], bool):
-            ck.fail("master.energy_guard", f"must be true or false, got {m['energy_guard']!r}")
-        master.energy_guard = m["energy_guard"]
-    if "threads" in m:
-        master.threads = ck.string(str(m["threads"]), "master.threads", ("auto", "1", "2"))
-    c = ck.mapping(raw.get("certificates") or {}, "certificates", ("augmented", "fne_pairs", "fne_seed", "fne_scale"))
-    certs = CertificateConfig()
-    if "augmented" in c:
-        if not isinstance(c["augmented"], bool):
-            ck.fail("certificates.augmented", f"must be true or false, got {c['augmented']!r}")
-        certs.augmented = c["augmented"]
-    if "fne_pairs" in c:
-        certs.fne_pairs = ck.integer(c["fne_pairs"], "certificates.fne_pairs", minimum=0)
-    if "fne_seed" in c:
-        certs.fne_seed = ck.integer(c["fne_seed"], "certificates.fne_seed")
-    if "fne_scale" in c:
-        certs.fne_scale = ck.number(c["fne_scale"], "certificates.fne_scale", positive=True)
-    outputs = raw.get("outputs") or {}
-    ck.mapping(outputs, "outputs", list(outputs))
-    for col, ref in outputs.items():
-        if not isinstance(ref, str) or "." not in ref or ref.split(".", 1)[0] not in names:
-            ck.fail(f"outputs.{col}", f"must be SUBSYSTEM.variable with a known subsystem, got {ref!r}")
-    error = raw.get("error", [])
-    if not isinstance(error, list) or not all(e in outputs for e in error):
-        ck.fail("error", f"must list output columns (have: {', '.join(outputs)}), got {error!r}")
-    fne_watch = raw.get("fne_watch", True)
-    if not isinstance(fne_watch, bool):
-        ck.fail("fne_watch", f"must be true or false, got {fne_watch!r}")
+    master, certs = _master(ck, raw.get("master") or {}), _certificates(ck, raw.get("certificates") or {})
+    outputs, error = _outputs(ck, raw, names)
     return Scenario(name=str(raw.get("name", Path(source).stem)), source=source, dt=dt, T=T, gamma=gamma,
                     subsystems=subsystems, couplings=couplings, master=master, certificates=certs,
-                    outputs=dict(outputs), error=list(error), description=str(raw.get("description", "")),
-                    fne_watch=fne_watch)
+                    outputs=outputs, error=error, description=str(raw.get("description", "")),
+                    fne_watch=ck.boolean(raw.get("fne_watch", True), "fne_watch"))

@@ -63,7 +63,7 @@ def _colors(n):
 
 
 def _energy_t(result):
-    return result.t[:len(result.steps["H"])]
+    return result.t[:len(result.energy)]
 
 
 def _k_label(result):
@@ -91,17 +91,17 @@ def run_plots(result, reference, out):
     paths.append(_save(fig, out / "trajectories.png"))
 
     fig, ax = plt.subplots(figsize=(7, 3.2))
-    ax.plot(*_finite(_energy_t(result), result.steps["H"]), label=f"{result.master}, K = {result.K}")
+    ax.plot(*_finite(_energy_t(result), result.energy), label=f"{result.master}, K = {result.K}")
     if reference is not None:
-        ax.plot(_energy_t(reference), reference.steps["H"], "k--", lw=1, label="monolithic")
+        ax.plot(_energy_t(reference), reference.energy, "k--", lw=1, label="monolithic")
     ax.set(xlabel="t (s)", ylabel="stored energy H (J)", title="Total stored energy")
     ax.grid(alpha=0.3)
     ax.legend()
     paths.append(_save(fig, out / "energy.png"))
 
-    if "error" in result.steps:
+    if result.error is not None:
         fig, ax = plt.subplots(figsize=(7, 3.2))
-        ax.semilogy(result.t[:len(result.steps["error"])], _floored(result.steps["error"]))
+        ax.semilogy(result.t[:len(result.error)], _floored(result.error))
         ax.set(xlabel="t (s)", ylabel=_error_label(result), title="Error against the monolithic reference")
         ax.grid(alpha=0.3, which="both")
         paths.append(_save(fig, out / "error.png"))
@@ -164,8 +164,8 @@ def _fig5(results, Ks, path):
 def _fig6(results, Ks, colors, path):
     fig, (a, b) = plt.subplots(1, 2, figsize=(11, 3.8))
     for r, c in zip(results, colors):
-        if "error" in r.steps:
-            a.semilogy(r.t[:len(r.steps["error"])], _floored(r.steps["error"]), color=c, lw=1, label=_k_label(r))
+        if r.error is not None:
+            a.semilogy(r.t[:len(r.error)], _floored(r.error), color=c, lw=1, label=_k_label(r))
     a.set(xlabel="t (s)", ylabel=_error_label(results[0]), title="(a) Error history")
     a.grid(alpha=0.3, which="both")
     a.legend(ncol=2, fontsize=8)
@@ -181,8 +181,8 @@ def _fig6(results, Ks, colors, path):
 def _energy_by_run(results, reference, colors, path):
     fig, ax = plt.subplots(figsize=(7.5, 3.6))
     for r, c in zip(results, colors):
-        ax.plot(*_finite(_energy_t(r), r.steps["H"]), color=c, lw=1.1, label=_k_label(r))
-    ax.plot(_energy_t(reference), reference.steps["H"], "k--", lw=1.2, label="monolithic")
+        ax.plot(*_finite(_energy_t(r), r.energy), color=c, lw=1.1, label=_k_label(r))
+    ax.plot(_energy_t(reference), reference.energy, "k--", lw=1.2, label="monolithic")
     ax.set(xlabel="t (s)", ylabel="stored energy H (J)", title="Total stored energy H(t)")
     ax.grid(alpha=0.3)
     ax.legend(ncol=2, fontsize=8)
@@ -237,8 +237,8 @@ def _pareto(rows, error_label, scenario, path):
 def _energy_per_master(rows, results, reference, scenario, path):
     """H(t) of each master at its smallest and largest budget; a diverging run leaves the top of the axes."""
     fig, axes = plt.subplots(1, 2, figsize=(12, 5.2), sharey=True)
-    H0 = reference.steps["H"][0]
-    lows, highs = [np.nanmin(reference.steps["H"])], [np.nanmax(reference.steps["H"])]
+    H0 = reference.energy[0]
+    lows, highs = [np.nanmin(reference.energy)], [np.nanmax(reference.energy)]
     for ax, pick, title in ((axes[0], 0, "(a) smallest budget of each master"),
                             (axes[1], -1, "(b) largest budget of each master")):
         for name, members in _by_master(rows, results).items():
@@ -246,7 +246,7 @@ def _energy_per_master(rows, results, reference, scenario, path):
                 continue
             row, res = members[pick]
             color, _ = _style(name)
-            t, H = _finite(_energy_t(res), res.steps["H"])
+            t, H = _finite(_energy_t(res), res.energy)
             keep = H > 0
             tag = name if row["K"] == "-" else f"{name}, K = {row['K']}"
             if row["diverged"] == "yes":
@@ -255,7 +255,7 @@ def _energy_per_master(rows, results, reference, scenario, path):
                 lows.append(H[keep].min())
                 highs.append(H[keep].max())
             ax.semilogy(t[keep], H[keep], color=color, lw=1.2, label=tag)
-        ax.semilogy(_energy_t(reference), reference.steps["H"], "k--", lw=1.2, label="monolithic (newton)")
+        ax.semilogy(_energy_t(reference), reference.energy, "k--", lw=1.2, label="monolithic (newton)")
         ax.set(xlabel="t (s)", title=title)
         ax.grid(alpha=0.3, which="both")
         ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2)

@@ -44,9 +44,21 @@ def grid_times(k, dt):
     return np.asarray(k, float) * dt
 
 
+def _structured(table):
+    """A table's rows as a NumPy structured array, one float field per column ('reason' as text)."""
+    data = table.array()
+    fields = [(c, "U12" if c == "reason" else "f8") for c in table.columns]
+    out = np.empty(len(data), dtype=fields)
+    for j, (name, _) in enumerate(fields):
+        out[name] = [REASONS[int(v)] for v in data[:, j]] if name == "reason" else data[:, j]
+    return out
+
+
 @dataclass
 class RunResult:
-    """What a run produced: tables (arrays; read back from disk for long runs), summary, status."""
+    """What a run produced: `trajectory` and `steps` as NumPy structured arrays whose first field is
+    `time` (fmpy's plot_result and write_csv take them as they are), `summary` (as summary.json),
+    status and message; arrays of long runs are read back from their files when asked."""
     label: str
     master: str
     K: int
@@ -62,6 +74,14 @@ class RunResult:
     reference: "RunResult" = None                  # the lockstep monolithic reference, when one ran
 
     @property
+    def trajectory(self):
+        return _structured(self.trajectory_table)
+
+    @property
+    def steps(self):
+        return _structured(self.steps_table)
+
+    @property
     def t(self):
         return self.trajectory_table.array()[:, 0]
 
@@ -72,21 +92,33 @@ class RunResult:
     def column(self, name):
         return self.outputs[:, self.columns.index(name)]
 
+    def _series(self, key, column):
+        """A per-step column with its value at t = 0 in front: one entry per trajectory row."""
+        if column not in self.steps_table.columns:
+            return None
+        data = self.steps_table.array()[:, self.steps_table.columns.index(column)]
+        return np.concatenate([[self.first.get(key, np.nan)], data])
+
     @property
-    def steps(self):
-        """Per-step figures by name; H and error start at t = 0 (one entry more than the steps)."""
-        data, cols = self.steps_table.array(), self.steps_table.columns
-        out = {name: data[:, cols.index(col)] for name, col in
-               (("iterations", "iterations"), ("residual", "inner_residual"), ("supply", "interface_supply"),
-                ("augmented", "augmented"), ("fne_watch", "fne_watch")) if col in cols}
-        for key, prefix in (("passivity", "r_"), ("fne", "fne_"), ("gamma", "gamma_")):
-            picked = [j for j, c in enumerate(cols) if c.startswith(prefix) and c != "fne_watch"]
-            if picked:
-                out[key] = data[:, picked]
-        for key, col in (("H", "H_total"), ("error", "error")):
-            if col in cols:
-                out[key] = np.concatenate([[self.first[key]], data[:, cols.index(col)]])
-        return out
+    def energy(self):
+        """Total stored energy H at every recorded grid point, t = 0 included."""
+        return self._series("H", "H_total")
+
+    @property
+    def error(self):
+        """Error against the monolithic reference at every recorded grid point (None without one)."""
+        return self._series("error", "error")
+
+    def per_subsystem(self, prefix):
+        """The per-subsystem columns `prefix<name>` of steps (r_, fne_, gamma_) as one 2-D array."""
+        cols = [c for c in self.steps_table.columns if c.startswith(prefix) and c != "fne_watch"]
+        data = self.steps_table.array()
+        return data[:, [self.steps_table.columns.index(c) for c in cols]]
+
+    def to_pandas(self):
+        """The trajectory as a pandas DataFrame indexed by time (pandas is not a dependency)."""
+        import pandas as pd
+        return pd.DataFrame(self.trajectory).set_index("time")
 
 
 def _warn_stderr(message):

@@ -16,7 +16,7 @@ def reference_run(scenario, out_dir=None, progress=None):
 
 def sweep(scenario, Ks, out_dir, progress=None, certificates=True, reference=None, on_run=None):
     """Run DR for every K in Ks against the monolithic reference; writes DIR/summary.json."""
-    out_dir = Path(out_dir)
+    out_dir = Path(out_dir) if out_dir is not None else None
     reference = reference or reference_run(scenario, out_dir, progress and progress("monolithic"))
     runs, results = [], []
     for K in Ks:
@@ -27,8 +27,9 @@ def sweep(scenario, Ks, out_dir, progress=None, certificates=True, reference=Non
         entry.update({k: v for k, v in result.summary.items() if k not in entry})
         runs.append(entry)
         results.append(result)
-        write_json(out_dir / "summary.json", {"scenario": scenario.name, "source": scenario.source,
-                                              "reference": reference.summary, "runs": runs})
+        if out_dir is not None:
+            write_json(out_dir / "summary.json", {"scenario": scenario.name, "source": scenario.source,
+                                                  "reference": reference.summary, "runs": runs})
         if on_run:
             on_run(entry)
     return reference, results, runs

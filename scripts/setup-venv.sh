@@ -1,15 +1,19 @@
 #!/usr/bin/env bash
 # Create .venv at the repository root and install wavecosim into it (editable), once per change
-# of pyproject.toml. The FMUs are built on demand by the commands themselves.
+# of pyproject.toml; `setup-venv.sh test` also installs the test extra (pytest). The FMUs are built
+# on demand by the commands themselves.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PYTHON:-python3}
 if [ ! -x .venv/bin/python ]; then
   "$PY" -m venv .venv
 fi
-stamp=.venv/.wavecosim-installed
+extras=${1:-}
+target=.
+[ -n "$extras" ] && target=".[$extras]"
+stamp=.venv/.wavecosim-installed${extras:+-$extras}
 if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
   .venv/bin/python -m pip install --quiet --upgrade pip
-  .venv/bin/python -m pip install --quiet -e .
+  .venv/bin/python -m pip install --quiet -e "$target"
   touch "$stamp"
 fi

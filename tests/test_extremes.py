@@ -54,12 +54,12 @@ def check(k12, dt, gamma, q1, K, steps):
     except RunFailed as exc:
         return [f"{sc.source}: stopped: {exc}"]
     s, st = result.summary, result.steps
-    H = np.asarray(st["H"], float)
+    H = np.asarray(result.energy, float)
     H0 = H[0]
     problems = []
     if not (np.all(np.isfinite(result.outputs)) and np.all(np.isfinite(H))):
         problems.append("non-finite value")
-    passivity = np.asarray(st["passivity"], float)
+    passivity = result.per_subsystem("r_")
     if passivity.max() > ROUNDOFF * H0:
         problems.append(f"Condition 2 residual {passivity.max() / H0:.3g} H0")
     aug = float(np.max(st["augmented"]))
@@ -103,7 +103,7 @@ def test_small_K_pumps_energy_without_the_guard_and_not_with_it():
     sc = extreme_scenario(1.2e6, 1e-2, 100.0, 0.4, 1, steps=300, energy_guard=False)
     result = run(sc, warn=lambda msg: pytest.fail(f"unexpected warning: {msg}"))
     s = result.summary
-    H = np.asarray(result.steps["H"])
+    H = np.asarray(result.energy)
     assert s["fne_watch_ok"] is True and min(s["fne_watch_min_margin"].values()) > 0.01
     assert s["max_augmented_pos"] <= ROUNDOFF * H[0]
     assert s["max_passivity_pos"] <= ROUNDOFF * H[0]
@@ -111,10 +111,10 @@ def test_small_K_pumps_energy_without_the_guard_and_not_with_it():
     assert s["energy_drift"] > 0.0 and s["max_interface_injection"] > 0.0
     guarded = run(extreme_scenario(1.2e6, 1e-2, 100.0, 0.4, 1, steps=300), certificates=False)
     assert guarded.summary["energy_guard_steps"] > 0
-    assert max(guarded.steps["H"]) <= H[0] * (1 + ROUNDOFF)
+    assert max(guarded.energy) <= H[0] * (1 + ROUNDOFF)
     for K in (0, 50):
         other = run(extreme_scenario(1.2e6, 1e-2, 100.0, 0.4, K, steps=300), certificates=False)
-        assert max(other.steps["H"]) <= H[0] * (1 + ROUNDOFF)
+        assert max(other.energy) <= H[0] * (1 + ROUNDOFF)
         assert other.summary["energy_guard_steps"] == 0
 
 
@@ -128,7 +128,7 @@ def test_long_run_has_no_upward_energy_drift():
     raw["certificates"].update(augmented=True, fne_pairs=0)
     result = run(parse_scenario(raw, "long", DEFAULT_CONFIG.parent))
     s = result.summary
-    H = np.asarray(result.steps["H"])
+    H = np.asarray(result.energy)
     assert s["steps"] == 100_000 and s["status"] == "finished"
     assert np.all(np.isfinite(result.outputs)) and np.all(np.isfinite(H))
     assert s["max_augmented_pos"] <= ROUNDOFF * H[0] and s["max_passivity_pos"] <= ROUNDOFF * H[0]

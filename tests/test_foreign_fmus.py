@@ -81,16 +81,16 @@ def test_restore_is_bit_identical(opened, ident):
     fmu = opened(ident, x=0.05)
     for n in range(5):
         put(fmu, INPUT[ident], 0.3 * n)
-        fmu.do_step(n * DT, DT)
-    saved = fmu.get_state()
+        fmu.slave.doStep(n * DT, DT)
+    saved = fmu.slave.getFMUstate()
     put(fmu, INPUT[ident], -1.7)
-    fmu.do_step(5 * DT, DT)
+    fmu.slave.doStep(5 * DT, DT)
     first = all_reals(fmu)
-    fmu.set_state(saved)
+    fmu.slave.setFMUstate(saved)
     put(fmu, INPUT[ident], -1.7)
-    fmu.do_step(5 * DT, DT)
+    fmu.slave.doStep(5 * DT, DT)
     assert all_reals(fmu).tobytes() == first.tobytes()
-    fmu.free_state(saved)
+    fmu.slave.freeFMUstate(saved)
 
 
 def coupled_energy(mass, spring, steps):
@@ -102,8 +102,8 @@ def coupled_energy(mass, spring, steps):
         force, velocity = get(spring, "F"), get(mass, "v")
         put(mass, "F", force)
         put(spring, "v", velocity)
-        mass.do_step(n * DT, DT)
-        spring.do_step(n * DT, DT)
+        mass.slave.doStep(n * DT, DT)
+        spring.slave.doStep(n * DT, DT)
         energy.append(0.5 * m * get(mass, "v") ** 2 + 0.5 * k * get(spring, "x") ** 2)
     return np.array(energy)
 
@@ -137,15 +137,15 @@ def test_damped_jacobi_coupling_grows_no_more_than_the_undamped_exchange(opened)
 def step_map_slope(fmu, ident, u, du):
     """d(output)/d(input) of one doStep from the current state, by a finite difference of two
     steps from the same restored state."""
-    saved = fmu.get_state()
+    saved = fmu.slave.getFMUstate()
     outputs = []
     for value in (u, u + du):
-        fmu.set_state(saved)
+        fmu.slave.setFMUstate(saved)
         put(fmu, INPUT[ident], value)
-        fmu.do_step(0.0, DT)
+        fmu.slave.doStep(0.0, DT)
         outputs.append(get(fmu, OUTPUT[ident]))
-    fmu.set_state(saved)
-    fmu.free_state(saved)
+    fmu.slave.setFMUstate(saved)
+    fmu.slave.freeFMUstate(saved)
     return (outputs[1] - outputs[0]) / du
 
 

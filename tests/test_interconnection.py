@@ -75,3 +75,16 @@ def test_scattering_round_trip_conserves_power():
         assert e2 == pytest.approx(e, rel=1e-12, abs=1e-12)
         assert f2 == pytest.approx(f, rel=1e-12, abs=1e-12)
         assert port_energy([a], [b]) == pytest.approx(dt * e * f, rel=1e-10, abs=1e-12)
+
+
+def test_gyrator_between_rlc_and_motor_is_a_signed_swap():
+    """The coupling documented in rlc_circuit/config.h: u = Km omega, tau = -Km i with
+    gamma_motor = Km^2 / gamma_rlc compiles to a_rlc = -b_motor, a_motor = b_rlc (lossless)."""
+    km, g_rlc = 0.1, 1.0
+    (suffix, E, F), = ic.COUPLINGS["gyrator"](type("C", (), {"type": "gyrator", "ratio": km}), [[0], [1]], "test")
+    w = ic.compile_wave_map(E, F, [g_rlc, km ** 2 / g_rlc])
+    assert np.allclose(w.P, [[0.0, -1.0], [1.0, 0.0]], rtol=0, atol=1e-12)
+    rng = np.random.default_rng(3)
+    i, omega = rng.standard_normal(2)
+    e, f = np.array([km * omega, -km * i]), np.array([i, omega])     # (u, i) and (tau, omega)
+    assert abs(e @ f) < 1e-15 and np.allclose(E @ e + F @ f, 0.0, atol=1e-15)

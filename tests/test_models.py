@@ -8,7 +8,6 @@ h sum_j e_j f_j = (|a|^2 - |b|^2)/2.
 """
 import importlib.util
 import re
-import time
 import zlib
 from pathlib import Path
 
@@ -194,38 +193,6 @@ def test_standalone_simulation_stays_finite(fmus, ident):
     for name in result.dtype.names:
         assert np.all(np.isfinite(result[name])), (ident, name)
     assert result["H"][-1] <= result["H"][0] * (1 + 1e-12)  # a = 0 is a matched load: H cannot grow
-
-
-def test_heavy_chain_cost_per_step(fmus):
-    """Not asserted: microseconds per doStep at the default n, for the parallel-speedup benchmark."""
-    for sweeps in (None, 1):
-        inst = Instance(fmus, "HeavyChain", ints={} if sweeps is None else {"newton_sweeps": sweeps})
-        try:
-            inst.step(0.01)
-            steps = 200
-            start = time.perf_counter()
-            for _ in range(steps):
-                inst.step(0.01)
-            us = (time.perf_counter() - start) / steps * 1e6
-        finally:
-            inst.free()
-        label = "default newton_sweeps" if sweeps is None else f"newton_sweeps = {sweeps}"
-        print(f"\nHeavyChain n = 200, {label}: {us:.0f} us per doStep")
-
-
-def test_gyrator_between_rlc_and_motor_is_an_orthogonal_wave_map():
-    """The coupling documented in rlc_circuit/config.h: u = Km omega, tau = -Km i with
-    gamma_motor = Km^2 / gamma_rlc gives a_rlc = -b_motor, a_motor = b_rlc (lossless)."""
-    rng = np.random.default_rng(3)
-    km, g_rlc = 0.1, 1.0
-    g_mot = km**2 / g_rlc
-    i, omega = rng.standard_normal(2)
-    u, tau = km * omega, -km * i
-    wave = lambda e, f, g: ((e + g * f) / np.sqrt(2 * g), (e - g * f) / np.sqrt(2 * g))
-    a_rlc, b_rlc = wave(u, i, g_rlc)
-    a_mot, b_mot = wave(tau, omega, g_mot)
-    assert np.isclose(a_rlc, -b_mot) and np.isclose(a_mot, b_rlc)
-    assert np.isclose(u * i + tau * omega, 0.0)
 
 
 def test_heavy_chain_sweeps_change_cost_not_physics(fmus):

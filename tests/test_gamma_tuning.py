@@ -77,7 +77,7 @@ def test_stiff_scene_auto_gamma_reaches_the_monolithic_answer(stiff_auto, stiff_
     assert 50.0 < bounds["A"] < 62.0                              # ~ k12 dt / 2 + c12 = 60.05, softened by m1
     assert bounds["B"] == pytest.approx(2 * 4.0 / 0.01 + 50.0 * 0.01 / 2, rel=1e-6)
     assert s["gamma_rate_estimate"] < 0.4
-    assert all(list(row) == [g["A"], g["B"]] for row in result.steps["gamma"])
+    assert all(list(row) == [g["A"], g["B"]] for row in result.per_subsystem("gamma_"))
     err, metrics = error_metrics(result, stiff_reference, ["q1", "q2"])
     assert metrics["max_error"] <= 1e-8
     # Theorem 1 keeps holding (the augmented storage inequality at roundoff of the energy scale)
@@ -217,7 +217,7 @@ def test_auto_retune_keeps_condition_1_where_auto_loses_it():
     assert s["fne_watch_ok"] is True and len(warned) == 1
     assert s["gamma_initial"] == auto.summary["gamma_initial"]
     assert s["gamma_changes"] >= 1 and s["gamma_final"]["A"] < s["gamma_initial"]["A"]
-    g = retuned.steps["gamma"]
+    g = retuned.per_subsystem("gamma_")
     assert all(x >= y for prev, row in zip(g, g[1:]) for x, y in zip(prev, row))      # gammas only go down
     assert len({tuple(row) for row in g}) == s["gamma_changes"] + 1
     assert s["gamma_guaranteed"] is True

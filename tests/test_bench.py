@@ -1,0 +1,18 @@
+"""`wavecosim bench --quick` runs every row and reports the whole-run ratios (a smoke test: the
+figures themselves are measured, never asserted against the clock)."""
+import json
+
+from master.cli import main
+
+
+def test_bench_quick_reports_every_path_and_the_run_over_master_ratio(tmp_path, capsys):
+    try:
+        main(["bench", "--quick", "--json", str(tmp_path / "b.json")])
+    except SystemExit as exc:
+        assert exc.code == 0
+    out = capsys.readouterr().out
+    data = json.loads((tmp_path / "b.json").read_text())
+    assert data["fast_bit_identical_to_python"] is True
+    assert set(data["run_over_master"]) == {"K0", "K50"} and all(v > 0 for v in data["run_over_master"].values())
+    assert set(data["us_per_step"]) == {"naive_fmpy", "python", "fast", "floor"}
+    assert "whole run" in out and "fast / floor" in out
