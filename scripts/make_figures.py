@@ -13,10 +13,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from master.compare import compare  # noqa: E402
-from master.config import load_scenario  # noqa: E402
-from master.plots import compare_plots, sweep_plots  # noqa: E402
-from master.sweep import sweep  # noqa: E402
+from wavecosim.comparison import compare  # noqa: E402
+from wavecosim.config import load_scenario  # noqa: E402
+from wavecosim.plots import compare_plots, sweep_plots  # noqa: E402
+from wavecosim.budget_sweep import sweep  # noqa: E402
 
 DATA, FIGURES = ROOT / "out" / "figures", ROOT / "docs" / "figures"
 

@@ -2,7 +2,7 @@
 figures themselves are measured, never asserted against the clock)."""
 import json
 
-from master.cli import main
+from wavecosim.cli import main
 
 
 def test_bench_quick_reports_every_path_and_the_run_over_master_ratio(tmp_path, capsys):

@@ -2,10 +2,10 @@
 import numpy as np
 import pytest
 
-from master.certificates import augmented_residual, fne_margins
-from master.config import load_scenario
-from master.scene import build_scene
-from master.waves import port_energy
+from wavecosim.certificates import augmented_residual, fne_margins
+from wavecosim.config import load_scenario
+from wavecosim.scene import build_scene
+from wavecosim.waves import port_energy
 
 
 @pytest.fixture(scope="module")
@@ -35,6 +35,6 @@ def test_augmented_residual_is_storage_plus_fejer_minus_supply():
 
 def test_port_energy_of_waves_is_the_power_integral():
     """1/2(|a|^2 - |b|^2) with discrete waves equals dt e f (eqs. 3-5)."""
-    from master.waves import waves
+    from wavecosim.waves import waves
     a, b = waves(2.0, -0.7, gamma=3.0, dt=0.01)
     assert port_energy([a], [b]) == pytest.approx(0.01 * 2.0 * -0.7, rel=1e-12)

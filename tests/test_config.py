@@ -1,5 +1,5 @@
 """Bad input loses nothing and says what is wrong: every malformed scenario below, run through the
-real CLI (`master.cli.main`, and a few through the installed `wavecosim` executable), ends with
+real CLI (`wavecosim.cli.main`, and a few through the installed `wavecosim` executable), ends with
 exit code 2 and exactly one stderr line `error: ...` naming the file and the key (or the option),
 with no traceback. FMU archives are extracted safely into temporary folders that are removed, and
 YAML is read without Python tags."""
@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from master.cli import main
+from wavecosim.cli import main
 
 ROOT = Path(__file__).resolve().parent.parent
 EXE = ROOT / ".venv" / "bin" / "wavecosim"
@@ -36,7 +36,7 @@ BASE = {
 
 
 def cli(args, capsys):
-    """Run `wavecosim ARGS` in-process through master.cli.main; (exit code, stdout, stderr)."""
+    """Run `wavecosim ARGS` in-process through wavecosim.cli.main; (exit code, stdout, stderr)."""
     with pytest.raises(SystemExit) as info:
         main([str(a) for a in args])
     out, err = capsys.readouterr()
@@ -299,8 +299,8 @@ def test_fmu_with_escaping_member_is_refused(built_fmus, tmp_path, capsys, monke
 
 def test_extraction_folders_are_removed_after_a_run(tmp_path, monkeypatch):
     """Every FMU is unpacked into its own temporary folder, and a finished run leaves none behind."""
-    from master.config import parse_scenario
-    from master.runner import run
+    from wavecosim.config import parse_scenario
+    from wavecosim.runner import run
     scratch = tmp_path / "tmp"
     scratch.mkdir()
     monkeypatch.setattr(tempfile, "tempdir", str(scratch))

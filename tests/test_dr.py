@@ -2,10 +2,10 @@
 import numpy as np
 import pytest
 
-from master.config import load_scenario
-from master.masters.dr import DRMaster, algorithm1
-from master.monolithic import solve_interface
-from master.scene import build_scene
+from wavecosim.config import load_scenario
+from wavecosim.masters.dr import DRMaster, algorithm1
+from wavecosim.monolithic import solve_interface
+from wavecosim.scene import build_scene
 
 SWAP = [[0.0, 1.0], [1.0, 0.0]]
 J_SWAP = (np.linalg.inv(2 * np.eye(2) - np.array(SWAP))).tolist()

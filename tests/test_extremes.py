@@ -23,8 +23,8 @@ import numpy as np
 import pytest
 import yaml
 
-from master.config import DEFAULT_CONFIG, parse_scenario
-from master.runner import RunFailed, run
+from wavecosim.config import DEFAULT_CONFIG, parse_scenario
+from wavecosim.runner import RunFailed, run
 
 K12 = (120.0, 1.2e4, 1.2e6)
 DT = (1e-4, 1e-2, 1e-1)

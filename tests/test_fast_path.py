@@ -10,14 +10,14 @@ import dataclasses
 import numpy as np
 import pytest
 
-from master.config import ROOT, load_scenario
-from master.errors import ConfigError, FmuError
-from master.fast_path import Kernel, thread_plan
-from master.masters import MASTERS
-from master.masters.dr import DRMaster
-from master.masters.dr_fast import FastDRMaster
-from master.runner import RunFailed, run
-from master.scene import build_scene
+from wavecosim.config import ROOT, load_scenario
+from wavecosim.errors import ConfigError, FmuError
+from wavecosim.fast_path import Kernel, thread_plan
+from wavecosim.masters import MASTERS
+from wavecosim.masters.dr import DRMaster
+from wavecosim.masters.dr_fast import FastDRMaster
+from wavecosim.runner import RunFailed, run
+from wavecosim.scene import build_scene
 
 T_SHORT = 3.0          # 300 macro-steps of the Table I scene
 

@@ -14,8 +14,8 @@ from fmpy import extract, simulate_fmu
 from fmpy.build import build_platform_binary
 from fmpy.validation import validate_fmu
 
-from master.errors import FmuError
-from master.fmu import Fmu
+from wavecosim.errors import FmuError
+from wavecosim.fmu import Fmu
 
 # one model with a wave port and a header of its own (newton.h), one plain physical-causality model,
 # one generated from a port-Hamiltonian spec (specs/pendulum_cart.yaml, with ph_step.h)

@@ -3,8 +3,8 @@ import zipfile
 
 import pytest
 
-from master.errors import FmuError
-from master.fmu import Fmu, extract_fmu
+from wavecosim.errors import FmuError
+from wavecosim.fmu import Fmu, extract_fmu
 
 
 def test_extraction_refuses_what_is_not_an_fmu(tmp_path):

@@ -9,7 +9,7 @@ import pytest
 from fmpy import read_model_description, simulate_fmu
 from fmpy.validation import validate_fmu
 
-from master.fmu import Fmu
+from wavecosim.fmu import Fmu
 
 PAIR = ("ForeignMass", "ForeignSpring")
 INPUT = {"ForeignMass": "F", "ForeignSpring": "v"}

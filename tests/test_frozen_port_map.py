@@ -2,8 +2,8 @@
 are counted, and the raw reader agrees with fmpy's getReal."""
 import pytest
 
-from master.config import load_scenario
-from master.scene import build_scene
+from wavecosim.config import load_scenario
+from wavecosim.scene import build_scene
 
 
 @pytest.fixture()

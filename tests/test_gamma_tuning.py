@@ -14,15 +14,15 @@ import math
 import pytest
 import yaml
 
-from master import gamma_tuning as gt
-from master.config import DEFAULT_CONFIG, parse_scenario
-from master.observers.fne_watch import TOL
-from master.masters.dr import DRMaster
-from master.observers.errors import error_metrics
-from master.runner import run
-from master.waves import power_variables, waves
-from master.scene import build_scene
-from master.sweep import reference_run
+from wavecosim import gamma_tuning as gt
+from wavecosim.config import DEFAULT_CONFIG, parse_scenario
+from wavecosim.observers.fne_watch import TOL
+from wavecosim.masters.dr import DRMaster
+from wavecosim.observers.errors import error_metrics
+from wavecosim.runner import run
+from wavecosim.waves import power_variables, waves
+from wavecosim.scene import build_scene
+from wavecosim.budget_sweep import reference_run
 
 BASE = yaml.safe_load(DEFAULT_CONFIG.read_text())
 
@@ -117,7 +117,7 @@ def test_fast_unsafe_says_it_leaves_the_guarantee(stiff_auto, stiff_reference):
 
 def test_cli_reports_the_chosen_gamma(tmp_path):
     from click.testing import CliRunner
-    from master.cli import cli
+    from wavecosim.cli import cli
     path = tmp_path / "stiff.yaml"
     raw = copy.deepcopy(BASE)
     raw["subsystems"]["A"]["parameters"]["k12"] = 12000.0

@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from master import interconnection as ic
-from master.errors import CouplingError
-from master.waves import port_energy, power_variables, waves
+from wavecosim import interconnection as ic
+from wavecosim.errors import CouplingError
+from wavecosim.waves import port_energy, power_variables, waves
 
 
 def test_two_port_coupling_compiles_to_the_swap_exactly():

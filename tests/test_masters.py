@@ -5,10 +5,10 @@ import dataclasses
 import numpy as np
 import pytest
 
-from master.config import ROOT, load_scenario
-from master.masters import MASTERS
-from master.runner import run
-from master.sweep import reference_run
+from wavecosim.config import ROOT, load_scenario
+from wavecosim.masters import MASTERS
+from wavecosim.runner import run
+from wavecosim.budget_sweep import reference_run
 
 TABLE_I = ROOT / "configs" / "two_oscillators.yaml"
 STIFF = ROOT / "configs" / "two_oscillators_stiff.yaml"

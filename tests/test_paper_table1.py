@@ -10,7 +10,7 @@ KS = [0, 3, 8, 20, 35, 50]
 
 
 def wavecosim(*args, check=True):
-    proc = subprocess.run([sys.executable, "-m", "master.cli", *map(str, args)], capture_output=True, text=True)
+    proc = subprocess.run([sys.executable, "-m", "wavecosim.cli", *map(str, args)], capture_output=True, text=True)
     if check and proc.returncode != 0:
         raise AssertionError(f"wavecosim {' '.join(map(str, args))} failed ({proc.returncode}):\n{proc.stderr}")
     return proc

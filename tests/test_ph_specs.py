@@ -10,7 +10,7 @@ import pytest
 from fmpy import extract
 from fmpy.validation import validate_fmu
 
-from master.errors import ConfigError
+from wavecosim.errors import ConfigError
 from test_models import Instance, channels, check_discrete_passivity, check_rollback, random_instance
 
 ROOT = Path(__file__).resolve().parent.parent

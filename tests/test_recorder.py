@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from scipy.io import loadmat
 
-from master.observers import recorder
-from master.observers.recorder import Interrupts, Labels, Table, ints, write_json, write_mat
+from wavecosim.observers import recorder
+from wavecosim.observers.recorder import Interrupts, Labels, Table, ints, write_json, write_mat
 
 
 def fill(table, rows):

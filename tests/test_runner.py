@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from scipy.io import loadmat
 
-from master.config import load_scenario
-from master.errors import FmuError, NumericalError, RunFailed
-from master.runner import grid_times, run
-from master.sweep import reference_run
+from wavecosim.config import load_scenario
+from wavecosim.errors import FmuError, NumericalError, RunFailed
+from wavecosim.runner import grid_times, run
+from wavecosim.budget_sweep import reference_run
 
 
 @pytest.fixture(scope="module")

@@ -16,9 +16,9 @@ from pathlib import Path
 import pytest
 import yaml
 
-from master.cli import main
-from master.config import DEFAULT_CONFIG, parse_scenario
-from master.runner import RunFailed, run
+from wavecosim.cli import main
+from wavecosim.config import DEFAULT_CONFIG, parse_scenario
+from wavecosim.runner import RunFailed, run
 
 ROOT = Path(__file__).resolve().parent.parent
 EXE = ROOT / ".venv" / "bin" / "wavecosim"

@@ -18,12 +18,12 @@ import numpy as np
 import pytest
 import yaml
 
-from master.cli import main
-from master.compare import BUDGETS, compare
-from master.config import load_scenario, parse_scenario
-from master.errors import CouplingError
-from master.runner import run
-from master.sweep import reference_run
+from wavecosim.cli import main
+from wavecosim.comparison import BUDGETS, compare
+from wavecosim.config import load_scenario, parse_scenario
+from wavecosim.errors import CouplingError
+from wavecosim.runner import run
+from wavecosim.budget_sweep import reference_run
 
 CONFIGS = Path(__file__).resolve().parent.parent / "configs"
 T_TEST = 1.0                 # 100 macro-steps

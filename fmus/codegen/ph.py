@@ -18,7 +18,7 @@ import yaml
 from sympy.parsing.sympy_parser import parse_expr
 from sympy.printing.c import C99CodePrinter
 
-from master.errors import ConfigError
+from wavecosim.errors import ConfigError
 
 STEP_HEADER = Path(__file__).resolve().parent / "ph_step.h"
 RESERVED = {"gamma", "H", "port_mode", "newton_max_iter"}

@@ -4,8 +4,8 @@ On the paper's Table I scene (configs/two_oscillators.yaml), for K = 0, 8, 50, i
 macro-steps (master time only: no recording, no certificates) of
   naive_fmpy  Algorithm 1 written as a user would, with fmpy's FMU2Slave methods
               (getFMUstate/setFMUstate/setReal/doStep/getReal) and numpy;
-  python      the readable reference DRMaster (master/masters/dr.py);
-  fast        FastDRMaster on the C kernel (master/fast_path.py, fmus/kernel/drkernel.c);
+  python      the readable reference DRMaster (wavecosim/masters/dr.py);
+  fast        FastDRMaster on the C kernel (wavecosim/fast_path.py, fmus/kernel/drkernel.c);
   floor       the C driver dr_floor replaying the fast run's FMU inputs: the same FMU calls with
               the same numbers, and no master logic at all.
 Every run starts from a freshly instantiated scene and times macro-steps 1 .. N-1 (step 0 warms

@@ -9,6 +9,7 @@ import click
 
 from .config import load_scenario
 from .errors import ConfigError, Interrupted, WavecosimError
+from . import api
 from .api import simulate, with_overrides
 from .gamma_tuning import parse_gamma
 from .masters import ALGORITHMS
@@ -151,11 +152,12 @@ def _report_run(scenario, result, out):
 @click.option("--plots", is_flag=True, help="Also write the paper's figures (Figs. 4-6) as PNG.")
 def sweep_cmd(config, K, eps, gamma, dt, T, quiet, ks, out, no_certificates, plots):
     """Reproduce the paper's experiment: DR for each K against the monolithic reference."""
-    from .sweep import SWEEP_FIELDS, sweep
+    from .budget_sweep import SWEEP_FIELDS
     Ks = parse_budgets(ks)
     scenario = _apply_overrides(load_scenario(config), None, eps, gamma, dt, T)
-    progress = (lambda label: _progress(label, quiet))
-    reference, results, runs = sweep(scenario, Ks, out, progress=progress, certificates=not no_certificates)
+    table = api.sweep(scenario, Ks, out_dir=out, progress=(lambda label: _progress(label, quiet)),
+                      certificates=not no_certificates)
+    reference, results, runs = table.reference, table.results, table.rows
     click.echo(f"{scenario.name}: sweep over K = {Ks} -> {out / 'summary.json'}")
     print_table(runs, list(SWEEP_FIELDS))
     if plots:
@@ -176,7 +178,7 @@ def sweep_cmd(config, K, eps, gamma, dt, T, quiet, ks, out, no_certificates, plo
 @click.option("--plots", is_flag=True, help="Also write pareto.png and energy_by_master.png.")
 def compare_cmd(config, K, eps, gamma, dt, T, quiet, masters, ks, out, no_certificates, plots):
     """Every master over a grid of budgets against the monolithic reference: error, energy, cost."""
-    from .compare import COMPARE_FIELDS, compare
+    from .comparison import COMPARE_FIELDS
     names = [m.strip() for m in masters.split(",") if m.strip()]
     for name in names:
         if name not in ALGORITHMS:
@@ -187,8 +189,9 @@ def compare_cmd(config, K, eps, gamma, dt, T, quiet, masters, ks, out, no_certif
     if ks is not None:
         Ks = parse_budgets(ks)
     scenario = _apply_overrides(load_scenario(config), None, eps, gamma, dt, T)
-    progress = (lambda label: _progress(label, quiet))
-    reference, results, rows = compare(scenario, out, names, Ks, progress=progress, certificates=not no_certificates)
+    table = api.compare(scenario, names, Ks, out_dir=out, progress=(lambda label: _progress(label, quiet)),
+                        certificates=not no_certificates)
+    reference, results, rows = table.reference, table.results, table.rows
     click.echo(f"{scenario.name}: {len(rows)} runs of {len(names)} masters -> {out / 'compare.json'}")
     print_table(rows, list(COMPARE_FIELDS))
     for r in rows:

@@ -33,6 +33,10 @@ def with_overrides(scenario: Scenario, *, master=None, K=None, eps=None, gamma=N
     changes = {k: v for k, v in (("K", K), ("eps", eps), ("algorithm", master)) if v is not None}
     if master is not None and master not in ALGORITHMS:
         raise ConfigError(f"{where}: master: must be one of {', '.join(ALGORITHMS)}, got {master!r}")
+    if K is not None and (isinstance(K, bool) or not isinstance(K, int) or K < 0):
+        raise ConfigError(f"{where}: K: must be >= 0, got {K!r}")
+    if eps is not None and not eps > 0:
+        raise ConfigError(f"{where}: eps: must be > 0, got {eps!r}")
     if changes:
         scenario = scenario.with_master(**changes)
     top = {k: v for k, v in (("dt", dt), ("T", T)) if v is not None}
@@ -96,7 +100,7 @@ class Table:
 def sweep(scenario: ScenarioLike = None, Ks: Sequence[int] = (0, 3, 8, 20, 35, 50), *, out_dir=None,
           certificates: bool = True, progress=False, **overrides) -> Table:
     """The paper's experiment: DR at every budget K against the monolithic reference."""
-    from .sweep import sweep as run_sweep
+    from .budget_sweep import sweep as run_sweep
     sc = _scenario(scenario, **overrides)
     reference, results, rows = run_sweep(sc, list(Ks), out_dir, progress=_labelled(progress),
                                          certificates=certificates)
@@ -107,7 +111,7 @@ def compare(scenario: ScenarioLike = None, masters: Optional[Sequence[str]] = No
             Ks: Optional[Sequence[int]] = None, *, out_dir=None, certificates: bool = True, progress=False,
             **overrides) -> Table:
     """Every master (default: all) over its grid of budgets (or `Ks`) against the monolithic reference."""
-    from .compare import compare as run_compare
+    from .comparison import compare as run_compare
     sc = _scenario(scenario, **overrides)
     reference, results, rows = run_compare(sc, out_dir, masters, Ks, progress=_labelled(progress),
                                            certificates=certificates)
@@ -115,6 +119,9 @@ def compare(scenario: ScenarioLike = None, masters: Optional[Sequence[str]] = No
 
 
 def _labelled(progress):
-    """sweep/compare want progress(label) -> per-run callback."""
+    """sweep/compare take progress(label) -> a per-run callback: True prints, a one-argument callable
+    is used as that factory (the CLI's)."""
+    if callable(progress):
+        return progress
     printer = _progress_printer(progress)
     return (lambda label: printer) if printer else None

@@ -1,6 +1,6 @@
 """`master.algorithm: dr`: the reference DRMaster with the macro-step run by the C kernel.
 
-With `master.fast: auto` (the default) the kernel (master/fast_path.py) runs Algorithm 1 when its
+With `master.fast: auto` (the default) the kernel (wavecosim/fast_path.py) runs Algorithm 1 when its
 library is built and every FMU can get and set its state; with `fast: false`, or when the kernel
 cannot be used, `step` is the Python reference unchanged. Both give the same numbers to the last
 bit, and the same FMU call counts.

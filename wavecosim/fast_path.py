@@ -2,10 +2,10 @@
 
 The C kernel (fmus/kernel/drkernel.c, built with the FMUs into build/lib/libdrkernel.so) calls
 each FMU through its own fmi2 function pointers with preallocated buffers, and does the DR
-arithmetic in the operation order of master/linalg.py, so its numbers are bit-identical to the
-readable reference `DRMaster` (master/masters/dr.py). This module wires the kernel up through
+arithmetic in the operation order of wavecosim/linalg.py, so its numbers are bit-identical to the
+readable reference `DRMaster` (wavecosim/masters/dr.py). This module wires the kernel up through
 ctypes: `Kernel` owns one C kernel for a scene's subsystems and the buffers it shares with
-Python. The master that uses it is master/masters/dr_fast.py::FastDRMaster.
+Python. The master that uses it is wavecosim/masters/dr_fast.py::FastDRMaster.
 """
 import ctypes
 import os

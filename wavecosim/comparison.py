@@ -13,7 +13,7 @@ from .errors import RunFailed
 from .masters import MASTERS
 from .observers.recorder import write_json
 from .runner import run
-from .sweep import reference_run
+from .budget_sweep import reference_run
 
 # Budgets K per master (each master class's `budgets`); None marks a master without an inner budget.
 BUDGETS = {name: list(cls.budgets) for name, cls in MASTERS.items()}

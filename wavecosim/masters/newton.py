@@ -1,4 +1,4 @@
-"""`newton`: interface Newton with rollback, the monolithic macro-step (master/monolithic.py) as a master."""
+"""`newton`: interface Newton with rollback, the monolithic macro-step (wavecosim/monolithic.py) as a master."""
 import numpy as np
 
 from ..monolithic import solve_interface

@@ -1,7 +1,7 @@
 """Energy certificates of a macro-step (paper Section IV): the formulas.
 
 - Condition 2: r_i = dH_i - 1/2 (|a_i|^2 - |b_i|^2) <= 0 (eq. 27), or dH_i - dt e_i.f_i in physical mode
-  (computed each step by master/observers/passivity.py with master/waves.py).
+  (computed each step by wavecosim/observers/passivity.py with wavecosim/waves.py).
 - Theorem 1: dH + 1/2|u^K - u*|^2 - 1/2|u^0 - u*|^2 - 1/2(|a|^2 - |b|^2) <= 0 (eq. 32), u* = P b* (eq. 18).
 - Condition 1: FNE margin <S(x)-S(y), x-y> - |S(x)-S(y)|^2 (eq. 22), reported divided by |x-y|^2
   so it is scale-free (a linear map b = rho a gives rho - rho^2).

@@ -4,9 +4,9 @@ import json
 
 import pytest
 
-from master.cli import main
-from master.compare import BUDGETS, compare
-from master.config import ROOT, load_scenario
+from wavecosim.cli import main
+from wavecosim.comparison import BUDGETS, compare
+from wavecosim.config import ROOT, load_scenario
 
 TABLE_I = ROOT / "configs" / "two_oscillators.yaml"
 STIFF = ROOT / "configs" / "two_oscillators_stiff.yaml"

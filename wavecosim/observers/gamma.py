@@ -1,5 +1,5 @@
 """The impedances in force at each step (columns gamma_<subsystem>) and, for `gamma: auto |
-auto-retune | fast-unsafe`, the tuner that chose them (master/gamma_tuning.py)."""
+auto-retune | fast-unsafe`, the tuner that chose them (wavecosim/gamma_tuning.py)."""
 from ..gamma_tuning import GammaTuner
 from .fne_watch import trace_impedances
 from . import Observer
