@@ -33,9 +33,9 @@ MODELS = {
 PASSIVITY_RTOL = 1e-12
 
 
-def channels(folder):
+def channels(folder, models=ROOT / "models"):
     """Port channels (wave_in, wave_out, effort, flow, physical_in, kind) from config.h."""
-    text = (ROOT / "models" / folder / "config.h").read_text()
+    text = (models / folder / "config.h").read_text()
     return re.findall(r"X\((\w+), (\w+), (\w+), (\w+), (\w+), (FLOW_INPUT|EFFORT_INPUT)\)", text)
 
 
@@ -87,8 +87,8 @@ class Instance:
         self.fmu.freeInstance()
 
 
-def random_instance(fmus, ident, rng, mode, damped):
-    folder, damper, states, _ = MODELS[ident]
+def random_instance(fmus, ident, rng, mode, damped, models=MODELS):
+    folder, damper, states, _ = models[ident]
     reals = {k: s * rng.standard_normal() for k, s in states.items()}
     reals["gamma"] = 10.0 ** rng.uniform(-1.5, 1.5)
     ints = {"port_mode": mode}
@@ -104,17 +104,13 @@ def test_validates(fmus, ident):
     assert validate_fmu(str(fmus[ident][0])) == []
 
 
-@pytest.mark.parametrize("ident", MODELS)
-@pytest.mark.parametrize("mode", [0, 1], ids=["wave", "physical"])
-def test_discrete_passivity(fmus, ident, mode):
-    """Condition 2 over 100 random (state, input, gamma, h): equality when undamped."""
-    rng = np.random.default_rng(zlib.crc32(f"{ident}{mode}".encode()))
-    chans = channels(MODELS[ident][0])
-    phys_scale = MODELS[ident][3]
+def check_discrete_passivity(new_instance, chans, phys_scale, mode, rng, instances=10):
+    """Condition 2 over `instances` instances from new_instance(damped) x 10 random (input, gamma,
+    h): equality when undamped, the wave closure in wave mode. Returns the worst residual."""
     worst = 0.0
-    for trial in range(10):
+    for trial in range(instances):
         damped = trial % 2 == 1
-        inst = random_instance(fmus, ident, rng, mode, damped)
+        inst = new_instance(damped)
         try:
             for _ in range(10):
                 h = 10.0 ** rng.uniform(-3, -1)
@@ -133,49 +129,60 @@ def test_discrete_passivity(fmus, ident, mode):
                 supply = h * float(e @ f)
                 scale = abs(H0) + abs(H1) + abs(supply) + 1e-300
                 resid = (H1 - H0 - supply) / scale
-                assert resid <= PASSIVITY_RTOL, (ident, mode, resid)
+                assert resid <= PASSIVITY_RTOL, (mode, resid)
                 if not damped:
-                    assert abs(resid) <= PASSIVITY_RTOL, (ident, mode, resid)
+                    assert abs(resid) <= PASSIVITY_RTOL, (mode, resid)
                 worst = max(worst, abs(resid) if not damped else resid)
                 if mode == 0:  # the step honours the wave closure, so supply = (|a|^2 - |b|^2)/2
                     b = inst.get(*[c[1] for c in chans])
                     target = np.sqrt(2.0 * gamma / h) * a
-                    assert np.allclose(e + gamma * f, target, rtol=1e-11, atol=1e-11 * np.abs(target).max()), ident
-                    assert abs(0.5 * (a @ a - b @ b) - supply) <= 1e-11 * (a @ a + b @ b + 1e-300), ident
+                    assert np.allclose(e + gamma * f, target, rtol=1e-11, atol=1e-11 * np.abs(target).max())
+                    assert abs(0.5 * (a @ a - b @ b) - supply) <= 1e-11 * (a @ a + b @ b + 1e-300)
         finally:
             inst.free()
+    return worst
+
+
+@pytest.mark.parametrize("ident", MODELS)
+@pytest.mark.parametrize("mode", [0, 1], ids=["wave", "physical"])
+def test_discrete_passivity(fmus, ident, mode):
+    """Condition 2 over 100 random (state, input, gamma, h): equality when undamped."""
+    rng = np.random.default_rng(zlib.crc32(f"{ident}{mode}".encode()))
+    worst = check_discrete_passivity(lambda damped: random_instance(fmus, ident, rng, mode, damped),
+                                     channels(MODELS[ident][0]), MODELS[ident][3], mode, rng)
     print(f"\n{ident} {'wave' if mode == 0 else 'physical'}: worst passivity residual {worst:.2e}")
 
 
+def check_rollback(inst, chans, rng):
+    """Step, save, step, restore (directly and via serialization), step: identical outputs."""
+    h = 0.01
+    for _ in range(3):
+        inst.set(**{c[0]: 0.1 * rng.standard_normal() for c in chans})
+        inst.step(h)
+    inputs = {c[0]: 0.1 * rng.standard_normal() for c in chans}
+    state = inst.fmu.getFMUState()
+    blob = inst.fmu.serializeFMUState(state)
+    restored = inst.fmu.deserializeFMUState(blob)
+    runs = []
+    for saved in (None, state, restored):
+        if saved is not None:
+            inst.fmu.setFMUState(saved)
+            inst.t -= 2 * h
+        inst.set(**inputs)
+        inst.step(h)
+        inst.step(h)
+        runs.append(inst.get(*inst.reals).tobytes())
+    inst.fmu.freeFMUState(state)
+    inst.fmu.freeFMUState(restored)
+    assert runs[0] == runs[1] == runs[2]
 
 
 @pytest.mark.parametrize("ident", MODELS)
 def test_rollback_is_bit_identical(fmus, ident):
-    """Step, save, step, restore (directly and via serialization), step: identical outputs."""
     rng = np.random.default_rng(7)
-    chans = channels(MODELS[ident][0])
     inst = random_instance(fmus, ident, rng, mode=0, damped=True)
     try:
-        h = 0.01
-        for _ in range(3):
-            inst.set(**{c[0]: 0.1 * rng.standard_normal() for c in chans})
-            inst.step(h)
-        inputs = {c[0]: 0.1 * rng.standard_normal() for c in chans}
-        state = inst.fmu.getFMUState()
-        blob = inst.fmu.serializeFMUState(state)
-        restored = inst.fmu.deserializeFMUState(blob)
-        runs = []
-        for saved in (None, state, restored):
-            if saved is not None:
-                inst.fmu.setFMUState(saved)
-                inst.t -= 2 * h
-            inst.set(**inputs)
-            inst.step(h)
-            inst.step(h)
-            runs.append(inst.get(*inst.reals).tobytes())
-        inst.fmu.freeFMUState(state)
-        inst.fmu.freeFMUState(restored)
-        assert runs[0] == runs[1] == runs[2], ident
+        check_rollback(inst, channels(MODELS[ident][0]), rng)
     finally:
         inst.free()
 
