@@ -133,12 +133,17 @@ def build_spec(spec: Path, force=False, log=print) -> Path:
     stamp = _stamp([spec, *CODEGEN.glob("*.py"), *CODEGEN.glob("*.h")])
     stamp_file = out / "spec.stamp"
     if force or not (out / "config.h").exists() or not stamp_file.exists() or stamp_file.read_text() != stamp:
-        loader = importlib.util.spec_from_file_location("wavecosim_codegen_ph", CODEGEN / "ph.py")
-        ph = importlib.util.module_from_spec(loader)
-        loader.loader.exec_module(ph)
-        ph.generate(spec, out)
+        codegen().generate(spec, out)
         stamp_file.write_text(stamp)
     return build_model(out, force, log)
+
+
+def codegen():
+    """fmus/codegen/ph.py loaded as a module (a sibling script folder, not a package)."""
+    loader = importlib.util.spec_from_file_location("wavecosim_codegen_ph", CODEGEN / "ph.py")
+    ph = importlib.util.module_from_spec(loader)
+    loader.loader.exec_module(ph)
+    return ph
 
 
 def spec_files():

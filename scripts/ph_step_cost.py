@@ -5,7 +5,6 @@
     .venv/bin/python scripts/ph_step_cost.py [--steps N] [--instructions]
 """
 import argparse
-import importlib.util
 import re
 import subprocess
 import tempfile
@@ -14,6 +13,8 @@ from pathlib import Path
 
 from fmpy import read_model_description
 
+from wavecosim.builtin import build_module
+
 ROOT = Path(__file__).resolve().parent.parent
 PAIRS = [("LinearSidePH", "LinearSide"), ("ChainLinkPH", "ChainLink"), ("RLCCircuitPH", "RLCCircuit"),
          ("DuffingSidePH", "DuffingSide")]
@@ -21,10 +22,7 @@ EXTRA = ["Pendulum", "PendulumCart"]
 
 
 def load_build():
-    spec = importlib.util.spec_from_file_location("wavecosim_fmus_build", ROOT / "fmus" / "build.py")
-    build = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(build)
-    return build
+    return build_module()
 
 
 def compile_driver(build, tmp):
