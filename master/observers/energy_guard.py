@@ -15,6 +15,7 @@ RTOL = 1e-12
 
 class EnergyGuard(Observer):
     """First of the observers: it may redo the step before anyone reads it."""
+    redoes = True
 
     def __init__(self, master):
         self.master = master
