@@ -66,9 +66,9 @@ class EnergyLedger(Observer):
         tol = RTOL * (self.traffic + traffic)
         s, action = 1.0, 0
         if self.L + supplied > tol:
-            calls = self._calls()
-            inputs, s, supplied, traffic, action = self._redo(inputs, outputs, supplied, tol - self.L)
-            self.acted, self.extra = self.acted + 1, self.extra + self._calls() - calls
+            calls = master.scene.do_step_calls()
+            s, supplied, traffic, action = self._redo(inputs, outputs, supplied, tol - self.L)
+            self.acted, self.extra = self.acted + 1, self.extra + master.scene.do_step_calls() - calls
             redo = StepLog(iterations=log.iterations, residual=log.residual, reason="energy-guard",
                            a_hat=[s * x for x in inputs] if log.a_hat is not None else None)
         self.L += supplied
@@ -80,19 +80,22 @@ class EnergyLedger(Observer):
         return redo
 
     def _redo(self, inputs, out_1, supplied_1, budget):
-        """Undo the step and commit it again; (inputs, s, supply, traffic, action) of the new commit."""
+        """Undo the step and commit it again with s * inputs; (s, supply, traffic, action) of the new commit.
+
+        The fitted s needs two evaluation rounds (probe, commit): under a deadline with less time
+        left, s = 0 is committed at once (one round)."""
         master = self.master
         master.undo_step()
         if self._time_left() >= 2.0 * self.redo_round_s:
             s, supplied, traffic = self._scaled(inputs, out_1, supplied_1, budget)
             if supplied <= budget:
-                return inputs, s, supplied, traffic, 1
+                return s, supplied, traffic, 1
             self.fallbacks += 1
             master.undo_step()
         started = time.perf_counter()
         out = master.recommit([0.0] * self.n_inputs)
         self._time_redo(time.perf_counter() - started, 1)
-        return (inputs, 0.0, *master.supply([0.0] * self.n_inputs, out), 2)
+        return (0.0, *master.supply([0.0] * self.n_inputs, out), 2)
 
     def _scaled(self, inputs, out_1, supplied_1, budget):
         """Probe s = 0, fit the quadratic supply I(s), commit at its largest root of TARGET * budget."""
@@ -105,9 +108,6 @@ class EnergyLedger(Observer):
         out = self.master.recommit([s * x for x in inputs])
         self._time_redo(time.perf_counter() - started, 2)
         return (s, *supply([s * x for x in inputs], out))
-
-    def _calls(self):
-        return sum(s.calls["doStep"] for s in self.master.scene.subsystems)
 
     def _time_left(self):
         """Seconds to master.deadline_us from now (infinite without a deadline)."""
