@@ -23,7 +23,7 @@ from . import Observer
 RTOL = 1e-12            # roundoff allowance per unit of energy through the interface
 TARGET = 0.9            # the scaled step spends this fraction of the remaining budget (docs/scenes.md)
 ACTIONS = ("kept", "scaled", "zero")
-DECAY = 0.99            # per step, the remembered worst evaluation-round time decays by this factor
+SMOOTH = 0.1            # weight of the newest measurement in the running evaluation-round times
 
 
 def largest_root(q0, qh, q1, target):
@@ -54,7 +54,7 @@ class EnergyLedger(Observer):
         self.n_inputs = master.scene.n_channels
         self.L, self.traffic, self.max_L = 0.0, 0.0, -math.inf
         self.acted, self.extra, self.fallbacks = 0, 0, 0
-        self.round_s, self.redo_round_s = 0.0, 0.0      # worst evaluation round: master's, redo's
+        self.round_s, self.redo_round_s = 0.0, 0.0      # running time of one evaluation round: master's, redo's
         self.step_times = []                            # realised step times (s), when a deadline is set
 
     def after_step(self, n, t, log, reading, row):
@@ -117,18 +117,20 @@ class EnergyLedger(Observer):
         return master.step_started + master.deadline_s - time.perf_counter()
 
     def _time_round(self, log):
-        """Remember the worst time per evaluation round of the master; reserve time for a redo."""
+        """Track the master's time per evaluation round; its inner loop stops two rounds early (its
+        last iteration may overrun by one, the commit takes one), so an s = 0 redo ends within one
+        round of master.deadline_us."""
         master = self.master
         if master.deadline_s is None:
             return
         spent = (time.perf_counter() - master.step_started) / (log.iterations + 1)
-        self.round_s = max(spent, DECAY * self.round_s)
-        if not self.redo_round_s:
-            self.redo_round_s = 4.0 * self.round_s
-        master.reserve_time(2.0 * self.round_s + self.redo_round_s)
+        self.round_s = spent if not self.round_s else (1 - SMOOTH) * self.round_s + SMOOTH * spent
+        self.redo_round_s = self.redo_round_s or self.round_s
+        master.reserve_time(self.round_s + self.redo_round_s)
 
     def _time_redo(self, seconds, rounds):
-        self.redo_round_s = max(seconds / rounds, DECAY * self.redo_round_s)
+        """Track the time per evaluation round of a redo (Python calls: slower than the kernel's)."""
+        self.redo_round_s = (1 - SMOOTH) * self.redo_round_s + SMOOTH * seconds / rounds
 
     def summary(self):
         out = {"energy_guard_steps": self.acted, "energy_guard_extra_doSteps": self.extra,
