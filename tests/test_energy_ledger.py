@@ -4,6 +4,8 @@ It keeps L^n = sum_k I^k (the energy the interface supplied) at or below roundof
 energy of a source-free scene never rises above H(0), while a driven scene may rise with its source
 and a converging DR run is left untouched."""
 import copy
+import csv
+import json
 from pathlib import Path
 
 import numpy as np
@@ -117,3 +119,17 @@ def test_energy_guard_values_and_old_booleans(value, expected):
 def test_a_bad_energy_guard_is_one_line_naming_the_key():
     with pytest.raises(ConfigError, match=r"master\.energy_guard: must be one of ledger, monolithic, off, got 'on-ish'"):
         scenario(TABLE_I, "on-ish", 1)
+
+
+def test_steps_csv_and_summary_carry_the_ledger(tmp_path):
+    run(scenario(STAR, "ledger", 1, T=2.0), out_dir=tmp_path, certificates=False)
+    with open(tmp_path / "steps_dr_K1.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert {"interface_energy", "ledger", "scale", "ledger_action"} <= set(rows[0])
+    actions = {r["ledger_action"] for r in rows}
+    assert "kept" in actions and actions <= {"kept", "scaled", "zero"} and len(actions) > 1
+    assert all(r["reason"] == "energy-guard" for r in rows if r["ledger_action"] != "kept")
+    summary = json.loads((tmp_path / "summary_dr_K1.json").read_text())
+    assert summary["energy_guard_steps"] == sum(r["ledger_action"] != "kept" for r in rows)
+    assert summary["max_ledger"] == max(float(r["ledger"]) for r in rows)
+    assert summary["energy_guard_extra_doSteps"] > 0
