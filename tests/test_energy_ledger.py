@@ -133,3 +133,14 @@ def test_steps_csv_and_summary_carry_the_ledger(tmp_path):
     assert summary["energy_guard_steps"] == sum(r["ledger_action"] != "kept" for r in rows)
     assert summary["max_ledger"] == max(float(r["ledger"]) for r in rows)
     assert summary["energy_guard_extra_doSteps"] > 0
+
+
+def test_redone_steps_are_bit_identical_on_the_fast_path_and_the_reference():
+    """The redo runs in Python on both paths, so the C kernel and its bit-identity are untouched."""
+    base = scenario(STAR, "ledger", 1, T=2.0)
+    ref = run(base.with_master(fast="false"), certificates=False)
+    fast = run(base.with_master(fast="true"), certificates=False)
+    assert fast.summary["fast_path"] and not ref.summary["fast_path"]
+    assert ref.summary["energy_guard_steps"] == fast.summary["energy_guard_steps"] > 0
+    assert np.array_equal(ref.outputs, fast.outputs)
+    assert np.array_equal(column(ref, "scale"), column(fast, "scale"))
