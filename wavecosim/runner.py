@@ -24,6 +24,7 @@ from .metadata import run_metadata
 from .observers import Observer
 from .observers.certificates import CertificateSampler
 from .observers.energy_guard import EnergyGuard
+from .observers.energy_ledger import EnergyLedger
 from .observers.errors import ErrorTracker, stored_reference
 from .observers.fne_watch import FneWatch
 from .observers.gamma import GammaLog, TunedGammaLog
@@ -154,7 +155,10 @@ def open_parts(scenario, warn):
 def make_observers(scenario, scene, master, tuner, certificates, warn):
     """The observers this run needs, in the order they act (the energy guard first)."""
     obs = []
-    if master.iterates and scenario.master.energy_guard:
+    guard = scenario.master.energy_guard
+    if guard == "ledger" and master.guardable:
+        obs.append(EnergyLedger(master))
+    elif guard == "monolithic" and master.guardable and master.iterates:
         obs.append(EnergyGuard(master))
     if isinstance(master, WaveMaster):
         obs.append(TunedGammaLog(scene, master, tuner) if tuner and tuner.retune else GammaLog(scene, master, tuner))
@@ -198,8 +202,10 @@ class LiveRun:
         path = (lambda kind: self.out_dir / f"{kind}{self.suffix}.csv") if self.out_dir else (lambda kind: None)
         self.trajectory = Table(["time", *self.columns], path("trajectory"), expected_rows=rows)
         obs_cols = [c for o in self.observers for c in o.columns]
-        self.steps = Table([*STEP_COLUMNS, *obs_cols], path("steps"), expected_rows=rows,
-                           formats={"iterations": ints, "reason": Labels(REASONS)})
+        formats = {"iterations": ints, "reason": Labels(REASONS)}
+        for o in self.observers:
+            formats.update(o.formats)
+        self.steps = Table([*STEP_COLUMNS, *obs_cols], path("steps"), expected_rows=rows, formats=formats)
         self.scratch = np.full(len(self.steps.columns), np.nan)
         self.slices, at = [], len(STEP_COLUMNS)
         for o in self.observers:
@@ -220,7 +226,8 @@ class LiveRun:
         self.first = {"H": sum(first.H), "error": next((o.first for o in self.observers
                                                         if isinstance(o, ErrorTracker)), math.nan)}
         self.bracket = any(type(o).before_step is not Observer.before_step for o in self.observers)
-        self.guard = next((o for o in self.observers if isinstance(o, EnergyGuard)), None)
+        self.guard, self.guard_row = next(((o, row) for o, row in zip(self.observers, self.slices) if o.redoes),
+                                          (None, None))
         self.after = [(o, row) for o, row in zip(self.observers, self.slices) if o is not self.guard]
         self.loop_started = time.perf_counter()
         self.calls_at_start, self.excluded = self._totals(), {k: 0 for k in ("doStep", "save", "restore")}
@@ -240,7 +247,7 @@ class LiveRun:
         reading = self.sampler.read()
         if self.guard is not None:
             t0 = time.perf_counter()
-            redo = self.guard.after_step(n, t, log, reading, None)
+            redo = self.guard.after_step(n, t, log, reading, self.guard_row)
             self.master_time += time.perf_counter() - t0
             if redo is not None:
                 log, reading = redo, self.sampler.read()

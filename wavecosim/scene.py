@@ -135,6 +135,10 @@ class Scene:
             raise CouplingError(f"{self.scenario.source}: couplings: the port causalities do not fit the "
                                 f"interconnection (inputs cannot be computed from outputs)") from None
 
+    def do_step_calls(self):
+        """doStep calls made so far, over all subsystems (what a redo costs is the difference)."""
+        return sum(s.calls["doStep"] for s in self.subsystems)
+
     def split(self, x):
         """Per-subsystem slices of a stacked channel vector."""
         return [x[off:off + s.m] for s, off in zip(self.subsystems, self.offsets)]
