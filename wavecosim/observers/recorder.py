@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 BLOCK = 1024
-KEEP_VALUES = 1_000_000           # 8 MB of rows per table at most stays in memory
+KEEP_VALUES = 262_144             # 2 MB of rows per table at most stays in memory
 
 
 def _floats(col):
