@@ -8,8 +8,10 @@ ctypes: `Kernel` owns one C kernel for a scene's subsystems and the buffers it s
 Python. The master that uses it is master/masters/dr_fast.py::FastDRMaster.
 """
 import ctypes
+import math
 import os
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -94,8 +96,36 @@ def load_library():
         lib.dr_set_maps.restype = None
         lib.dr_set_trace.argtypes = [p, d, i]
         lib.dr_set_trace.restype = None
+        lib.dr_set_observed.argtypes = [p, i, ctypes.POINTER(ctypes.c_uint), i]
+        lib.dr_log_width.argtypes = [p]
+        lib.dr_log_width.restype = ctypes.c_size_t
+        lib.dr_run_steps.argtypes = [p, ctypes.POINTER(DRStep), i, i, d, ctypes.c_double]
         _lib = lib
     return _lib
+
+
+@dataclass
+class BlockLog:
+    """The rows of macro-steps run in one kernel call, as columns: iterations, reason (index into
+    REASONS), residual, a (steps x n), b^{n+1} (steps x n) and the observed values of each step."""
+    iterations: np.ndarray
+    reason: np.ndarray
+    residual: np.ndarray
+    a_hat: np.ndarray
+    b: np.ndarray
+    observed: np.ndarray
+
+    @classmethod
+    def of(cls, rows, n):
+        return cls(rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3:3 + n], rows[:, 3 + n:3 + 2 * n], rows[:, 3 + 2 * n:])
+
+    def __len__(self):
+        return len(self.iterations)
+
+    def first(self, k):
+        """The first k rows."""
+        return BlockLog(*(x[:k] for x in (self.iterations, self.reason, self.residual, self.a_hat, self.b,
+                                          self.observed)))
 
 
 def unusable(scene):
@@ -165,6 +195,27 @@ class Kernel:
         self._macro_step = lib.dr_macro_step       # called with pre-converted arguments
         self.threads = 1
         self.trace, self.trace_capacity = None, 0
+        self.log = np.empty((0, lib.dr_log_width(self._handle)))
+
+    def observe(self, names):
+        """Read these variables of each subsystem (names[i], H_i first) after every commit of run_steps."""
+        for i, (s, vars_i) in enumerate(zip(self.subsystems, names)):
+            vrs = (ctypes.c_uint * len(vars_i))(*[s.fmu.vr(v) for v in vars_i])
+            if self.lib.dr_set_observed(self._handle, i, vrs, len(vars_i)):
+                raise FmuError(f"subsystem {s.name}: the DR kernel could not keep {len(vars_i)} observed values")
+        self.log = np.empty((0, self.lib.dr_log_width(self._handle)))
+
+    def run_steps(self, n0, count, H_cap=math.inf):
+        """Macro-steps n0 .. n0 + count - 1 in one call (drkernel.h, dr_run_steps): (steps done, their
+        BlockLog, the FmuError of the step after them or None). The log is overwritten by the next call."""
+        if len(self.log) < count:
+            self.log = np.empty((count, self.log.shape[1]))
+        self.io.measure = 0
+        done = self.lib.dr_run_steps(self._handle, self._io, n0, count,
+                                     self.log.ctypes.data_as(ctypes.POINTER(ctypes.c_double)), H_cap)
+        n = n0 + done
+        error = self.failure(n, n * self.io.dt) if self.io.failed_subsystem >= 0 else None
+        return done, BlockLog.of(self.log[:done], self.n), error
 
     def _flat(self, M):
         return (ctypes.c_double * (self.n * self.n))(*[float(x) for row in M for x in row])

@@ -2,6 +2,8 @@
 stored energy H_i, stage effort and flow, the outgoing waves (wave masters) and the recorded outputs."""
 from dataclasses import dataclass
 
+import numpy as np
+
 
 @dataclass
 class Reading:
@@ -13,24 +15,66 @@ class Reading:
     outputs: list
 
 
+@dataclass
+class BlockReading:
+    """The Readings of many macro-steps as 2-D arrays, one row per step: H (steps x subsystems),
+    E, F, B (steps x channels) and outputs (steps x output columns)."""
+    H: np.ndarray
+    E: np.ndarray
+    F: np.ndarray
+    B: np.ndarray
+    outputs: np.ndarray
+
+    def reading(self, j):
+        """Row j as a Reading."""
+        return Reading(*(x[j].tolist() for x in (self.H, self.E, self.F, self.B, self.outputs)))
+
+
+def row_sums(X):
+    """The builtin sum() of each row of X, to the last bit: left to right from 0 (Python < 3.12)."""
+    acc = np.zeros(len(X))
+    for j in range(X.shape[1]):
+        acc = acc + X[:, j]
+    return acc
+
+
 class Sampler:
     """Reads a Reading from every subsystem of a scene; buffers and value references are fixed at
     set-up, so a step costs one C call per subsystem."""
 
     def __init__(self, scene, outputs):
-        self.parts = []
+        self.parts, self.observed = [], []        # observed: per subsystem the names read, H_i first
         for s in scene.subsystems:
             cols = [var for ref in outputs.values() for name, var in [ref.split(".", 1)] if name == s.name]
             names = [s.port.energy, *s.port.effort, *s.port.flow, *(s.port.wave_out if scene.wave else [])]
             read, buf = s.reader(names + cols)
             self.parts.append((read, s.m, len(names)))
+            self.observed.append(names + cols)
         owner = [ref.split(".", 1)[0] for ref in outputs.values()]
         order = [(i, sum(1 for o in owner[:k] if o == s.name)) for k, o in enumerate(owner)
                  for i, s in enumerate(scene.subsystems) if s.name == o]
         self._order = order
+        self._columns = self._block_columns(order)
         by_name = {s.name: s for s in scene.subsystems}
         self.units = {col: by_name[ref.split(".", 1)[0]].fmu.variable(ref.split(".", 1)[1]).unit or ""
                       for col, ref in outputs.items()}
+
+    def _block_columns(self, order):
+        """Where H, E, F, B and the outputs sit in the concatenated observed values of all subsystems."""
+        at, starts, cols = 0, [], {"H": [], "E": [], "F": [], "B": []}
+        for (_, m, k), names in zip(self.parts, self.observed):
+            starts.append(at)
+            cols["H"].append(at)
+            for key, first, last in (("E", 1, 1 + m), ("F", 1 + m, 1 + 2 * m), ("B", 1 + 2 * m, k)):
+                cols[key].extend(range(at + first, at + last))
+            at += len(names)
+        cols["outputs"] = [starts[i] + self.parts[i][2] + j for i, j in order]
+        return cols
+
+    def block(self, observed) -> BlockReading:
+        """The BlockReading of rows of observed values (the subsystems' `observed` names, concatenated)."""
+        c = self._columns
+        return BlockReading(*(observed[:, c[key]] for key in ("H", "E", "F", "B", "outputs")))
 
     def read(self) -> Reading:
         H, E, F, B, own = [], [], [], [], []

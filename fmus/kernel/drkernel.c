@@ -2,6 +2,7 @@
  * function pointers (see drkernel.h). The Python reference is master/masters/dr.py::algorithm1
  * with master/frozen_port_map.py::Subsystem; each line below names the line it mirrors. */
 #define _POSIX_C_SOURCE 200809L
+#include <float.h>
 #include <math.h>
 #include <pthread.h>
 #include <sched.h>
@@ -25,7 +26,8 @@ typedef struct {
     fmi2FMUstate *state;           /* x_i^n, saved once per macro-step into this handle: */
     fmi2FMUstate own_state;        /* the kernel's own, or the caller's (see dr_set_subsystem) */
     fmi2ValueReference *in_vr, *out_vr;
-    size_t m, offset;
+    fmi2ValueReference *obs_vr;    /* values read after each commit of dr_run_steps (first: H_i) */
+    size_t m, offset, n_obs;
     int thread;
     int frozen, dirty;             /* x_i^n saved this macro-step / instance moved away from it */
     int failed_function, failed_status;
@@ -305,6 +307,75 @@ int dr_macro_step(DRKernel *k, DRStep *io) {
     return f >= 0 ? report_failure(k, io, f) : 0;
 }
 
+int dr_set_observed(DRKernel *k, int i, const fmi2ValueReference *vrs, int count) {
+    if (i < 0 || i >= k->n_sub || count < 0) return -1;
+    Sub *s = &k->sub[i];
+    fmi2ValueReference *copy = count ? malloc((size_t)count * sizeof *copy) : NULL;
+    if (count && !copy) return -1;
+    if (count) memcpy(copy, vrs, (size_t)count * sizeof *vrs);
+    free(s->obs_vr);
+    s->obs_vr = copy;
+    s->n_obs = (size_t)count;
+    return 0;
+}
+
+size_t dr_log_width(const DRKernel *k) {
+    size_t width = 3 + 2 * k->n;
+    for (int i = 0; i < k->n_sub; i++) width += k->sub[i].n_obs;
+    return width;
+}
+
+/* One log row after a committed macro-step; the first failing subsystem's read, or -1. */
+static int log_step(DRKernel *k, const DRStep *io, double *row) {
+    size_t n = k->n;
+    row[0] = (double)io->iterations;
+    row[1] = (double)io->reason;
+    row[2] = io->residual;
+    memcpy(row + 3, k->a_hat, n * sizeof *row);
+    memcpy(row + 3 + n, k->b, n * sizeof *row);
+    double *obs = row + 3 + 2 * n;
+    for (int i = 0; i < k->n_sub; i++) {
+        Sub *s = &k->sub[i];
+        if (s->n_obs && failed(s, DR_FN_GET_REAL, s->fn.getReal(s->comp, s->obs_vr, s->n_obs, obs))) return i;
+        obs += s->n_obs;
+    }
+    return -1;
+}
+
+/* Stop after this step? When an observed value is not finite, or when the stored energy (the sum
+ * of every subsystem's first observed value) may exceed H_cap: the bound n_sub eps sum|H_i| covers
+ * any order of summation, so the caller's exact test never sees a step above the cap go by. */
+static int stop_after(const DRKernel *k, const double *obs, double H_cap) {
+    double sum = 0.0, magnitude = 0.0;
+    for (int i = 0; i < k->n_sub; i++) {
+        const Sub *s = &k->sub[i];
+        for (size_t j = 0; j < s->n_obs; j++)
+            if (!isfinite(obs[j])) return 1;
+        if (s->n_obs) {
+            sum += obs[0];
+            magnitude += fabs(obs[0]);
+        }
+        obs += s->n_obs;
+    }
+    return isfinite(H_cap) && sum + 4.0 * k->n_sub * DBL_EPSILON * magnitude > H_cap;
+}
+
+int dr_run_steps(DRKernel *k, DRStep *io, int n0, int count, double *rows, double H_cap) {
+    size_t width = dr_log_width(k);
+    for (int s = 0; s < count; s++) {
+        io->t = (double)(n0 + s) * io->dt;
+        if (dr_macro_step(k, io)) return s;
+        double *row = rows + (size_t)s * width;
+        int f = log_step(k, io, row);
+        if (f >= 0) {
+            report_failure(k, io, f);
+            return s;
+        }
+        if (stop_after(k, row + 3 + 2 * k->n, H_cap)) return s + 1;
+    }
+    return count;
+}
+
 int dr_floor(DRKernel *k, DRStep *io, const double *inputs, int n_steps) {
     size_t n = k->n;
     for (int step = 0; step < n_steps; step++) {
@@ -444,6 +515,7 @@ void dr_destroy(DRKernel *k) {
             Sub *s = &k->sub[i];
             if (s->own_state) s->fn.freeFMUstate(s->comp, &s->own_state);
             free(s->in_vr);
+            free(s->obs_vr);
         }
     }
     free(k->sub);

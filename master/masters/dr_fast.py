@@ -15,6 +15,7 @@ the first (the threads meet at every iteration, so on a busy machine, where one 
 descheduled, serial is faster). Each thread writes only its own subsystems' outputs and the caller does all the arithmetic, so
 the thread plan never changes a number.
 """
+import math
 import time
 
 from ..errors import ConfigError
@@ -99,6 +100,38 @@ class FastDRMaster(DRMaster):
             self.confirm_threads(per_round)
         return StepLog(iterations=k, residual=io.residual, reason=REASONS[io.reason], a_hat=out[n_ch:2 * n_ch],
                        u0=out[2 * n_ch:3 * n_ch], uK=out[3 * n_ch:])
+
+    def can_run_steps(self, n):
+        """Whether run_steps may make macro-step n: the kernel runs and the thread plan is settled
+        (threads other than 1 make their first two macro-steps one at a time, timing them)."""
+        chosen = self._choose_after is not None and (self._choose_after < 0 or n >= self._choose_after + 2)
+        return self.kernel is not None and chosen
+
+    def observe(self, names):
+        """The variables of each subsystem run_steps reads after every commit (names[i], H_i first)."""
+        self.kernel.observe(names)
+
+    def run_steps(self, n0, count, H_cap=math.inf):
+        """Macro-steps n0 .. n0 + count - 1 in one kernel call, stopping early after a step whose H
+        may exceed H_cap or whose observed values are not finite (fast_path.Kernel.run_steps): (steps
+        done, their BlockLog, the FmuError of the step after them or None). b^n and b^{n+1} of the
+        last step done become the master's, so undo_step works as after step()."""
+        done, log, error = self.kernel.run_steps(n0, count, H_cap)
+        if done:
+            last = n0 + done - 1
+            iterations = int(log.iterations.sum())
+            for s in self.subsystems:
+                s.note_kernel_step(last, last * self.dt, iterations, done)
+            self._b_step_start = log.b[done - 2].tolist() if done > 1 else self._b
+            self._b = self.kernel.b[:]
+            if self._trace is not None:
+                self._trace = self.kernel.recorded(int(log.iterations[-1]))
+        return done, log, error
+
+    def step_log(self, log, j):
+        """The StepLog of row j of a BlockLog (without u^0 and u^K)."""
+        return StepLog(iterations=int(log.iterations[j]), residual=float(log.residual[j]),
+                       reason=REASONS[int(log.reason[j])], a_hat=log.a_hat[j].tolist())
 
     def choose_threads(self, costs_us, serial_round_s):
         """After the first (serial) macro-step: pick the thread plan from the measured µs per

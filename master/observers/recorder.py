@@ -68,6 +68,16 @@ class Table:
         self._fill += 1
         self.rows += 1
 
+    def append_block(self, rows):
+        """Book many rows at once (a 2-D array of the table's columns), as next_row and commit_row would."""
+        at = 0
+        while at < len(rows):
+            if self._fill == BLOCK:
+                self.flush()
+            k = min(BLOCK - self._fill, len(rows) - at)
+            self._block[self._fill:self._fill + k] = rows[at:at + k]
+            self._fill, self.rows, at = self._fill + k, self.rows + k, at + k
+
     def flush(self):
         """Write the filled part of the block (and keep it when the table stays in memory)."""
         block = self._block[:self._fill]
