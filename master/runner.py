@@ -158,6 +158,7 @@ class LiveRun:
         self.loop_time = 0.0                           # start() to the last step: the run's own per-step cost
         self.last = None
         self.led, self.failure, self.recent = 0, None, {}   # as a lockstep reference (lead)
+        self.block_steps = 0                                # macro-steps made in blocks
 
     def add_observer(self, observer: Observer):
         """Before start(): one more observer (e.g. the error tracker), acting last."""
@@ -260,6 +261,7 @@ class LiveRun:
         t0 = time.perf_counter()
         done, log, error = self.master.run_steps(n0, count, self.cap)
         self.master_time += time.perf_counter() - t0
+        self.block_steps += done
         whole = done - 1 if error is None and done < count else done
         if whole:
             self._after_block(n0, log.first(whole))
@@ -340,7 +342,7 @@ class LiveRun:
                "wall_time_s": self.master_time, "total_time_s": time.perf_counter() - self.started,
                "loop_time_s": self.loop_time,
                "real_time_factor": (n * sc.dt) / self.master_time if self.master_time > 0 else float("nan"),
-               "fmu_calls": self.fmu_calls(), "output_interval": self.every}
+               "fmu_calls": self.fmu_calls(), "output_interval": self.every, "block_steps": self.block_steps}
         for o in self.observers:
             out.update(o.summary())
         if self.master is not None:
