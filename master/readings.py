@@ -15,25 +15,32 @@ class Reading:
     outputs: list
 
 
-@dataclass
 class BlockReading:
     """The Readings of many macro-steps as 2-D arrays, one row per step: H (steps x subsystems),
-    E, F, B (steps x channels) and outputs (steps x output columns)."""
-    H: np.ndarray
-    E: np.ndarray
-    F: np.ndarray
-    B: np.ndarray
-    outputs: np.ndarray
+    E, F, B (steps x channels) and outputs (steps x output columns), each taken from the observed
+    values (Sampler.observed, concatenated) when first read."""
+    KEYS = ("H", "E", "F", "B", "outputs")
+
+    def __init__(self, observed, columns):
+        self._observed, self._columns = observed, columns
+
+    def __getattr__(self, key):
+        if key not in BlockReading.KEYS:
+            raise AttributeError(key)
+        value = self._observed[:, self._columns[key]]
+        setattr(self, key, value)
+        return value
 
     def reading(self, j):
         """Row j as a Reading."""
-        return Reading(*(x[j].tolist() for x in (self.H, self.E, self.F, self.B, self.outputs)))
+        row = self._observed[j]
+        return Reading(*(row[self._columns[key]].tolist() for key in BlockReading.KEYS))
 
 
 def row_sums(X):
     """The builtin sum() of each row of X, to the last bit: left to right from 0 (Python < 3.12)."""
-    acc = np.zeros(len(X))
-    for j in range(X.shape[1]):
+    acc = 0.0 + X[:, 0]
+    for j in range(1, X.shape[1]):
         acc = acc + X[:, j]
     return acc
 
@@ -73,8 +80,7 @@ class Sampler:
 
     def block(self, observed) -> BlockReading:
         """The BlockReading of rows of observed values (the subsystems' `observed` names, concatenated)."""
-        c = self._columns
-        return BlockReading(*(observed[:, c[key]] for key in ("H", "E", "F", "B", "outputs")))
+        return BlockReading(observed, self._columns)
 
     def read(self) -> Reading:
         H, E, F, B, own = [], [], [], [], []

@@ -285,9 +285,12 @@ class LiveRun:
         self.steps_done = n0 + len(log)
         self.iterations[0] += int(log.iterations.sum())
         self.iterations[1] = max(self.iterations[1], int(log.iterations.max()))
-        keep = (ks % self.every == 0) | (ks == self.n_steps)
+        keep = slice(None) if self.every == 1 else (ks % self.every == 0) | (ks == self.n_steps)
         self.steps.append_block(rows[keep])
-        self.trajectory.append_block(np.column_stack([self.times[ks[keep]], readings.outputs[keep]]))
+        outputs = readings.outputs[keep]
+        trajectory = np.empty((len(outputs), 1 + outputs.shape[1]))
+        trajectory[:, 0], trajectory[:, 1:] = self.times[ks[keep]], outputs
+        self.trajectory.append_block(trajectory)
         self.last = readings.reading(-1)
 
     def lead(self, n, end):

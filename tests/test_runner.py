@@ -17,6 +17,7 @@ from master.cli import main
 from master.config import ROOT, load_scenario
 from master.errors import FmuError, NumericalError, RunFailed
 from master.observers.errors import ErrorTracker
+from master.observers.passivity import running_sum
 from master.readings import BlockReading, Reading, row_sums
 from master.runner import grid_times, run
 from master.sweep import reference_run
@@ -120,7 +121,7 @@ def test_blocks_give_the_step_by_step_files(tmp_path, monkeypatch, K, guarded):
     one, blocks = step_by_step(monkeypatch, load_scenario().with_master(K=K), tmp_path)
     same_files_and_figures(one, blocks, tmp_path)
     assert blocks.summary["energy_guard_steps"] == guarded
-    assert blocks.summary["block_steps"] == 998            # the first two steps choose the thread plan
+    assert blocks.summary["block_steps"] == 999            # step 0 chooses the thread plan
 
 
 def test_blocks_with_output_interval_tolerance_and_lockstep_errors(tmp_path, monkeypatch):
@@ -152,7 +153,7 @@ def test_blocks_keep_every_row_before_an_fmu_failure(tmp_path, monkeypatch):
     for name in ("trajectory.csv", "steps.csv"):
         assert (tmp_path / "steps" / name).read_bytes() == (tmp_path / "blocks" / name).read_bytes()
     summary = json.loads((tmp_path / "blocks" / "summary.json").read_text())
-    assert summary["steps"] == 18 and summary["block_steps"] == 16
+    assert summary["steps"] == 18 and summary["block_steps"] == 17
     assert len(read_csv(tmp_path / "blocks" / "steps.csv")) == 19
     assert summary["message"].startswith("subsystem A: fmi2DoStep returned Error at step 18 (t = 0.18)")
 
@@ -165,6 +166,10 @@ def test_block_sums_are_the_builtin_sums():
     X[0, :3] = [1e16, 1.0, 1.0]
     assert row_sums(X).tolist() == [sum(r) for r in X.tolist()]
     assert row_sums(X[:1, :3])[0] != 1e16 + (1.0 + 1.0)
+    drift = 0.1
+    for x in X[:, 0].tolist():
+        drift += x
+    assert running_sum(0.1, X[:, 0]) == drift
     ref = rng.standard_normal((201, 12))
     out = X @ rng.standard_normal((9, 12))
     names = [f"c{j}" for j in range(12)]
@@ -173,6 +178,6 @@ def test_block_sums_are_the_builtin_sums():
         rows, block_rows = np.empty((200, 1)), np.empty((200, 1))
         for n in range(200):
             step.after_step(n, n * 0.01, None, Reading([], [], [], [], out[n].tolist()), rows[n])
-        block.after_block(0, None, BlockReading(None, None, None, None, out), block_rows)
+        block.after_block(0, None, BlockReading(out, {"outputs": list(range(12))}), block_rows)
         assert rows.tobytes() == block_rows.tobytes(), n_err
         assert step.summary() == block.summary()

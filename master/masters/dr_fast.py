@@ -103,8 +103,9 @@ class FastDRMaster(DRMaster):
 
     def can_run_steps(self, n):
         """Whether run_steps may make macro-step n: the kernel runs and the thread plan is settled
-        (threads other than 1 make their first two macro-steps one at a time, timing them)."""
-        chosen = self._choose_after is not None and (self._choose_after < 0 or n >= self._choose_after + 2)
+        (threads other than 1 time their first macro-step, and threads=auto a trial of two threads
+        on the next, one call each)."""
+        chosen = self._choose_after is not None and n > self._choose_after and not self._on_trial
         return self.kernel is not None and chosen
 
     def observe(self, names):

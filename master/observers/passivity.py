@@ -17,17 +17,14 @@ def grow_max_pos(current, x):
     return current if current >= x else x
 
 
+def running_sum(start, x):
+    """start + x[0] + x[1] + ..., added in that order (cumsum is sequential, unlike np.sum)."""
+    return float(np.cumsum(np.concatenate([[start], x]))[-1])
+
+
 def block_max_pos(current, x):
-    """grow_max_pos over the numbers of the array x, in one go."""
-    seen = x[x == x]
-    if not len(seen):
-        return current
-    return grow_max_pos(current, float(seen.max()))
-
-
-def block_port_energy(a, b):
-    """port_energy of each row of a and b, to the last bit."""
-    return 0.5 * (row_sums(a * a) - row_sums(b * b))
+    """grow_max_pos over the numbers of the array x, in one go (fmax skips NaN)."""
+    return grow_max_pos(current, float(np.fmax.reduce(x))) if len(x) else current
 
 
 class Passivity(Observer):
@@ -36,7 +33,7 @@ class Passivity(Observer):
     def __init__(self, scene):
         self.scene, self.wave, self.dt = scene, scene.wave, scene.scenario.dt
         self.blocks = scene.wave
-        self.channels = [list(range(off, off + s.m)) for s, off in zip(scene.subsystems, scene.offsets)]
+        self.parts = [slice(off, off + s.m) for s, off in zip(scene.subsystems, scene.offsets)]
         self.names = [s.name for s in scene.subsystems]
         self.columns = (*[f"r_{n}" for n in self.names], "interface_supply", "H_total")
 
@@ -70,18 +67,16 @@ class Passivity(Observer):
 
     def after_block(self, n0, logs, readings, rows):
         H, k = readings.H, len(self.names)
+        a2, b2 = logs.a_hat * logs.a_hat, readings.B * readings.B
         before = np.vstack([[self.H], H[:-1]])
-        for i, cols in enumerate(self.channels):
-            r = (H[:, i] - before[:, i]) - block_port_energy(logs.a_hat[:, cols], readings.B[:, cols])
+        for i, part in enumerate(self.parts):
+            r = (H[:, i] - before[:, i]) - 0.5 * (row_sums(a2[:, part]) - row_sums(b2[:, part]))
             rows[:, i] = r
             self.max_r[i] = block_max_pos(self.max_r[i], r)
-        supply, total = block_port_energy(logs.a_hat, readings.B), row_sums(H)
+        supply, total = 0.5 * (row_sums(a2) - row_sums(b2)), row_sums(H)
         rows[:, k], rows[:, k + 1] = supply, total
         self.max_supply = block_max_pos(self.max_supply, supply)
-        drift = self.drift
-        for x in supply.tolist():                 # a running sum: in step order, as after_step adds
-            drift += x
-        self.drift = drift
+        self.drift = running_sum(self.drift, supply)
         self.H, self.H_final = H[-1].tolist(), float(total[-1])
         self.H_max = max(self.H_max, float(total.max()))   # a block holds no NaN H (the kernel stops)
 
