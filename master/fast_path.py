@@ -106,8 +106,9 @@ def load_library():
 
 @dataclass
 class BlockLog:
-    """The rows of macro-steps run in one kernel call, as columns: iterations, reason (index into
-    REASONS), residual, a (steps x n), b^{n+1} (steps x n) and the observed values of each step."""
+    """The macro-steps run in one kernel call, one row per step: iterations, reason (index into
+    REASONS), residual, a (steps x n), b^{n+1} (steps x n); `observed` holds the observed values one
+    per row (values x steps), as the kernel logs them (each value contiguous)."""
     iterations: np.ndarray
     reason: np.ndarray
     residual: np.ndarray
@@ -116,16 +117,18 @@ class BlockLog:
     observed: np.ndarray
 
     @classmethod
-    def of(cls, rows, n):
-        return cls(rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3:3 + n], rows[:, 3 + n:3 + 2 * n], rows[:, 3 + 2 * n:])
+    def of(cls, columns, n):
+        """From the kernel's log: one row per logged value, one column per step."""
+        return cls(columns[0], columns[1], columns[2], columns[3:3 + n].T, columns[3 + n:3 + 2 * n].T,
+                   columns[3 + 2 * n:])
 
     def __len__(self):
         return len(self.iterations)
 
     def first(self, k):
-        """The first k rows."""
-        return BlockLog(*(x[:k] for x in (self.iterations, self.reason, self.residual, self.a_hat, self.b,
-                                          self.observed)))
+        """The first k steps."""
+        return BlockLog(self.iterations[:k], self.reason[:k], self.residual[:k], self.a_hat[:k], self.b[:k],
+                        self.observed[:, :k])
 
 
 def unusable(scene):
@@ -195,7 +198,7 @@ class Kernel:
         self._macro_step = lib.dr_macro_step       # called with pre-converted arguments
         self.threads = 1
         self.trace, self.trace_capacity = None, 0
-        self.log = np.empty((0, lib.dr_log_width(self._handle)))
+        self.width, self.log = lib.dr_log_width(self._handle), np.empty(0)
 
     def observe(self, names):
         """Read these variables of each subsystem (names[i], H_i first) after every commit of run_steps."""
@@ -203,19 +206,20 @@ class Kernel:
             vrs = (ctypes.c_uint * len(vars_i))(*[s.fmu.vr(v) for v in vars_i])
             if self.lib.dr_set_observed(self._handle, i, vrs, len(vars_i)):
                 raise FmuError(f"subsystem {s.name}: the DR kernel could not keep {len(vars_i)} observed values")
-        self.log = np.empty((0, self.lib.dr_log_width(self._handle)))
+        self.width = self.lib.dr_log_width(self._handle)
 
     def run_steps(self, n0, count, H_cap=math.inf):
         """Macro-steps n0 .. n0 + count - 1 in one call (drkernel.h, dr_run_steps): (steps done, their
         BlockLog, the FmuError of the step after them or None). The log is overwritten by the next call."""
-        if len(self.log) < count:
-            self.log = np.empty((count, self.log.shape[1]))
+        if len(self.log) < count * self.width:
+            self.log = np.empty(count * self.width)
         self.io.measure = 0
         done = self.lib.dr_run_steps(self._handle, self._io, n0, count,
                                      self.log.ctypes.data_as(ctypes.POINTER(ctypes.c_double)), H_cap)
         n = n0 + done
         error = self.failure(n, n * self.io.dt) if self.io.failed_subsystem >= 0 else None
-        return done, BlockLog.of(self.log[:done], self.n), error
+        columns = self.log[:count * self.width].reshape(self.width, count)[:, :done]
+        return done, BlockLog.of(columns, self.n), error
 
     def _flat(self, M):
         return (ctypes.c_double * (self.n * self.n))(*[float(x) for row in M for x in row])

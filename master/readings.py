@@ -17,8 +17,8 @@ class Reading:
 
 class BlockReading:
     """The Readings of many macro-steps as 2-D arrays, one row per step: H (steps x subsystems),
-    E, F, B (steps x channels) and outputs (steps x output columns), each taken from the observed
-    values (Sampler.observed, concatenated) when first read."""
+    E, F, B (steps x channels) and outputs (steps x output columns), each taken when first read
+    from the observed values (Sampler.observed concatenated, one row per value, one column per step)."""
     KEYS = ("H", "E", "F", "B", "outputs")
 
     def __init__(self, observed, columns):
@@ -27,14 +27,14 @@ class BlockReading:
     def __getattr__(self, key):
         if key not in BlockReading.KEYS:
             raise AttributeError(key)
-        value = self._observed[:, self._columns[key]]
+        value = self._observed[self._columns[key]].T
         setattr(self, key, value)
         return value
 
     def reading(self, j):
-        """Row j as a Reading."""
-        row = self._observed[j]
-        return Reading(*(row[self._columns[key]].tolist() for key in BlockReading.KEYS))
+        """Step j as a Reading."""
+        step = self._observed[:, j]
+        return Reading(*(step[self._columns[key]].tolist() for key in BlockReading.KEYS))
 
 
 def row_sums(X):
@@ -43,6 +43,30 @@ def row_sums(X):
     for j in range(1, X.shape[1]):
         acc = acc + X[:, j]
     return acc
+
+
+def as_index(indices):
+    """A list of indices as a slice when evenly spaced (a view, not a copy), else the list."""
+    steps = {b - a for a, b in zip(indices, indices[1:])}
+    if len(steps) > 1 or min(steps, default=1) < 1:
+        return indices
+    return slice(indices[0], indices[-1] + 1, steps.pop() if steps else 1)
+
+
+class GroupSums:
+    """row_sums over groups of columns (slices), all groups at once: one column per group."""
+
+    def __init__(self, parts):
+        self.n = len(parts)
+        width = max(p.stop - p.start for p in parts)
+        self.steps = [(as_index([i for i, p in enumerate(parts) if p.start + j < p.stop]),
+                       as_index([p.start + j for p in parts if p.start + j < p.stop])) for j in range(width)]
+
+    def __call__(self, X):
+        acc = np.zeros((len(X), self.n), order="F")           # columns contiguous, as the blocks
+        for groups, cols in self.steps:                  # the j-th column of every group at once
+            acc[:, groups] = acc[:, groups] + X[:, cols]
+        return acc
 
 
 class Sampler:
@@ -79,7 +103,8 @@ class Sampler:
         return cols
 
     def block(self, observed) -> BlockReading:
-        """The BlockReading of rows of observed values (the subsystems' `observed` names, concatenated)."""
+        """The BlockReading of observed values (the subsystems' `observed` names concatenated, one
+        row per name, one column per step)."""
         return BlockReading(observed, self._columns)
 
     def read(self) -> Reading:

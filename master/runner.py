@@ -277,8 +277,8 @@ class LiveRun:
         """The observers and the rows of a block of steps (all finite: the kernel stops at a non-finite value)."""
         readings = self.sampler.block(log.observed)
         ks = np.arange(n0 + 1, n0 + len(log) + 1)
-        rows = np.empty((len(log), len(self.steps.columns)))
-        rows[:, 0], rows[:, 1], rows[:, 2] = self.times[ks], log.iterations, log.residual
+        rows = np.empty((len(log), len(self.steps.columns)), order="F")    # each column contiguous
+        rows[:, 0], rows[:, 1], rows[:, 2] = self.times[n0 + 1:n0 + len(log) + 1], log.iterations, log.residual
         rows[:, 3] = REASON_CODES[log.reason.astype(int)]
         for o, _ in self.after:
             o.after_block(n0, log, readings, rows[:, self.spans[id(o)]])

@@ -178,6 +178,6 @@ def test_block_sums_are_the_builtin_sums():
         rows, block_rows = np.empty((200, 1)), np.empty((200, 1))
         for n in range(200):
             step.after_step(n, n * 0.01, None, Reading([], [], [], [], out[n].tolist()), rows[n])
-        block.after_block(0, None, BlockReading(out, {"outputs": list(range(12))}), block_rows)
+        block.after_block(0, None, BlockReading(out.T, {"outputs": list(range(12))}), block_rows)
         assert rows.tobytes() == block_rows.tobytes(), n_err
         assert step.summary() == block.summary()

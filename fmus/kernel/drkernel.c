@@ -55,6 +55,7 @@ struct DRKernel {
     double *b, *a_hat, *u0, *uK;   /* the caller's */
     double *u, *u_next, *b_hat, *z, *w;
     double *trace;                 /* the caller's, or NULL */
+    double *obs;                   /* one subsystem's observed values, read before they are logged */
     int trace_capacity;
     int n_threads;
     unsigned generation;
@@ -310,12 +311,22 @@ int dr_macro_step(DRKernel *k, DRStep *io) {
 int dr_set_observed(DRKernel *k, int i, const fmi2ValueReference *vrs, int count) {
     if (i < 0 || i >= k->n_sub || count < 0) return -1;
     Sub *s = &k->sub[i];
-    fmi2ValueReference *copy = count ? malloc((size_t)count * sizeof *copy) : NULL;
-    if (count && !copy) return -1;
-    if (count) memcpy(copy, vrs, (size_t)count * sizeof *vrs);
+    size_t largest = (size_t)count;
+    for (int j = 0; j < k->n_sub; j++)
+        if (j != i && k->sub[j].n_obs > largest) largest = k->sub[j].n_obs;
+    fmi2ValueReference *copy = malloc(((size_t)count + 1) * sizeof *copy);
+    double *obs = malloc((largest + 1) * sizeof *obs);
+    if (!copy || !obs) {
+        free(copy);
+        free(obs);
+        return -1;
+    }
+    memcpy(copy, vrs, (size_t)count * sizeof *vrs);
     free(s->obs_vr);
+    free(k->obs);
     s->obs_vr = copy;
     s->n_obs = (size_t)count;
+    k->obs = obs;
     return 0;
 }
 
@@ -325,53 +336,57 @@ size_t dr_log_width(const DRKernel *k) {
     return width;
 }
 
-/* One log row after a committed macro-step; the first failing subsystem's read, or -1. */
-static int log_step(DRKernel *k, const DRStep *io, double *row) {
-    size_t n = k->n;
-    row[0] = (double)io->iterations;
-    row[1] = (double)io->reason;
-    row[2] = io->residual;
-    memcpy(row + 3, k->a_hat, n * sizeof *row);
-    memcpy(row + 3 + n, k->b, n * sizeof *row);
-    double *obs = row + 3 + 2 * n;
+/* Log step s (of a call of `count` steps) after its commit, column-major: value c at
+ * rows[c count + s]; the first failing subsystem's read, or -1. */
+static int log_step(DRKernel *k, const DRStep *io, double *rows, size_t count, size_t s) {
+    size_t n = k->n, c = 3 + 2 * n;
+    rows[s] = (double)io->iterations;
+    rows[count + s] = (double)io->reason;
+    rows[2 * count + s] = io->residual;
+    for (size_t j = 0; j < n; j++) {
+        rows[(3 + j) * count + s] = k->a_hat[j];
+        rows[(3 + n + j) * count + s] = k->b[j];
+    }
     for (int i = 0; i < k->n_sub; i++) {
-        Sub *s = &k->sub[i];
-        if (s->n_obs && failed(s, DR_FN_GET_REAL, s->fn.getReal(s->comp, s->obs_vr, s->n_obs, obs))) return i;
-        obs += s->n_obs;
+        Sub *s_i = &k->sub[i];
+        if (!s_i->n_obs) continue;
+        if (failed(s_i, DR_FN_GET_REAL, s_i->fn.getReal(s_i->comp, s_i->obs_vr, s_i->n_obs, k->obs))) return i;
+        for (size_t j = 0; j < s_i->n_obs; j++) rows[(c + j) * count + s] = k->obs[j];
+        c += s_i->n_obs;
     }
     return -1;
 }
 
-/* Stop after this step? When an observed value is not finite, or when the stored energy (the sum
- * of every subsystem's first observed value) may exceed H_cap: the bound n_sub eps sum|H_i| covers
- * any order of summation, so the caller's exact test never sees a step above the cap go by. */
-static int stop_after(const DRKernel *k, const double *obs, double H_cap) {
+/* Stop after this step? When an observed value (obs: the step's column of them, stride count) is
+ * not finite, or when the stored energy (the sum of every subsystem's first observed value) may
+ * exceed H_cap: the bound 4 n_sub eps sum|H_i| covers any order of summation, so the caller's exact
+ * test never sees a step above the cap go by. */
+static int stop_after(const DRKernel *k, const double *obs, size_t count, double H_cap) {
     double sum = 0.0, magnitude = 0.0;
     for (int i = 0; i < k->n_sub; i++) {
         const Sub *s = &k->sub[i];
         for (size_t j = 0; j < s->n_obs; j++)
-            if (!isfinite(obs[j])) return 1;
+            if (!isfinite(obs[j * count])) return 1;
         if (s->n_obs) {
             sum += obs[0];
             magnitude += fabs(obs[0]);
         }
-        obs += s->n_obs;
+        obs += s->n_obs * count;
     }
     return isfinite(H_cap) && sum + 4.0 * k->n_sub * DBL_EPSILON * magnitude > H_cap;
 }
 
 int dr_run_steps(DRKernel *k, DRStep *io, int n0, int count, double *rows, double H_cap) {
-    size_t width = dr_log_width(k);
+    size_t m = (size_t)count, first_observed = (3 + 2 * k->n) * m;
     for (int s = 0; s < count; s++) {
         io->t = (double)(n0 + s) * io->dt;
         if (dr_macro_step(k, io)) return s;
-        double *row = rows + (size_t)s * width;
-        int f = log_step(k, io, row);
+        int f = log_step(k, io, rows, m, (size_t)s);
         if (f >= 0) {
             report_failure(k, io, f);
             return s;
         }
-        if (stop_after(k, row + 3 + 2 * k->n, H_cap)) return s + 1;
+        if (stop_after(k, rows + first_observed + s, m, H_cap)) return s + 1;
     }
     return count;
 }
@@ -522,5 +537,6 @@ void dr_destroy(DRKernel *k) {
     free(k->P);
     free(k->J_L);
     free(k->u);
+    free(k->obs);
     free(k);
 }

@@ -89,12 +89,13 @@ int dr_set_observed(DRKernel *k, int i, const fmi2ValueReference *vrs, int count
 /* Doubles per row of dr_run_steps' log: 3 + 2 n + every subsystem's observed count. */
 size_t dr_log_width(const DRKernel *k);
 
-/* Macro-steps n0 .. n0 + count - 1, each exactly dr_macro_step at t = (double)n dt, writing one
- * row per step into rows: iterations, reason, residual, a (n), b^{n+1} (n), then every subsystem's
- * observed values in subsystem order. It stops right after a step whose observed values are not
- * all finite or whose stored energy may exceed H_cap (pass INFINITY for none; the caller decides
- * exactly). Returns the number of steps done and logged; when an FMU call failed, io->failed_* name
- * it and the step it failed in (the one after those done) has no row. */
+/* Macro-steps n0 .. n0 + count - 1, each exactly dr_macro_step at t = (double)n dt, logged
+ * column-major (value c of step s at rows[c count + s], so each value is one contiguous column):
+ * iterations, reason, residual, a (n), b^{n+1} (n), then every subsystem's observed values in
+ * subsystem order. It stops right after a step whose observed values are not all finite or whose
+ * stored energy may exceed H_cap (pass INFINITY for none; the caller decides exactly). Returns the
+ * number of steps done and logged; when an FMU call failed, io->failed_* name it and the step it
+ * failed in (the one after those done) has no entries. */
 int dr_run_steps(DRKernel *k, DRStep *io, int n0, int count, double *rows, double H_cap);
 
 /* The floor: n_steps macro-steps making the same FMU calls as dr_macro_step with K = io->K

@@ -4,7 +4,7 @@ import math
 
 import numpy as np
 
-from ..readings import row_sums
+from ..readings import GroupSums, row_sums
 from ..waves import physical_port_energy, port_energy
 from . import Observer
 
@@ -22,18 +22,13 @@ def running_sum(start, x):
     return float(np.cumsum(np.concatenate([[start], x]))[-1])
 
 
-def block_max_pos(current, x):
-    """grow_max_pos over the numbers of the array x, in one go (fmax skips NaN)."""
-    return grow_max_pos(current, float(np.fmax.reduce(x))) if len(x) else current
-
-
 class Passivity(Observer):
     """Per step: r_<subsystem> (Condition 2), interface_supply and H_total; running maxima for the summary."""
 
     def __init__(self, scene):
         self.scene, self.wave, self.dt = scene, scene.wave, scene.scenario.dt
         self.blocks = scene.wave
-        self.parts = [slice(off, off + s.m) for s, off in zip(scene.subsystems, scene.offsets)]
+        self.port_sums = GroupSums([slice(off, off + s.m) for s, off in zip(scene.subsystems, scene.offsets)])
         self.names = [s.name for s in scene.subsystems]
         self.columns = (*[f"r_{n}" for n in self.names], "interface_supply", "H_total")
 
@@ -68,14 +63,13 @@ class Passivity(Observer):
     def after_block(self, n0, logs, readings, rows):
         H, k = readings.H, len(self.names)
         a2, b2 = logs.a_hat * logs.a_hat, readings.B * readings.B
-        before = np.vstack([[self.H], H[:-1]])
-        for i, part in enumerate(self.parts):
-            r = (H[:, i] - before[:, i]) - 0.5 * (row_sums(a2[:, part]) - row_sums(b2[:, part]))
-            rows[:, i] = r
-            self.max_r[i] = block_max_pos(self.max_r[i], r)
+        dH = np.empty_like(H)
+        dH[0], dH[1:] = H[0] - self.H, H[1:] - H[:-1]
+        r = dH - 0.5 * (self.port_sums(a2) - self.port_sums(b2))
         supply, total = 0.5 * (row_sums(a2) - row_sums(b2)), row_sums(H)
-        rows[:, k], rows[:, k + 1] = supply, total
-        self.max_supply = block_max_pos(self.max_supply, supply)
+        rows[:, :k], rows[:, k], rows[:, k + 1] = r, supply, total
+        self.max_r = [grow_max_pos(m, x) for m, x in zip(self.max_r, np.fmax.reduce(r, axis=0).tolist())]
+        self.max_supply = grow_max_pos(self.max_supply, float(np.fmax.reduce(supply)))
         self.drift = running_sum(self.drift, supply)
         self.H, self.H_final = H[-1].tolist(), float(total[-1])
         self.H_max = max(self.H_max, float(total.max()))   # a block holds no NaN H (the kernel stops)
