@@ -288,8 +288,8 @@ class LiveRun:
         keep = slice(None) if self.every == 1 else (ks % self.every == 0) | (ks == self.n_steps)
         self.steps.append_block(rows[keep])
         outputs = readings.outputs[keep]
-        trajectory = np.empty((len(outputs), 1 + outputs.shape[1]))
-        trajectory[:, 0], trajectory[:, 1:] = self.times[ks[keep]], outputs
+        trajectory = np.empty((len(outputs), 1 + outputs.shape[1]), order="F")
+        trajectory[:, 0], trajectory[:, 1:] = self.times[n0 + 1:n0 + len(log) + 1][keep], outputs
         self.trajectory.append_block(trajectory)
         self.last = readings.reading(-1)
 

@@ -48,7 +48,7 @@ class Table:
     def __init__(self, columns, path=None, formats=None, expected_rows=0):
         self.columns, self.path = list(columns), path
         self._fmt = [(formats or {}).get(c, _floats) for c in self.columns]
-        self._block = np.empty((BLOCK, len(self.columns)))
+        self._block = np.empty((BLOCK, len(self.columns)), order="F")     # columns contiguous
         self._fill = 0
         self._kept = [] if path is None or expected_rows * len(self.columns) <= KEEP_VALUES else None
         self.rows = 0
