@@ -31,11 +31,6 @@ class BlockReading:
         setattr(self, key, value)
         return value
 
-    def reading(self, j):
-        """Step j as a Reading."""
-        step = self._observed[:, j]
-        return Reading(*(step[self._columns[key]].tolist() for key in BlockReading.KEYS))
-
 
 def row_sums(X):
     """The builtin sum() of each row of X, to the last bit: left to right from 0 (Python < 3.12)."""

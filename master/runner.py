@@ -156,7 +156,6 @@ class LiveRun:
         self.master_time, self.steps_done, self.started = 0.0, 0, time.perf_counter()
         self.iterations = [0, 0]                       # sum and max of the inner iterations per step
         self.loop_time = 0.0                           # start() to the last step: the run's own per-step cost
-        self.last = None
         self.led, self.failure, self.recent = 0, None, {}   # as a lockstep reference (lead)
         self.block_steps = 0                                # macro-steps made in blocks
 
@@ -182,7 +181,7 @@ class LiveRun:
     def start(self):
         """Read the FMUs at t = 0, start the observers, record the first trajectory row."""
         self._tables()
-        self.last = first = self.sampler.read()
+        first = self.sampler.read()
         for o in self.observers:
             o.start(first)
         self._check_finite(first, -1)
@@ -200,7 +199,8 @@ class LiveRun:
         self.calls_at_start, self.excluded = self._totals(), {k: 0 for k in ("doStep", "save", "restore")}
 
     def step(self, n):
-        """Macro-step n: observers before, the master, observers after (the guard may redo), one row."""
+        """Macro-step n: observers before, the master, observers after (the guard may redo), one row;
+        returns the Reading of the FMUs after it."""
         t = n * self.dt
         before = self._totals() if self.bracket else None
         for o in self.observers:
@@ -211,7 +211,7 @@ class LiveRun:
         t0 = time.perf_counter()
         log = self.master.step(n, t)
         self.master_time += time.perf_counter() - t0
-        self._after_master(n, t, log)
+        return self._after_master(n, t, log)
 
     def _after_master(self, n, t, log):
         """After the master made step n: read the FMUs, the guard (it may redo), the observers, one row."""
@@ -224,10 +224,10 @@ class LiveRun:
                 log, reading = redo, self.sampler.read()
         for o, row in self.after:
             o.after_step(n, t, log, reading, row)
-        self.last = reading
         self._record(n, log, reading)
         self._check_finite(reading, n)
         self.loop_time = time.perf_counter() - self.loop_started
+        return reading
 
     def _plan_blocks(self):
         """Blocks when the master can make them, every observer takes them, nothing acts before a
@@ -291,7 +291,6 @@ class LiveRun:
         trajectory = np.empty((len(outputs), 1 + outputs.shape[1]), order="F")
         trajectory[:, 0], trajectory[:, 1:] = self.times[n0 + 1:n0 + len(log) + 1][keep], outputs
         self.trajectory.append_block(trajectory)
-        self.last = readings.reading(-1)
 
     def lead(self, n, end):
         """As the lockstep reference of a run at step n: make the steps up to end - 1 not made yet,
@@ -300,12 +299,12 @@ class LiveRun:
         self.recent = {k: v for k, v in self.recent.items() if k > n}
         while self.failure is None and self.led < end:
             try:
-                self.step(self.led)
+                reading = self.step(self.led)
             except WavecosimError as exc:
                 self.failure = exc
                 break
             self.led += 1
-            self.recent[self.led] = self.last.outputs
+            self.recent[self.led] = reading.outputs
         return self.led
 
     def _totals(self):
