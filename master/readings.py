@@ -52,14 +52,14 @@ class GroupSums:
     """row_sums over groups of columns (slices), all groups at once: one column per group."""
 
     def __init__(self, parts):
-        self.n = len(parts)
         width = max(p.stop - p.start for p in parts)
+        self.first = as_index([p.start for p in parts])
         self.steps = [(as_index([i for i, p in enumerate(parts) if p.start + j < p.stop]),
-                       as_index([p.start + j for p in parts if p.start + j < p.stop])) for j in range(width)]
+                       as_index([p.start + j for p in parts if p.start + j < p.stop])) for j in range(1, width)]
 
     def __call__(self, X):
-        acc = np.zeros((len(X), self.n), order="F")           # columns contiguous, as the blocks
-        for groups, cols in self.steps:                  # the j-th column of every group at once
+        acc = 0.0 + X[:, self.first]                     # each group's first column, from 0 as sum() starts
+        for groups, cols in self.steps:                  # then the j-th column of every group that has one
             acc[:, groups] = acc[:, groups] + X[:, cols]
         return acc
 

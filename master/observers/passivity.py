@@ -28,7 +28,8 @@ class Passivity(Observer):
     def __init__(self, scene):
         self.scene, self.wave, self.dt = scene, scene.wave, scene.scenario.dt
         self.blocks = scene.wave
-        self.port_sums = GroupSums([slice(off, off + s.m) for s, off in zip(scene.subsystems, scene.offsets)])
+        self.port_sums = GroupSums([*[slice(off, off + s.m) for s, off in zip(scene.subsystems, scene.offsets)],
+                                    slice(0, scene.n_channels)])
         self.names = [s.name for s in scene.subsystems]
         self.columns = (*[f"r_{n}" for n in self.names], "interface_supply", "H_total")
 
@@ -63,14 +64,15 @@ class Passivity(Observer):
     def after_block(self, n0, logs, readings, rows):
         H, k = readings.H, len(self.names)
         a2, b2 = logs.a_hat * logs.a_hat, readings.B * readings.B
+        supplied = 0.5 * (self.port_sums(a2) - self.port_sums(b2))    # each port, then all of them
         dH = np.empty_like(H)
         dH[0], dH[1:] = H[0] - self.H, H[1:] - H[:-1]
-        r = dH - 0.5 * (self.port_sums(a2) - self.port_sums(b2))
-        supply, total = 0.5 * (row_sums(a2) - row_sums(b2)), row_sums(H)
-        rows[:, :k], rows[:, k], rows[:, k + 1] = r, supply, total
-        self.max_r = [grow_max_pos(m, x) for m, x in zip(self.max_r, np.fmax.reduce(r, axis=0).tolist())]
-        self.max_supply = grow_max_pos(self.max_supply, float(np.fmax.reduce(supply)))
-        self.drift = running_sum(self.drift, supply)
+        rows[:, :k], rows[:, k], rows[:, k + 1] = dH - supplied[:, :k], supplied[:, k], row_sums(H)
+        worst = np.fmax.reduce(rows[:, :k + 1], axis=0).tolist()
+        self.max_r = [grow_max_pos(m, x) for m, x in zip(self.max_r, worst)]
+        self.max_supply = grow_max_pos(self.max_supply, worst[k])
+        self.drift = running_sum(self.drift, rows[:, k])
+        total = rows[:, k + 1]
         self.H, self.H_final = H[-1].tolist(), float(total[-1])
         self.H_max = max(self.H_max, float(total.max()))   # a block holds no NaN H (the kernel stops)
 
