@@ -65,7 +65,7 @@ class DRStep(ctypes.Structure):
     _fields_ = [("t", ctypes.c_double), ("dt", ctypes.c_double), ("K", ctypes.c_int), ("eps", ctypes.c_double),
                 ("deadline_s", ctypes.c_double), ("measure", ctypes.c_int), ("iterations", ctypes.c_int),
                 ("reason", ctypes.c_int), ("residual", ctypes.c_double), ("failed_subsystem", ctypes.c_int),
-                ("failed_function", ctypes.c_int), ("failed_status", ctypes.c_int)]
+                ("failed_function", ctypes.c_int), ("failed_status", ctypes.c_int), ("stopped", ctypes.c_int)]
 
 
 _lib = None
@@ -108,25 +108,27 @@ def load_library():
 class BlockLog:
     """The macro-steps run in one kernel call, one row per step: iterations, reason (index into
     REASONS), residual, a (steps x n), b^{n+1} (steps x n); `observed` holds the observed values one
-    per row (values x steps), as the kernel logs them (each value contiguous)."""
+    per row (values x steps), as the kernel logs them (each value contiguous). `stopped`: the kernel
+    stopped early after the last step (its H may exceed the cap, or a value is not finite)."""
     iterations: np.ndarray
     reason: np.ndarray
     residual: np.ndarray
     a_hat: np.ndarray
     b: np.ndarray
     observed: np.ndarray
+    stopped: bool = False
 
     @classmethod
-    def of(cls, columns, n):
+    def of(cls, columns, n, stopped):
         """From the kernel's log: one row per logged value, one column per step."""
         return cls(columns[0], columns[1], columns[2], columns[3:3 + n].T, columns[3 + n:3 + 2 * n].T,
-                   columns[3 + 2 * n:])
+                   columns[3 + 2 * n:], stopped)
 
     def __len__(self):
         return len(self.iterations)
 
     def first(self, k):
-        """The first k steps."""
+        """The first k steps (not stopped)."""
         return BlockLog(self.iterations[:k], self.reason[:k], self.residual[:k], self.a_hat[:k], self.b[:k],
                         self.observed[:, :k])
 
@@ -219,7 +221,7 @@ class Kernel:
         n = n0 + done
         error = self.failure(n, n * self.io.dt) if self.io.failed_subsystem >= 0 else None
         columns = self.log[:count * self.width].reshape(self.width, count)[:, :done]
-        return done, BlockLog.of(columns, self.n), error
+        return done, BlockLog.of(columns, self.n, bool(self.io.stopped)), error
 
     def _flat(self, M):
         return (ctypes.c_double * (self.n * self.n))(*[float(x) for row in M for x in row])

@@ -262,7 +262,7 @@ class LiveRun:
         done, log, error = self.master.run_steps(n0, count, self.cap)
         self.master_time += time.perf_counter() - t0
         self.block_steps += done
-        whole = done - 1 if error is None and done < count else done
+        whole = done - 1 if log.stopped else done
         if whole:
             self._after_block(n0, log.first(whole))
         if whole < done:
@@ -276,9 +276,9 @@ class LiveRun:
     def _after_block(self, n0, log):
         """The observers and the rows of a block of steps (all finite: the kernel stops at a non-finite value)."""
         readings = self.sampler.block(log.observed)
-        ks = np.arange(n0 + 1, n0 + len(log) + 1)
+        ks, times = np.arange(n0 + 1, n0 + len(log) + 1), self.times[n0 + 1:n0 + len(log) + 1]
         rows = np.empty((len(log), len(self.steps.columns)), order="F")    # each column contiguous
-        rows[:, 0], rows[:, 1], rows[:, 2] = self.times[n0 + 1:n0 + len(log) + 1], log.iterations, log.residual
+        rows[:, 0], rows[:, 1], rows[:, 2] = times, log.iterations, log.residual
         rows[:, 3] = REASON_CODES[log.reason.astype(int)]
         for o, _ in self.after:
             o.after_block(n0, log, readings, rows[:, self.spans[id(o)]])
@@ -289,7 +289,7 @@ class LiveRun:
         self.steps.append_block(rows[keep])
         outputs = readings.outputs[keep]
         trajectory = np.empty((len(outputs), 1 + outputs.shape[1]), order="F")
-        trajectory[:, 0], trajectory[:, 1:] = self.times[n0 + 1:n0 + len(log) + 1][keep], outputs
+        trajectory[:, 0], trajectory[:, 1:] = times[keep], outputs
         self.trajectory.append_block(trajectory)
 
     def lead(self, n, end):

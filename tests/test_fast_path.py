@@ -299,10 +299,12 @@ def test_run_steps_makes_the_steps_of_step(table_i):
         assert bits(reading.outputs) == bits(sampler.block(log.observed).outputs[-1])
         assert [s.calls for s in one.subsystems] == [s.calls for s in block.subsystems]
         done, log, error = block.run_steps(50, 10, H_cap=0.0)
-        assert (done, error) == (1, None)
+        assert (done, error, log.stopped) == (1, None, True)
+        b, observed = log.b.copy(), log.observed.copy()          # the next call overwrites the log
         block.undo_step()
         again = block.run_steps(50, 1)[1]
-        assert bits(again.b) == bits(log.b) and bits(again.observed) == bits(log.observed)
+        assert bits(again.b) == bits(b) and bits(again.observed) == bits(observed) and not again.stopped
+        assert block.run_steps(51, 1, H_cap=0.0)[1].stopped      # also when it stops after its last step
     finally:
         for m, s in zip((one, block), scenes):
             m.close()

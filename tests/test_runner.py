@@ -97,13 +97,14 @@ def test_result_arrays_match_the_files(tmp_path, table_i):
 TIMING = {"wall_time_s", "total_time_s", "loop_time_s", "real_time_factor", "thread_note", "block_steps"}
 
 
-def step_by_step(monkeypatch, scenario, out, **options):
-    """The run with blocks of one step (the per-step path), then the run as it goes by default."""
-    with monkeypatch.context() as m:
-        m.setattr(runner, "BLOCK_STEPS", 1)
-        one = run(scenario, out / "steps", certificates=False, file_suffix=False, **options)
-    blocks = run(scenario, out / "blocks", certificates=False, file_suffix=False, **options)
-    return one, blocks
+def step_by_step(monkeypatch, scenario, out, block=runner.BLOCK_STEPS, **options):
+    """The run with blocks of one step (the per-step path), then with blocks of `block` steps."""
+    results = []
+    for size, kind in ((1, "steps"), (block, "blocks")):
+        with monkeypatch.context() as m:
+            m.setattr(runner, "BLOCK_STEPS", size)
+            results.append(run(scenario, out / kind, certificates=False, file_suffix=False, **options))
+    return results
 
 
 def same_files_and_figures(one, blocks, out, names=("trajectory.csv", "steps.csv")):
@@ -122,6 +123,14 @@ def test_blocks_give_the_step_by_step_files(tmp_path, monkeypatch, K, guarded):
     same_files_and_figures(one, blocks, tmp_path)
     assert blocks.summary["energy_guard_steps"] == guarded
     assert blocks.summary["block_steps"] == 999            # step 0 chooses the thread plan
+
+
+def test_a_guarded_step_ending_a_block(tmp_path, monkeypatch):
+    """At K = 8 the guard redoes steps 0, 25 and 52; blocks of 25 (steps 1..25, 26..50, ...) end on step 25."""
+    one, blocks = step_by_step(monkeypatch, load_scenario().with_master(K=8).with_changes(T=1.0), tmp_path, 25)
+    same_files_and_figures(one, blocks, tmp_path)
+    assert blocks.summary["energy_guard_steps"] == 3
+    assert [int(k) for k in np.flatnonzero(blocks.steps["iterations"] != 8)] == [0, 25, 52]
 
 
 def test_blocks_with_output_interval_tolerance_and_lockstep_errors(tmp_path, monkeypatch):

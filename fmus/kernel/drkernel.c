@@ -378,6 +378,7 @@ static int stop_after(const DRKernel *k, const double *obs, size_t count, double
 
 int dr_run_steps(DRKernel *k, DRStep *io, int n0, int count, double *rows, double H_cap) {
     size_t m = (size_t)count, first_observed = (3 + 2 * k->n) * m;
+    io->stopped = 0;
     for (int s = 0; s < count; s++) {
         io->t = (double)(n0 + s) * io->dt;
         if (dr_macro_step(k, io)) return s;
@@ -386,7 +387,10 @@ int dr_run_steps(DRKernel *k, DRStep *io, int n0, int count, double *rows, doubl
             report_failure(k, io, f);
             return s;
         }
-        if (stop_after(k, rows + first_observed + s, m, H_cap)) return s + 1;
+        if (stop_after(k, rows + first_observed + s, m, H_cap)) {
+            io->stopped = 1;
+            return s + 1;
+        }
     }
     return count;
 }

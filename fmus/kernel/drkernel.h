@@ -50,6 +50,7 @@ typedef struct {
     int failed_subsystem; /* out: -1, or the first subsystem whose FMU call failed */
     int failed_function; /* out: DR_FN_* of that call */
     int failed_status;   /* out: the fmi2Status it returned */
+    int stopped;         /* out (dr_run_steps): 1 if it stopped early, after the last step it logged */
 } DRStep;
 
 typedef struct DRKernel DRKernel;
@@ -93,7 +94,8 @@ size_t dr_log_width(const DRKernel *k);
  * column-major (value c of step s at rows[c count + s], so each value is one contiguous column):
  * iterations, reason, residual, a (n), b^{n+1} (n), then every subsystem's observed values in
  * subsystem order. It stops right after a step whose observed values are not all finite or whose
- * stored energy may exceed H_cap (pass INFINITY for none; the caller decides exactly). Returns the
+ * stored energy may exceed H_cap (pass INFINITY for none; the caller decides exactly), setting
+ * io->stopped (also when that step was the last of the call). Returns the
  * number of steps done and logged; when an FMU call failed, io->failed_* name it and the step it
  * failed in (the one after those done) has no entries. */
 int dr_run_steps(DRKernel *k, DRStep *io, int n0, int count, double *rows, double H_cap);
