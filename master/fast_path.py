@@ -11,7 +11,6 @@ import ctypes
 import math
 import os
 import time
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -104,33 +103,27 @@ def load_library():
     return _lib
 
 
-@dataclass
 class BlockLog:
     """The macro-steps run in one kernel call, one row per step: iterations, reason (index into
     REASONS), residual, a (steps x n), b^{n+1} (steps x n); `observed` holds the observed values one
     per row (values x steps), as the kernel logs them (each value contiguous). `stopped`: the kernel
     stopped early after the last step (its H may exceed the cap, or a value is not finite)."""
-    iterations: np.ndarray
-    reason: np.ndarray
-    residual: np.ndarray
-    a_hat: np.ndarray
-    b: np.ndarray
-    observed: np.ndarray
-    stopped: bool = False
 
-    @classmethod
-    def of(cls, columns, n, stopped):
-        """From the kernel's log: one row per logged value, one column per step."""
-        return cls(columns[0], columns[1], columns[2], columns[3:3 + n].T, columns[3 + n:3 + 2 * n].T,
-                   columns[3 + 2 * n:], stopped)
+    def __init__(self, columns, n, stopped=False):
+        self.columns, self.n, self.stopped = columns, n, stopped     # one row per logged value
+        self.iterations, self.reason, self.residual = columns[0], columns[1], columns[2]
+        self.a_hat, self.b, self.observed = columns[3:3 + n].T, columns[3 + n:3 + 2 * n].T, columns[3 + 2 * n:]
 
     def __len__(self):
-        return len(self.iterations)
+        return self.columns.shape[1]
 
     def first(self, k):
         """The first k steps (not stopped)."""
-        return BlockLog(self.iterations[:k], self.reason[:k], self.residual[:k], self.a_hat[:k], self.b[:k],
-                        self.observed[:, :k])
+        return BlockLog(self.columns[:, :k], self.n)
+
+    def then(self, more):
+        """This log (copied) followed by `more`."""
+        return BlockLog(np.concatenate([self.columns, more.columns], axis=1), self.n, more.stopped)
 
 
 def unusable(scene):
@@ -210,18 +203,18 @@ class Kernel:
                 raise FmuError(f"subsystem {s.name}: the DR kernel could not keep {len(vars_i)} observed values")
         self.width = self.lib.dr_log_width(self._handle)
 
-    def run_steps(self, n0, count, H_cap=math.inf):
+    def run_steps(self, n0, count, H_cap=math.inf, measure=False):
         """Macro-steps n0 .. n0 + count - 1 in one call (drkernel.h, dr_run_steps): (steps done, their
         BlockLog, the FmuError of the step after them or None). The log is overwritten by the next call."""
         if len(self.log) < count * self.width:
             self.log = np.empty(count * self.width)
-        self.io.measure = 0
+        self.io.measure = measure
         done = self.lib.dr_run_steps(self._handle, self._io, n0, count,
                                      self.log.ctypes.data_as(ctypes.POINTER(ctypes.c_double)), H_cap)
         n = n0 + done
         error = self.failure(n, n * self.io.dt) if self.io.failed_subsystem >= 0 else None
         columns = self.log[:count * self.width].reshape(self.width, count)[:, :done]
-        return done, BlockLog.of(columns, self.n, bool(self.io.stopped)), error
+        return done, BlockLog(columns, self.n, bool(self.io.stopped)), error
 
     def _flat(self, M):
         return (ctypes.c_double * (self.n * self.n))(*[float(x) for row in M for x in row])

@@ -122,7 +122,7 @@ def test_blocks_give_the_step_by_step_files(tmp_path, monkeypatch, K, guarded):
     one, blocks = step_by_step(monkeypatch, load_scenario().with_master(K=K), tmp_path)
     same_files_and_figures(one, blocks, tmp_path)
     assert blocks.summary["energy_guard_steps"] == guarded
-    assert blocks.summary["block_steps"] == 999            # step 0 chooses the thread plan
+    assert blocks.summary["block_steps"] == 1000
 
 
 def test_a_guarded_step_ending_a_block(tmp_path, monkeypatch):
@@ -162,7 +162,7 @@ def test_blocks_keep_every_row_before_an_fmu_failure(tmp_path, monkeypatch):
     for name in ("trajectory.csv", "steps.csv"):
         assert (tmp_path / "steps" / name).read_bytes() == (tmp_path / "blocks" / name).read_bytes()
     summary = json.loads((tmp_path / "blocks" / "summary.json").read_text())
-    assert summary["steps"] == 18 and summary["block_steps"] == 17
+    assert summary["steps"] == 18 and summary["block_steps"] == 18
     assert len(read_csv(tmp_path / "blocks" / "steps.csv")) == 19
     assert summary["message"].startswith("subsystem A: fmi2DoStep returned Error at step 18 (t = 0.18)")
 

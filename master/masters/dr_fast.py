@@ -19,7 +19,7 @@ import math
 import time
 
 from ..errors import ConfigError
-from ..fast_path import PARALLEL_MIN_US, REASONS, Kernel, available_cpus, thread_plan, unusable
+from ..fast_path import PARALLEL_MIN_US, REASONS, BlockLog, Kernel, available_cpus, thread_plan, unusable
 from .base import StepLog
 from .dr import DRMaster
 
@@ -102,11 +102,10 @@ class FastDRMaster(DRMaster):
                        u0=out[2 * n_ch:3 * n_ch], uK=out[3 * n_ch:])
 
     def can_run_steps(self, n):
-        """Whether run_steps may make macro-step n: the kernel runs and the thread plan is settled
-        (threads other than 1 time their first macro-step, and threads=auto a trial of two threads
-        on the next, one call each)."""
-        chosen = self._choose_after is not None and n > self._choose_after and not self._on_trial
-        return self.kernel is not None and chosen
+        """Whether run_steps may make macro-step n: the kernel runs and no trial of two threads is on
+        (threads=auto times it on the macro-step after the first, alone)."""
+        return self.kernel is not None and (self._choose_after is None or n > self._choose_after) \
+            and not self._on_trial
 
     def observe(self, names):
         """The variables of each subsystem run_steps reads after every commit (names[i], H_i first)."""
@@ -117,17 +116,41 @@ class FastDRMaster(DRMaster):
         may exceed H_cap or whose observed values are not finite (fast_path.Kernel.run_steps): (steps
         done, their BlockLog, the FmuError of the step after them or None). b^n and b^{n+1} of the
         last step done become the master's, so undo_step works as after step()."""
+        if self._choose_after is None:
+            return self._first_steps(n0, count, H_cap)
         done, log, error = self.kernel.run_steps(n0, count, H_cap)
-        if done:
-            last = n0 + done - 1
-            iterations = int(log.iterations.sum())
-            for s in self.subsystems:
-                s.note_kernel_step(last, last * self.dt, iterations, done)
-            self._b_step_start = log.b[done - 2].tolist() if done > 1 else self._b
-            self._b = self.kernel.b[:]
-            if self._trace is not None:
-                self._trace = self.kernel.recorded(int(log.iterations[-1]))
+        self._book(n0, done, log)
         return done, log, error
+
+    def _first_steps(self, n0, count, H_cap):
+        """The first call: macro-step n0 alone and timed picks the thread plan, then the others
+        follow in a second call unless two threads go on trial (on the next step, alone)."""
+        self._choose_after = n0
+        started = time.perf_counter()
+        done, first, error = self.kernel.run_steps(n0, 1, H_cap, measure=True)
+        if not done:
+            return done, first, error
+        self._book(n0, 1, first)
+        self.choose_threads(self.kernel.costs(), (time.perf_counter() - started) / (first.iterations[0] + 1))
+        if first.stopped or self._on_trial or count == 1:
+            return 1, first, None
+        first = BlockLog(first.columns.copy(), first.n)              # the next call overwrites the log
+        done, rest, error = self.kernel.run_steps(n0 + 1, count - 1, H_cap)
+        self._book(n0 + 1, done, rest)
+        return done + 1, first.then(rest), error
+
+    def _book(self, n0, done, log):
+        """Book macro-steps n0 .. n0 + done - 1 of the kernel: calls and step on the Subsystems, b^n, b^{n+1}."""
+        if not done:
+            return
+        last = n0 + done - 1
+        iterations = int(log.iterations.sum())
+        for s in self.subsystems:
+            s.note_kernel_step(last, last * self.dt, iterations, done)
+        self._b_step_start = log.b[done - 2].tolist() if done > 1 else self._b
+        self._b = self.kernel.b[:]
+        if self._trace is not None:
+            self._trace = self.kernel.recorded(int(log.iterations[-1]))
 
     def step_log(self, log, j):
         """The StepLog of row j of a BlockLog (without u^0 and u^K)."""
