@@ -193,7 +193,8 @@ class Kernel:
         self._macro_step = lib.dr_macro_step       # called with pre-converted arguments
         self.threads = 1
         self.trace, self.trace_capacity = None, 0
-        self.width, self.log = lib.dr_log_width(self._handle), np.empty(0)
+        self.width, self.log, self._log_at = lib.dr_log_width(self._handle), np.empty(0), None
+        self._run_steps = lib.dr_run_steps
 
     def observe(self, names):
         """Read these variables of each subsystem (names[i], H_i first) after every commit of run_steps."""
@@ -208,9 +209,9 @@ class Kernel:
         BlockLog, the FmuError of the step after them or None). The log is overwritten by the next call."""
         if len(self.log) < count * self.width:
             self.log = np.empty(count * self.width)
+            self._log_at = self.log.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
         self.io.measure = measure
-        done = self.lib.dr_run_steps(self._handle, self._io, n0, count,
-                                     self.log.ctypes.data_as(ctypes.POINTER(ctypes.c_double)), H_cap)
+        done = self._run_steps(self._handle, self._io, n0, count, self._log_at, H_cap)
         n = n0 + done
         error = self.failure(n, n * self.io.dt) if self.io.failed_subsystem >= 0 else None
         columns = self.log[:count * self.width].reshape(self.width, count)[:, :done]
