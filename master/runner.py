@@ -33,14 +33,14 @@ from .observers.errors import ErrorTracker, stored_reference, stored_rows
 from .observers.fne_watch import FneWatch
 from .observers.gamma import GammaLog, TunedGammaLog
 from .observers.passivity import Passivity
-from .observers.recorder import Interrupts, Labels, Table, ints, write_json, write_mat
+from .observers.recorder import BLOCK, Interrupts, Labels, Table, ints, write_json, write_mat
 from .readings import Sampler
 from .scene import build_scene
 
 FORMATS = ("csv", "mat")
 STEP_COLUMNS = ("time", "iterations", "inner_residual", "reason")
-BLOCK_STEPS = 1024
-REASON_CODES = np.array([REASONS.index(r) for r in KERNEL_REASONS], float)   # kernel reason -> REASONS
+BLOCK_STEPS = BLOCK                    # macro-steps per call of the master, at most a table block
+assert REASONS[:len(KERNEL_REASONS)] == KERNEL_REASONS     # the kernel's reason codes are the runner's
 
 
 def grid_times(k, dt):
@@ -274,23 +274,27 @@ class LiveRun:
         return done
 
     def _after_block(self, n0, log):
-        """The observers and the rows of a block of steps (all finite: the kernel stops at a non-finite value)."""
-        readings = self.sampler.block(log.observed)
-        ks, times = np.arange(n0 + 1, n0 + len(log) + 1), self.times[n0 + 1:n0 + len(log) + 1]
-        rows = np.empty((len(log), len(self.steps.columns)), order="F")    # each column contiguous
-        rows[:, 0], rows[:, 1], rows[:, 2] = times, log.iterations, log.residual
-        rows[:, 3] = REASON_CODES[log.reason.astype(int)]
+        """The observers and the rows of a block of steps (all finite: the kernel stops at a non-finite
+        value); with an output interval the rows kept are picked afterwards."""
+        count, readings = len(log), self.sampler.block(log.observed)
+        times = self.times[n0 + 1:n0 + count + 1]
+        rows = self.steps.reserve(count) if self.every == 1 else np.empty((count, len(self.steps.columns)), order="F")
+        rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3] = times, log.iterations, log.residual, log.reason
         for o, _ in self.after:
             o.after_block(n0, log, readings, rows[:, self.spans[id(o)]])
-        self.steps_done = n0 + len(log)
+        self.steps_done = n0 + count
         self.iterations[0] += int(log.iterations.sum())
         self.iterations[1] = max(self.iterations[1], int(log.iterations.max()))
-        keep = slice(None) if self.every == 1 else (ks % self.every == 0) | (ks == self.n_steps)
+        if self.every == 1:
+            self.steps.commit_rows(count)
+            trajectory = self.trajectory.reserve(count)
+            trajectory[:, 0], trajectory[:, 1:] = times, readings.outputs
+            self.trajectory.commit_rows(count)
+            return
+        ks = np.arange(n0 + 1, n0 + count + 1)
+        keep = (ks % self.every == 0) | (ks == self.n_steps)
         self.steps.append_block(rows[keep])
-        outputs = readings.outputs[keep]
-        trajectory = np.empty((len(outputs), 1 + outputs.shape[1]), order="F")
-        trajectory[:, 0], trajectory[:, 1:] = times[keep], outputs
-        self.trajectory.append_block(trajectory)
+        self.trajectory.append_block(np.column_stack([times[keep], readings.outputs[keep]]))
 
     def lead(self, n, end):
         """As the lockstep reference of a run at step n: make the steps up to end - 1 not made yet,

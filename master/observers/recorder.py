@@ -68,6 +68,16 @@ class Table:
         self._fill += 1
         self.rows += 1
 
+    def reserve(self, k):
+        """k rows (k <= BLOCK) of the block to fill in place, booked by commit_rows(k)."""
+        if self._fill + k > BLOCK:
+            self.flush()
+        return self._block[self._fill:self._fill + k]
+
+    def commit_rows(self, k):
+        self._fill += k
+        self.rows += k
+
     def append_block(self, rows):
         """Book many rows at once (a 2-D array of the table's columns), as next_row and commit_row would."""
         at = 0
