@@ -190,3 +190,20 @@ def test_block_sums_are_the_builtin_sums():
         block.after_block(0, None, BlockReading(out.T, {"outputs": list(range(12))}), block_rows)
         assert rows.tobytes() == block_rows.tobytes(), n_err
         assert step.summary() == block.summary()
+
+
+def test_blocks_cut_to_the_time_budget(tmp_path, monkeypatch):
+    """A call of run_steps makes about BLOCK_SECONDS of work at most (Ctrl-C and progress stay
+    prompt); short blocks give the same files."""
+    from master.masters import dr_fast
+    made, run_steps = [], dr_fast.FastDRMaster.run_steps
+
+    def counted(master, n0, count, H_cap):
+        result = run_steps(master, n0, count, H_cap)
+        made.append(result[0])
+        return result
+    monkeypatch.setattr(dr_fast.FastDRMaster, "run_steps", counted)
+    monkeypatch.setattr(dr_fast, "BLOCK_SECONDS", 2e-4)
+    one, blocks = step_by_step(monkeypatch, load_scenario().with_master(K=50).with_changes(T=3.0), tmp_path)
+    same_files_and_figures(one, blocks, tmp_path)
+    assert len(made) > 3 and max(made) < 300 and sum(made) == blocks.summary["block_steps"] >= 299

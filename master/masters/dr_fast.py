@@ -24,6 +24,7 @@ from .base import StepLog
 from .dr import DRMaster
 
 KEEP_PARALLEL = 0.85      # threads=auto keeps two threads if a round takes at most this much of serial
+BLOCK_SECONDS = 0.25      # run_steps makes about this much work at most, so Ctrl-C and progress stay prompt
 
 
 class FastDRMaster(DRMaster):
@@ -47,6 +48,7 @@ class FastDRMaster(DRMaster):
         # the first macro-step this master makes picks the thread plan (None: not made yet)
         self._choose_after = None if self.thread_mode != "1" and len(self.subsystems) > 1 else -1
         self._on_trial = False
+        self._step_s = 0.0        # seconds per macro-step of the last run_steps call
 
     @staticmethod
     def _kernel_refusal(scene, mode):
@@ -113,31 +115,38 @@ class FastDRMaster(DRMaster):
 
     def run_steps(self, n0, count, H_cap=math.inf):
         """Macro-steps n0 .. n0 + count - 1 in one kernel call, stopping early after a step whose H
-        may exceed H_cap or whose observed values are not finite (fast_path.Kernel.run_steps): (steps
-        done, their BlockLog, the FmuError of the step after them or None). b^n and b^{n+1} of the
-        last step done become the master's, so undo_step works as after step()."""
+        may exceed H_cap or whose observed values are not finite (fast_path.Kernel.run_steps), and
+        making no more than about BLOCK_SECONDS of work: (steps done, their BlockLog, the FmuError
+        of the step after them or None). b^n and b^{n+1} of the last step done become the master's,
+        so undo_step works as after step()."""
         if self._choose_after is None:
             return self._first_steps(n0, count, H_cap)
-        done, log, error = self.kernel.run_steps(n0, count, H_cap)
-        self._book(n0, done, log)
-        return done, log, error
+        return self._kernel_steps(n0, count, H_cap)
 
     def _first_steps(self, n0, count, H_cap):
         """The first call: macro-step n0 alone and timed picks the thread plan, then the others
         follow in a second call unless two threads go on trial (on the next step, alone)."""
         self._choose_after = n0
-        started = time.perf_counter()
-        done, first, error = self.kernel.run_steps(n0, 1, H_cap, measure=True)
+        done, first, error = self._kernel_steps(n0, 1, H_cap, measure=True)
         if not done:
             return done, first, error
-        self._book(n0, 1, first)
-        self.choose_threads(self.kernel.costs(), (time.perf_counter() - started) / (first.iterations[0] + 1))
+        self.choose_threads(self.kernel.costs(), self._step_s / (first.iterations[0] + 1))
         if first.stopped or self._on_trial or count == 1:
             return 1, first, None
         first = BlockLog(first.columns.copy(), first.n)              # the next call overwrites the log
-        done, rest, error = self.kernel.run_steps(n0 + 1, count - 1, H_cap)
-        self._book(n0 + 1, done, rest)
+        done, rest, error = self._kernel_steps(n0 + 1, count - 1, H_cap)
         return done + 1, first.then(rest), error
+
+    def _kernel_steps(self, n0, count, H_cap, measure=False):
+        """One call of the kernel, of at most about BLOCK_SECONDS at the last call's pace, booked."""
+        if self._step_s > 0.0:
+            count = max(1, min(count, int(BLOCK_SECONDS / self._step_s)))
+        started = time.perf_counter()
+        done, log, error = self.kernel.run_steps(n0, count, H_cap, measure)
+        if done:
+            self._step_s = (time.perf_counter() - started) / done
+        self._book(n0, done, log)
+        return done, log, error
 
     def _book(self, n0, done, log):
         """Book macro-steps n0 .. n0 + done - 1 of the kernel: calls and step on the Subsystems, b^n, b^{n+1}."""
