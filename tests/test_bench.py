@@ -14,5 +14,5 @@ def test_bench_quick_reports_every_path_and_the_run_over_master_ratio(tmp_path, 
     data = json.loads((tmp_path / "b.json").read_text())
     assert data["fast_bit_identical_to_python"] is True
     assert set(data["run_over_master"]) == {"K0", "K50"} and all(v > 0 for v in data["run_over_master"].values())
-    assert set(data["us_per_step"]) == {"naive_fmpy", "python", "fast", "floor"}
+    assert set(data["us_per_step"]) == {"naive_fmpy", "python", "fast_step", "fast", "floor"}
     assert "whole run" in out and "fast / floor" in out

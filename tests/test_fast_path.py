@@ -280,3 +280,33 @@ def test_heavy_scene_threads_auto(built_fmus):
     runs_identical(serial, auto)
     note = auto.summary["thread_note"]
     assert note.startswith("2 threads") or note.startswith("serial: two threads were not faster"), note
+
+
+def test_run_steps_makes_the_steps_of_step(table_i):
+    """run_steps(n0, count) equals count calls of step: a, b^n, calls booked, and it logs what the
+    Sampler reads; with a cap below H it stops after one step and undo_step goes back to x^n, b^n."""
+    from wavecosim.readings import Sampler
+    settings = dataclasses.replace(table_i.master, K=8, fast="true", threads="1")
+    scenes = [build_scene(table_i), build_scene(table_i)]
+    one, block = FastDRMaster(scenes[0], settings), FastDRMaster(scenes[1], settings)
+    sampler = Sampler(scenes[0], table_i.outputs)
+    block.observe(sampler.observed)
+    try:
+        logs = [one.step(n, n * table_i.dt) for n in range(50)]
+        reading = sampler.read()
+        done, log, error = block.run_steps(0, 50)
+        assert (done, error) == (50, None) and bits(one.b) == bits(block.b)
+        assert bits([x.a_hat for x in logs]) == bits(log.a_hat)
+        assert bits(reading.outputs) == bits(sampler.block(log.observed).outputs[-1])
+        assert [s.calls for s in one.subsystems] == [s.calls for s in block.subsystems]
+        done, log, error = block.run_steps(50, 10, H_cap=0.0)
+        assert (done, error, log.stopped) == (1, None, True)
+        b, observed = log.b.copy(), log.observed.copy()          # the next call overwrites the log
+        block.undo_step()
+        again = block.run_steps(50, 1)[1]
+        assert bits(again.b) == bits(b) and bits(again.observed) == bits(observed) and not again.stopped
+        assert block.run_steps(51, 1, H_cap=0.0)[1].stopped      # also when it stops after its last step
+    finally:
+        for m, s in zip((one, block), scenes):
+            m.close()
+            s.close()

@@ -1,18 +1,26 @@
 """master/runner.py: the run as parts. The time column is the grid, an output interval thins the
 files but not the figures, the lockstep reference gives the same errors as a stored one, the
-metadata names the FMUs by checksum, and every failure keeps its class (and exit code)."""
+metadata names the FMUs by checksum, and every failure keeps its class (and exit code). Runs made in
+blocks of macro-steps (one kernel call each) write the same bytes and figures as step by step."""
 import csv
 import hashlib
 import json
 
 import numpy as np
 import pytest
+import yaml
 from scipy.io import loadmat
+from test_runner_failures import newton_failure
 
-from wavecosim.config import load_scenario
-from wavecosim.errors import FmuError, NumericalError, RunFailed
-from wavecosim.runner import grid_times, run
+import wavecosim.runner as runner
 from wavecosim.budget_sweep import reference_run
+from wavecosim.cli import main
+from wavecosim.config import ROOT, load_scenario
+from wavecosim.errors import FmuError, NumericalError, RunFailed
+from wavecosim.observers.errors import ErrorTracker
+from wavecosim.observers.passivity import running_sum
+from wavecosim.readings import BlockReading, Reading, row_sums
+from wavecosim.runner import grid_times, run
 
 
 @pytest.fixture(scope="module")
@@ -82,3 +90,120 @@ def test_result_arrays_match_the_files(tmp_path, table_i):
     assert result.energy[1:].tolist() == H and len(result.energy) == 101
     assert result.per_subsystem("r_").shape == (100, 2) and result.per_subsystem("fne_").shape == (100, 2)
     assert [r[cols.index("reason")] for r in steps[1:]] == ["budget"] * 100
+
+
+# ---- block mode: many macro-steps per call of the C kernel, the same files and figures ----
+
+TIMING = {"wall_time_s", "total_time_s", "loop_time_s", "real_time_factor", "thread_note", "block_steps"}
+
+
+def step_by_step(monkeypatch, scenario, out, block=runner.BLOCK_STEPS, **options):
+    """The run with blocks of one step (the per-step path), then with blocks of `block` steps."""
+    results = []
+    for size, kind in ((1, "steps"), (block, "blocks")):
+        with monkeypatch.context() as m:
+            m.setattr(runner, "BLOCK_STEPS", size)
+            results.append(run(scenario, out / kind, certificates=False, file_suffix=False, **options))
+    return results
+
+
+def same_files_and_figures(one, blocks, out, names=("trajectory.csv", "steps.csv")):
+    for name in names:
+        assert (out / "steps" / name).read_bytes() == (out / "blocks" / name).read_bytes(), name
+    a = {k: v for k, v in one.summary.items() if k not in TIMING}
+    b = {k: v for k, v in blocks.summary.items() if k not in TIMING}
+    assert json.dumps(a, default=str) == json.dumps(b, default=str)
+    assert one.summary["block_steps"] == 0 and blocks.summary["block_steps"] > 0
+
+
+@pytest.mark.parametrize("K,guarded", [(0, 0), (1, 0), (8, 3), (50, 0)])
+def test_blocks_give_the_step_by_step_files(tmp_path, monkeypatch, K, guarded):
+    """Table I, 1000 steps: at K = 8 the energy guard redoes 3 steps, each stopping a block."""
+    one, blocks = step_by_step(monkeypatch, load_scenario().with_master(K=K), tmp_path)
+    same_files_and_figures(one, blocks, tmp_path)
+    assert blocks.summary["energy_guard_steps"] == guarded
+    assert blocks.summary["block_steps"] == 1000
+
+
+def test_a_guarded_step_ending_a_block(tmp_path, monkeypatch):
+    """At K = 8 the guard redoes steps 0, 25 and 52; blocks of 25 (steps 1..25, 26..50, ...) end on step 25."""
+    one, blocks = step_by_step(monkeypatch, load_scenario().with_master(K=8).with_changes(T=1.0), tmp_path, 25)
+    same_files_and_figures(one, blocks, tmp_path)
+    assert blocks.summary["energy_guard_steps"] == 3
+    assert [int(k) for k in np.flatnonzero(blocks.steps["iterations"] != 8)] == [0, 25, 52]
+
+
+def test_blocks_with_output_interval_tolerance_and_lockstep_errors(tmp_path, monkeypatch):
+    scenario = load_scenario().with_master(K=50, eps=1e-9).with_changes(T=3.0)
+    one, blocks = step_by_step(monkeypatch, scenario, tmp_path, output_interval=7, reference="lockstep")
+    same_files_and_figures(one, blocks, tmp_path, ("trajectory.csv", "steps.csv", "trajectory_monolithic.csv",
+                                                   "steps_monolithic.csv"))
+    assert min(blocks.steps["iterations"]) < 50 and blocks.summary["max_error"] > 0
+
+
+def test_blocks_on_the_star_scene(tmp_path, monkeypatch):
+    """Four subsystems, a gamma each, outputs from all of them, stored-reference errors."""
+    scenario = load_scenario(ROOT / "configs" / "star.yaml").with_master(K=10)
+    reference = run(scenario.with_master(algorithm="newton"), certificates=False)
+    one, blocks = step_by_step(monkeypatch, scenario, tmp_path, reference=reference)
+    same_files_and_figures(one, blocks, tmp_path)
+    assert np.isfinite(blocks.summary["rms_error"])
+
+
+def test_blocks_keep_every_row_before_an_fmu_failure(tmp_path, monkeypatch):
+    """DuffingSide's Newton fails at step 18 inside a block: rows 0..17 on disk, exit code 3."""
+    path = tmp_path / "scenario.yaml"
+    path.write_text(yaml.safe_dump(newton_failure(), sort_keys=False))
+    for kind, size in (("steps", 1), ("blocks", runner.BLOCK_STEPS)):
+        with monkeypatch.context() as m, pytest.raises(SystemExit) as info:
+            m.setattr(runner, "BLOCK_STEPS", size)
+            main(["run", str(path), "--out", str(tmp_path / kind), "--quiet", "--no-reference", "--no-certificates"])
+        assert info.value.code == 3
+    for name in ("trajectory.csv", "steps.csv"):
+        assert (tmp_path / "steps" / name).read_bytes() == (tmp_path / "blocks" / name).read_bytes()
+    summary = json.loads((tmp_path / "blocks" / "summary.json").read_text())
+    assert summary["steps"] == 18 and summary["block_steps"] == 18
+    assert len(read_csv(tmp_path / "blocks" / "steps.csv")) == 19
+    assert summary["message"].startswith("subsystem A: fmi2DoStep returned Error at step 18 (t = 0.18)")
+
+
+def test_block_sums_are_the_builtin_sums():
+    """row_sums (H_total, port energies) and the block error norm give the per-step bits, also where
+    the order of summation shows (1e16 + 1 + 1) and for many error columns (numpy's pairwise sum)."""
+    rng = np.random.default_rng(3)
+    X = rng.standard_normal((200, 9)) * 10.0 ** rng.integers(-8, 17, (200, 9))
+    X[0, :3] = [1e16, 1.0, 1.0]
+    assert row_sums(X).tolist() == [sum(r) for r in X.tolist()]
+    assert row_sums(X[:1, :3])[0] != 1e16 + (1.0 + 1.0)
+    drift = 0.1
+    for x in X[:, 0].tolist():
+        drift += x
+    assert running_sum(0.1, X[:, 0]) == drift
+    ref = rng.standard_normal((201, 12))
+    out = X @ rng.standard_normal((9, 12))
+    names = [f"c{j}" for j in range(12)]
+    for n_err in (2, 3, 5, 7, 8, 9, 12):
+        step, block = (ErrorTracker(names, names[:n_err], lambda k: ref[k].tolist()) for _ in range(2))
+        rows, block_rows = np.empty((200, 1)), np.empty((200, 1))
+        for n in range(200):
+            step.after_step(n, n * 0.01, None, Reading([], [], [], [], out[n].tolist()), rows[n])
+        block.after_block(0, None, BlockReading(out.T, {"outputs": list(range(12))}), block_rows)
+        assert rows.tobytes() == block_rows.tobytes(), n_err
+        assert step.summary() == block.summary()
+
+
+def test_blocks_cut_to_the_time_budget(tmp_path, monkeypatch):
+    """A call of run_steps makes about BLOCK_SECONDS of work at most (Ctrl-C and progress stay
+    prompt); short blocks give the same files."""
+    from wavecosim.masters import dr_fast
+    made, run_steps = [], dr_fast.FastDRMaster.run_steps
+
+    def counted(master, n0, count, H_cap):
+        result = run_steps(master, n0, count, H_cap)
+        made.append(result[0])
+        return result
+    monkeypatch.setattr(dr_fast.FastDRMaster, "run_steps", counted)
+    monkeypatch.setattr(dr_fast, "BLOCK_SECONDS", 2e-4)
+    one, blocks = step_by_step(monkeypatch, load_scenario().with_master(K=50).with_changes(T=3.0), tmp_path)
+    same_files_and_figures(one, blocks, tmp_path)
+    assert len(made) > 3 and max(made) < 300 and sum(made) == blocks.summary["block_steps"] >= 299

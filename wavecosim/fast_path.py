@@ -8,6 +8,7 @@ ctypes: `Kernel` owns one C kernel for a scene's subsystems and the buffers it s
 Python. The master that uses it is wavecosim/masters/dr_fast.py::FastDRMaster.
 """
 import ctypes
+import math
 import os
 import time
 
@@ -63,7 +64,7 @@ class DRStep(ctypes.Structure):
     _fields_ = [("t", ctypes.c_double), ("dt", ctypes.c_double), ("K", ctypes.c_int), ("eps", ctypes.c_double),
                 ("deadline_s", ctypes.c_double), ("measure", ctypes.c_int), ("iterations", ctypes.c_int),
                 ("reason", ctypes.c_int), ("residual", ctypes.c_double), ("failed_subsystem", ctypes.c_int),
-                ("failed_function", ctypes.c_int), ("failed_status", ctypes.c_int)]
+                ("failed_function", ctypes.c_int), ("failed_status", ctypes.c_int), ("stopped", ctypes.c_int)]
 
 
 _lib = None
@@ -94,8 +95,35 @@ def load_library():
         lib.dr_set_maps.restype = None
         lib.dr_set_trace.argtypes = [p, d, i]
         lib.dr_set_trace.restype = None
+        lib.dr_set_observed.argtypes = [p, i, ctypes.POINTER(ctypes.c_uint), i]
+        lib.dr_log_width.argtypes = [p]
+        lib.dr_log_width.restype = ctypes.c_size_t
+        lib.dr_run_steps.argtypes = [p, ctypes.POINTER(DRStep), i, i, d, ctypes.c_double]
         _lib = lib
     return _lib
+
+
+class BlockLog:
+    """The macro-steps run in one kernel call, one row per step: iterations, reason (index into
+    REASONS), residual, a (steps x n), b^{n+1} (steps x n); `observed` holds the observed values one
+    per row (values x steps), as the kernel logs them (each value contiguous). `stopped`: the kernel
+    stopped early after the last step (its H may exceed the cap, or a value is not finite)."""
+
+    def __init__(self, columns, n, stopped=False):
+        self.columns, self.n, self.stopped = columns, n, stopped     # one row per logged value
+        self.iterations, self.reason, self.residual = columns[0], columns[1], columns[2]
+        self.a_hat, self.b, self.observed = columns[3:3 + n].T, columns[3 + n:3 + 2 * n].T, columns[3 + 2 * n:]
+
+    def __len__(self):
+        return self.columns.shape[1]
+
+    def first(self, k):
+        """The first k steps (not stopped)."""
+        return BlockLog(self.columns[:, :k], self.n)
+
+    def then(self, more):
+        """This log (copied) followed by `more`."""
+        return BlockLog(np.concatenate([self.columns, more.columns], axis=1), self.n, more.stopped)
 
 
 def unusable(scene):
@@ -165,6 +193,29 @@ class Kernel:
         self._macro_step = lib.dr_macro_step       # called with pre-converted arguments
         self.threads = 1
         self.trace, self.trace_capacity = None, 0
+        self.width, self.log, self._log_at = lib.dr_log_width(self._handle), np.empty(0), None
+        self._run_steps = lib.dr_run_steps
+
+    def observe(self, names):
+        """Read these variables of each subsystem (names[i], H_i first) after every commit of run_steps."""
+        for i, (s, vars_i) in enumerate(zip(self.subsystems, names)):
+            vrs = (ctypes.c_uint * len(vars_i))(*[s.fmu.vr(v) for v in vars_i])
+            if self.lib.dr_set_observed(self._handle, i, vrs, len(vars_i)):
+                raise FmuError(f"subsystem {s.name}: the DR kernel could not keep {len(vars_i)} observed values")
+        self.width = self.lib.dr_log_width(self._handle)
+
+    def run_steps(self, n0, count, H_cap=math.inf, measure=False):
+        """Macro-steps n0 .. n0 + count - 1 in one call (drkernel.h, dr_run_steps): (steps done, their
+        BlockLog, the FmuError of the step after them or None). The log is overwritten by the next call."""
+        if len(self.log) < count * self.width:
+            self.log = np.empty(count * self.width)
+            self._log_at = self.log.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+        self.io.measure = measure
+        done = self._run_steps(self._handle, self._io, n0, count, self._log_at, H_cap)
+        n = n0 + done
+        error = self.failure(n, n * self.io.dt) if self.io.failed_subsystem >= 0 else None
+        columns = self.log[:count * self.width].reshape(self.width, count)[:, :done]
+        return done, BlockLog(columns, self.n, bool(self.io.stopped)), error
 
     def _flat(self, M):
         return (ctypes.c_double * (self.n * self.n))(*[float(x) for row in M for x in row])

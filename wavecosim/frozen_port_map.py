@@ -128,11 +128,12 @@ class Subsystem:
         kernel macro-step this Subsystem holds x_i^n exactly as after a Python one."""
         return ctypes.addressof(self._state)
 
-    def note_kernel_step(self, step_index, t, iterations):
-        """Book a macro-step the C kernel made: frozen at x^n at step n, K queries and one commit."""
+    def note_kernel_step(self, step_index, t, iterations, steps=1):
+        """Book `steps` macro-steps the C kernel made, the last one step n at t (frozen at x^n):
+        each a save, its queries and one commit; `iterations` counts the queries of them all."""
         self.begin(step_index, t)
-        self.calls["save"] += 1
-        self.calls["doStep"] += iterations + 1
+        self.calls["save"] += steps
+        self.calls["doStep"] += iterations + steps
         self.calls["restore"] += iterations
         self._dirty = False
 

@@ -2,6 +2,8 @@
 stored energy H_i, stage effort and flow, the outgoing waves (wave masters) and the recorded outputs."""
 from dataclasses import dataclass
 
+import numpy as np
+
 
 @dataclass
 class Reading:
@@ -13,24 +15,92 @@ class Reading:
     outputs: list
 
 
+class BlockReading:
+    """The Readings of many macro-steps as 2-D arrays, one row per step: H (steps x subsystems),
+    E, F, B (steps x channels) and outputs (steps x output columns), each taken when first read
+    from the observed values (Sampler.observed concatenated, one row per value, one column per step)."""
+    KEYS = ("H", "E", "F", "B", "outputs")
+
+    def __init__(self, observed, columns):
+        self._observed, self._columns = observed, columns
+
+    def __getattr__(self, key):
+        if key not in BlockReading.KEYS:
+            raise AttributeError(key)
+        value = self._observed[self._columns[key]].T
+        setattr(self, key, value)
+        return value
+
+
+def row_sums(X):
+    """The builtin sum() of each row of X, to the last bit: left to right from 0 (Python < 3.12)."""
+    acc = 0.0 + X[:, 0]
+    for j in range(1, X.shape[1]):
+        acc = acc + X[:, j]
+    return acc
+
+
+def as_index(indices):
+    """A list of indices as a slice when evenly spaced (a view, not a copy), else the list."""
+    steps = {b - a for a, b in zip(indices, indices[1:])}
+    if len(steps) > 1 or min(steps, default=1) < 1:
+        return indices
+    return slice(indices[0], indices[-1] + 1, steps.pop() if steps else 1)
+
+
+class GroupSums:
+    """row_sums over groups of columns (slices), all groups at once: one column per group."""
+
+    def __init__(self, parts):
+        width = max(p.stop - p.start for p in parts)
+        self.first = as_index([p.start for p in parts])
+        self.steps = [(as_index([i for i, p in enumerate(parts) if p.start + j < p.stop]),
+                       as_index([p.start + j for p in parts if p.start + j < p.stop])) for j in range(1, width)]
+
+    def __call__(self, X):
+        acc = 0.0 + X[:, self.first]                     # each group's first column, from 0 as sum() starts
+        for groups, cols in self.steps:                  # then the j-th column of every group that has one
+            acc[:, groups] = acc[:, groups] + X[:, cols]
+        return acc
+
+
 class Sampler:
     """Reads a Reading from every subsystem of a scene; buffers and value references are fixed at
     set-up, so a step costs one C call per subsystem."""
 
     def __init__(self, scene, outputs):
-        self.parts = []
+        self.parts, self.observed = [], []        # observed: per subsystem the names read, H_i first
         for s in scene.subsystems:
             cols = [var for ref in outputs.values() for name, var in [ref.split(".", 1)] if name == s.name]
             names = [s.port.energy, *s.port.effort, *s.port.flow, *(s.port.wave_out if scene.wave else [])]
             read, buf = s.reader(names + cols)
             self.parts.append((read, s.m, len(names)))
+            self.observed.append(names + cols)
         owner = [ref.split(".", 1)[0] for ref in outputs.values()]
         order = [(i, sum(1 for o in owner[:k] if o == s.name)) for k, o in enumerate(owner)
                  for i, s in enumerate(scene.subsystems) if s.name == o]
         self._order = order
+        self._columns = self._block_columns(order)
         by_name = {s.name: s for s in scene.subsystems}
         self.units = {col: by_name[ref.split(".", 1)[0]].fmu.variable(ref.split(".", 1)[1]).unit or ""
                       for col, ref in outputs.items()}
+
+    def _block_columns(self, order):
+        """Where H, E, F, B and the outputs sit in the concatenated observed values of all subsystems."""
+        at, starts, cols = 0, [], {"H": [], "E": [], "F": [], "B": []}
+        for (_, m, k), names in zip(self.parts, self.observed):
+            starts.append(at)
+            cols["H"].append(at)
+            for key, first, last in (("E", 1, 1 + m), ("F", 1 + m, 1 + 2 * m), ("B", 1 + 2 * m, k)):
+                cols[key].extend(range(at + first, at + last))
+            at += len(names)
+        cols["outputs"] = [starts[i] + self.parts[i][2] + j for i, j in order]
+        return cols
+
+    def block(self, observed) -> BlockReading:
+        """The BlockReading of observed values (the subsystems' `observed` names concatenated, one
+        row per name, one column per step)."""
+        return BlockReading(observed, self._columns)
 
     def read(self) -> Reading:
         H, E, F, B, own = [], [], [], [], []

@@ -5,6 +5,10 @@
     for n in range(N): live.step(n)      before_step, master.step, after_step, one row
     live.finish(status, error)           summary.json, metadata.json, the RunResult
 
+When the master can make many macro-steps in one call (the C kernel's run_steps) and every observer
+takes them at once (Observer.after_block), `advance` makes blocks of up to BLOCK_STEPS steps: the
+same numbers as step by step, to the last bit, without crossing into Python at every step.
+
 A monolithic reference runs in lockstep (its own LiveRun) when asked, so errors are computed as
 both runs stream and memory does not grow with the number of steps.
 """
@@ -17,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import Interrupted, NumericalError, RunFailed, WavecosimError
+from .fast_path import REASONS as KERNEL_REASONS
 from .gamma_tuning import GammaTuner
 from .masters import MASTERS
 from .masters.base import REASONS, WaveMaster, require_wave_tuning
@@ -25,16 +30,18 @@ from .observers import Observer
 from .observers.certificates import CertificateSampler
 from .observers.energy_guard import EnergyGuard
 from .observers.energy_ledger import EnergyLedger
-from .observers.errors import ErrorTracker, stored_reference
+from .observers.errors import ErrorTracker, stored_reference, stored_rows
 from .observers.fne_watch import FneWatch
 from .observers.gamma import GammaLog, TunedGammaLog
 from .observers.passivity import Passivity
-from .observers.recorder import Interrupts, Labels, Table, ints, write_json, write_mat
+from .observers.recorder import BLOCK, Interrupts, Labels, Table, ints, write_json, write_mat
 from .readings import Sampler
 from .scene import build_scene
 
 FORMATS = ("csv", "mat")
 STEP_COLUMNS = ("time", "iterations", "inner_residual", "reason")
+BLOCK_STEPS = BLOCK                    # macro-steps per call of the master, at most a table block
+assert REASONS[:len(KERNEL_REASONS)] == KERNEL_REASONS     # the kernel's reason codes are the runner's
 
 
 def grid_clock(dt):
@@ -192,7 +199,8 @@ class LiveRun:
         self.master_time, self.steps_done, self.started = 0.0, 0, time.perf_counter()
         self.iterations = [0, 0]                       # sum and max of the inner iterations per step
         self.loop_time = 0.0                           # start() to the last step: the run's own per-step cost
-        self.last = None
+        self.led, self.failure, self.recent = 0, None, {}   # as a lockstep reference (lead)
+        self.block_steps = 0                                # macro-steps made in blocks
 
     def add_observer(self, observer: Observer):
         """Before start(): one more observer (e.g. the error tracker), acting last."""
@@ -208,16 +216,17 @@ class LiveRun:
             formats.update(o.formats)
         self.steps = Table([*STEP_COLUMNS, *obs_cols], path("steps"), expected_rows=rows, formats=formats)
         self.scratch = np.full(len(self.steps.columns), np.nan)
-        self.slices, at = [], len(STEP_COLUMNS)
+        self.slices, self.spans, at = [], {}, len(STEP_COLUMNS)
         for o in self.observers:
             self.slices.append(self.scratch[at:at + len(o.columns)])
+            self.spans[id(o)] = slice(at, at + len(o.columns))
             at += len(o.columns)
         self.time_of = grid_clock(self.dt)
 
     def start(self):
         """Read the FMUs at t = 0, start the observers, record the first trajectory row."""
         self._tables()
-        self.last = first = self.sampler.read()
+        first = self.sampler.read()
         for o in self.observers:
             o.start(first)
         self._check_finite(first, -1)
@@ -230,11 +239,14 @@ class LiveRun:
         self.guard, self.guard_row = next(((o, row) for o, row in zip(self.observers, self.slices) if o.redoes),
                                           (None, None))
         self.after = [(o, row) for o, row in zip(self.observers, self.slices) if o is not self.guard]
+        self.recent = {0: first.outputs}
+        self._plan_blocks()
         self.loop_started = time.perf_counter()
         self.calls_at_start, self.excluded = self._totals(), {k: 0 for k in ("doStep", "save", "restore")}
 
     def step(self, n):
-        """Macro-step n: observers before, the master, observers after (the guard may redo), one row."""
+        """Macro-step n: observers before, the master, observers after (the guard may redo), one row;
+        returns the Reading of the FMUs after it."""
         t = n * self.dt
         before = self._totals() if self.bracket else None
         for o in self.observers:
@@ -245,6 +257,10 @@ class LiveRun:
         t0 = time.perf_counter()
         log = self.master.step(n, t)
         self.master_time += time.perf_counter() - t0
+        return self._after_master(n, t, log)
+
+    def _after_master(self, n, t, log):
+        """After the master made step n: read the FMUs, the guard (it may redo), the observers, one row."""
         reading = self.sampler.read()
         if self.guard is not None:
             t0 = time.perf_counter()
@@ -254,10 +270,92 @@ class LiveRun:
                 log, reading = redo, self.sampler.read()
         for o, row in self.after:
             o.after_step(n, t, log, reading, row)
-        self.last = reading
         self._record(n, log, reading)
         self._check_finite(reading, n)
         self.loop_time = time.perf_counter() - self.loop_started
+        return reading
+
+    def _plan_blocks(self):
+        """Blocks when the master can make them, every observer takes them, nothing acts before a
+        step, and builtin sum() adds left to right (Python < 3.12: the blocks' sums are written so)."""
+        self.cap = self.guard.cap if self.guard is not None else math.inf
+        self.blocks = (getattr(self.master, "fast", False) and hasattr(self.master, "run_steps")
+                       and not self.bracket and all(o.blocks for o, _ in self.after)
+                       and (self.guard is None or type(self.guard) is EnergyGuard)
+                       and sys.version_info < (3, 12))
+        if self.blocks:
+            self.master.observe(self.sampler.observed)
+
+    def block_size(self, n):
+        """How many macro-steps advance(n, ...) may make in one call of the master."""
+        if self.blocks and self.master.can_run_steps(n):
+            return min(BLOCK_STEPS, self.n_steps - n)
+        return 1
+
+    def advance(self, n, count):
+        """Macro-steps from n on: up to `count` in one call of the master when count > 1, else step(n);
+        returns how many were made."""
+        if count == 1:
+            self.step(n)
+            return 1
+        return self.step_block(n, count)
+
+    def step_block(self, n0, count):
+        """Macro-steps n0 .. n0 + count - 1 in one call of the master; the master stops early after a
+        step the energy guard must judge (or with a non-finite value), which is then finished as in
+        step(). Returns the steps made; raises the FmuError of the step after them."""
+        t0 = time.perf_counter()
+        done, log, error = self.master.run_steps(n0, count, self.cap)
+        self.master_time += time.perf_counter() - t0
+        self.block_steps += done
+        whole = done - 1 if log.stopped else done
+        if whole:
+            self._after_block(n0, log.first(whole))
+        if whole < done:
+            n = n0 + whole
+            self._after_master(n, n * self.dt, self.master.step_log(log, whole))
+        self.loop_time = time.perf_counter() - self.loop_started
+        if error is not None:
+            raise error
+        return done
+
+    def _after_block(self, n0, log):
+        """The observers and the rows of a block of steps (all finite: the kernel stops at a non-finite
+        value); with an output interval the rows kept are picked afterwards."""
+        count, readings = len(log), self.sampler.block(log.observed)
+        times = self.times[n0 + 1:n0 + count + 1]
+        rows = self.steps.reserve(count) if self.every == 1 else np.empty((count, len(self.steps.columns)), order="F")
+        rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3] = times, log.iterations, log.residual, log.reason
+        for o, _ in self.after:
+            o.after_block(n0, log, readings, rows[:, self.spans[id(o)]])
+        self.steps_done = n0 + count
+        self.iterations[0] += int(log.iterations.sum())
+        self.iterations[1] = max(self.iterations[1], int(log.iterations.max()))
+        if self.every == 1:
+            self.steps.commit_rows(count)
+            trajectory = self.trajectory.reserve(count)
+            trajectory[:, 0], trajectory[:, 1:] = times, readings.outputs
+            self.trajectory.commit_rows(count)
+            return
+        ks = np.arange(n0 + 1, n0 + count + 1)
+        keep = (ks % self.every == 0) | (ks == self.n_steps)
+        self.steps.append_block(rows[keep])
+        self.trajectory.append_block(np.column_stack([times[keep], readings.outputs[keep]]))
+
+    def lead(self, n, end):
+        """As the lockstep reference of a run at step n: make the steps up to end - 1 not made yet,
+        keeping the outputs of the grid points after n (`recent`); a failure stops it and is kept in
+        `failure`. Returns how many steps were made in all."""
+        self.recent = {k: v for k, v in self.recent.items() if k > n}
+        while self.failure is None and self.led < end:
+            try:
+                reading = self.step(self.led)
+            except WavecosimError as exc:
+                self.failure = exc
+                break
+            self.led += 1
+            self.recent[self.led] = reading.outputs
+        return self.led
 
     def _totals(self):
         return {k: sum(s.calls[k] for s in self.scene.subsystems) for k in ("doStep", "save", "restore")}
@@ -297,7 +395,7 @@ class LiveRun:
                "loop_time_s": self.loop_time,
                "real_time_factor": (n * sc.dt) / self.master_time if self.master_time > 0 else float("nan"),
                "fmu_calls": self.fmu_calls(), "output_interval": self.every,
-               "energy_guard": self.guard_mode}
+               "energy_guard": self.guard_mode, "block_steps": self.block_steps}
         for o in self.observers:
             out.update(o.summary())
         if self.master is not None:
@@ -344,14 +442,15 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
     live = LiveRun(scenario, out_dir, label, certificates, warn, file_suffix, output_interval, formats)
     ref = None
     try:
+        rows = None
         if reference == "lockstep":
             ref = LiveRun(reference_scenario(scenario), out_dir, "monolithic", False, warn, True,
                           output_interval, formats)
-            reference = lambda k: ref.last.outputs          # noqa: E731  (ref steps first)
+            reference = lambda k: ref.recent.get(k)          # noqa: E731  (ref steps first)
         elif reference is not None:
-            reference = stored_reference(reference)
+            reference, rows = stored_reference(reference), stored_rows(reference)
         if reference is not None and scenario.error:
-            live.add_observer(ErrorTracker(live.columns, scenario.error, reference))
+            live.add_observer(ErrorTracker(live.columns, scenario.error, reference, rows))
     except BaseException:
         live.close()
         raise
@@ -374,13 +473,18 @@ def _loop(live, ref, progress):
             for part in (ref, live):
                 if part is not None:
                     part.start()
-            for n in range(live.n_steps):
+            n = 0
+            while n < live.n_steps:
+                count = live.block_size(n)
                 if ref is not None:
-                    ref.step(n)
-                live.step(n)
+                    count = min(count, ref.lead(n, n + count) - n)
+                    if count <= 0:
+                        raise ref.failure
+                done = live.advance(n, count)
                 stop.check()
-                if progress and ((n + 1) % every == 0 or n + 1 == live.n_steps):
-                    progress(n + 1, live.n_steps)
+                if progress and ((n + done) // every > n // every or n + done == live.n_steps):
+                    progress(n + done, live.n_steps)
+                n += done
         except KeyboardInterrupt:
             return "interrupted", None
         except WavecosimError as exc:

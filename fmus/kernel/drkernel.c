@@ -2,6 +2,7 @@
  * function pointers (see drkernel.h). The Python reference is master/masters/dr.py::algorithm1
  * with master/frozen_port_map.py::Subsystem; each line below names the line it mirrors. */
 #define _POSIX_C_SOURCE 200809L
+#include <float.h>
 #include <math.h>
 #include <pthread.h>
 #include <sched.h>
@@ -25,7 +26,8 @@ typedef struct {
     fmi2FMUstate *state;           /* x_i^n, saved once per macro-step into this handle: */
     fmi2FMUstate own_state;        /* the kernel's own, or the caller's (see dr_set_subsystem) */
     fmi2ValueReference *in_vr, *out_vr;
-    size_t m, offset;
+    fmi2ValueReference *obs_vr;    /* values read after each commit of dr_run_steps (first: H_i) */
+    size_t m, offset, n_obs;
     int thread;
     int frozen, dirty;             /* x_i^n saved this macro-step / instance moved away from it */
     int failed_function, failed_status;
@@ -53,6 +55,7 @@ struct DRKernel {
     double *b, *a_hat, *u0, *uK;   /* the caller's */
     double *u, *u_next, *b_hat, *z, *w;
     double *trace;                 /* the caller's, or NULL */
+    double *obs;                   /* one subsystem's observed values, read before they are logged */
     int trace_capacity;
     int n_threads;
     unsigned generation;
@@ -305,6 +308,93 @@ int dr_macro_step(DRKernel *k, DRStep *io) {
     return f >= 0 ? report_failure(k, io, f) : 0;
 }
 
+int dr_set_observed(DRKernel *k, int i, const fmi2ValueReference *vrs, int count) {
+    if (i < 0 || i >= k->n_sub || count < 0) return -1;
+    Sub *s = &k->sub[i];
+    size_t largest = (size_t)count;
+    for (int j = 0; j < k->n_sub; j++)
+        if (j != i && k->sub[j].n_obs > largest) largest = k->sub[j].n_obs;
+    fmi2ValueReference *copy = malloc(((size_t)count + 1) * sizeof *copy);
+    double *obs = malloc((largest + 1) * sizeof *obs);
+    if (!copy || !obs) {
+        free(copy);
+        free(obs);
+        return -1;
+    }
+    memcpy(copy, vrs, (size_t)count * sizeof *vrs);
+    free(s->obs_vr);
+    free(k->obs);
+    s->obs_vr = copy;
+    s->n_obs = (size_t)count;
+    k->obs = obs;
+    return 0;
+}
+
+size_t dr_log_width(const DRKernel *k) {
+    size_t width = 3 + 2 * k->n;
+    for (int i = 0; i < k->n_sub; i++) width += k->sub[i].n_obs;
+    return width;
+}
+
+/* Log step s (of a call of `count` steps) after its commit, column-major: value c at
+ * rows[c count + s]; the first failing subsystem's read, or -1. */
+static int log_step(DRKernel *k, const DRStep *io, double *rows, size_t count, size_t s) {
+    size_t n = k->n, c = 3 + 2 * n;
+    rows[s] = (double)io->iterations;
+    rows[count + s] = (double)io->reason;
+    rows[2 * count + s] = io->residual;
+    for (size_t j = 0; j < n; j++) {
+        rows[(3 + j) * count + s] = k->a_hat[j];
+        rows[(3 + n + j) * count + s] = k->b[j];
+    }
+    for (int i = 0; i < k->n_sub; i++) {
+        Sub *s_i = &k->sub[i];
+        if (!s_i->n_obs) continue;
+        if (failed(s_i, DR_FN_GET_REAL, s_i->fn.getReal(s_i->comp, s_i->obs_vr, s_i->n_obs, k->obs))) return i;
+        for (size_t j = 0; j < s_i->n_obs; j++) rows[(c + j) * count + s] = k->obs[j];
+        c += s_i->n_obs;
+    }
+    return -1;
+}
+
+/* Stop after this step? When an observed value (obs: the step's column of them, stride count) is
+ * not finite, or when the stored energy (the sum of every subsystem's first observed value) may
+ * exceed H_cap: the bound 4 n_sub eps sum|H_i| covers any order of summation, so the caller's exact
+ * test never sees a step above the cap go by. */
+static int stop_after(const DRKernel *k, const double *obs, size_t count, double H_cap) {
+    double sum = 0.0, magnitude = 0.0;
+    for (int i = 0; i < k->n_sub; i++) {
+        const Sub *s = &k->sub[i];
+        for (size_t j = 0; j < s->n_obs; j++)
+            if (!isfinite(obs[j * count])) return 1;
+        if (s->n_obs) {
+            sum += obs[0];
+            magnitude += fabs(obs[0]);
+        }
+        obs += s->n_obs * count;
+    }
+    return isfinite(H_cap) && sum + 4.0 * k->n_sub * DBL_EPSILON * magnitude > H_cap;
+}
+
+int dr_run_steps(DRKernel *k, DRStep *io, int n0, int count, double *rows, double H_cap) {
+    size_t m = (size_t)count, first_observed = (3 + 2 * k->n) * m;
+    io->stopped = 0;
+    for (int s = 0; s < count; s++) {
+        io->t = (double)(n0 + s) * io->dt;
+        if (dr_macro_step(k, io)) return s;
+        int f = log_step(k, io, rows, m, (size_t)s);
+        if (f >= 0) {
+            report_failure(k, io, f);
+            return s;
+        }
+        if (stop_after(k, rows + first_observed + s, m, H_cap)) {
+            io->stopped = 1;
+            return s + 1;
+        }
+    }
+    return count;
+}
+
 int dr_floor(DRKernel *k, DRStep *io, const double *inputs, int n_steps) {
     size_t n = k->n;
     for (int step = 0; step < n_steps; step++) {
@@ -444,11 +534,13 @@ void dr_destroy(DRKernel *k) {
             Sub *s = &k->sub[i];
             if (s->own_state) s->fn.freeFMUstate(s->comp, &s->own_state);
             free(s->in_vr);
+            free(s->obs_vr);
         }
     }
     free(k->sub);
     free(k->P);
     free(k->J_L);
     free(k->u);
+    free(k->obs);
     free(k);
 }

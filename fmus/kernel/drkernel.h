@@ -50,6 +50,7 @@ typedef struct {
     int failed_subsystem; /* out: -1, or the first subsystem whose FMU call failed */
     int failed_function; /* out: DR_FN_* of that call */
     int failed_status;   /* out: the fmi2Status it returned */
+    int stopped;         /* out (dr_run_steps): 1 if it stopped early, after the last step it logged */
 } DRStep;
 
 typedef struct DRKernel DRKernel;
@@ -81,6 +82,23 @@ int dr_set_threads(DRKernel *k, int n_threads, const int *thread_of);
 /* Algorithm 1, lines 3-22, for one macro-step. Returns 0, or -1 when an FMU call failed
  * (see io->failed_*); the instances are then left where the failure happened. */
 int dr_macro_step(DRKernel *k, DRStep *io);
+
+/* Values to read from subsystem i after each commit of dr_run_steps (value references, copied);
+ * the first is its stored energy H_i. Returns 0, or -1 on bad arguments or no memory. */
+int dr_set_observed(DRKernel *k, int i, const fmi2ValueReference *vrs, int count);
+
+/* Doubles per row of dr_run_steps' log: 3 + 2 n + every subsystem's observed count. */
+size_t dr_log_width(const DRKernel *k);
+
+/* Macro-steps n0 .. n0 + count - 1, each exactly dr_macro_step at t = (double)n dt, logged
+ * column-major (value c of step s at rows[c count + s], so each value is one contiguous column):
+ * iterations, reason, residual, a (n), b^{n+1} (n), then every subsystem's observed values in
+ * subsystem order. It stops right after a step whose observed values are not all finite or whose
+ * stored energy may exceed H_cap (pass INFINITY for none; the caller decides exactly), setting
+ * io->stopped (also when that step was the last of the call). Returns the
+ * number of steps done and logged; when an FMU call failed, io->failed_* name it and the step it
+ * failed in (the one after those done) has no entries. */
+int dr_run_steps(DRKernel *k, DRStep *io, int n0, int count, double *rows, double H_cap);
 
 /* The floor: n_steps macro-steps making the same FMU calls as dr_macro_step with K = io->K
  * (serial), with no DR arithmetic; t = io->t + s dt at step s. The inputs of step s are

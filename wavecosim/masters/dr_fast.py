@@ -15,14 +15,16 @@ the first (the threads meet at every iteration, so on a busy machine, where one 
 descheduled, serial is faster). Each thread writes only its own subsystems' outputs and the caller does all the arithmetic, so
 the thread plan never changes a number.
 """
+import math
 import time
 
 from ..errors import ConfigError
-from ..fast_path import PARALLEL_MIN_US, REASONS, Kernel, available_cpus, thread_plan, unusable
+from ..fast_path import PARALLEL_MIN_US, REASONS, BlockLog, Kernel, available_cpus, thread_plan, unusable
 from .base import StepLog
 from .dr import DRMaster
 
 KEEP_PARALLEL = 0.85      # threads=auto keeps two threads if a round takes at most this much of serial
+BLOCK_SECONDS = 0.25      # run_steps makes about this much work at most, so Ctrl-C and progress stay prompt
 
 
 class FastDRMaster(DRMaster):
@@ -46,6 +48,7 @@ class FastDRMaster(DRMaster):
         # the first macro-step this master makes picks the thread plan (None: not made yet)
         self._choose_after = None if self.thread_mode != "1" and len(self.subsystems) > 1 else -1
         self._on_trial = False
+        self._step_s = 0.0        # seconds per macro-step of the last run_steps call
 
     @staticmethod
     def _kernel_refusal(scene, mode):
@@ -105,6 +108,69 @@ class FastDRMaster(DRMaster):
             self.confirm_threads(per_round)
         return StepLog(iterations=k, residual=io.residual, reason=REASONS[io.reason], a_hat=out[n_ch:2 * n_ch],
                        u0=out[2 * n_ch:3 * n_ch], uK=out[3 * n_ch:])
+
+    def can_run_steps(self, n):
+        """Whether run_steps may make macro-step n: the kernel runs and no trial of two threads is on
+        (threads=auto times it on the macro-step after the first, alone)."""
+        return self.kernel is not None and (self._choose_after is None or n > self._choose_after) \
+            and not self._on_trial
+
+    def observe(self, names):
+        """The variables of each subsystem run_steps reads after every commit (names[i], H_i first)."""
+        self.kernel.observe(names)
+
+    def run_steps(self, n0, count, H_cap=math.inf):
+        """Macro-steps n0 .. n0 + count - 1 in one kernel call, stopping early after a step whose H
+        may exceed H_cap or whose observed values are not finite (fast_path.Kernel.run_steps), and
+        making no more than about BLOCK_SECONDS of work: (steps done, their BlockLog, the FmuError
+        of the step after them or None). b^n and b^{n+1} of the last step done become the master's,
+        so undo_step works as after step()."""
+        if self._choose_after is None:
+            return self._first_steps(n0, count, H_cap)
+        return self._kernel_steps(n0, count, H_cap)
+
+    def _first_steps(self, n0, count, H_cap):
+        """The first call: macro-step n0 alone and timed picks the thread plan, then the others
+        follow in a second call unless two threads go on trial (on the next step, alone)."""
+        self._choose_after = n0
+        done, first, error = self._kernel_steps(n0, 1, H_cap, measure=True)
+        if not done:
+            return done, first, error
+        self.choose_threads(self.kernel.costs(), self._step_s / (first.iterations[0] + 1))
+        if first.stopped or self._on_trial or count == 1:
+            return 1, first, None
+        first = BlockLog(first.columns.copy(), first.n)              # the next call overwrites the log
+        done, rest, error = self._kernel_steps(n0 + 1, count - 1, H_cap)
+        return done + 1, first.then(rest), error
+
+    def _kernel_steps(self, n0, count, H_cap, measure=False):
+        """One call of the kernel, of at most about BLOCK_SECONDS at the last call's pace, booked."""
+        if self._step_s > 0.0:
+            count = max(1, min(count, int(BLOCK_SECONDS / self._step_s)))
+        started = time.perf_counter()
+        done, log, error = self.kernel.run_steps(n0, count, H_cap, measure)
+        if done:
+            self._step_s = (time.perf_counter() - started) / done
+        self._book(n0, done, log)
+        return done, log, error
+
+    def _book(self, n0, done, log):
+        """Book macro-steps n0 .. n0 + done - 1 of the kernel: calls and step on the Subsystems, b^n, b^{n+1}."""
+        if not done:
+            return
+        last = n0 + done - 1
+        iterations = int(log.iterations.sum())
+        for s in self.subsystems:
+            s.note_kernel_step(last, last * self.dt, iterations, done)
+        self._b_step_start = log.b[done - 2].tolist() if done > 1 else self._b
+        self._b = self.kernel.b[:]
+        if self._trace is not None:
+            self._trace = self.kernel.recorded(int(log.iterations[-1]))
+
+    def step_log(self, log, j):
+        """The StepLog of row j of a BlockLog (without u^0 and u^K)."""
+        return StepLog(iterations=int(log.iterations[j]), residual=float(log.residual[j]),
+                       reason=REASONS[int(log.reason[j])], a_hat=log.a_hat[j].tolist())
 
     def choose_threads(self, costs_us, serial_round_s):
         """After the first (serial) macro-step: pick the thread plan from the measured µs per

@@ -4,7 +4,10 @@ The runner asks each observer once, before the loop, which per-step columns it f
 it needs the master's inner queries; an observer that is off is simply not in the list, so it
 costs nothing. Per macro-step the runner calls `before_step`, then the master, then
 `after_step` in list order; the energy guard (`redoes`, first in the list) may redo the step by
-returning a new StepLog, after which the runner reads the FMUs again.
+returning a new StepLog, after which the runner reads the FMUs again. When every observer has
+`blocks` set, the runner may run many macro-steps in one call of the master and give them to
+`after_block` at once; its figures must equal, to the last bit, those of `after_step` called step
+by step.
 """
 
 
@@ -14,6 +17,7 @@ class Observer:
     formats = {}          # column -> formatter for steps.csv (default: floats), e.g. recorder.Labels
     needs_trace = False   # it reads the master's inner queries (u^k, S(u^k)) of each step
     redoes = False        # an energy guard: it acts first and may redo the step
+    blocks = False        # it has after_block (and nothing to do before a step)
 
     def start(self, first):
         """Once, with the Reading of the FMUs at t = 0, before the first macro-step."""
@@ -25,6 +29,12 @@ class Observer:
         """After macro-step n: `reading` holds the FMUs' values at x^{n+1}; write this observer's
         columns into `row` (its own slice of the step row, in the order of `columns`) and return a new
         StepLog only if the step was redone."""
+
+    def after_block(self, n0, logs, readings, rows):
+        """After macro-steps n0 .. n0 + len(rows) - 1 made in one call: `logs` (fast_path.BlockLog)
+        and `readings` (readings.BlockReading) hold one row per step; write this observer's columns
+        into `rows` (steps x its columns), exactly as after_step would, step after step."""
+        raise NotImplementedError
 
     def summary(self) -> dict:
         """Its figures for summary.json."""

@@ -8,12 +8,15 @@ from . import Observer
 
 
 class ErrorTracker(Observer):
-    """Column `error`; `reference(k)` gives the reference's outputs at grid point k (None: no more)."""
+    """Column `error`; `reference(k)` gives the reference's outputs at grid point k (None: no more)
+    and `reference_rows(k, count)` those of grid points k .. k + count - 1 as rows (fewer: no more)."""
     columns = ("error",)
+    blocks = True
 
-    def __init__(self, output_names, error_names, reference):
+    def __init__(self, output_names, error_names, reference, reference_rows=None):
         self.idx = [output_names.index(c) for c in error_names]
         self.reference = reference
+        self.reference_rows = reference_rows or (lambda k, count: rows_of(reference, k, count))
         self.max, self.sumsq, self.count, self.final = 0.0, 0.0, 0, math.nan
         self.first = math.nan
 
@@ -35,6 +38,18 @@ class ErrorTracker(Observer):
     def after_step(self, n, t, log, reading, row):
         row[0] = self._error(reading.outputs, n + 1)
 
+    def after_block(self, n0, logs, readings, rows):
+        ref = self.reference_rows(n0 + 1, len(rows))
+        have = len(ref)
+        d = readings.outputs[:have, self.idx] - ref[:, self.idx] if have else np.empty((0, 0))
+        errors = np.sqrt(row_norms_squared(d * d))
+        rows[:have, 0], rows[have:, 0] = errors, math.nan
+        for e in errors.tolist():                       # running figures, in step order as after_step
+            self.max = max(self.max, e) if e == e else e
+            self.sumsq += e * e
+            self.final = e
+        self.count += have
+
     def summary(self):
         if not self.count:
             return {}
@@ -45,6 +60,29 @@ def stored_reference(result):
     """reference(k) from a finished RunResult's trajectory (all its output columns)."""
     outputs = result.outputs
     return lambda k: outputs[k] if k < len(outputs) else None
+
+
+def row_norms_squared(sq):
+    """np.sum of each row, as np.sum of that row alone: numpy adds fewer than 8 numbers in order
+    either way, and longer rows pairwise only when summed alone."""
+    return np.sum(sq, axis=1) if sq.shape[1] < 8 else np.array([np.sum(row) for row in sq])
+
+
+def rows_of(reference, k, count):
+    """Rows of reference(k), reference(k + 1), ... until count rows or the first None."""
+    rows = []
+    for j in range(k, k + count):
+        row = reference(j)
+        if row is None:
+            break
+        rows.append(row)
+    return np.array(rows, dtype=float)
+
+
+def stored_rows(result):
+    """reference_rows(k, count) from a finished RunResult's trajectory."""
+    outputs = result.outputs
+    return lambda k, count: outputs[k:k + count]
 
 
 def error_metrics(result, reference, columns):

@@ -13,6 +13,7 @@ class GammaLog(Observer):
         self.names = [s.name for s in scene.subsystems]
         self.columns = tuple(f"gamma_{n}" for n in self.names)
         self.needs_trace = bool(tuner and tuner.retune)
+        self.blocks = not self.needs_trace
         self.gamma_min = {}
 
     def after_step(self, n, t, log, reading, row):
@@ -21,6 +22,12 @@ class GammaLog(Observer):
         for i, name in enumerate(self.names):
             g = self.scene.gammas[name]
             row[i] = g
+            self.gamma_min[name] = min(self.gamma_min.get(name, g), g)
+
+    def after_block(self, n0, logs, readings, rows):
+        for i, name in enumerate(self.names):
+            g = self.scene.gammas[name]
+            rows[:, i] = g
             self.gamma_min[name] = min(self.gamma_min.get(name, g), g)
 
     def summary(self):

@@ -48,7 +48,7 @@ class Table:
     def __init__(self, columns, path=None, formats=None, expected_rows=0):
         self.columns, self.path = list(columns), path
         self._fmt = [(formats or {}).get(c, _floats) for c in self.columns]
-        self._block = np.empty((BLOCK, len(self.columns)))
+        self._block = np.empty((BLOCK, len(self.columns)), order="F")     # columns contiguous
         self._fill = 0
         self._kept = [] if path is None or expected_rows * len(self.columns) <= KEEP_VALUES else None
         self.rows = 0
@@ -67,6 +67,26 @@ class Table:
     def commit_row(self):
         self._fill += 1
         self.rows += 1
+
+    def reserve(self, k):
+        """k rows (k <= BLOCK) of the block to fill in place, booked by commit_rows(k)."""
+        if self._fill + k > BLOCK:
+            self.flush()
+        return self._block[self._fill:self._fill + k]
+
+    def commit_rows(self, k):
+        self._fill += k
+        self.rows += k
+
+    def append_block(self, rows):
+        """Book many rows at once (a 2-D array of the table's columns), as next_row and commit_row would."""
+        at = 0
+        while at < len(rows):
+            if self._fill == BLOCK:
+                self.flush()
+            k = min(BLOCK - self._fill, len(rows) - at)
+            self._block[self._fill:self._fill + k] = rows[at:at + k]
+            self._fill, self.rows, at = self._fill + k, self.rows + k, at + k
 
     def flush(self):
         """Write the filled part of the block (and keep it when the table stays in memory)."""
