@@ -116,10 +116,12 @@ def same_files_and_figures(one, blocks, out, names=("trajectory.csv", "steps.csv
     assert one.summary["block_steps"] == 0 and blocks.summary["block_steps"] > 0
 
 
-@pytest.mark.parametrize("K,guarded", [(0, 0), (1, 0), (8, 3), (50, 0)])
-def test_blocks_give_the_step_by_step_files(tmp_path, monkeypatch, K, guarded):
-    """Table I, 1000 steps: at K = 8 the energy guard redoes 3 steps, each stopping a block."""
-    one, blocks = step_by_step(monkeypatch, load_scenario().with_master(K=K), tmp_path)
+@pytest.mark.parametrize("K,guard,guarded", [(0, "monolithic", 0), (1, "monolithic", 0), (8, "monolithic", 3),
+                                             (50, "monolithic", 0), (0, "ledger", 0), (8, "ledger", 112)])
+def test_blocks_give_the_step_by_step_files(tmp_path, monkeypatch, K, guard, guarded):
+    """Table I, 1000 steps: at K = 8 the monolithic guard redoes 3 steps and the ledger 112, each
+    stopping a block (the kernel books the ledger itself and stops before a step it would redo)."""
+    one, blocks = step_by_step(monkeypatch, load_scenario().with_master(K=K, energy_guard=guard), tmp_path)
     same_files_and_figures(one, blocks, tmp_path)
     assert blocks.summary["energy_guard_steps"] == guarded
     assert blocks.summary["block_steps"] == 1000
@@ -127,7 +129,8 @@ def test_blocks_give_the_step_by_step_files(tmp_path, monkeypatch, K, guarded):
 
 def test_a_guarded_step_ending_a_block(tmp_path, monkeypatch):
     """At K = 8 the guard redoes steps 0, 25 and 52; blocks of 25 (steps 1..25, 26..50, ...) end on step 25."""
-    one, blocks = step_by_step(monkeypatch, load_scenario().with_master(K=8).with_changes(T=1.0), tmp_path, 25)
+    one, blocks = step_by_step(monkeypatch, load_scenario().with_master(K=8, energy_guard="monolithic")
+                               .with_changes(T=1.0), tmp_path, 25)
     same_files_and_figures(one, blocks, tmp_path)
     assert blocks.summary["energy_guard_steps"] == 3
     assert [int(k) for k in np.flatnonzero(blocks.steps["iterations"] != 8)] == [0, 25, 52]

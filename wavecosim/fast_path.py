@@ -64,7 +64,9 @@ class DRStep(ctypes.Structure):
     _fields_ = [("t", ctypes.c_double), ("dt", ctypes.c_double), ("K", ctypes.c_int), ("eps", ctypes.c_double),
                 ("deadline_s", ctypes.c_double), ("measure", ctypes.c_int), ("iterations", ctypes.c_int),
                 ("reason", ctypes.c_int), ("residual", ctypes.c_double), ("failed_subsystem", ctypes.c_int),
-                ("failed_function", ctypes.c_int), ("failed_status", ctypes.c_int), ("stopped", ctypes.c_int)]
+                ("failed_function", ctypes.c_int), ("failed_status", ctypes.c_int), ("stopped", ctypes.c_int),
+                ("ledger_on", ctypes.c_int), ("ledger", ctypes.c_double), ("traffic", ctypes.c_double),
+                ("ledger_rtol", ctypes.c_double)]
 
 
 _lib = None
@@ -203,6 +205,11 @@ class Kernel:
             if self.lib.dr_set_observed(self._handle, i, vrs, len(vars_i)):
                 raise FmuError(f"subsystem {s.name}: the DR kernel could not keep {len(vars_i)} observed values")
         self.width = self.lib.dr_log_width(self._handle)
+
+    def keep_ledger(self, ledger, traffic, rtol):
+        """From the next run_steps on, the kernel books the interface energy ledger from (L, traffic)
+        and stops a block before a step the ledger guard would redo (drkernel.c, ledger_stops)."""
+        self.io.ledger_on, self.io.ledger, self.io.traffic, self.io.ledger_rtol = 1, ledger, traffic, rtol
 
     def run_steps(self, n0, count, H_cap=math.inf, measure=False):
         """Macro-steps n0 .. n0 + count - 1 in one call (drkernel.h, dr_run_steps): (steps done, their

@@ -2,8 +2,6 @@
 stored energy H_i, stage effort and flow, the outgoing waves (wave masters) and the recorded outputs."""
 from dataclasses import dataclass
 
-import numpy as np
-
 
 @dataclass
 class Reading:

@@ -278,10 +278,12 @@ class LiveRun:
     def _plan_blocks(self):
         """Blocks when the master can make them, every observer takes them, nothing acts before a
         step, and builtin sum() adds left to right (Python < 3.12: the blocks' sums are written so)."""
-        self.cap = self.guard.cap if self.guard is not None else math.inf
+        guard = self.guard
+        self.cap = guard.cap if isinstance(guard, EnergyGuard) else math.inf
+        self.ledger = isinstance(guard, EnergyLedger) and self.master.deadline_s is None
         self.blocks = (getattr(self.master, "fast", False) and hasattr(self.master, "run_steps")
                        and not self.bracket and all(o.blocks for o, _ in self.after)
-                       and (self.guard is None or type(self.guard) is EnergyGuard)
+                       and (guard is None or isinstance(guard, EnergyGuard) or self.ledger)
                        and sys.version_info < (3, 12))
         if self.blocks:
             self.master.observe(self.sampler.observed)
@@ -304,6 +306,8 @@ class LiveRun:
         """Macro-steps n0 .. n0 + count - 1 in one call of the master; the master stops early after a
         step the energy guard must judge (or with a non-finite value), which is then finished as in
         step(). Returns the steps made; raises the FmuError of the step after them."""
+        if self.ledger:
+            self.master.keep_ledger(*self.guard.kernel_state())
         t0 = time.perf_counter()
         done, log, error = self.master.run_steps(n0, count, self.cap)
         self.master_time += time.perf_counter() - t0
@@ -323,10 +327,10 @@ class LiveRun:
         """The observers and the rows of a block of steps (all finite: the kernel stops at a non-finite
         value); with an output interval the rows kept are picked afterwards."""
         count, readings = len(log), self.sampler.block(log.observed)
-        times = self.times[n0 + 1:n0 + count + 1]
+        times = self.time_of(np.arange(n0 + 1, n0 + count + 1, dtype=float))
         rows = self.steps.reserve(count) if self.every == 1 else np.empty((count, len(self.steps.columns)), order="F")
         rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3] = times, log.iterations, log.residual, log.reason
-        for o, _ in self.after:
+        for o in ([self.guard] if self.ledger else []) + [o for o, _ in self.after]:
             o.after_block(n0, log, readings, rows[:, self.spans[id(o)]])
         self.steps_done = n0 + count
         self.iterations[0] += int(log.iterations.sum())

@@ -376,6 +376,21 @@ static int stop_after(const DRKernel *k, const double *obs, size_t count, double
     return isfinite(H_cap) && sum + 4.0 * k->n_sub * DBL_EPSILON * magnitude > H_cap;
 }
 
+/* The interface energy ledger of master/observers/energy_ledger.py, in its operation order: the step
+ * supplied I = 1/2 (|a|^2 - |b|^2) with traffic 1/2 (|a|^2 + |b|^2) (sums from 0.0, left to right).
+ * A step the ledger would redo (L + I > rtol (T + traffic)) stops the block unbooked, for the
+ * caller's guard to judge; otherwise it is booked. */
+static int ledger_stops(const DRKernel *k, DRStep *io) {
+    double aa = 0.0, bb = 0.0;
+    for (size_t j = 0; j < k->n; j++) aa += k->a_hat[j] * k->a_hat[j];
+    for (size_t j = 0; j < k->n; j++) bb += k->b[j] * k->b[j];
+    double supplied = 0.5 * (aa - bb), traffic = 0.5 * (aa + bb);
+    if (io->ledger + supplied > io->ledger_rtol * (io->traffic + traffic)) return 1;
+    io->ledger += supplied;
+    io->traffic += traffic;
+    return 0;
+}
+
 int dr_run_steps(DRKernel *k, DRStep *io, int n0, int count, double *rows, double H_cap) {
     size_t m = (size_t)count, first_observed = (3 + 2 * k->n) * m;
     io->stopped = 0;
@@ -387,7 +402,7 @@ int dr_run_steps(DRKernel *k, DRStep *io, int n0, int count, double *rows, doubl
             report_failure(k, io, f);
             return s;
         }
-        if (stop_after(k, rows + first_observed + s, m, H_cap)) {
+        if (stop_after(k, rows + first_observed + s, m, H_cap) || (io->ledger_on && ledger_stops(k, io))) {
             io->stopped = 1;
             return s + 1;
         }

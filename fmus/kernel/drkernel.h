@@ -51,6 +51,10 @@ typedef struct {
     int failed_function; /* out: DR_FN_* of that call */
     int failed_status;   /* out: the fmi2Status it returned */
     int stopped;         /* out (dr_run_steps): 1 if it stopped early, after the last step it logged */
+    int ledger_on;       /* in (dr_run_steps): keep the interface energy ledger (wavecosim/observers/energy_ledger.py) */
+    double ledger;       /* in/out: L, the energy the interface supplied so far (steps accepted) */
+    double traffic;      /* in/out: the interface's cumulative traffic 1/2 (|a|^2 + |b|^2) */
+    double ledger_rtol;  /* in: a step with L + I^n > rtol (traffic + its own) stops the block before booking */
 } DRStep;
 
 typedef struct DRKernel DRKernel;

@@ -119,6 +119,10 @@ class FastDRMaster(DRMaster):
         """The variables of each subsystem run_steps reads after every commit (names[i], H_i first)."""
         self.kernel.observe(names)
 
+    def keep_ledger(self, ledger, traffic, rtol):
+        """The energy ledger's state for the kernel's next blocks (see fast_path.Kernel.keep_ledger)."""
+        self.kernel.keep_ledger(ledger, traffic, rtol)
+
     def run_steps(self, n0, count, H_cap=math.inf):
         """Macro-steps n0 .. n0 + count - 1 in one kernel call, stopping early after a step whose H
         may exceed H_cap or whose observed values are not finite (fast_path.Kernel.run_steps), and
