@@ -1,0 +1,169 @@
+"""How a subsystem's frozen port map S_i^n (paper eq. 12) is made, for any FMU.
+
+- `DirectPort`: the FMU's own map is the one the master needs. Our FMUs in wave mode take the
+  incident wave a and return b (exact and passive by construction, the fast route); in physical
+  mode (physical masters) they take their input and return their output.
+- `WaveAdapter`: eq. 12 for an FMU with only a physical port (input u, output y, one doStep). For
+  an incident wave a it finds the held input u with e + gamma f = sqrt(2 gamma / dt) a after one
+  doStep from x_i^n and returns b = sqrt(dt / (2 gamma)) (e - gamma f). Newton on u through state
+  restore: the slope dy/du is estimated once per macro-step (m + 1 doSteps), refined by Broyden
+  updates from the evaluations themselves and reused, and each query starts from the previous one,
+  so an affine step map costs one doStep per query.
+
+Port variables are oriented: e is the effort variable, f = sign * (the flow variable), so that
+e f is the power into the FMU; `probe_signs` finds the sign where the scenario gives none.
+"""
+import math
+
+import numpy as np
+
+from .errors import ConfigError, NumericalError
+
+TOL = 1e-12          # relative residual |e + gamma f - c a| / (|c a| + |e| + gamma |f|) of a solved query
+MAX_ITER = 30        # Newton iterations per query
+SLOPE_REL = 1e-5     # input perturbation for the slope estimate, relative to the input's scale
+PROBE_REL = 1e-4     # input perturbation of the orientation probe
+
+
+class DirectPort:
+    """The FMU's own map: wave mode (a -> b), or physical mode (oriented input -> oriented output)."""
+
+    def __init__(self, sub, in_scale=None, out_scale=None):
+        self.sub, self.in_scale, self.out_scale = sub, in_scale, out_scale
+
+    def query(self, a):
+        if self.in_scale is None:
+            return self.sub.raw_query(a)
+        return [s * y for s, y in zip(self.out_scale, self.sub.raw_query([s * u for s, u in zip(self.in_scale, a)]))]
+
+    def advance(self, a):
+        if self.in_scale is None:
+            return self.sub.raw_advance(a)
+        return [s * y for s, y in zip(self.out_scale, self.sub.raw_advance([s * u for s, u in zip(self.in_scale, a)]))]
+
+    def new_step(self):
+        """Nothing is cached across queries."""
+
+    def info(self):
+        return None
+
+
+class WaveAdapter:
+    """Eq. 12 through the FMU's physical port: S_i^n(a) by Newton on the held input (module docstring)."""
+
+    def __init__(self, sub, effort_in, signs, gamma):
+        self.sub, self.m = sub, sub.m
+        signs = np.asarray(signs, float)
+        self.effort_in = np.asarray(effort_in, bool)
+        self.sign = signs
+        self.u = np.zeros(self.m)              # warm start: the last solved input, kept across macro-steps
+        self.y = self.D = None                 # output at u and slope dy/du, valid within one macro-step
+        self.evaluations = self.doSteps = 0
+        self.set_gamma(gamma)
+
+    def set_gamma(self, gamma):
+        """Impedance of the waves; the residual is r(u) = wu u + wy y(u) - c a."""
+        self.gamma = float(gamma)
+        dt = self.sub.dt
+        self.c, self.k = math.sqrt(2.0 * gamma / dt), math.sqrt(dt / (2.0 * gamma))
+        self.wu = np.where(self.effort_in, 1.0, gamma * self.sign)
+        self.wy = np.where(self.effort_in, gamma * self.sign, 1.0)
+
+    def new_step(self):
+        """x_i^n changed: the cached output and slope no longer hold."""
+        self.y = self.D = None
+
+    def _eval(self, u):
+        self.doSteps += 1
+        return np.asarray(self.sub.raw_query(list(u)))
+
+    def _estimate_slope(self, target):
+        """dy/du at the warm start by forward differences (m + 1 doSteps from x_i^n)."""
+        u = self.u
+        y = self._eval(u)
+        scale = np.abs(u) + (np.abs(target) + np.abs(self.wy * y)) / np.abs(self.wu)
+        h = SLOPE_REL * np.where(scale > 0, scale, 1.0)
+        D = np.zeros((self.m, self.m))
+        for j in range(self.m):
+            du = np.zeros(self.m)
+            du[j] = h[j]
+            D[:, j] = (self._eval(u + du) - y) / h[j]
+        self.y, self.D = y, D
+
+    def _solve(self, a):
+        """The held input for incident wave a; the FMU is left at Phi(x_i^n, u). Returns (e, f)."""
+        self.evaluations += 1
+        target = self.c * np.asarray(a, float)
+        if self.D is None:
+            self._estimate_slope(target)
+        u, y = self.u, self.y
+        for _ in range(MAX_ITER):
+            r = self.wu * u + self.wy * y - target
+            try:
+                step = np.linalg.solve(np.diag(self.wu) + self.wy[:, None] * self.D, r)
+            except np.linalg.LinAlgError:
+                self._fail(r, "the port's slope makes the Newton matrix singular (is the port's sign right?)")
+            u_new = u - step
+            y_new = self._eval(u_new)
+            du, dy = u_new - u, y_new - y
+            if du @ du > 0:
+                self.D += np.outer(dy - self.D @ du, du) / (du @ du)
+            u, y = u_new, y_new
+            r = self.wu * u + self.wy * y - target
+            self.u, self.y = u, y
+            if np.linalg.norm(r) <= TOL * (np.linalg.norm(target) + np.linalg.norm(self.wu * u)
+                                           + np.linalg.norm(self.wy * y)) or not np.any(r):
+                return self.stage(u, y)
+        self._fail(r, f"no convergence in {MAX_ITER} Newton iterations")
+
+    def _fail(self, r, why):
+        s = self.sub
+        raise NumericalError(f"subsystem {s.name}: wave adapter at step {s.step_index} (t = {s.t:.6g}): {why}; "
+                             f"residual |e + gamma f - c a| = {float(np.linalg.norm(r)):.3g}")
+
+    def stage(self, u, y):
+        """Oriented (e, f) from the FMU's input and output values."""
+        e = np.where(self.effort_in, u, y)
+        f = self.sign * np.where(self.effort_in, y, u)
+        return [float(x) for x in e], [float(x) for x in f]
+
+    def outgoing(self, e, f):
+        """b = sqrt(dt / (2 gamma)) (e - gamma f) per channel (eq. 3)."""
+        return [self.k * (ei - self.gamma * fi) for ei, fi in zip(e, f)]
+
+    def query(self, a):
+        """S_i^n(a); the state is discarded."""
+        return self.outgoing(*self._solve(a))
+
+    def advance(self, a):
+        """Phi_i: the solved step is kept as x_i^{n+1}."""
+        out = self.outgoing(*self._solve(a))
+        self.sub.keep()
+        return out
+
+    def info(self):
+        """Frozen-map evaluations and the doSteps they took."""
+        return {"map_evaluations": self.evaluations, "doSteps": self.doSteps,
+                "doSteps_per_evaluation": self.doSteps / self.evaluations if self.evaluations else math.nan}
+
+
+def probe_signs(sub, where):
+    """The sign of dy/du over one doStep from the restored initial state, per channel: the sign that
+    makes the port passive (FACTS.md, port orientation). Returns (signs, slopes)."""
+    u0 = np.asarray(sub.read(sub.port.physical_in), float)
+    sub.freeze(0, 0.0)
+    y0 = np.asarray(sub.raw_query(list(u0)))
+    signs, slopes = [], []
+    for j in range(sub.m):
+        h = PROBE_REL * (1.0 + abs(u0[j]))
+        u = u0.copy()
+        u[j] += h
+        slope = (sub.raw_query(list(u))[j] - y0[j]) / h
+        if not (math.isfinite(slope) and slope != 0.0):
+            sub.thaw()
+            raise ConfigError(f"{where}.sign: cannot find the orientation of channel {j} by probing (one doStep "
+                              f"gives d{sub.port.physical_out[j]}/d{sub.port.physical_in[j]} = {slope:.3g}); give the sign")
+        signs.append(1.0 if slope > 0 else -1.0)
+        slopes.append(slope)
+    sub.thaw()
+    return signs, slopes
