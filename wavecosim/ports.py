@@ -58,6 +58,7 @@ class WaveAdapter:
         self.sign = signs
         self.u = np.zeros(self.m)              # warm start: the last solved input, kept across macro-steps
         self.y = self.D = None                 # output at u and slope dy/du, valid within one macro-step
+        self.h = None                          # the input steps D was estimated with
         self.evaluations = self.doSteps = 0
         self.set_gamma(gamma)
 
@@ -82,7 +83,7 @@ class WaveAdapter:
         u = self.u
         y = self._eval(u)
         scale = np.abs(u) + (np.abs(target) + np.abs(self.wy * y)) / np.abs(self.wu)
-        h = SLOPE_REL * np.where(scale > 0, scale, 1.0)
+        h = self.h = SLOPE_REL * np.where(scale > 0, scale, 1.0)
         D = np.zeros((self.m, self.m))
         for j in range(self.m):
             du = np.zeros(self.m)
@@ -106,7 +107,7 @@ class WaveAdapter:
             u_new = u - step
             y_new = self._eval(u_new)
             du, dy = u_new - u, y_new - y
-            if du @ du > 0:
+            if du @ du >= self.h @ self.h:           # a shorter secant would carry more roundoff than D
                 self.D += np.outer(dy - self.D @ du, du) / (du @ du)
             u, y = u_new, y_new
             r = self.wu * u + self.wy * y - target

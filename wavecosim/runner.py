@@ -125,6 +125,17 @@ def _warn_stderr(message):
     print(f"warning: {message}", file=sys.stderr, flush=True)
 
 
+def _once(warn):
+    """`warn` that lets each distinct message through once."""
+    seen = set()
+
+    def once(message):
+        if message not in seen:
+            seen.add(message)
+            warn(message)
+    return once
+
+
 def open_parts(scenario, warn):
     """Scene, master and gamma tuner of a run; whatever was opened is closed if set-up fails."""
     cls = MASTERS[scenario.master.algorithm]
@@ -337,6 +348,7 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
     reference: None (no errors), a RunResult of the monolithic reference, or "lockstep" (run the
     monolithic reference alongside, writing its files with the label "monolithic"). Raises
     RunFailed (with .result) on a failure, Interrupted (with .result) on Ctrl-C."""
+    warn = _once(warn or _warn_stderr)                 # the lockstep reference repeats set-up notes
     live = LiveRun(scenario, out_dir, label, certificates, warn, file_suffix, output_interval, formats)
     ref = None
     try:
