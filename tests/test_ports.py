@@ -4,6 +4,7 @@ them, DR and the monolithic reference agree through it, every classical master r
 physical ports, a missing port sign is found by probing, and without H the run reports the port
 energy ledger and what it could not certify."""
 import copy
+import re
 
 import numpy as np
 import pytest
@@ -118,12 +119,13 @@ def test_without_h_the_run_keeps_the_port_ledger(dr_run):
 
 
 def test_an_unsolved_query_names_the_subsystem_step_and_residual(pair, monkeypatch):
+    """A tolerance no residual meets (the mass at rest meets it exactly: a = u = v = 0 in step 0)."""
     monkeypatch.setattr(ports, "TOL", -1.0)
     with pytest.raises(RunFailed) as failed:
         run(pair.with_changes(gamma=1.0), warn=lambda msg: None)
     assert isinstance(failed.value.error, NumericalError)
-    assert "subsystem A: wave adapter at step 0" in str(failed.value.error)
-    assert "residual |e + gamma f - c a| =" in str(failed.value.error)
+    assert re.fullmatch(r"subsystem B: wave adapter at step 0 \(t = 0\): no convergence in 30 Newton iterations; "
+                        r"residual \|e \+ gamma f - c a\| = \S+", str(failed.value.error))
 
 
 def test_the_c_kernel_refuses_adapter_ports(pair):

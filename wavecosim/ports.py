@@ -18,6 +18,7 @@ import math
 import numpy as np
 
 from .errors import ConfigError, NumericalError
+from .linalg import matvec
 
 TOL = 1e-12          # relative residual |e + gamma f - c a| / (|c a| + |e| + gamma |f|) of a solved query
 MAX_ITER = 30        # Newton iterations per query
@@ -53,12 +54,10 @@ class WaveAdapter:
 
     def __init__(self, sub, effort_in, signs, gamma):
         self.sub, self.m = sub, sub.m
-        signs = np.asarray(signs, float)
-        self.effort_in = np.asarray(effort_in, bool)
-        self.sign = signs
-        self.u = np.zeros(self.m)              # warm start: the last solved input, kept across macro-steps
+        self.effort_in, self.sign = [bool(x) for x in effort_in], [float(x) for x in signs]
+        self.u = [0.0] * self.m                # warm start: the last solved input, kept across macro-steps
         self.y = self.D = None                 # output at u and slope dy/du, valid within one macro-step
-        self.h = None                          # the input steps D was estimated with
+        self.h2 = 0.0                          # |input step|^2 D was estimated with
         self.evaluations = self.doSteps = 0
         self.set_gamma(gamma)
 
@@ -67,8 +66,10 @@ class WaveAdapter:
         self.gamma = float(gamma)
         dt = self.sub.dt
         self.c, self.k = math.sqrt(2.0 * gamma / dt), math.sqrt(dt / (2.0 * gamma))
-        self.wu = np.where(self.effort_in, 1.0, gamma * self.sign)
-        self.wy = np.where(self.effort_in, gamma * self.sign, 1.0)
+        self.wu = [1.0 if ein else gamma * s for ein, s in zip(self.effort_in, self.sign)]
+        self.wy = [gamma * s if ein else 1.0 for ein, s in zip(self.effort_in, self.sign)]
+        if self.D is not None:
+            self._invert()
 
     def new_step(self):
         """x_i^n changed: the cached output and slope no longer hold."""
@@ -76,57 +77,77 @@ class WaveAdapter:
 
     def _eval(self, u):
         self.doSteps += 1
-        return np.asarray(self.sub.raw_query(list(u)))
+        return self.sub.raw_query(u)
+
+    def _residual(self, u, y, target):
+        return [wu * ui + wy * yi - ti for wu, ui, wy, yi, ti in zip(self.wu, u, self.wy, y, target)]
+
+    def _invert(self):
+        """The Newton matrix diag(wu) + diag(wy) D, inverted once per slope."""
+        J = np.diag(self.wu) + np.asarray(self.wy)[:, None] * self.D
+        try:
+            inverse = np.linalg.inv(J)
+        except np.linalg.LinAlgError:
+            inverse = np.full_like(J, np.nan)
+        if not np.all(np.isfinite(inverse)):
+            self._fail(self._residual(self.u, self.y, [0.0] * self.m),
+                       "the port's slope makes the Newton matrix singular (is the port's sign right?)")
+        self.J_inv = inverse.tolist()
 
     def _estimate_slope(self, target):
         """dy/du at the warm start by forward differences (m + 1 doSteps from x_i^n)."""
         u = self.u
-        y = self._eval(u)
-        scale = np.abs(u) + (np.abs(target) + np.abs(self.wy * y)) / np.abs(self.wu)
-        h = self.h = SLOPE_REL * np.where(scale > 0, scale, 1.0)
-        D = np.zeros((self.m, self.m))
+        self.y = y = self._eval(u)
+        self.D = np.zeros((self.m, self.m))
+        self.h2 = 0.0
         for j in range(self.m):
-            du = np.zeros(self.m)
-            du[j] = h[j]
-            D[:, j] = (self._eval(u + du) - y) / h[j]
-        self.y, self.D = y, D
+            scale = abs(u[j]) + (abs(target[j]) + abs(self.wy[j] * y[j])) / abs(self.wu[j])
+            h = SLOPE_REL * (scale if scale > 0 else 1.0)
+            self.h2 += h * h
+            du = list(u)
+            du[j] += h
+            self.D[:, j] = [(yj - y0) / h for yj, y0 in zip(self._eval(du), y)]
+        self._invert()
+
+    def _secant(self, du, dy):
+        """Broyden update of D from one step, unless it is shorter than the slope's own step
+        (then it would carry more roundoff than D)."""
+        du2 = sum(x * x for x in du)
+        if du2 >= self.h2:
+            du_, dy_ = np.asarray(du), np.asarray(dy)
+            self.D += np.outer(dy_ - self.D @ du_, du_) / du2
+            self._invert()
 
     def _solve(self, a):
         """The held input for incident wave a; the FMU is left at Phi(x_i^n, u). Returns (e, f)."""
         self.evaluations += 1
-        target = self.c * np.asarray(a, float)
+        target = [self.c * x for x in a]
         if self.D is None:
             self._estimate_slope(target)
         u, y = self.u, self.y
         for _ in range(MAX_ITER):
-            r = self.wu * u + self.wy * y - target
-            try:
-                step = np.linalg.solve(np.diag(self.wu) + self.wy[:, None] * self.D, r)
-            except np.linalg.LinAlgError:
-                self._fail(r, "the port's slope makes the Newton matrix singular (is the port's sign right?)")
-            u_new = u - step
+            u_new = [ui - s for ui, s in zip(u, matvec(self.J_inv, self._residual(u, y, target)))]
             y_new = self._eval(u_new)
-            du, dy = u_new - u, y_new - y
-            if du @ du >= self.h @ self.h:           # a shorter secant would carry more roundoff than D
-                self.D += np.outer(dy - self.D @ du, du) / (du @ du)
-            u, y = u_new, y_new
-            r = self.wu * u + self.wy * y - target
-            self.u, self.y = u, y
-            if np.linalg.norm(r) <= TOL * (np.linalg.norm(target) + np.linalg.norm(self.wu * u)
-                                           + np.linalg.norm(self.wy * y)) or not np.any(r):
+            r = self._residual(u_new, y_new, target)
+            size = sum(abs(t) + abs(wu * ui) + abs(wy * yi)
+                       for t, wu, ui, wy, yi in zip(target, self.wu, u_new, self.wy, y_new))
+            if sum(abs(x) for x in r) > TOL * size:
+                self._secant([p - q for p, q in zip(u_new, u)], [p - q for p, q in zip(y_new, y)])
+            self.u, self.y = u, y = u_new, y_new
+            if sum(abs(x) for x in r) <= TOL * size:
                 return self.stage(u, y)
         self._fail(r, f"no convergence in {MAX_ITER} Newton iterations")
 
     def _fail(self, r, why):
         s = self.sub
         raise NumericalError(f"subsystem {s.name}: wave adapter at step {s.step_index} (t = {s.t:.6g}): {why}; "
-                             f"residual |e + gamma f - c a| = {float(np.linalg.norm(r)):.3g}")
+                             f"residual |e + gamma f - c a| = {math.hypot(*r):.3g}")
 
     def stage(self, u, y):
         """Oriented (e, f) from the FMU's input and output values."""
-        e = np.where(self.effort_in, u, y)
-        f = self.sign * np.where(self.effort_in, y, u)
-        return [float(x) for x in e], [float(x) for x in f]
+        e = [ui if ein else yi for ein, ui, yi in zip(self.effort_in, u, y)]
+        f = [s * (yi if ein else ui) for ein, s, ui, yi in zip(self.effort_in, self.sign, u, y)]
+        return e, f
 
     def outgoing(self, e, f):
         """b = sqrt(dt / (2 gamma)) (e - gamma f) per channel (eq. 3)."""

@@ -29,8 +29,8 @@ class Passivity(Observer):
         self.has_H = [s.port.energy is not None for s in scene.subsystems]
         self.complete = all(self.has_H)
         missing = [n for n, h in zip(self.names, self.has_H) if not h]
-        self.unavailable = [*(f"r_{n}" for n in missing), *([] if self.complete else ["H_total", "H_growth"]),
-                            *unavailable]
+        self.unavailable = [*(f"r_{n}" for n in missing), *([] if any(self.has_H) else ["max_passivity_pos"]),
+                            *([] if self.complete else ["H_total", "H_growth"]), *unavailable]
         self.columns = (*[f"r_{n}" for n, h in zip(self.names, self.has_H) if h],
                         *[c for n in missing for c in (f"port_energy_{n}", f"port_energy_cum_{n}")],
                         "interface_supply", *(["H_total"] if self.complete else []))
@@ -77,8 +77,8 @@ class Passivity(Observer):
 
     def summary(self):
         worst = [r for r, h in zip(self.max_r, self.has_H) if h and r == r]
-        out = {"max_passivity_pos": max(worst) if worst else math.nan,
-               "max_passivity_pos_by_subsystem": {n: r for n, r, h in zip(self.names, self.max_r, self.has_H) if h}}
+        out = {"max_passivity_pos": max(worst) if worst else math.nan} if any(self.has_H) else {}
+        out["max_passivity_pos_by_subsystem"] = {n: r for n, r, h in zip(self.names, self.max_r, self.has_H) if h}
         if self.complete:
             out.update({"H_initial": self.H_initial, "H_final": self.H_final,
                         "H_growth": self.H_max / self.H_initial if self.H_initial > 0 else math.nan})
