@@ -7,6 +7,7 @@ build/fmus/<Id>.fmu. A build is skipped when a stamp of the sources and flags is
     python fmus/build.py [--force]
 """
 import hashlib
+import importlib.util
 import os
 import re
 import shutil
@@ -20,6 +21,9 @@ ROOT = Path(__file__).resolve().parent.parent
 LAYER = ROOT / "fmus" / "layer"
 KERNEL = ROOT / "fmus" / "kernel"
 MODELS = ROOT / "models"
+SPECS = ROOT / "specs"
+GEN = ROOT / "build" / "gen"
+CODEGEN = ROOT / "fmus" / "codegen"
 OUT = ROOT / "build" / "fmus"
 LIB_OUT = ROOT / "build" / "lib"
 CFLAGS = ["-O2", "-std=c99", "-fPIC", "-ffp-contract=off", "-Wall", "-Wextra", "-Werror"]
@@ -122,11 +126,38 @@ def model_dirs():
     return sorted(p for p in MODELS.iterdir() if (p / "config.h").exists())
 
 
+def build_spec(spec: Path, force=False, log=print) -> Path:
+    """Generate build/gen/<name>/ from a port-Hamiltonian spec (fmus/codegen/ph.py), then build it
+    as a model; generation is skipped while the spec and the generator are unchanged."""
+    out = GEN / spec.stem
+    stamp = _stamp([spec, *CODEGEN.glob("*.py"), *CODEGEN.glob("*.h")])
+    stamp_file = out / "spec.stamp"
+    if force or not (out / "config.h").exists() or not stamp_file.exists() or stamp_file.read_text() != stamp:
+        codegen().generate(spec, out)
+        stamp_file.write_text(stamp)
+    return build_model(out, force, log)
+
+
+def codegen():
+    """fmus/codegen/ph.py loaded as a module (a sibling script folder, not a package)."""
+    loader = importlib.util.spec_from_file_location("wavecosim_codegen_ph", CODEGEN / "ph.py")
+    ph = importlib.util.module_from_spec(loader)
+    loader.loader.exec_module(ph)
+    return ph
+
+
+def spec_files():
+    return sorted(SPECS.glob("*.yaml")) if SPECS.is_dir() else []
+
+
 def build_all(force=False, log=print) -> dict:
     """Build every model (and the kernel library if present); returns {identifier: fmu path}."""
     if shutil.which("gcc") is None:
         raise BuildError("gcc was not found on PATH; it is needed to build the FMUs")
     fmus = {model_identifier(d): build_model(d, force, log) for d in model_dirs()}
+    for spec in spec_files():
+        path = build_spec(spec, force, log)
+        fmus[model_identifier(GEN / spec.stem)] = path
     if KERNEL.is_dir():
         for c_file in sorted(KERNEL.glob("*.c")):
             build_library(c_file.stem, [c_file, *KERNEL.glob("*.h")], force, log)

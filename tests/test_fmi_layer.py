@@ -17,8 +17,9 @@ from fmpy.validation import validate_fmu
 from wavecosim.errors import FmuError
 from wavecosim.fmu import Fmu
 
-# one model with a wave port and a header of its own (newton.h), one plain physical-causality model
-REBUILT = {"DuffingSide": {}, "ForeignMass": {"v": 1.0, "c": 0.5}}
+# one model with a wave port and a header of its own (newton.h), one plain physical-causality model,
+# one generated from a port-Hamiltonian spec (specs/pendulum_cart.yaml, with ph_step.h)
+REBUILT = {"DuffingSide": {}, "ForeignMass": {"v": 1.0, "c": 0.5}, "PendulumCart": {"theta": 1.0}}
 
 
 def test_every_built_fmu_validates(built_fmus):

@@ -52,7 +52,8 @@ def test_fixed_point_masters_count_queries_saves_and_restores(name):
 
 @pytest.mark.parametrize("iterated, explicit", [("jacobi-iter", "explicit"), ("gauss-seidel-iter", "gauss-seidel")])
 def test_budget_zero_is_the_explicit_master(iterated, explicit):
-    a = run_quiet(scenario(TABLE_I, 1.0, algorithm=iterated, K=0))
+    # the explicit masters cannot roll back, so no energy guard holds them: compare without one
+    a = run_quiet(scenario(TABLE_I, 1.0, algorithm=iterated, K=0, energy_guard="off"))
     b = run_quiet(scenario(TABLE_I, 1.0, algorithm=explicit))
     assert np.array_equal(a.outputs, b.outputs)
 

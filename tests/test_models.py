@@ -6,16 +6,16 @@ Condition 2 is checked as H(x1) - H(x0) = h sum_j e_j f_j - dissipation with dis
 in wave mode also as the scattering identity e + gamma f = sqrt(2 gamma / h) a, so that
 h sum_j e_j f_j = (|a|^2 - |b|^2)/2.
 """
-import importlib.util
-import re
 import zlib
 from pathlib import Path
 
 import numpy as np
 import pytest
-from fmpy import extract, read_model_description, simulate_fmu
-from fmpy.fmi2 import FMU2Slave
+from fmpy import extract, simulate_fmu
 from fmpy.validation import validate_fmu
+
+from conftest import Instance, channels, check_discrete_passivity, check_rollback, random_instance
+from wavecosim.builtin import build_module
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -30,73 +30,17 @@ MODELS = {
     "HeavyChain": ("heavy_chain", "c", {}, 10.0),
     "ChainLink": ("chain_link", "c", {"q": 0.5, "v": 1.0, "d": 0.3}, 1.0),
 }
-PASSIVITY_RTOL = 1e-12
-
-
-def channels(folder):
-    """Port channels (wave_in, wave_out, effort, flow, physical_in, kind) from config.h."""
-    text = (ROOT / "models" / folder / "config.h").read_text()
-    return re.findall(r"X\((\w+), (\w+), (\w+), (\w+), (\w+), (FLOW_INPUT|EFFORT_INPUT)\)", text)
 
 
 @pytest.fixture(scope="module")
 def fmus(tmp_path_factory):
     """Builds the models of this file with fmus/build.py; returns {identifier: (fmu, unzip dir)}."""
-    spec = importlib.util.spec_from_file_location("wavecosim_fmus_build", ROOT / "fmus" / "build.py")
-    build = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(build)
+    build = build_module()
     out = {}
     for ident, (folder, *_) in MODELS.items():
         path = build.build_model(ROOT / "models" / folder, log=lambda *_: None)
         out[ident] = (path, extract(str(path), unzipdir=str(tmp_path_factory.mktemp(ident))))
     return out
-
-
-class Instance:
-    """One FMU instance addressed by variable names, initialized with the given start values."""
-
-    def __init__(self, fmus, ident, name="test", reals=None, ints=None):
-        path, unzipped = fmus[ident]
-        md = read_model_description(str(path))
-        self.vr = {v.name: v.valueReference for v in md.modelVariables}
-        self.reals = [v.name for v in md.modelVariables if v.type == "Real"]
-        self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipped,
-                             modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
-        self.fmu.instantiate()
-        self.fmu.setupExperiment(startTime=0.0)
-        self.fmu.enterInitializationMode()
-        for k, v in (ints or {}).items():
-            self.fmu.setInteger([self.vr[k]], [int(v)])
-        self.set(**(reals or {}))
-        self.fmu.exitInitializationMode()
-        self.t = 0.0
-
-    def set(self, **values):
-        if values:
-            self.fmu.setReal([self.vr[k] for k in values], [float(v) for v in values.values()])
-
-    def get(self, *names):
-        return np.array(self.fmu.getReal([self.vr[k] for k in names]))
-
-    def step(self, h):
-        self.fmu.doStep(self.t, h)
-        self.t += h
-
-    def free(self):
-        self.fmu.terminate()
-        self.fmu.freeInstance()
-
-
-def random_instance(fmus, ident, rng, mode, damped):
-    folder, damper, states, _ = MODELS[ident]
-    reals = {k: s * rng.standard_normal() for k, s in states.items()}
-    reals["gamma"] = 10.0 ** rng.uniform(-1.5, 1.5)
-    ints = {"port_mode": mode}
-    if ident == "HeavyChain":
-        ints.update(n=int(rng.integers(1, 40)), newton_sweeps=1)
-        reals["amplitude"] = rng.uniform(-0.6, 0.6)
-    reals[damper] = rng.uniform(0.0, 2.0) if damped else 0.0
-    return Instance(fmus, ident, reals=reals, ints=ints)
 
 
 @pytest.mark.parametrize("ident", MODELS)
@@ -109,73 +53,17 @@ def test_validates(fmus, ident):
 def test_discrete_passivity(fmus, ident, mode):
     """Condition 2 over 100 random (state, input, gamma, h): equality when undamped."""
     rng = np.random.default_rng(zlib.crc32(f"{ident}{mode}".encode()))
-    chans = channels(MODELS[ident][0])
-    phys_scale = MODELS[ident][3]
-    worst = 0.0
-    for trial in range(10):
-        damped = trial % 2 == 1
-        inst = random_instance(fmus, ident, rng, mode, damped)
-        try:
-            for _ in range(10):
-                h = 10.0 ** rng.uniform(-3, -1)
-                gamma = 10.0 ** rng.uniform(-1.5, 1.5)
-                inst.set(gamma=gamma)
-                H0 = inst.get("H")[0]
-                if mode == 0:
-                    a = rng.standard_normal(len(chans)) * np.sqrt(h * (abs(H0) + 1.0))
-                    inst.set(**{c[0]: x for c, x in zip(chans, a)})
-                else:
-                    inst.set(**{c[4]: phys_scale * rng.standard_normal() for c in chans})
-                inst.step(h)
-                H1 = inst.get("H")[0]
-                e = inst.get(*[c[2] for c in chans])
-                f = inst.get(*[c[3] for c in chans])
-                supply = h * float(e @ f)
-                scale = abs(H0) + abs(H1) + abs(supply) + 1e-300
-                resid = (H1 - H0 - supply) / scale
-                assert resid <= PASSIVITY_RTOL, (ident, mode, resid)
-                if not damped:
-                    assert abs(resid) <= PASSIVITY_RTOL, (ident, mode, resid)
-                worst = max(worst, abs(resid) if not damped else resid)
-                if mode == 0:  # the step honours the wave closure, so supply = (|a|^2 - |b|^2)/2
-                    b = inst.get(*[c[1] for c in chans])
-                    target = np.sqrt(2.0 * gamma / h) * a
-                    assert np.allclose(e + gamma * f, target, rtol=1e-11, atol=1e-11 * np.abs(target).max()), ident
-                    assert abs(0.5 * (a @ a - b @ b) - supply) <= 1e-11 * (a @ a + b @ b + 1e-300), ident
-        finally:
-            inst.free()
+    worst = check_discrete_passivity(lambda damped: random_instance(fmus, ident, rng, mode, damped, MODELS),
+                                     channels(MODELS[ident][0]), MODELS[ident][3], mode, rng)
     print(f"\n{ident} {'wave' if mode == 0 else 'physical'}: worst passivity residual {worst:.2e}")
-
-
 
 
 @pytest.mark.parametrize("ident", MODELS)
 def test_rollback_is_bit_identical(fmus, ident):
-    """Step, save, step, restore (directly and via serialization), step: identical outputs."""
     rng = np.random.default_rng(7)
-    chans = channels(MODELS[ident][0])
-    inst = random_instance(fmus, ident, rng, mode=0, damped=True)
+    inst = random_instance(fmus, ident, rng, 0, True, MODELS)
     try:
-        h = 0.01
-        for _ in range(3):
-            inst.set(**{c[0]: 0.1 * rng.standard_normal() for c in chans})
-            inst.step(h)
-        inputs = {c[0]: 0.1 * rng.standard_normal() for c in chans}
-        state = inst.fmu.getFMUState()
-        blob = inst.fmu.serializeFMUState(state)
-        restored = inst.fmu.deserializeFMUState(blob)
-        runs = []
-        for saved in (None, state, restored):
-            if saved is not None:
-                inst.fmu.setFMUState(saved)
-                inst.t -= 2 * h
-            inst.set(**inputs)
-            inst.step(h)
-            inst.step(h)
-            runs.append(inst.get(*inst.reals).tobytes())
-        inst.fmu.freeFMUState(state)
-        inst.fmu.freeFMUState(restored)
-        assert runs[0] == runs[1] == runs[2], ident
+        check_rollback(inst, channels(MODELS[ident][0]), rng)
     finally:
         inst.free()
 
@@ -214,14 +102,14 @@ def test_heavy_chain_at_rest_driven_from_the_port(fmus):
         inst.free()
 
 
-def test_failures_report_and_keep_the_state(fmus, capfd):
+def test_failures_report_and_keep_the_state(fmus):
     from fmpy.fmi1 import FMICallException
 
     inst = Instance(fmus, "PlanarSpring", reals={"kxy": 100.0})
     try:
         with pytest.raises(FMICallException):
             inst.step(0.01)
-        assert "convex potential" in capfd.readouterr().out
+        assert "convex potential" in inst.messages[-1]
     finally:
         inst.free()
 
@@ -231,14 +119,14 @@ def test_failures_report_and_keep_the_state(fmus, capfd):
         H0 = inst.get("H", "q_first", "q_last")
         with pytest.raises(FMICallException):
             inst.step(0.05)
-        assert "did not converge" in capfd.readouterr().out
+        assert "did not converge" in inst.messages[-1]
         assert inst.get("H", "q_first", "q_last").tobytes() == H0.tobytes()
     finally:
         inst.free()
 
-    with pytest.raises(FMICallException):
+    with pytest.raises(FMICallException) as info:
         Instance(fmus, "HeavyChain", ints={"n": 5000})
-    assert "parameter n must be between 1 and 1000, got 5000" in capfd.readouterr().out
+    assert "parameter n must be between 1 and 1000, got 5000" in info.value.fmu_messages[-1]
 
 
 def _solve_affine_interface(evaluate, n):

@@ -114,8 +114,17 @@ def test_without_h_the_run_keeps_the_port_ledger(dr_run):
     assert np.all(np.diff(kinetic) - steps["port_energy_A"] <= 1e-15)
     assert abs(s["port_energy_by_subsystem"]["A"] + s["port_energy_by_subsystem"]["B"]) < 1e-12
     assert {"r_A", "r_B", "H_total"} <= set(s["certificates_unavailable"])
-    assert any(c.startswith("energy_guard") for c in s["certificates_unavailable"])
-    assert "energy_guard_steps" not in s and "H_initial" not in s and dr_run.energy is None
+    assert "H_initial" not in s and dr_run.energy is None
+
+
+def test_the_ledger_guard_runs_without_h_and_the_monolithic_guard_is_skipped(pair, dr_run):
+    """The interface ledger needs no H (it stays at roundoff here); the monolithic guard needs H, so
+    it is left out with a note instead of guarding against a made-up energy."""
+    assert "ledger" in dr_run.steps.dtype.names and max(dr_run.steps["ledger"]) <= 1e-12
+    assert not any(c.startswith("energy_guard") for c in dr_run.summary["certificates_unavailable"])
+    monolithic = run(pair.with_master(energy_guard="monolithic"), warn=lambda msg: None).summary
+    assert "energy_guard (monolithic: needs every subsystem's stored energy H)" in monolithic["certificates_unavailable"]
+    assert "energy_guard_steps" not in monolithic
 
 
 def test_an_unsolved_query_names_the_subsystem_step_and_residual(pair, monkeypatch):

@@ -1,7 +1,6 @@
 """The `wavecosim` command line: a thin shell over config, runner and sweep.
 
 Every WavecosimError becomes one line on stderr and its class's exit code (2 for bad input)."""
-import dataclasses
 import sys
 from pathlib import Path
 

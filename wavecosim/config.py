@@ -48,7 +48,7 @@ class MasterConfig:
     deadline_us: float = None
     fast: str = "auto"
     threads: str = "auto"
-    energy_guard: bool = True
+    energy_guard: str = "ledger"       # ledger | monolithic | off (true/false of old files: monolithic/off)
 
 
 @dataclass
@@ -248,6 +248,17 @@ def _subsystem(ck, name, raw, base_dir):
                            gamma=ck.number(raw["gamma"], f"{path}.gamma", positive=True) if "gamma" in raw else None)
 
 
+ENERGY_GUARDS = ("ledger", "monolithic", "off")
+
+
+def _energy_guard(ck, value):
+    """master.energy_guard: ledger, monolithic or off; true and false (old files, and YAML's
+    unquoted on/off) mean monolithic and off."""
+    if isinstance(value, bool):
+        return "monolithic" if value else "off"
+    return ck.string(value, "master.energy_guard", ENERGY_GUARDS)
+
+
 PORT_REF = re.compile(r"^([A-Za-z_][\w-]*)(?:\[(\d+)\])?$")
 
 
@@ -340,7 +351,7 @@ def _master(ck, m) -> MasterConfig:
     if "fast" in m:
         master.fast = ck.string(str(m["fast"]).lower(), "master.fast", ("auto", "true", "false"))
     if "energy_guard" in m:
-        master.energy_guard = ck.boolean(m["energy_guard"], "master.energy_guard")
+        master.energy_guard = _energy_guard(ck, m["energy_guard"])
     if "threads" in m:
         master.threads = ck.string(str(m["threads"]), "master.threads", ("auto", "1", "2"))
     return master

@@ -24,6 +24,7 @@ from .metadata import run_metadata
 from .observers import Observer
 from .observers.certificates import CertificateSampler
 from .observers.energy_guard import EnergyGuard
+from .observers.energy_ledger import EnergyLedger
 from .observers.errors import ErrorTracker, stored_reference
 from .observers.fne_watch import FneWatch
 from .observers.gamma import GammaLog, TunedGammaLog
@@ -36,12 +37,18 @@ FORMATS = ("csv", "mat")
 STEP_COLUMNS = ("time", "iterations", "inner_residual", "reason")
 
 
-def grid_times(k, dt):
-    """The grid value k dt (k an array): k / (1/dt) when 1/dt is a whole number, so t = 0.3 is 0.3."""
+def grid_clock(dt):
+    """k -> the grid value k dt: k / (1/dt) when 1/dt is a whole number (so t = 0.3 is 0.3, not
+    0.30000000000000004), else k * dt."""
     inverse = round(1.0 / dt)
     if inverse > 0 and abs(inverse * dt - 1.0) < 1e-12:
-        return np.asarray(k, float) / inverse
-    return np.asarray(k, float) * dt
+        return lambda k: k / inverse
+    return lambda k: k * dt
+
+
+def grid_times(k, dt):
+    """grid_clock for an array of step indices."""
+    return grid_clock(dt)(np.asarray(k, float))
 
 
 def _structured(table):
@@ -162,11 +169,14 @@ def make_observers(scenario, scene, master, tuner, certificates, warn):
     """The observers this run needs, in the order they act (the energy guard first)."""
     obs, unavailable = [], []
     has_H = all(s.port.energy is not None for s in scene.subsystems)
-    if master.iterates and scenario.master.energy_guard:
+    guard = scenario.master.energy_guard
+    if guard == "ledger" and master.guardable:
+        obs.append(EnergyLedger(master))
+    elif guard == "monolithic" and master.guardable and master.iterates:
         if has_H:
             obs.append(EnergyGuard(master))
         else:
-            unavailable.append("energy_guard (needs every subsystem's stored energy H)")
+            unavailable.append("energy_guard (monolithic: needs every subsystem's stored energy H)")
     if isinstance(master, WaveMaster):
         obs.append(TunedGammaLog(scene, master, tuner) if tuner and tuner.retune else GammaLog(scene, master, tuner))
     if master.iterates and scenario.fne_watch and certificates:
@@ -212,14 +222,16 @@ class LiveRun:
         path = (lambda kind: self.out_dir / f"{kind}{self.suffix}.csv") if self.out_dir else (lambda kind: None)
         self.trajectory = Table(["time", *self.columns], path("trajectory"), expected_rows=rows)
         obs_cols = [c for o in self.observers for c in o.columns]
-        self.steps = Table([*STEP_COLUMNS, *obs_cols], path("steps"), expected_rows=rows,
-                           formats={"iterations": ints, "reason": Labels(REASONS)})
+        formats = {"iterations": ints, "reason": Labels(REASONS)}
+        for o in self.observers:
+            formats.update(o.formats)
+        self.steps = Table([*STEP_COLUMNS, *obs_cols], path("steps"), expected_rows=rows, formats=formats)
         self.scratch = np.full(len(self.steps.columns), np.nan)
         self.slices, at = [], len(STEP_COLUMNS)
         for o in self.observers:
             self.slices.append(self.scratch[at:at + len(o.columns)])
             at += len(o.columns)
-        self.times = grid_times(np.arange(self.n_steps + 1), self.dt)
+        self.time_of = grid_clock(self.dt)
 
     def start(self):
         """Read the FMUs at t = 0, start the observers, record the first trajectory row."""
@@ -234,7 +246,8 @@ class LiveRun:
         self.first = {"H": sum(first.H), "error": next((o.first for o in self.observers
                                                         if isinstance(o, ErrorTracker)), math.nan)}
         self.bracket = any(type(o).before_step is not Observer.before_step for o in self.observers)
-        self.guard = next((o for o in self.observers if isinstance(o, EnergyGuard)), None)
+        self.guard, self.guard_row = next(((o, row) for o, row in zip(self.observers, self.slices) if o.redoes),
+                                          (None, None))
         self.after = [(o, row) for o, row in zip(self.observers, self.slices) if o is not self.guard]
         self.loop_started = time.perf_counter()
         self.calls_at_start, self.excluded = self._totals(), {k: 0 for k in ("doStep", "save", "restore")}
@@ -254,7 +267,7 @@ class LiveRun:
         reading = self.sampler.read()
         if self.guard is not None:
             t0 = time.perf_counter()
-            redo = self.guard.after_step(n, t, log, reading, None)
+            redo = self.guard.after_step(n, t, log, reading, self.guard_row)
             self.master_time += time.perf_counter() - t0
             if redo is not None:
                 log, reading = redo, self.sampler.read()
@@ -273,13 +286,13 @@ class LiveRun:
         self.iterations[0] += log.iterations
         self.iterations[1] = max(self.iterations[1], log.iterations)
         s = self.scratch
-        s[0], s[1], s[2], s[3] = self.times[n + 1], log.iterations, log.residual, REASONS.index(log.reason)
+        s[0], s[1], s[2], s[3] = self.time_of(n + 1), log.iterations, log.residual, REASONS.index(log.reason)
         if (n + 1) % self.every and n + 1 != self.n_steps:
             return
         self.steps.next_row()[:] = s
         self.steps.commit_row()
         row = self.trajectory.next_row()
-        row[0], row[1:] = self.times[n + 1], reading.outputs
+        row[0], row[1:] = self.time_of(n + 1), reading.outputs
         self.trajectory.commit_row()
 
     def _check_finite(self, reading, n):

@@ -165,6 +165,10 @@ class Scene:
         adapters = {s.name: s.map.info() for s in self.subsystems if s.adapter}
         return {"port_signs": self.port_signs, **({"wave_adapter": adapters} if adapters else {})}
 
+    def do_step_calls(self):
+        """doStep calls made so far, over all subsystems (what a redo costs is the difference)."""
+        return sum(s.calls["doStep"] for s in self.subsystems)
+
     def split(self, x):
         """Per-subsystem slices of a stacked channel vector."""
         return [x[off:off + s.m] for s, off in zip(self.subsystems, self.offsets)]

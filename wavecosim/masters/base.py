@@ -7,7 +7,9 @@ StepLog. Class attributes say what it needs and how it is shown:
   budgets         the grid of inner budgets K `compare` tries ((None,): no inner budget)
   style           (colour, marker) in the comparison plots
   iterates        it gives the DR iterates u^0 and u^K, so Theorem 1's residual, the Condition 1
-                  watch and the energy guard apply
+                  watch and the monolithic energy guard apply
+  guardable       its commit can supply energy, and it can undo the commit and redo it with other
+                  inputs (undo_step, recommit, probe, supply): the energy guards apply
 Wave masters (WaveMaster) own the compiled wave map P, J_L and the committed wave b^n: nothing
 else writes them; observers act through the methods below.
 """
@@ -19,6 +21,7 @@ from ..errors import ConfigError
 from ..monolithic import solve_interface
 
 
+MIN_INNER_S = 1e-9        # an inner deadline this short stops the loop after its first iteration
 REASONS = ("budget", "tolerance", "deadline", "explicit", "converged", "energy-guard", "none")
 
 
@@ -42,14 +45,27 @@ class Master:
     budgets = (None,)
     style = ("gray", "o")
     iterates = False          # gives the DR iterates u^0, u^K (Theorem 1, Condition 1 watch, energy guard)
+    guardable = False         # an energy guard applies (undo_step, recommit, probe, supply)
 
     def __init__(self, scene, settings):
         self.scene, self.settings = scene, settings
         self.subsystems = scene.subsystems
         self.dt = scene.scenario.dt
+        self.deadline_s = settings.deadline_us * 1e-6 if settings.deadline_us else None
+        self.inner_deadline_s = self.deadline_s          # the inner loop's share of the deadline
+        self.step_started = 0.0                          # perf_counter() when the last step began
+
+    def reserve_time(self, seconds):
+        """Stop the inner loop `seconds` before master.deadline_us, leaving them for a redo."""
+        if self.deadline_s is not None:
+            self.inner_deadline_s = max(self.deadline_s - seconds, MIN_INNER_S)
 
     def step(self, n, t) -> StepLog:
         raise NotImplementedError
+
+    def probe(self, inputs):
+        """After undo_step: the outputs of macro-step n from x^n with `inputs` (stacked); state discarded."""
+        return self.scene.S(inputs)
 
     def enable_trace(self, on=True):
         """Record the inner loop's queries (u, S(u)) of each macro-step; False if this master cannot."""
@@ -112,8 +128,26 @@ class WaveMaster(Master):
         return [float(x) for x in (np.asarray(self.P) @ b_star)], iters, res
 
     def recommit(self, a_hat):
-        """After undo_step: commit macro-step n again with other incident waves."""
+        """After undo_step: commit macro-step n again with other incident waves; returns b^{n+1}."""
         self.commit(a_hat)
+        return self._b
+
+    @property
+    def committed_outputs(self):
+        """The outputs of the last commit: b^{n+1}."""
+        return self._b
+
+    @staticmethod
+    def committed_inputs(log):
+        """The stacked inputs the step committed with: the incident waves a_hat."""
+        return log.a_hat
+
+    @staticmethod
+    def supply(inputs, outputs):
+        """Energy the interface supplies over a step, 1/2 (|a|^2 - |b|^2) (eq. 5), and its traffic
+        1/2 (|a|^2 + |b|^2), the scale of its roundoff."""
+        aa, bb = sum(x * x for x in inputs), sum(x * x for x in outputs)
+        return 0.5 * (aa - bb), 0.5 * (aa + bb)
 
 
 def require_wave_tuning(master, mode, source):

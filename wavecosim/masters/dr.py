@@ -35,11 +35,11 @@ class DRMaster(WaveMaster):
     budgets = (0, 3, 8, 20, 35, 50)
     style = ("tab:blue", "o")
     iterates = True
+    guardable = True
 
     def __init__(self, scene, settings):
         super().__init__(scene, settings)
         self.K, self.eps = settings.K, settings.eps
-        self.deadline_s = settings.deadline_us * 1e-6 if settings.deadline_us else None
         self._trace = None                                             # [] while recording (u, S(u)) pairs
 
     def enable_trace(self, on=True):
@@ -58,10 +58,11 @@ class DRMaster(WaveMaster):
         return b
 
     def step(self, n, t) -> StepLog:
+        self.step_started = time.perf_counter()
         self.scene.freeze(n, t)                                        # line 3: S^n from x^n
         if self._trace is not None:
             self._trace = []
-        deadline = time.perf_counter() + self.deadline_s if self.deadline_s else None
+        deadline = self.step_started + self.inner_deadline_s if self.deadline_s else None
         log = algorithm1(self._S, self.P, self.J_L, self.b, self.K, self.eps, deadline)
         self.commit(log.a_hat)                                         # lines 20-22, eq. (21)
         return log

@@ -67,6 +67,11 @@ class FastDRMaster(DRMaster):
         if getattr(self, "kernel", None) is not None:
             self.kernel.set_maps(self.P, self.J_L)
 
+    def reserve_time(self, seconds):
+        super().reserve_time(seconds)
+        if self.kernel is not None:
+            self.kernel.configure(self.dt, self.K, self.eps, self.inner_deadline_s)
+
     def enable_trace(self, on=True):
         super().enable_trace(on)
         if self.kernel is not None:
@@ -77,6 +82,7 @@ class FastDRMaster(DRMaster):
         if self.kernel is None:
             return super().step(n, t)
         kernel = self.kernel
+        self.step_started = time.perf_counter()
         if self._choose_after is None:
             self._choose_after = n
         measure = n == self._choose_after

@@ -9,10 +9,10 @@ import time
 import numpy as np
 
 from .base import StepLog
-from .physical import PhysicalMaster
+from .physical import RollbackPhysicalMaster
 
 
-class JacobiIterMaster(PhysicalMaster):
+class JacobiIterMaster(RollbackPhysicalMaster):
     """Fixed-point (Picard) iteration, all subsystems queried with the previous iterate."""
     budgets = (1, 2, 3, 5, 10)
     style = ("tab:purple", "s")
@@ -20,11 +20,11 @@ class JacobiIterMaster(PhysicalMaster):
     def __init__(self, scene, settings):
         super().__init__(scene, settings)
         self.K, self.eps = settings.K, settings.eps
-        self.deadline_s = settings.deadline_us * 1e-6 if settings.deadline_us else None
 
     def step(self, n, t) -> StepLog:
+        self.step_started = time.perf_counter()
         self.scene.freeze(n, t)
-        deadline = time.perf_counter() + self.deadline_s if self.deadline_s else None
+        deadline = self.step_started + self.inner_deadline_s if self.deadline_s else None
         y, k, residual, reason = self.y, 0, float("nan"), "budget"
         while k < self.K:
             y_next = self.sweep(y, lambda sub, inputs: sub.query(inputs))
@@ -36,7 +36,7 @@ class JacobiIterMaster(PhysicalMaster):
             if deadline is not None and time.perf_counter() >= deadline:
                 reason = "deadline"
                 break
-        self.y = self.sweep(y, lambda sub, inputs: sub.advance(inputs))    # the one commit
+        self.commit(y)
         return StepLog(iterations=k, residual=residual, reason=reason if self.K else "explicit")
 
 

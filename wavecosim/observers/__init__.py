@@ -3,15 +3,17 @@
 The runner asks each observer once, before the loop, which per-step columns it fills and whether
 it needs the master's inner queries; an observer that is off is simply not in the list, so it
 costs nothing. Per macro-step the runner calls `before_step`, then the master, then
-`after_step` in list order; an observer may redo the step (the energy guard) by returning a new
-StepLog, after which the runner reads the FMUs again.
+`after_step` in list order; the energy guard (`redoes`, first in the list) may redo the step by
+returning a new StepLog, after which the runner reads the FMUs again.
 """
 
 
 class Observer:
     """Base of the runtime concerns (certificates, energy guard, gamma tuner, Condition 1 watch)."""
     columns = ()          # per-step columns it fills (steps.csv), in order
+    formats = {}          # column -> formatter for steps.csv (default: floats), e.g. recorder.Labels
     needs_trace = False   # it reads the master's inner queries (u^k, S(u^k)) of each step
+    redoes = False        # an energy guard: it acts first and may redo the step
 
     def start(self, first):
         """Once, with the Reading of the FMUs at t = 0, before the first macro-step."""

@@ -15,10 +15,11 @@ RTOL = 1e-12
 
 class EnergyGuard(Observer):
     """First of the observers: it may redo the step before anyone reads it."""
+    redoes = True
 
     def __init__(self, master):
         self.master = master
-        self.redone = 0
+        self.redone, self.extra = 0, 0
 
     def start(self, first):
         H0 = sum(first.H)
@@ -29,6 +30,7 @@ class EnergyGuard(Observer):
         if not sum(reading.H) > self.cap:
             return None
         master = self.master
+        calls = master.scene.do_step_calls()
         master.undo_step()
         try:
             a_hat, iters, res = master.interface_solution(n, t, " (energy guard)")
@@ -36,7 +38,8 @@ class EnergyGuard(Observer):
             a_hat, iters, res = [0.0] * len(master.b), 0, float("nan")   # matched loads: each port only dissipates
         master.recommit(a_hat)
         self.redone += 1
+        self.extra += master.scene.do_step_calls() - calls
         return StepLog(iterations=iters, residual=res, reason="energy-guard", a_hat=a_hat)
 
     def summary(self):
-        return {"energy_guard_steps": self.redone}
+        return {"energy_guard_steps": self.redone, "energy_guard_extra_doSteps": self.extra}
