@@ -128,13 +128,15 @@ def test_the_ledger_guard_runs_without_h_and_the_monolithic_guard_is_skipped(pai
 
 
 def test_an_unsolved_query_names_the_subsystem_step_and_residual(pair, monkeypatch):
-    """A tolerance no residual meets (the mass at rest meets it exactly: a = u = v = 0 in step 0)."""
-    monkeypatch.setattr(ports, "TOL", -1.0)
+    """Tolerances no roundoff meets: the first query fails, naming its subsystem, step and residual."""
+    monkeypatch.setattr(ports, "TOL", 0.0)
+    monkeypatch.setattr(ports, "ACCEPT", 0.0)
     with pytest.raises(RunFailed) as failed:
         run(pair.with_changes(gamma=1.0), warn=lambda msg: None)
     assert isinstance(failed.value.error, NumericalError)
-    assert re.fullmatch(r"subsystem B: wave adapter at step 0 \(t = 0\): no convergence in 30 Newton iterations; "
-                        r"residual \|e \+ gamma f - c a\| = \S+", str(failed.value.error))
+    assert re.fullmatch(r"subsystem [AB]: wave adapter at step 0 \(t = 0\): no convergence in 30 Newton iterations "
+                        r"\(best relative residual \S+ > 0\); residual \|e \+ gamma f - c a\| = \S+",
+                        str(failed.value.error))
 
 
 def test_the_c_kernel_refuses_adapter_ports(pair):
