@@ -21,7 +21,7 @@ from .errors import ConfigError, NumericalError
 from .linalg import matvec
 
 TOL = 1e-12          # relative residual |e + gamma f - c a| / (|c a| + |e| + gamma |f|) of a solved query
-ACCEPT = 1e-6        # a stalled Newton (an FMU smooth only to its solver's tolerance) keeps its best within this
+ACCEPT = 1e-4        # a stalled Newton (an FMU smooth only to its solver's tolerance) keeps its best within this
 MAX_ITER = 30        # Newton iterations per query
 STALL = 3            # iterations in a row without halving the residual make a stall
 SLOPE_REL = 1e-5     # input perturbation for the slope estimate, relative to the input's scale
@@ -127,7 +127,7 @@ class WaveAdapter:
     def _solve(self, a):
         """The held input for incident wave a; the FMU is left at Phi(x_i^n, u). Returns (e, f)."""
         self.evaluations += 1
-        target = [self.c * x for x in a]
+        target = [self.c * float(x) for x in a]
         if self.D is None:
             self._estimate_slope(target)
         u, y = self.u, self.y
