@@ -35,19 +35,23 @@ class DirectPort:
         self.sub, self.in_scale, self.out_scale = sub, in_scale, out_scale
 
     def query(self, a):
-        if self.in_scale is None:
-            return self.sub.raw_query(a)
-        return [s * y for s, y in zip(self.out_scale, self.sub.raw_query([s * u for s, u in zip(self.in_scale, a)]))]
+        """The map from x_i^n; the state is discarded."""
+        return self._through(self.sub.raw_query, a)
 
     def advance(self, a):
+        """The map from x_i^n; the state is kept."""
+        return self._through(self.sub.raw_advance, a)
+
+    def _through(self, step, a):
         if self.in_scale is None:
-            return self.sub.raw_advance(a)
-        return [s * y for s, y in zip(self.out_scale, self.sub.raw_advance([s * u for s, u in zip(self.in_scale, a)]))]
+            return step(a)
+        return [s * y for s, y in zip(self.out_scale, step([s * u for s, u in zip(self.in_scale, a)]))]
 
     def new_step(self):
         """Nothing is cached across queries."""
 
     def info(self):
+        """No adapter figures."""
         return None
 
 
@@ -216,8 +220,9 @@ def probe_signs(sub, where):
         slope = (sub.raw_query(list(u))[j] - y0[j]) / h
         if not (math.isfinite(slope) and slope != 0.0):
             sub.thaw()
+            slope_name = f"d{sub.port.physical_out[j]}/d{sub.port.physical_in[j]}"
             raise ConfigError(f"{where}.sign: cannot find the orientation of channel {j} by probing (one doStep "
-                              f"gives d{sub.port.physical_out[j]}/d{sub.port.physical_in[j]} = {slope:.3g}); give the sign")
+                              f"gives {slope_name} = {slope:.3g}); give the sign")
         signs.append(1.0 if slope > 0 else -1.0)
         slopes.append(slope)
     sub.thaw()

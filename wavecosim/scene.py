@@ -252,6 +252,9 @@ def _orient(scenario, subsystem, notes):
     if not port.physical:
         return None
     probed = not port.sign
+    if probed and not subsystem.fmu.can_save_state:
+        raise ConfigError(f"{scenario.source}: subsystems.{subsystem.name}.port.sign: missing, and "
+                          f"{subsystem.fmu.path.name} cannot restore its state for the orientation probe; give the sign")
     if probed:
         signs, slopes = probe_signs(subsystem, f"subsystems.{subsystem.name}.port")
         subsystem.orient(signs)
