@@ -144,3 +144,15 @@ def test_redone_steps_are_bit_identical_on_the_fast_path_and_the_reference():
     assert ref.summary["energy_guard_steps"] == fast.summary["energy_guard_steps"] > 0
     assert np.array_equal(ref.outputs, fast.outputs)
     assert np.array_equal(column(ref, "scale"), column(fast, "scale"))
+
+
+def test_default_guard_is_the_ledger_for_dr_and_off_for_the_classical_masters():
+    """DR runs under the ledger unless told otherwise; the classical masters run as other tools run
+    them (off), and `energy_guard: ledger` guards them too."""
+    import wavecosim as wc
+    sc = wc.load(T=0.2)
+    assert wc.simulate(sc, K=8, reference=False, certificates=False).summary["energy_guard"] == "ledger"
+    assert wc.simulate(sc, master="jacobi-iter", K=1, reference=False).summary["energy_guard"] == "off"
+    assert wc.simulate(sc, master="explicit", reference=False).summary["energy_guard"] == "n/a"
+    guarded = sc.with_master(algorithm="jacobi-iter", K=1, energy_guard="ledger")
+    assert wc.simulate(guarded, reference=False).summary["energy_guard"] == "ledger"

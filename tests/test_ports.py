@@ -16,7 +16,7 @@ from wavecosim.runner import run
 from wavecosim.scene import build_scene
 
 SCENE = ROOT / "configs" / "foreign_pair.yaml"
-CLASSICAL = ("explicit", "gauss-seidel", "jacobi-iter", "gauss-seidel-iter", "newton")
+CLASSICAL = ("explicit", "gauss-seidel", "jacobi-iter", "gauss-seidel-iter", "aitken", "iqn-ils", "newton")
 
 
 @pytest.fixture(scope="module")

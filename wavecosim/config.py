@@ -48,7 +48,7 @@ class MasterConfig:
     deadline_us: float = None
     fast: str = "auto"
     threads: str = "auto"
-    energy_guard: str = "ledger"       # ledger | monolithic | off (true/false of old files: monolithic/off)
+    energy_guard: str = None           # ledger | monolithic | off (true/false of old files); None: the master's default
 
 
 @dataclass

@@ -169,7 +169,7 @@ def make_observers(scenario, scene, master, tuner, certificates, warn):
     """The observers this run needs, in the order they act (the energy guard first)."""
     obs, unavailable = [], []
     has_H = all(s.port.energy is not None for s in scene.subsystems)
-    guard = scenario.master.energy_guard
+    guard = scenario.master.energy_guard or master.default_guard
     if guard == "ledger" and master.guardable:
         obs.append(EnergyLedger(master))
     elif guard == "monolithic" and master.guardable and master.iterates:
@@ -201,6 +201,7 @@ class LiveRun:
         self.label = label or f"{settings.algorithm}_K{settings.K}"
         self.scene, self.master, tuner = open_parts(scenario, self.warn)
         self.observers = make_observers(scenario, self.scene, self.master, tuner, certificates, self.warn)
+        self.guard_mode = (settings.energy_guard or self.master.default_guard) if self.master.guardable else "n/a"
         if any(o.needs_trace for o in self.observers):
             self.master.enable_trace(True)
         self.out_dir, self.formats = (Path(out_dir) if out_dir is not None else None), formats
@@ -316,7 +317,8 @@ class LiveRun:
                "wall_time_s": self.master_time, "total_time_s": time.perf_counter() - self.started,
                "loop_time_s": self.loop_time,
                "real_time_factor": (n * sc.dt) / self.master_time if self.master_time > 0 else float("nan"),
-               "fmu_calls": self.fmu_calls(), "output_interval": self.every}
+               "fmu_calls": self.fmu_calls(), "output_interval": self.every,
+               "energy_guard": self.guard_mode}
         for o in self.observers:
             out.update(o.summary())
         if self.master is not None:

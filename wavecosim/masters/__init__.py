@@ -5,12 +5,15 @@ from .explicit import ExplicitMaster
 from .fixed_point import GaussSeidelIterMaster, JacobiIterMaster
 from .gauss_seidel import GaussSeidelMaster
 from .newton import NewtonMaster
+from .quasi_newton import AitkenMaster, IQNILSMaster
 
 MASTERS = {
     "explicit": ExplicitMaster,
     "gauss-seidel": GaussSeidelMaster,
     "jacobi-iter": JacobiIterMaster,
     "gauss-seidel-iter": GaussSeidelIterMaster,
+    "aitken": AitkenMaster,
+    "iqn-ils": IQNILSMaster,
     "newton": NewtonMaster,
     "dr": FastDRMaster,
 }

@@ -36,6 +36,7 @@ class DRMaster(WaveMaster):
     style = ("tab:blue", "o")
     iterates = True
     guardable = True
+    default_guard = "ledger"
 
     def __init__(self, scene, settings):
         super().__init__(scene, settings)

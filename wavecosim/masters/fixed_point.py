@@ -26,10 +26,11 @@ class JacobiIterMaster(RollbackPhysicalMaster):
         self.scene.freeze(n, t)
         deadline = self.step_started + self.inner_deadline_s if self.deadline_s else None
         y, k, residual, reason = self.y, 0, float("nan"), "budget"
+        self.restart()
         while k < self.K:
-            y_next = self.sweep(y, lambda sub, inputs: sub.query(inputs))
-            residual = float(np.linalg.norm(y_next - y))
-            y, k = y_next, k + 1
+            y_tilde = self.sweep(y, lambda sub, inputs: sub.query(inputs))
+            residual = float(np.linalg.norm(y_tilde - y))
+            y, k = self.update(y, y_tilde), k + 1
             if self.eps is not None and residual <= self.eps:
                 reason = "tolerance"
                 break
@@ -38,6 +39,13 @@ class JacobiIterMaster(RollbackPhysicalMaster):
                 break
         self.commit(y)
         return StepLog(iterations=k, residual=residual, reason=reason if self.K else "explicit")
+
+    def restart(self):
+        """A new macro-step's iteration begins (accelerators forget what they learnt)."""
+
+    def update(self, y, y_tilde):
+        """The next iterate from y and its image y_tilde = S^n(G y): Picard takes the image."""
+        return y_tilde
 
 
 class GaussSeidelIterMaster(JacobiIterMaster):
