@@ -166,32 +166,76 @@ class _Checker:
         return {k: self.number(v, f"{path}.{k}") for k, v in value.items()}
 
 
-PORT_KEYS = ("wave_in", "wave_out", "effort", "flow", "physical_in", "input", "energy")
+PORT_KEYS = ("wave_in", "wave_out", "effort", "flow", "physical_in", "physical_out", "input", "sign", "energy")
+
+
+def _physical_port(ck, path, port):
+    """A physical port (an FMU without a wave mode): input and output variable, which of the two
+    is the effort, and the sign s with power into the FMU = s e f (omitted: found by probing)."""
+    for key in ("physical_in", "input"):
+        if key not in port:
+            ck.fail(f"{path}.{key}", "missing required key for a physical port (physical_out is given)")
+    spec = {key: ck.names(port[key], f"{path}.{key}") for key in ("physical_in", "physical_out", "input")}
+    for k in spec["input"]:
+        ck.string(k, f"{path}.input", ("flow", "effort"))
+    m = len(spec["physical_in"])
+    for key in ("physical_out", "input"):
+        if len(spec[key]) != m:
+            ck.fail(f"{path}.{key}", f"has {len(spec[key])} entries but physical_in has {m} channels")
+    pairs = list(zip(spec["physical_in"], spec["physical_out"], spec["input"]))
+    spec["effort"] = [i if kind == "effort" else o for i, o, kind in pairs]
+    spec["flow"] = [o if kind == "effort" else i for i, o, kind in pairs]
+    for key in ("effort", "flow"):
+        if key in port and ck.names(port[key], f"{path}.{key}") != spec[key]:
+            ck.fail(f"{path}.{key}", f"must be {spec[key]} (from physical_in, physical_out and input), "
+                                     f"got {port[key]!r}")
+    if "sign" in port:
+        signs = port["sign"] if isinstance(port["sign"], list) else [port["sign"]]
+        if not all(not isinstance(v, bool) and v in (1, -1) for v in signs):
+            ck.fail(f"{path}.sign", f"must be 1 or -1 per channel, got {port['sign']!r}")
+        spec["sign"] = [float(v) for v in signs]
+    for key in ("wave_in", "wave_out"):
+        if key in port:
+            spec[key] = ck.names(port[key], f"{path}.{key}")
+    if "energy" in port:
+        spec["energy"] = ck.string(port["energy"], f"{path}.energy")
+    return spec
+
+
+def _port(ck, path, port):
+    """The port spec: wave-port keys with their defaults, or a physical port when physical_out is given."""
+    if "physical_out" in port:
+        spec = _physical_port(ck, path, port)
+        m, first = len(spec["physical_in"]), "physical_in"
+    else:
+        if "sign" in port:
+            ck.fail(f"{path}.sign", "only a physical port (with physical_out) takes a sign")
+        spec = {
+            "wave_in": ck.names(port.get("wave_in", ["a"]), f"{path}.wave_in"),
+            "wave_out": ck.names(port.get("wave_out", ["b"]), f"{path}.wave_out"),
+            "effort": ck.names(port.get("effort", ["e"]), f"{path}.effort"),
+            "flow": ck.names(port.get("flow", ["f"]), f"{path}.flow"),
+            "energy": ck.string(port.get("energy", "H"), f"{path}.energy"),
+        }
+        m, first = len(spec["wave_in"]), "wave_in"
+        if "physical_in" in port:
+            spec["physical_in"] = ck.names(port["physical_in"], f"{path}.physical_in")
+        if "input" in port:
+            kinds = ck.names(port["input"], f"{path}.input")
+            for k in kinds:
+                ck.string(k, f"{path}.input", ("flow", "effort"))
+            spec["input"] = kinds
+    for key in ("wave_in", "wave_out", "effort", "flow", "physical_in", "physical_out", "input", "sign"):
+        if key in spec and len(spec[key]) != m:
+            ck.fail(f"{path}.{key}", f"has {len(spec[key])} entries but {first} has {m} channels")
+    return spec
 
 
 def _subsystem(ck, name, raw, base_dir):
     path = f"subsystems.{name}"
     ck.mapping(raw, path, ("fmu", "parameters", "start", "integers", "port", "gamma"), required=("fmu",))
     fmu = ck.string(raw["fmu"], f"{path}.fmu")
-    port = ck.mapping(raw.get("port") or {}, f"{path}.port", PORT_KEYS)
-    spec = {
-        "wave_in": ck.names(port.get("wave_in", ["a"]), f"{path}.port.wave_in"),
-        "wave_out": ck.names(port.get("wave_out", ["b"]), f"{path}.port.wave_out"),
-        "effort": ck.names(port.get("effort", ["e"]), f"{path}.port.effort"),
-        "flow": ck.names(port.get("flow", ["f"]), f"{path}.port.flow"),
-        "energy": ck.string(port.get("energy", "H"), f"{path}.port.energy"),
-    }
-    m = len(spec["wave_in"])
-    if "physical_in" in port:
-        spec["physical_in"] = ck.names(port["physical_in"], f"{path}.port.physical_in")
-    if "input" in port:
-        kinds = ck.names(port["input"], f"{path}.port.input")
-        for k in kinds:
-            ck.string(k, f"{path}.port.input", ("flow", "effort"))
-        spec["input"] = kinds
-    for key in ("wave_out", "effort", "flow", "physical_in", "input"):
-        if key in spec and len(spec[key]) != m:
-            ck.fail(f"{path}.port.{key}", f"has {len(spec[key])} entries but wave_in has {m} channels")
+    spec = _port(ck, f"{path}.port", ck.mapping(raw.get("port") or {}, f"{path}.port", PORT_KEYS))
     integers = raw.get("integers") or {}
     ck.mapping(integers, f"{path}.integers", list(integers))
     integers = {k: ck.integer(v, f"{path}.integers.{k}") for k, v in integers.items()}

@@ -131,6 +131,8 @@ class BlockLog:
 def unusable(scene):
     """Why the kernel cannot run this scene, or None if it can."""
     for s in scene.subsystems:
+        if s.adapter:
+            return f"subsystem {s.name} has a physical port (wave adapter, Python only for now)"
         if not s.fmu.can_save_state:
             return f"subsystem {s.name} cannot get and set its FMU state"
         for name in _FMI_NAMES:

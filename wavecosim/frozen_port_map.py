@@ -2,12 +2,15 @@
 
 `freeze()` saves x_i^n; `query(a)` is S_i^n(a) (paper eq. 12): restore x_i^n, apply a, one doStep,
 read b, discard the state; `advance(a)` is Phi_i (eq. 21): the same from x_i^n, but the state is
-kept. Calls go straight to the FMU's C functions with pre-converted arguments.
+kept. Calls go straight to the FMU's C functions with pre-converted arguments. How a becomes b is
+the subsystem's port (wavecosim/ports.py): the FMU's own wave mode, or the wave adapter for an FMU
+with only a physical port.
 """
 import ctypes
 from dataclasses import dataclass, field
 
 from .errors import FmuError
+from .ports import DirectPort, WaveAdapter
 
 
 @dataclass
@@ -19,18 +22,27 @@ class PortSpec:
     flow: list
     physical_in: list = field(default_factory=list)
     input_is_flow: list = field(default_factory=list)
-    energy: str = "H"
+    energy: str = "H"                  # None: the FMU has no stored-energy output
+    physical_out: list = field(default_factory=list)      # given: a physical port (effort/flow are its in/out)
+    sign: list = field(default_factory=list)              # power into the FMU = sign e f, per channel
 
     @property
     def m(self):
-        return len(self.wave_in)
+        return len(self.physical_out or self.wave_in)
+
+    @property
+    def physical(self):
+        """A declared physical port: the FMU's input and output variables are the port."""
+        return bool(self.physical_out)
 
 
 class Subsystem:
-    """One FMU instance with a port; `wave` says whether it was instantiated in wave mode."""
+    """One FMU instance with a port; `wave` says whether the masters exchange waves with it, and
+    `adapter` whether those waves go through the wave adapter (an FMU without a wave mode)."""
 
-    def __init__(self, name, fmu, port: PortSpec, dt, wave=True):
+    def __init__(self, name, fmu, port: PortSpec, dt, wave=True, adapter=False, gamma=1.0):
         self.name, self.fmu, self.port, self.dt, self.wave = name, fmu, port, dt, wave
+        self.adapter = adapter
         self.m = port.m
         self.step_index = 0
         m = self.m
@@ -41,9 +53,9 @@ class Subsystem:
         self._set_real = fmu.raw_function("fmi2SetReal")
         self._get_real = fmu.raw_function("fmi2GetReal")
         self._do_step = fmu.raw_function("fmi2DoStep")
-        in_names = port.wave_in if wave else port.physical_in
-        out_names = port.wave_out if wave else [e if flow_in else f for e, f, flow_in in
-                                                zip(port.effort, port.flow, port.input_is_flow)]
+        in_names = port.wave_in if wave and not port.physical else port.physical_in
+        out_names = port.wave_out if wave and not port.physical else [e if flow_in else f for e, f, flow_in in
+                                                                      zip(port.effort, port.flow, port.input_is_flow)]
         self._in_vr = (ctypes.c_uint * m)(*[fmu.vr(n) for n in in_names])
         self._out_vr = (ctypes.c_uint * m)(*[fmu.vr(n) for n in out_names])
         self._in_val = (ctypes.c_double * m)()
@@ -53,6 +65,44 @@ class Subsystem:
         self._dirty = False
         self.t = 0.0
         self.calls = {"doStep": 0, "save": 0, "restore": 0}
+        self.map = self._port_map(gamma)
+
+    def _port_map(self, gamma):
+        """The port that turns the master's inputs into outputs (wavecosim/ports.py)."""
+        port = self.port
+        if self.adapter:
+            return WaveAdapter(self, [not flow_in for flow_in in port.input_is_flow], port.sign, gamma)
+        if port.physical and any(s != 1.0 for s in port.sign):
+            return DirectPort(self, [s if flow_in else 1.0 for s, flow_in in zip(port.sign, port.input_is_flow)],
+                              [1.0 if flow_in else s for s, flow_in in zip(port.sign, port.input_is_flow)])
+        return DirectPort(self)
+
+    def orient(self, signs):
+        """Set the physical port's signs (power into the FMU = sign e f) and rebuild the port map."""
+        gamma = self.map.gamma if self.adapter else 1.0
+        self.port.sign = [float(x) for x in signs]
+        self.map = self._port_map(gamma)
+
+    @property
+    def gamma(self):
+        """The wave impedance this subsystem runs at (NaN when it has none)."""
+        if self.adapter:
+            return self.map.gamma
+        return float(self.fmu.get_real(self.fmu.vrs(["gamma"]))[0]) if "gamma" in self.fmu.variables else float("nan")
+
+    def set_gamma(self, gamma):
+        """A new wave impedance (between macro-steps)."""
+        if self.adapter:
+            self.map.set_gamma(gamma)
+        else:
+            self.fmu.set_real(self.fmu.vrs(["gamma"]), [gamma])
+
+    def stage(self):
+        """Oriented stage effort and flow of the last step, [e..., f...] (power into the FMU = e f)."""
+        v = self.read(list(self.port.effort) + list(self.port.flow))
+        if self.port.physical:
+            v[self.m:] = [s * f for s, f in zip(self.port.sign, v[self.m:])]
+        return list(v)
 
     def _call(self, fn, name, *args):
         status = fn(*args)
@@ -69,6 +119,7 @@ class Subsystem:
         self._call(self._get_state, "fmi2GetFMUstate", self._comp, ctypes.byref(self._state))
         self.calls["save"] += 1
         self._dirty = False
+        self.map.new_step()
 
     def _step(self, a):
         for j in range(self.m):
@@ -84,18 +135,30 @@ class Subsystem:
         self.calls["restore"] += 1
 
     def query(self, a):
-        """S_i^n(a): restore x_i^n, apply a, one doStep, read the output; the state is discarded."""
-        if self._dirty:
-            self._restore()
-        self._dirty = True
-        return self._step(a)
+        """S_i^n(a): restore x_i^n, apply a, read the output; the state is discarded."""
+        return self.map.query(a)
 
     def advance(self, a):
         """Phi_i(x_i^n, a): like query, but the new state is kept (the one commit of the macro-step)."""
+        return self.map.advance(a)
+
+    def raw_query(self, u):
+        """Restore x_i^n, set the FMU's inputs u, one doStep, read its outputs; the state is discarded."""
+        if self._dirty:
+            self._restore()
+        self._dirty = True
+        return self._step(u)
+
+    def raw_advance(self, u):
+        """Like raw_query, but the new state is kept."""
         if self._dirty:
             self._restore()
         self._dirty = False
-        return self._step(a)
+        return self._step(u)
+
+    def keep(self):
+        """Keep the state the last raw_query left (it becomes the commit of the macro-step)."""
+        self._dirty = False
 
     def thaw(self):
         """Put the instance back at x_i^n after queries made outside the master (certificates)."""

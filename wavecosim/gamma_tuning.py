@@ -109,22 +109,20 @@ class PortProbe:
 
 def probe_port(sub, centre, rel=PROBE_REL) -> PortProbe:
     """Probe one frozen subsystem at incident wave `centre` (m + 1 queries); its state is unchanged."""
-    names = list(sub.port.effort) + list(sub.port.flow)
     m = sub.m
     centre = np.asarray(centre, float)
     b0 = np.asarray(sub.query(list(centre)))
-    ef0 = np.asarray(sub.read(names))
+    ef0 = np.asarray(sub.stage())
     h = rel * (float(np.abs(centre).max()) + float(np.abs(b0).max())) or rel * math.sqrt(sub.dt)
     dE, dF = np.zeros((m, m)), np.zeros((m, m))
     for j in range(m):
         a = centre.copy()
         a[j] += h
         sub.query(list(a))
-        d = (np.asarray(sub.read(names)) - ef0) / h
+        d = (np.asarray(sub.stage()) - ef0) / h
         dE[:, j], dF[:, j] = d[:m], d[m:]
     sub.thaw()
-    return PortProbe(sub.name, dE, dF, float(sub.fmu.get_real(sub.fmu.vrs(["gamma"]))[0])
-                     if "gamma" in sub.fmu.variables else float("nan"))
+    return PortProbe(sub.name, dE, dF, sub.gamma)
 
 
 def probe_scene(scene, b, n, t, P=None):
@@ -234,7 +232,7 @@ def rescatter(scene, gammas):
     b = []
     for s in scene.subsystems:
         g = gammas[s.name]
-        v = s.read(list(s.port.effort) + list(s.port.flow))
+        v = s.stage()
         b.extend(outgoing_wave(e, f, g, scene.scenario.dt) for e, f in zip(v[:s.m], v[s.m:]))
     return b
 

@@ -1,5 +1,8 @@
 """What the runner reads from the FMUs after each macro-step, in one raw getReal per subsystem:
-stored energy H_i, stage effort and flow, the outgoing waves (wave masters) and the recorded outputs."""
+stored energy H_i, stage effort and flow, the outgoing waves (wave masters) and the recorded outputs.
+A physical port (wavecosim/ports.py) gives its oriented e, f and the wave b; H_i is NaN where the FMU
+has no stored-energy output."""
+import math
 from dataclasses import dataclass
 
 
@@ -70,6 +73,9 @@ class Sampler:
         self.parts, self.observed = [], []        # observed: per subsystem the names read, H_i first
         for s in scene.subsystems:
             cols = [var for ref in outputs.values() for name, var in [ref.split(".", 1)] if name == s.name]
+            if s.port.physical:
+                self.parts.append(self._physical_part(s, cols))
+                continue
             names = [s.port.energy, *s.port.effort, *s.port.flow, *(s.port.wave_out if scene.wave else [])]
             read, buf = s.reader(names + cols)
             self.parts.append((read, s.m, len(names)))
@@ -78,7 +84,8 @@ class Sampler:
         order = [(i, sum(1 for o in owner[:k] if o == s.name)) for k, o in enumerate(owner)
                  for i, s in enumerate(scene.subsystems) if s.name == o]
         self._order = order
-        self._columns = self._block_columns(order)
+        whole = len(self.observed) == len(self.parts)       # physical ports: no kernel blocks, no columns
+        self._columns = self._block_columns(order) if whole else None
         by_name = {s.name: s for s in scene.subsystems}
         self.units = {col: by_name[ref.split(".", 1)[0]].fmu.variable(ref.split(".", 1)[1]).unit or ""
                       for col, ref in outputs.items()}
@@ -99,6 +106,20 @@ class Sampler:
         """The BlockReading of observed values (the subsystems' `observed` names concatenated, one
         row per name, one column per step)."""
         return BlockReading(observed, self._columns)
+
+    @staticmethod
+    def _physical_part(s, cols):
+        """A reader for a physical port: [H or NaN, e..., f..., b... (adapter)] followed by the outputs."""
+        names = [*([s.port.energy] if s.port.energy else []), *s.port.effort, *s.port.flow]
+        raw, _ = s.reader(names + cols)
+        m, h, sign = s.m, len(names) - 2 * s.m, s.port.sign
+
+        def read():
+            v = raw()[:]
+            e, f = v[h:h + m], [si * x for si, x in zip(sign, v[h + m:h + 2 * m])]
+            b = s.map.outgoing(e, f) if s.adapter else []
+            return [v[0] if h else math.nan, *e, *f, *b, *v[h + 2 * m:]]
+        return read, m, 1 + 2 * m + (m if s.adapter else 0)
 
     def read(self) -> Reading:
         H, E, F, B, own = [], [], [], [], []

@@ -139,10 +139,23 @@ def _warn_stderr(message):
     print(f"warning: {message}", file=sys.stderr, flush=True)
 
 
+def _once(warn):
+    """`warn` that lets each distinct message through once."""
+    seen = set()
+
+    def once(message):
+        if message not in seen:
+            seen.add(message)
+            warn(message)
+    return once
+
+
 def open_parts(scenario, warn):
     """Scene, master and gamma tuner of a run; whatever was opened is closed if set-up fails."""
     cls = MASTERS[scenario.master.algorithm]
     scene = build_scene(scenario, wave=cls.wave, needs_rollback=cls.needs_rollback)
+    for note in scene.notes:
+        warn(note)
     master = None
     try:
         tuner = None
@@ -161,20 +174,27 @@ def open_parts(scenario, warn):
 
 def make_observers(scenario, scene, master, tuner, certificates, warn):
     """The observers this run needs, in the order they act (the energy guard first)."""
-    obs = []
+    obs, unavailable = [], []
+    has_H = all(s.port.energy is not None for s in scene.subsystems)
     guard = scenario.master.energy_guard or master.default_guard
     if guard == "ledger" and master.guardable:
         obs.append(EnergyLedger(master))
     elif guard == "monolithic" and master.guardable and master.iterates:
-        obs.append(EnergyGuard(master))
+        if has_H:
+            obs.append(EnergyGuard(master))
+        else:
+            unavailable.append("energy_guard (monolithic: needs every subsystem's stored energy H)")
     if isinstance(master, WaveMaster):
         obs.append(TunedGammaLog(scene, master, tuner) if tuner and tuner.retune else GammaLog(scene, master, tuner))
     if master.iterates and scenario.fne_watch and certificates:
         obs.append(FneWatch(scene, master, warn))
     certs = scenario.certificates
-    if certificates and scene.wave and (certs.fne_pairs or (certs.augmented and master.iterates)):
-        obs.append(CertificateSampler(scene, master, certs, augmented=master.iterates))
-    obs.append(Passivity(scene))
+    augmented = master.iterates and has_H
+    if certificates and master.iterates and certs.augmented and not has_H:
+        unavailable.append("max_augmented_pos (Theorem 1 needs every subsystem's stored energy H)")
+    if certificates and scene.wave and (certs.fne_pairs or (certs.augmented and augmented)):
+        obs.append(CertificateSampler(scene, master, certs, augmented=augmented))
+    obs.append(Passivity(scene, unavailable))
     return obs
 
 
@@ -379,9 +399,10 @@ class LiveRun:
         self.trajectory.commit_row()
 
     def _check_finite(self, reading, n):
-        if not all(map(math.isfinite, reading.outputs)) or not all(map(math.isfinite, reading.H)):
-            bad = next((s.name for s, h in zip(self.scene.subsystems, reading.H) if not math.isfinite(h)),
-                       "an output")
+        H = [h for s, h in zip(self.scene.subsystems, reading.H) if s.port.energy is not None]
+        if not all(map(math.isfinite, reading.outputs)) or not all(map(math.isfinite, H)):
+            bad = next((s.name for s, h in zip(self.scene.subsystems, reading.H)
+                        if s.port.energy is not None and not math.isfinite(h)), "an output")
             raise NumericalError(f"non-finite value in {bad} at step {n} (t = {(n + 1) * self.dt:.6g})")
 
     def fmu_calls(self):
@@ -404,6 +425,7 @@ class LiveRun:
             out.update(o.summary())
         if self.master is not None:
             out.update(self.master.run_info())
+            out.update(self.scene.port_info())
         return out
 
     def finish(self, status, message):
@@ -443,6 +465,7 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
     reference: None (no errors), a RunResult of the monolithic reference, or "lockstep" (run the
     monolithic reference alongside, writing its files with the label "monolithic"). Raises
     RunFailed (with .result) on a failure, Interrupted (with .result) on Ctrl-C."""
+    warn = _once(warn or _warn_stderr)                 # the lockstep reference repeats set-up notes
     live = LiveRun(scenario, out_dir, label, certificates, warn, file_suffix, output_interval, formats)
     ref = None
     try:

@@ -1,5 +1,5 @@
 """A scenario made concrete: FMU instances as Subsystems, stacked channels, the compiled coupling."""
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -10,6 +10,7 @@ from .errors import ConfigError, CouplingError, FmuError
 from .fmu import Fmu
 from .frozen_port_map import PortSpec, Subsystem
 from .gamma_tuning import initial_gammas
+from .ports import probe_signs
 
 
 def resolve_fmu(sub, source="<scenario>") -> str:
@@ -24,8 +25,32 @@ def resolve_fmu(sub, source="<scenario>") -> str:
     return fmus[sub.fmu]
 
 
+def _check_names(sub, fmu, p, keys):
+    for key in keys:
+        for name in p.get(key, []):
+            if name not in fmu.variables:
+                raise ConfigError(f"subsystems.{sub.name}.port.{key}: the FMU {fmu.path.name} has no variable "
+                                  f"{name!r}")
+
+
+def _physical_port_spec(sub, fmu, p) -> PortSpec:
+    """A declared physical port: in/out variables must exist; the energy variable is optional."""
+    _check_names(sub, fmu, p, ("physical_in", "physical_out", "wave_in", "wave_out"))
+    for name in p["physical_in"]:
+        if fmu.variable(name).causality != "input":
+            raise ConfigError(f"subsystems.{sub.name}.port.physical_in: {name!r} is not an input of {fmu.path.name}")
+    energy = p.get("energy", "H" if "H" in fmu.variables else None)
+    if energy is not None and energy not in fmu.variables:
+        raise ConfigError(f"subsystems.{sub.name}.port.energy: the FMU {fmu.path.name} has no variable {energy!r}")
+    return PortSpec(wave_in=p.get("wave_in", []), wave_out=p.get("wave_out", []), effort=p["effort"],
+                    flow=p["flow"], physical_in=p["physical_in"], input_is_flow=[k == "flow" for k in p["input"]],
+                    energy=energy, physical_out=p["physical_out"], sign=list(p.get("sign", [])))
+
+
 def _port_spec(sub, fmu) -> PortSpec:
     p = dict(sub.port)
+    if "physical_out" in p:
+        return _physical_port_spec(sub, fmu, p)
     m = len(p["wave_in"])
     if "physical_in" not in p:
         inputs = [v.name for v in fmu.description.modelVariables
@@ -38,11 +63,7 @@ def _port_spec(sub, fmu) -> PortSpec:
             kinds.append("flow" if unit and unit == fmu.variable(f).unit else
                          "effort" if unit and unit == fmu.variable(e).unit else None)
         p["input"] = kinds if None not in kinds else []
-    for key in ("wave_in", "wave_out", "effort", "flow", "physical_in"):
-        for name in p.get(key, []):
-            if name not in fmu.variables:
-                raise ConfigError(f"subsystems.{sub.name}.port.{key}: the FMU {fmu.path.name} has no variable "
-                                  f"{name!r}")
+    _check_names(sub, fmu, p, ("wave_in", "wave_out", "effort", "flow", "physical_in"))
     if p["energy"] not in fmu.variables:
         raise ConfigError(f"subsystems.{sub.name}.port.energy: the FMU {fmu.path.name} has no variable "
                           f"{p['energy']!r}")
@@ -62,6 +83,8 @@ class Scene:
     F: np.ndarray
     wave: bool
     gammas: dict                       # {subsystem: gamma}, the impedances P is compiled for
+    notes: list = field(default_factory=list)        # warnings from set-up (orientation found by probing)
+    port_signs: dict = field(default_factory=dict)   # {subsystem: {"sign": [...], "probed": bool}}
 
     @property
     def n_channels(self):
@@ -82,10 +105,10 @@ class Scene:
     def set_gammas(self, gammas):
         """New impedances ({subsystem: gamma}), only between macro-steps: each FMU's tunable gamma too."""
         for s in self.subsystems:
-            if "gamma" not in s.fmu.variables:
+            if not s.adapter and "gamma" not in s.fmu.variables:
                 raise ConfigError(f"{self.scenario.source}: subsystems.{s.name}.fmu: {s.fmu.path.name} has no "
                                   f"tunable parameter gamma, so gamma cannot be tuned")
-            s.fmu.set_real(s.fmu.vrs(["gamma"]), [gammas[s.name]])
+            s.set_gamma(gammas[s.name])
         self.gammas = {s.name: float(gammas[s.name]) for s in self.subsystems}
 
     def freeze(self, n, t):
@@ -134,6 +157,13 @@ class Scene:
         except np.linalg.LinAlgError:
             raise CouplingError(f"{self.scenario.source}: couplings: the port causalities do not fit the "
                                 f"interconnection (inputs cannot be computed from outputs)") from None
+
+    def port_info(self):
+        """Summary fields of physical ports: their signs and the wave adapters' doSteps per evaluation."""
+        if not self.port_signs:
+            return {}
+        adapters = {s.name: s.map.info() for s in self.subsystems if s.adapter}
+        return {"port_signs": self.port_signs, **({"wave_adapter": adapters} if adapters else {})}
 
     def do_step_calls(self):
         """doStep calls made so far, over all subsystems (what a redo costs is the difference)."""
@@ -208,18 +238,41 @@ def _open_fmu(scenario, sub, path, gamma, wave):
 def _check_fmu(scenario, sub, fmu, wave, needs_rollback):
     """Refuse an FMU this master cannot drive, in one line naming it."""
     where = f"{scenario.source}: subsystems.{sub.name}.fmu: {fmu.path.name}"
-    if wave and "port_mode" not in fmu.variables:
-        raise ConfigError(f"{where} has no wave port (integer parameter port_mode); use a physical-domain master")
+    if wave and "port_mode" not in fmu.variables and "physical_out" not in sub.port:
+        raise ConfigError(f"{where} has no wave port (integer parameter port_mode); declare its physical port "
+                          f"(port: physical_in, physical_out, input) or use a physical-domain master")
     if needs_rollback and not fmu.can_save_state:
         raise ConfigError(f"{where} cannot get and set its state, which every master here needs to freeze "
                           f"and roll back")
 
 
-def _subsystem(scenario, sub, gamma, wave, needs_rollback):
+def _orient(scenario, subsystem, notes):
+    """A physical port's signs: as given, or probed from the initial state (noted once)."""
+    port = subsystem.port
+    if not port.physical:
+        return None
+    probed = not port.sign
+    if probed and not subsystem.fmu.can_save_state:
+        raise ConfigError(f"{scenario.source}: subsystems.{subsystem.name}.port.sign: missing, and "
+                          f"{subsystem.fmu.path.name} cannot restore its state for the orientation probe; give the sign")
+    if probed:
+        signs, slopes = probe_signs(subsystem, f"subsystems.{subsystem.name}.port")
+        subsystem.orient(signs)
+        for j, (sign, slope) in enumerate(zip(signs, slopes)):
+            notes.append(f"{scenario.source}: subsystems.{subsystem.name}.port.sign not given: one doStep from the "
+                         f"initial state gives d{port.physical_out[j]}/d{port.physical_in[j]} = {slope:.3g}, so "
+                         f"channel {j} takes sign {sign:+g} (power into the FMU = {sign:+g} e f)")
+    return {"sign": list(port.sign), "probed": probed}
+
+
+def _subsystem(scenario, sub, gamma, wave, needs_rollback, notes):
     fmu = _open_fmu(scenario, sub, resolve_fmu(sub, scenario.source), gamma, wave)
     try:
         _check_fmu(scenario, sub, fmu, wave, needs_rollback)
-        return Subsystem(sub.name, fmu, _port_spec(sub, fmu), scenario.dt, wave=wave)
+        spec = _port_spec(sub, fmu)
+        subsystem = Subsystem(sub.name, fmu, spec, scenario.dt, wave=wave, adapter=wave and spec.physical,
+                              gamma=gamma)
+        return subsystem, _orient(scenario, subsystem, notes)
     except ConfigError as exc:
         fmu.close()
         text = str(exc)
@@ -237,13 +290,16 @@ def _check_outputs(scenario, subsystems):
 def build_scene(scenario: Scenario, wave=True, needs_rollback=True) -> Scene:
     """Instantiate every subsystem (wave or physical port mode) at its initial gamma and compile the coupling."""
     gammas = initial_gammas(scenario)
-    subsystems = []
+    subsystems, notes, signs = [], [], {}
     try:
         for sub in scenario.subsystems:
-            subsystems.append(_subsystem(scenario, sub, gammas[sub.name], wave, needs_rollback))
+            subsystem, sign = _subsystem(scenario, sub, gammas[sub.name], wave, needs_rollback, notes)
+            subsystems.append(subsystem)
+            if sign is not None:
+                signs[sub.name] = sign
         _check_outputs(scenario, subsystems)
         E, F, offsets = coupling_structure(scenario, [s.m for s in subsystems])
-        scene = Scene(scenario, subsystems, offsets, E, F, wave, gammas)
+        scene = Scene(scenario, subsystems, offsets, E, F, wave, gammas, notes, signs)
         if wave:
             scene.wave_map()
         return scene

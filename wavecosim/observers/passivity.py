@@ -1,5 +1,9 @@
 """Condition 2 and the port energy ledger of every step: r_i = dH_i - (energy into port i) <= 0
-(eq. 27), the energy the interface supplied, and the total stored energy."""
+(eq. 27), the energy the interface supplied, and the total stored energy.
+
+A subsystem whose FMU has no stored-energy output (H) gets no r_i: its columns are the energy
+supplied through its port in the step and cumulated (port_energy_<name>, port_energy_cum_<name>),
+and the summary lists what could not be computed (certificates_unavailable)."""
 import math
 
 import numpy as np
@@ -23,41 +27,62 @@ def running_sum(start, x):
 
 
 class Passivity(Observer):
-    """Per step: r_<subsystem> (Condition 2), interface_supply and H_total; running maxima for the summary."""
+    """Per step: r_<subsystem> (Condition 2) or the port ledger without H, interface_supply and
+    H_total (when every H is known); running maxima for the summary. `unavailable` names further
+    certificates the run could not compute (from the runner)."""
 
-    def __init__(self, scene):
+    def __init__(self, scene, unavailable=()):
         self.scene, self.wave, self.dt = scene, scene.wave, scene.scenario.dt
         self.blocks = scene.wave
         self.port_sums = GroupSums([*[slice(off, off + s.m) for s, off in zip(scene.subsystems, scene.offsets)],
                                     slice(0, scene.n_channels)])
         self.names = [s.name for s in scene.subsystems]
-        self.columns = (*[f"r_{n}" for n in self.names], "interface_supply", "H_total")
+        self.has_H = [s.port.energy is not None for s in scene.subsystems]
+        self.complete = all(self.has_H)
+        missing = [n for n, h in zip(self.names, self.has_H) if not h]
+        self.unavailable = [*(f"r_{n}" for n in missing), *([] if any(self.has_H) else ["max_passivity_pos"]),
+                            *([] if self.complete else ["H_total", "H_growth"]), *unavailable]
+        self.columns = (*[f"r_{n}" for n, h in zip(self.names, self.has_H) if h],
+                        *[c for n in missing for c in (f"port_energy_{n}", f"port_energy_cum_{n}")],
+                        "interface_supply", *(["H_total"] if self.complete else []))
 
     def start(self, first):
         self.H = list(first.H)
         self.H_initial = self.H_max = sum(first.H)
         self.H_final = self.H_initial
         self.max_r = [math.nan] * len(self.names)
+        self.ledger = [0.0] * len(self.names)
         self.max_supply, self.drift = math.nan, 0.0
 
-    def after_step(self, n, t, log, reading, row):
+    def _supplied(self, log, reading):
+        """Energy into each subsystem's port over the step, and into all of them."""
         if self.wave:
             parts = zip(self.scene.split(log.a_hat), self.scene.split(reading.B))
-            supplied = [port_energy(a, b) for a, b in parts]
-            supply = port_energy(log.a_hat, reading.B)
-        else:
-            supplied = [physical_port_energy(e, f, self.dt) for e, f in
-                        zip(self.scene.split(reading.E), self.scene.split(reading.F))]
-            supply = sum(supplied)
-        k = len(self.names)
+            return [port_energy(a, b) for a, b in parts], port_energy(log.a_hat, reading.B)
+        supplied = [physical_port_energy(e, f, self.dt) for e, f in
+                    zip(self.scene.split(reading.E), self.scene.split(reading.F))]
+        return supplied, sum(supplied)
+
+    def after_step(self, n, t, log, reading, row):
+        supplied, supply = self._supplied(log, reading)
+        k = 0
         for i, (h0, h1, s) in enumerate(zip(self.H, reading.H, supplied)):
-            r = (h1 - h0) - s
-            row[i] = r
-            self.max_r[i] = grow_max_pos(self.max_r[i], r)
-        total = sum(reading.H)
-        row[k], row[k + 1] = supply, total
+            if self.has_H[i]:
+                r = (h1 - h0) - s
+                row[k] = r
+                self.max_r[i] = grow_max_pos(self.max_r[i], r)
+                k += 1
+        for i, s in enumerate(supplied):
+            if not self.has_H[i]:
+                self.ledger[i] += s
+                row[k], row[k + 1] = s, self.ledger[i]
+                k += 2
+        row[k] = supply
         self.max_supply = grow_max_pos(self.max_supply, supply)
         self.drift += supply
+        total = sum(reading.H)
+        if self.complete:
+            row[k + 1] = total
         self.H, self.H_final = list(reading.H), total
         self.H_max = max(self.H_max, total) if total == total else total
 
@@ -77,12 +102,15 @@ class Passivity(Observer):
         self.H_max = max(self.H_max, float(total.max()))   # a block holds no NaN H (the kernel stops)
 
     def summary(self):
-        worst = [r for r in self.max_r if r == r]
-        return {
-            "max_passivity_pos": max(worst) if worst else math.nan,
-            "max_passivity_pos_by_subsystem": dict(zip(self.names, self.max_r)),
-            "H_initial": self.H_initial, "H_final": self.H_final,
-            "H_growth": self.H_max / self.H_initial if self.H_initial > 0 else math.nan,
-            "max_interface_injection": self.max_supply,
-            "energy_drift": self.drift,
-        }
+        worst = [r for r, h in zip(self.max_r, self.has_H) if h and r == r]
+        out = {"max_passivity_pos": max(worst) if worst else math.nan} if any(self.has_H) else {}
+        out["max_passivity_pos_by_subsystem"] = {n: r for n, r, h in zip(self.names, self.max_r, self.has_H) if h}
+        if self.complete:
+            out.update({"H_initial": self.H_initial, "H_final": self.H_final,
+                        "H_growth": self.H_max / self.H_initial if self.H_initial > 0 else math.nan})
+        else:
+            out["port_energy_by_subsystem"] = {n: e for n, e, h in zip(self.names, self.ledger, self.has_H) if not h}
+        out.update({"max_interface_injection": self.max_supply, "energy_drift": self.drift})
+        if self.unavailable:
+            out["certificates_unavailable"] = list(self.unavailable)
+        return out
