@@ -239,8 +239,9 @@ def parallel(scenario, n_steps, repeats, progress=print):
 
 
 def whole_run(scenario, K, certificates, out_dir):
-    """µs per macro-step of the whole run loop (reading, observers, recording) and of its master alone,
-    as `wavecosim run --no-reference` does it (CSV files written; the default observers)."""
+    """µs per macro-step of the whole run (reading, observers, every row written) and of its master
+    alone, as `wavecosim run --no-reference` does it (CSV files written; out_dir None: rows kept in
+    memory only, as `wavecosim.simulate` does without out_dir)."""
     result = run(scenario.with_master(K=K), out_dir, certificates=certificates, file_suffix=False)
     s, n = result.summary, result.summary["steps"]
     return {"run_us_per_step": 1e6 * s["loop_time_s"] / n, "master_us_per_step": 1e6 * s["wall_time_s"] / n,
@@ -248,15 +249,15 @@ def whole_run(scenario, K, certificates, out_dir):
 
 
 def run_overhead(scenario, repeats, progress=print):
-    """Whole run against its master at K = 0 and 50, certificates off and on (best of `repeats`)."""
+    """Whole run against its master at K = 0 and 50: CSV files, rows in memory only, and
+    certificates on (best of `repeats`)."""
     out = {}
     with tempfile.TemporaryDirectory() as tmp:
-        for cert in (False, True):
+        for kind, cert, where in (("plain", False, tmp), ("memory", False, None), ("certificates", True, tmp)):
             for K in (0, 50):
-                progress(f"  whole run: K = {K}, certificates {'on' if cert else 'off'}")
-                runs = [whole_run(scenario, K, cert, tmp) for _ in range(repeats)]
-                best = min(runs, key=lambda r: r["run_us_per_step"])
-                out[f"{'certificates' if cert else 'plain'}_K{K}"] = best
+                progress(f"  whole run: K = {K}, {kind}")
+                runs = [whole_run(scenario, K, cert, where) for _ in range(repeats)]
+                out[f"{kind}_K{K}"] = min(runs, key=lambda r: r["run_us_per_step"])
     return out
 
 
@@ -298,6 +299,7 @@ def run_bench(quick=False, progress=print):
         "whole_run": whole,
         "run_over_master": {"K0": over["plain_K0"], "K50": over["plain_K50"]},
         "run_over_master_certificates": {"K0": over["certificates_K0"], "K50": over["certificates_K50"]},
+        "run_over_master_in_memory": {"K0": over["memory_K0"], "K50": over["memory_K50"]},
         "targets": {
             "fast_over_floor <= 1.5": ratios["fast_over_floor"] <= TARGETS["fast_over_floor_max"],
             "fast / floor at K = 0 <= 3": ratios["fast_over_floor_K0"] <= TARGETS["fast_over_floor_K0_max"],

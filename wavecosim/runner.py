@@ -218,7 +218,7 @@ class LiveRun:
         self.columns = list(scenario.outputs)
         self.master_time, self.steps_done, self.started = 0.0, 0, time.perf_counter()
         self.iterations = [0, 0]                       # sum and max of the inner iterations per step
-        self.loop_time = 0.0                           # start() to the last step: the run's own per-step cost
+        self.loop_time = 0.0                           # start() to the last row written: the run's own per-step cost
         self.led, self.failure, self.recent = 0, None, {}   # as a lockstep reference (lead)
         self.block_steps = 0                                # macro-steps made in blocks
 
@@ -429,10 +429,13 @@ class LiveRun:
         return out
 
     def finish(self, status, message):
-        """Close the tables and parts, write summary.json (and metadata.json, MAT files); the RunResult."""
+        """Close the tables and parts, write summary.json (and metadata.json, MAT files); the RunResult.
+        The rows still to write count in the run's own time (loop_time_s)."""
+        started = time.perf_counter()
         for table in (getattr(self, "trajectory", None), getattr(self, "steps", None)):
             if table is not None:
                 table.close()
+        self.loop_time += time.perf_counter() - started
         summary = self.summary(status, message)
         self.close()
         result = RunResult(self.label, self.scenario.master.algorithm, self.scenario.master.K, self.columns,
