@@ -181,5 +181,5 @@ def short_label(point, width=40):
     def one(key, value):
         name = str(parse_path(key)[-1])
         text = f"{value:.4g}" if isinstance(value, float) else str(value)
-        return re.sub(r"[^A-Za-z0-9.+-]", "", f"{name}-{text}")
+        return re.sub(r"[^A-Za-z0-9_.+-]", "", f"{name}-{text}")
     return "_".join(one(k, v) for k, v in point)[:width] or "run"
