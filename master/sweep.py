@@ -1,7 +1,10 @@
 """Sweeps: the paper's experiment (the monolithic reference and one DR run per budget K), and
 general sweeps over any scenario key (`plan`, `run_sweep`; one row per run in runs.csv/runs.json)."""
 import csv
+import signal
+import threading
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 from .config import DEFAULT_CONFIG
@@ -95,14 +98,28 @@ def run_sweep(tasks, out_dir, meta, workers=1, scheduler=None, resume=False, pro
     ordered = lambda: [rows[i] for i in sorted(rows)]        # noqa: E731
     last_write = 0.0
     try:
-        for row in executor(todo, workers, scheduler):
-            rows[row["index"]] = row
-            report(row)
-            if time.monotonic() - last_write > 1.0:
-                write_rows(out_dir, ordered(), meta)
-                last_write = time.monotonic()
+        with _ctrl_c():
+            for row in executor(todo, workers, scheduler):
+                rows[row["index"]] = row
+                report(row)
+                if time.monotonic() - last_write > 1.0:
+                    write_rows(out_dir, ordered(), meta)
+                    last_write = time.monotonic()
     except (KeyboardInterrupt, Interrupted):
         write_rows(out_dir, ordered(), meta)
         raise Interrupted(f"sweep interrupted after {len(rows)} of {len(tasks)} runs") from None
     write_rows(out_dir, ordered(), meta)
     return ordered()
+
+
+@contextmanager
+def _ctrl_c():
+    """Ctrl-C raises KeyboardInterrupt in this process while the executor waits, even where the
+    shell started it with SIGINT ignored (as for background jobs)."""
+    main = threading.current_thread() is threading.main_thread()
+    old = signal.signal(signal.SIGINT, signal.default_int_handler) if main else None
+    try:
+        yield
+    finally:
+        if main:
+            signal.signal(signal.SIGINT, old)
