@@ -80,10 +80,16 @@ common = [
 ]
 
 
-def with_common(f):
-    for opt in reversed(common):
-        f = opt(f)
-    return f
+def options(opts):
+    """A decorator adding the click options `opts` in their order."""
+    def add(f):
+        for opt in reversed(opts):
+            f = opt(f)
+        return f
+    return add
+
+
+with_common = options(common)
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -102,10 +108,7 @@ output_options = [
 ]
 
 
-def with_output(f):
-    for opt in reversed(output_options):
-        f = opt(f)
-    return f
+with_output = options(output_options)
 
 
 @cli.command("run")
@@ -149,40 +152,36 @@ def _report_run(scenario, result, out):
                       *(["energy_guard_steps"] if "energy_guard_steps" in s else [])])
 
 
-def _sweep_options(f):
-    """sweep's options: the common ones with --K a list, plus the general-sweep ones."""
-    opts = [
-        click.option("--K", "--Ks", "--K-list", "ks", help="Budgets K: a list like 0,3,8 or a range 0..63 "
-                     "(default for the paper's experiment: 0,3,8,20,35,50)."),
-        *[opt for opt in common if opt is not common[0]],
-        click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("out/sweep"),
-                     show_default=True),
-        click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and "
-                     "the Condition 1 watch."),
-        click.option("--plots", is_flag=True, help="Also write PNG figures (the paper's Figs. 4-6; with --set, "
-                     "each --plot-y figure against the first swept key)."),
-        click.option("--set", "sets", multiple=True, metavar="KEY=VALUES", help="Sweep a scenario key: "
-                     "KEY=0,3,8 | a..b | linspace(a,b,n) | geomspace(a,b,n) | uniform(lo,hi) | loguniform(lo,hi) | "
-                     "normal(mu,sigma) | randint(lo,hi) (see docs/sweeps.md). Repeat for a grid."),
-        click.option("--sample", type=click.IntRange(min=1), help="Monte Carlo: draw N values of each distribution."),
-        click.option("--seed", type=int, default=0, show_default=True, help="Seed of the Monte Carlo draws."),
-        click.option("--workers", type=click.IntRange(min=1), help="Processes (or LocalCluster workers); "
-                     "default: the number of CPUs; 1 runs in this process."),
-        click.option("--scheduler", help="Run on Dask: a scheduler address (tcp://host:8786) or 'local' for an "
-                     "embedded LocalCluster of --workers processes."),
-        click.option("--resume", is_flag=True, help="Skip runs whose folder already holds a finished run."),
-        click.option("--no-reference", is_flag=True, help="No monolithic reference per run (no error figures)."),
-        click.option("--plot-y", default="max_error", show_default=True,
-                     help="Comma-separated figures to plot against the first swept key (with --plots)."),
-    ]
-    for opt in reversed(opts):
-        f = opt(f)
-    return f
+# sweep: the common options with --K a list, plus those of general sweeps
+sweep_options = options([
+    click.option("--K", "--Ks", "--K-list", "ks", help="Budgets K: a list like 0,3,8 or a range 0..63 "
+                 "(default for the paper's experiment: 0,3,8,20,35,50)."),
+    *[opt for opt in common if opt is not common[0]],
+    click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("out/sweep"),
+                 show_default=True),
+    click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and "
+                 "the Condition 1 watch."),
+    click.option("--plots", is_flag=True, help="Also write PNG figures (the paper's Figs. 4-6; with --set, "
+                 "each --plot-y figure against the first swept key)."),
+    click.option("--set", "sets", multiple=True, metavar="KEY=VALUES", help="Sweep a scenario key: "
+                 "KEY=0,3,8 | a..b | linspace(a,b,n) | geomspace(a,b,n) | uniform(lo,hi) | loguniform(lo,hi) | "
+                 "normal(mu,sigma) | randint(lo,hi) (see docs/sweeps.md). Repeat for a grid."),
+    click.option("--sample", type=click.IntRange(min=1), help="Monte Carlo: draw N values of each distribution."),
+    click.option("--seed", type=int, default=0, show_default=True, help="Seed of the Monte Carlo draws."),
+    click.option("--workers", type=click.IntRange(min=1), help="Processes (or LocalCluster workers); "
+                 "default: the number of CPUs; 1 runs in this process."),
+    click.option("--scheduler", help="Run on Dask: a scheduler address (tcp://host:8786) or 'local' for an "
+                 "embedded LocalCluster of --workers processes."),
+    click.option("--resume", is_flag=True, help="Skip runs whose folder already holds a finished run."),
+    click.option("--no-reference", is_flag=True, help="No monolithic reference per run (no error figures)."),
+    click.option("--plot-y", default="max_error", show_default=True,
+                 help="Comma-separated figures to plot against the first swept key (with --plots)."),
+])
 
 
 @cli.command("sweep")
 @config_argument
-@_sweep_options
+@sweep_options
 def sweep_cmd(config, ks, eps, gamma, dt, T, quiet, out, no_certificates, plots, sets, sample, seed, workers,
               scheduler, resume, no_reference, plot_y):
     """Without --set: the paper's experiment, DR for each K against the monolithic reference
