@@ -78,8 +78,7 @@ def run_task(task):
     started = time.perf_counter()
     Path(task.out_dir).mkdir(parents=True, exist_ok=True)
     warnings = []
-    row = {"index": task.index, "label": task.label}
-    row.update((k, v) for k, v in task.overrides if k in task.columns)
+    row = _row_head(task)
     try:
         summary = _run(task, warnings)
     except Interrupted:
@@ -94,6 +93,22 @@ def run_task(task):
     row = clean_json(row)                               # as a resumed row reads back: nan as "nan"
     write_json(Path(task.out_dir) / ROW_FILE, row)
     return row
+
+
+def _row_head(task):
+    row = {"index": task.index, "label": task.label}
+    row.update((k, v) for k, v in task.overrides if k in task.columns)
+    return row
+
+
+def _outcome(future, task):
+    """A finished future's row; a task whose worker died (or that failed outside its run) is a row too."""
+    try:
+        return future.result()
+    except (Interrupted, KeyboardInterrupt):
+        raise
+    except Exception as exc:
+        return clean_json({**_row_head(task), "status": "error", "message": f"{type(exc).__name__}: {exc}"})
 
 
 def finished_row(task):
@@ -118,10 +133,10 @@ def process_pool(tasks, workers):
     """A local pool of `workers` processes started with spawn (forking after the C kernel's threads
     started is unsafe); rows in completion order."""
     pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"))
-    futures = [pool.submit(run_task, t) for t in tasks]
+    futures = {pool.submit(run_task, t): t for t in tasks}
     try:
         for future in as_completed(futures):
-            yield future.result()
+            yield _outcome(future, futures[future])
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
 
@@ -143,13 +158,13 @@ def dask(tasks, scheduler, workers):
     """The tasks on a Dask distributed cluster; rows in completion order."""
     from distributed import as_completed as completed
     client, cluster = dask_cluster(scheduler, workers)
-    futures = []
+    futures = {}
     try:
-        futures = client.map(run_task, list(tasks), pure=False)
-        for future in completed(futures):
-            yield future.result()
+        futures = dict(zip(client.map(run_task, tasks, pure=False), tasks))
+        for future in completed(list(futures)):
+            yield _outcome(future, futures[future])
     finally:
-        client.cancel(futures)
+        client.cancel(list(futures))
         client.close()
         if cluster is not None:
             cluster.close()
@@ -159,6 +174,8 @@ def executor(tasks, workers=1, scheduler=None):
     """The rows of `tasks` from the executor the options pick: Dask when a scheduler is given,
     else a process pool for workers > 1, else serial."""
     tasks = list(tasks)
+    if not tasks:
+        return iter(())
     if scheduler:
         return dask(tasks, scheduler, workers)
     if workers > 1 and len(tasks) > 1:

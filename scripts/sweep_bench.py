@@ -46,21 +46,27 @@ def main():
     parser.add_argument("--heavy", action="store_true", help="heavy_chain (16 runs, T = 1) instead of Table I")
     parser.add_argument("--certificates", action="store_true", help="keep the certificates on (slower runs)")
     parser.add_argument("--no-reference", action="store_true", help="no lockstep monolithic reference per run")
+    parser.add_argument("--repeat", type=int, default=2, help="rounds over the executors; the best wall time counts")
     args = parser.parse_args()
     config, axes, fixed = SETUPS["heavy" if args.heavy else "table1"]
     print(f"{config.name} {fixed} {len(axes[0][1])} runs; load average before: {os.getloadavg()[0]:.2f}")
     print("| executor | wall (s) | speedup | sum of task times (s) | overhead per task (ms) | set-up per task (ms) |")
     print("|---|---|---|---|---|---|")
-    base, figures = None, None
-    for name, workers, scheduler in EXECUTORS:
-        wall, own, n, rows = measure(config, axes, fixed, workers, scheduler, not args.no_reference,
-                                     args.certificates)
-        same = [{k: v for k, v in r.items() if not k.endswith("_time_s") and k != "real_time_factor"} for r in rows]
-        figures = figures or same
-        base = base or wall
+    best, figures = {}, None
+    for _ in range(args.repeat):                       # interleaved, best of each: the machine is shared
+        for name, workers, scheduler in EXECUTORS:
+            wall, own, n, rows = measure(config, axes, fixed, workers, scheduler, not args.no_reference,
+                                         args.certificates)
+            same = [{k: v for k, v in r.items() if not k.endswith("_time_s") and k != "real_time_factor"}
+                    for r in rows]
+            figures = figures or same
+            assert same == figures, f"{name}: the figures differ from the serial run's"
+            if name not in best or wall < best[name][0]:
+                best[name] = (wall, own, n, workers)
+    base = best[EXECUTORS[0][0]][0]
+    for name, (wall, own, n, workers) in best.items():
         print(f"| {name} | {wall:.2f} | {base / wall:.2f} | {own[0]:.2f} | {1e3 * (wall * workers - own[0]) / n:.1f} | "
-              f"{1e3 * (own[0] - own[1]) / n:.1f} |"
-              f"{'' if same == figures else ' (figures differ!)'}")
+              f"{1e3 * (own[0] - own[1]) / n:.1f} |")
     print(f"load average after: {os.getloadavg()[0]:.2f}")
 
 
