@@ -109,23 +109,30 @@ def parse_path(key):
     return out
 
 
-def _draw(rng, dist, n):
+def _draw(rng, key, dist, n):
+    """n values of one distribution; impossible bounds are a one-line ConfigError."""
     name, a, b = dist
+    bad = b < 0 if name == "normal" else (b < a or (name == "loguniform" and a <= 0))
+    if bad:
+        need = {"normal": "sigma >= 0", "loguniform": "0 < lo <= hi"}.get(name, "lo <= hi")
+        raise ConfigError(f"--set {key}: {name}({a},{b}) needs {need}")
+    if name == "randint":
+        return [int(v) for v in rng.integers(int(a), int(b), n, endpoint=True)]
     if name == "uniform":
         values = rng.uniform(a, b, n)
     elif name == "loguniform":
-        if a <= 0 or b <= 0:
-            raise ConfigError(f"loguniform({a},{b}): bounds must be > 0")
         values = np.exp(rng.uniform(np.log(a), np.log(b), n))
-    elif name == "normal":
-        values = rng.normal(a, b, n)
     else:
-        return [int(v) for v in rng.integers(int(a), int(b), n, endpoint=True)]
+        values = rng.normal(a, b, n)
     return [float(v) for v in values]
 
 
 def expand(axes, sample=None, seed=0):
     """[(key, values or distribution)] -> list of points, each a list of (key, value) in --set order."""
+    keys = [k for k, _ in axes]
+    twice = next((k for k in keys if keys.count(k) > 1), None)
+    if twice:
+        raise ConfigError(f"--set {twice}: given twice (give one list of values)")
     grid = [(k, v) for k, v in axes if isinstance(v, list)]
     dists = [(k, v) for k, v in axes if isinstance(v, tuple)]
     if dists and not sample:
@@ -133,7 +140,7 @@ def expand(axes, sample=None, seed=0):
     if sample and not dists:
         raise ConfigError("--sample: needs at least one --set KEY=distribution(...), e.g. uniform(0.1,0.5)")
     rng = np.random.default_rng(seed)
-    drawn = {k: _draw(rng, d, sample) for k, d in dists}
+    drawn = {k: _draw(rng, k, d, sample) for k, d in dists}
     samples = [dict((k, drawn[k][i]) for k, _ in dists) for i in range(sample or 1)]
     points = []
     for combo in itertools.product(*(values for _, values in grid)):

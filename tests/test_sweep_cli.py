@@ -4,8 +4,9 @@ import json
 
 import pytest
 
-from master.cli import main
+from master.cli import main, parse_budgets
 from master.config import ROOT
+from master.errors import ConfigError
 
 TABLE_I = str(ROOT / "configs" / "two_oscillators.yaml")
 PNG = b"\x89PNG\r\n\x1a\n"
@@ -52,7 +53,9 @@ def test_grid_over_two_subsystems_writes_one_row_and_one_folder_per_run(tmp_path
     (["--set", "subsystems.B.parameters.m2=heavy"], "subsystems.B.parameters.m2: must be a number"),
     (["--set", "subsystems.A.start.q1=uniform(0.1,0.5)"], "give --sample N"),
     (["--sample", "3"], "--sample: needs at least one"),
-    (["--K", "0,x", "--workers", "1"], "--K: must be comma-separated integers")])
+    (["--K", "0,x", "--workers", "1"], "--K: must be comma-separated integers"),
+    (["--K", "0,1", "--set", "master.K=2"], "--set master.K: given twice"),
+    (["--set", "subsystems.B.parameters.m2=normal(4,-1)", "--sample", "2"], "normal(4,-1) needs sigma >= 0")])
 def test_bad_keys_and_values_stop_before_anything_runs(tmp_path, capsys, args, words):
     code, printed, err = sweep(capsys, tmp_path / "out", "--T", "0.2", *args)
     assert code == 2
@@ -94,3 +97,10 @@ def test_default_sweep_takes_a_K_list_and_keeps_Ks_as_an_alias(tmp_path, capsys)
     keys = ("K", "max_error", "rms_error", "final_error", "max_passivity_pos", "min_fne_margin")
     assert [[r[k] for k in keys] for r in summaries[0]["runs"]] == [[r[k] for k in keys] for r in summaries[1]["runs"]]
     assert [r["K"] for r in summaries[0]["runs"]] == [0, 8]
+
+
+def test_budget_lists_take_ranges_for_sweep_and_compare():
+    assert parse_budgets("0..3,8") == [0, 1, 2, 3, 8]
+    for bad in ("0,-1", "1.5", "a..b", ""):
+        with pytest.raises(ConfigError):
+            parse_budgets(bad)
