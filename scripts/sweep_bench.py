@@ -26,6 +26,24 @@ EXECUTORS = [("serial (1 worker)", 1, None), ("process pool, 2 workers", 2, None
              ("Dask LocalCluster, 2 workers", 2, "local")]
 
 
+def busy(n=10_000_000):
+    """A pure-Python loop: its wall time alone and two at once show what two processes can get here."""
+    started = time.perf_counter()
+    total = 0
+    for i in range(n):
+        total += i
+    return time.perf_counter() - started
+
+
+def ceiling():
+    """The speedup two processes can reach on this machine now: two busy loops at once against one."""
+    import multiprocessing
+    with multiprocessing.get_context("spawn").Pool(2) as pool:
+        alone = pool.apply(busy)
+        both = max(pool.map(busy, [10_000_000] * 2))
+    return 2 * alone / both
+
+
 def measure(config, axes, fixed, workers, scheduler, reference, certificates):
     """(wall s, sum of the runs' own time s, runs, rows) of one sweep in a fresh folder."""
     out = Path(tempfile.mkdtemp(prefix="sweep_bench_"))
@@ -49,7 +67,8 @@ def main():
     parser.add_argument("--repeat", type=int, default=2, help="rounds over the executors; the best wall time counts")
     args = parser.parse_args()
     config, axes, fixed = SETUPS["heavy" if args.heavy else "table1"]
-    print(f"{config.name} {fixed} {len(axes[0][1])} runs; load average before: {os.getloadavg()[0]:.2f}")
+    print(f"{config.name} {fixed} {len(axes[0][1])} runs; load average before: {os.getloadavg()[0]:.2f}; "
+          f"two busy loops at once run {ceiling():.2f}x one")
     print("| executor | wall (s) | speedup | sum of task times (s) | overhead per task (ms) | set-up per task (ms) |")
     print("|---|---|---|---|---|---|")
     best, figures = {}, None
@@ -67,7 +86,8 @@ def main():
     for name, (wall, own, n, workers) in best.items():
         print(f"| {name} | {wall:.2f} | {base / wall:.2f} | {own[0]:.2f} | {1e3 * (wall * workers - own[0]) / n:.1f} | "
               f"{1e3 * (own[0] - own[1]) / n:.1f} |")
-    print(f"load average after: {os.getloadavg()[0]:.2f}")
+    print(f"load average after: {os.getloadavg()[0]:.2f}; two busy loops at once run {ceiling():.2f}x one "
+          f"(the ceiling of a 2-process speedup on this machine now)")
 
 
 if __name__ == "__main__":
