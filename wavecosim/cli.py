@@ -38,14 +38,17 @@ def _apply_overrides(scenario, K=None, eps=None, gamma=None, dt=None, T=None, al
     return with_overrides(scenario, master=algorithm, K=K, eps=eps, gamma=gamma, dt=dt, T=T, where="--T/--dt")
 
 
-def parse_budgets(ks):
-    """--Ks "0,3,8" -> [0, 3, 8], each an integer >= 0."""
+def parse_budgets(ks, option="--Ks"):
+    """--Ks "0,3,8" or "0..8" -> [0, 3, 8], each an integer >= 0."""
+    from .overrides import parse_set
     try:
-        Ks = [int(k) for k in ks.split(",") if k.strip()]
-    except ValueError:
-        raise ConfigError(f"--Ks: must be comma-separated integers, got {ks!r}") from None
+        _, Ks = parse_set(f"master.K={ks}")
+    except ConfigError:
+        Ks = None
+    if not isinstance(Ks, list) or not all(isinstance(k, int) and not isinstance(k, bool) for k in Ks):
+        raise ConfigError(f"{option}: must be comma-separated integers or a range a..b, got {ks!r}")
     if not Ks or min(Ks) < 0:
-        raise ConfigError(f"--Ks: budgets must be integers >= 0, got {ks!r}")
+        raise ConfigError(f"{option}: budgets must be integers >= 0, got {ks!r}")
     return Ks
 
 
@@ -73,10 +76,16 @@ common = [
 ]
 
 
-def with_common(f):
-    for opt in reversed(common):
-        f = opt(f)
-    return f
+def options(opts):
+    """A decorator adding the click options `opts` in their order."""
+    def add(f):
+        for opt in reversed(opts):
+            f = opt(f)
+        return f
+    return add
+
+
+with_common = options(common)
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -95,10 +104,7 @@ output_options = [
 ]
 
 
-def with_output(f):
-    for opt in reversed(output_options):
-        f = opt(f)
-    return f
+with_output = options(output_options)
 
 
 @cli.command("run")
@@ -141,18 +147,47 @@ def _report_run(scenario, result, out):
                       *(["energy_guard_steps"] if "energy_guard_steps" in s else [])])
 
 
+# sweep: the common options with --K a list, plus those of general sweeps
+sweep_options = options([
+    click.option("--K", "--Ks", "--K-list", "ks", help="Budgets K: a list like 0,3,8 or a range 0..63 "
+                 "(default for the paper's experiment: 0,3,8,20,35,50)."),
+    *[opt for opt in common if opt is not common[0]],
+    click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("out/sweep"),
+                 show_default=True),
+    click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and "
+                 "the Condition 1 watch."),
+    click.option("--plots", is_flag=True, help="Also write PNG figures (the paper's Figs. 4-6; with --set, "
+                 "each --plot-y figure against the first swept key)."),
+    click.option("--set", "sets", multiple=True, metavar="KEY=VALUES", help="Sweep a scenario key: "
+                 "KEY=0,3,8 | a..b | linspace(a,b,n) | geomspace(a,b,n) | uniform(lo,hi) | loguniform(lo,hi) | "
+                 "normal(mu,sigma) | randint(lo,hi) (see docs/sweeps.md). Repeat for a grid."),
+    click.option("--sample", type=click.IntRange(min=1), help="Monte Carlo: draw N values of each distribution."),
+    click.option("--seed", type=int, default=0, show_default=True, help="Seed of the Monte Carlo draws."),
+    click.option("--workers", type=click.IntRange(min=1), help="Processes (or LocalCluster workers); "
+                 "default: the number of CPUs; 1 runs in this process."),
+    click.option("--scheduler", help="Run on Dask: a scheduler address (tcp://host:8786) or 'local' for an "
+                 "embedded LocalCluster of --workers processes."),
+    click.option("--resume", is_flag=True, help="Skip runs whose folder already holds a finished run."),
+    click.option("--no-reference", is_flag=True, help="No monolithic reference per run (no error figures)."),
+    click.option("--plot-y", default="max_error", show_default=True,
+                 help="Comma-separated figures to plot against the first swept key (with --plots)."),
+])
+
+
 @cli.command("sweep")
 @config_argument
-@with_common
-@click.option("--Ks", "--K-list", "ks", default="0,3,8,20,35,50", show_default=True,
-              help="Comma-separated budgets K.")
-@click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("out/sweep"), show_default=True)
-@click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and the Condition 1 watch.")
-@click.option("--plots", is_flag=True, help="Also write the paper's figures (Figs. 4-6) as PNG.")
-def sweep_cmd(config, K, eps, gamma, dt, T, quiet, ks, out, no_certificates, plots):
-    """Reproduce the paper's experiment: DR for each K against the monolithic reference."""
+@sweep_options
+def sweep_cmd(config, ks, eps, gamma, dt, T, quiet, out, no_certificates, plots, sets, sample, seed, workers,
+              scheduler, resume, no_reference, plot_y):
+    """Without --set: the paper's experiment, DR for each K against the monolithic reference
+    (summary.json). With --set (or --sample, --workers, --scheduler, --resume, --no-reference):
+    a general sweep over any scenario keys, one row per run in OUT/runs.csv and OUT/runs.json."""
+    if sets or sample or workers or scheduler or resume or no_reference:
+        options = dict(no_certificates=no_certificates, plots=plots, sample=sample, seed=seed, workers=workers,
+                       scheduler=scheduler, resume=resume, no_reference=no_reference, plot_y=plot_y, quiet=quiet)
+        return _general_sweep(config, ks, sets, (eps, gamma, dt, T), out, options)
     from .budget_sweep import SWEEP_FIELDS
-    Ks = parse_budgets(ks)
+    Ks = parse_budgets(ks or "0,3,8,20,35,50")
     scenario = _apply_overrides(load_scenario(config), None, eps, gamma, dt, T)
     table = api.sweep(scenario, Ks, out_dir=out, progress=(lambda label: _progress(label, quiet)),
                       certificates=not no_certificates)
@@ -163,6 +198,51 @@ def sweep_cmd(config, K, eps, gamma, dt, T, quiet, ks, out, no_certificates, plo
         from .plots import sweep_plots
         for p in sweep_plots(results, reference, out):
             click.echo(f"wrote {p}")
+
+
+def _general_sweep(config, ks, sets, changes, out, o):
+    """A sweep over --set keys on the chosen executor; prints the rows' main figures."""
+    import os
+
+    from .overrides import parse_set, scalar
+    from .budget_sweep import plan, run_sweep
+    axes = [parse_set(s) for s in list(sets)]
+    if ks:
+        axes.insert(0, ("master.K", parse_budgets(ks, "--K")))
+    fixed = [(k, scalar(v) if k == "gamma" else v)
+             for k, v in zip(("master.eps", "gamma", "dt", "T"), changes) if v is not None]
+    tasks = plan(config, axes, out, fixed, o["sample"], o["seed"], not o["no_reference"], not o["no_certificates"])
+    workers = o["workers"] or os.cpu_count() or 1
+    meta = {"config": tasks[0].config, "axes": [[k, list(v)] for k, v in axes], "fixed": fixed,
+            "sample": o["sample"], "seed": o["seed"], "executor": o["scheduler"] or f"{workers} workers"}
+    rows = run_sweep(tasks, out, meta, workers, o["scheduler"], o["resume"],
+                     None if o["quiet"] else _sweep_progress)
+    keys = [k for k, _ in axes]
+    failed = [r for r in rows if r.get("status") != "finished"]
+    click.echo(f"{len(rows)} runs ({len(failed)} not finished) -> {out / 'runs.csv'}, {out / 'runs.json'}")
+    print_table(rows, ["index", *keys, "status", "max_error", "iterations_mean", "task_time_s"])
+    for r in failed:
+        click.echo(f"run {r['index']} ({r['label']}): {r.get('status')}: {r.get('message')}")
+    if o["plots"]:
+        from .plots import figure_plots
+        for p in figure_plots(rows, keys, [y.strip() for y in o["plot_y"].split(",") if y.strip()], out):
+            click.echo(f"wrote {p}")
+
+
+def _sweep_progress(total, skipped):
+    """A per-run progress line with failures and ETA on stderr."""
+    import time
+    state = {"done": 0, "failed": 0, "t0": time.perf_counter()}
+    todo = total - skipped
+
+    def report(row):
+        state["done"] += 1
+        state["failed"] += row.get("status") != "finished"
+        elapsed = time.perf_counter() - state["t0"]
+        eta = elapsed / state["done"] * (todo - state["done"])
+        click.echo(f"  sweep: {skipped + state['done']}/{total} runs ({skipped} resumed, {state['failed']} not "
+                   f"finished), {elapsed:.1f} s, ETA {eta:.1f} s", err=True)
+    return report
 
 
 @cli.command("compare")

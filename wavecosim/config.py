@@ -324,6 +324,12 @@ _SafeLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _map
 def load_scenario(path=None) -> Scenario:
     """Read and validate a scenario file (the built-in default when path is None)."""
     path = Path(path) if path else DEFAULT_CONFIG
+    return parse_scenario(load_raw(path), str(path), path.parent)
+
+
+def load_raw(path) -> dict:
+    """The YAML mapping of a scenario file, read safely but not yet checked."""
+    path = Path(path)
     if not path.exists():
         raise ConfigError(f"{path}: scenario file not found")
     try:
@@ -334,7 +340,7 @@ def load_scenario(path=None) -> Scenario:
         raise ConfigError(f"{path}: not valid YAML ({where}: {getattr(exc, 'problem', exc)})") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{path}: cannot read: {exc}") from None
-    return parse_scenario(raw, str(path), path.parent)
+    return raw
 
 
 def _master(ck, m) -> MasterConfig:

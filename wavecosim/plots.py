@@ -264,3 +264,48 @@ def _energy_per_master(rows, results, reference, scenario, path):
     axes[0].set_ylabel("stored energy H (J), log")
     fig.suptitle(f"{scenario}: total stored energy H(t) per master (H(0) = {H0:.4g} J)")
     return _save(fig, path)
+
+
+# ---------------------------------------------------------------- general sweep (rows of runs.csv)
+
+def _numeric(values):
+    return all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values)
+
+
+def figure_plots(rows, keys, figures, out):
+    """<figure>_vs_<key>.png for each figure: the figure against the first swept key, one line per
+    combination of the other swept keys; non-numeric keys on a categorical axis."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    if not keys or not rows:
+        return []
+    x_key, others = keys[0], keys[1:]
+    groups = {}
+    for row in rows:
+        groups.setdefault(tuple(row.get(k) for k in others), []).append(row)
+    xs = [row.get(x_key) for row in rows]
+    categories = None if _numeric(xs) else list(dict.fromkeys(map(str, xs)))
+    return [_figure_vs_key(groups, x_key, others, y, categories, out) for y in figures]
+
+
+def _figure_vs_key(groups, x_key, others, y, categories, out):
+    fig, ax = plt.subplots(figsize=(7, 4))
+    colors = _colors(len(groups))
+    values = []
+    for color, (group, rows) in zip(colors, groups.items()):
+        x = [categories.index(str(r.get(x_key))) if categories else r.get(x_key) for r in rows]
+        v = [r.get(y) if isinstance(r.get(y), (int, float)) else float("nan") for r in rows]
+        values += v
+        label = ", ".join(f"{k} = {g}" for k, g in zip(others, group)) or None
+        ax.plot(*_finite(x, v), "o-", color=color, ms=3, lw=1, label=label)
+    finite = np.asarray([v for v in values if np.isfinite(v)], float)
+    if finite.size and finite.min() > 0 and finite.max() > 100 * finite.min():
+        ax.set_yscale("log")
+    if categories:
+        ax.set_xticks(range(len(categories)), categories, rotation=45, ha="right")
+    ax.set(xlabel=x_key, ylabel=y, title=f"{y} against {x_key}")
+    ax.grid(alpha=0.3, which="both")
+    if 1 < len(groups) <= 12:
+        ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    name = "".join(c if c.isalnum() or c in "._-" else "_" for c in f"{y}_vs_{x_key}")
+    return _save(fig, out / f"{name}.png")
