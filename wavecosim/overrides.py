@@ -97,10 +97,17 @@ def parse_set(option):
     return key, dists[0] if dists else [v for item in items for v in item]
 
 
+VARIABLE_MAPPINGS = ("parameters", "start", "integers")
+
+
 def parse_path(key):
-    """"a.b[0].c" -> ["a", "b", 0, "c"]; a malformed path is a one-line ConfigError."""
-    out = []
-    for part in key.split("."):
+    """"a.b[0].c" -> ["a", "b", 0, "c"]; a malformed path is a one-line ConfigError. Below
+    subsystems.X.parameters (start, integers) the rest is one FMU variable name, dots included
+    (subsystems.machine.parameters.resistor.R)."""
+    out, parts = [], key.split(".")
+    for k, part in enumerate(parts):
+        if len(out) == 3 and out[0] == "subsystems" and out[2] in VARIABLE_MAPPINGS:
+            return out + [".".join(parts[k:])]
         m = PATH_PART.match(part)
         if not m:
             raise ConfigError(f"--set {key}: not a key path (names joined by dots, [i] for a list entry)")
