@@ -4,6 +4,7 @@ import zipfile
 import pytest
 
 from wavecosim.errors import FmuError
+from wavecosim.builtin import ROOT
 from wavecosim.fmu import Fmu, extract_fmu
 
 
@@ -39,5 +40,35 @@ def test_refuses_non_finite_inputs(built_fmus):
     try:
         with pytest.raises(FmuError, match="non-finite"):
             fmu.set_real(fmu.vrs(["a"]), [float("nan")])
+    finally:
+        fmu.close()
+
+
+FEEDTHROUGH = ROOT.parent / "shared" / "third_party" / "reference_fmus" / "fmi2" / "Feedthrough.fmu"
+
+
+@pytest.mark.skipif(not FEEDTHROUGH.exists(), reason="the third-party FMUs (../shared/third_party) are absent")
+def test_values_of_every_fmi_type_are_set_with_their_declared_type():
+    """The Reference FMU Feedthrough has Real, Integer, Boolean, String and Enumeration variables."""
+    values = {"Float64_fixed_parameter": 2.5, "Int32_input": 7, "Boolean_input": True, "String_input": "hello",
+              "Enumeration_input": 2}
+    fmu = Fmu(FEEDTHROUGH, "ft", values)
+    try:
+        s, vr = fmu.slave, fmu.vr
+        assert s.getReal([vr("Float64_fixed_parameter")]) == [2.5]
+        assert s.getInteger([vr("Int32_input"), vr("Enumeration_input")]) == [7, 2]
+        assert s.getBoolean([vr("Boolean_input")]) == [True]
+        assert s.getString([vr("String_input")]) == [b"hello"]
+    finally:
+        fmu.close()
+    with pytest.raises(FmuError, match="Boolean_input is a Boolean variable of Feedthrough.fmu; got 3"):
+        Fmu(FEEDTHROUGH, "ft", {"Boolean_input": 3})
+
+
+def test_an_integer_parameter_can_be_given_with_the_others(built_fmus):
+    fmu = Fmu(built_fmus["DuffingSide"], "A", {"newton_max_iter": 7, "m1": 8})
+    try:
+        assert fmu.slave.getInteger([fmu.vr("newton_max_iter")]) == [7]
+        assert fmu.get_real(fmu.vrs(["m1"])).tolist() == [8.0]
     finally:
         fmu.close()

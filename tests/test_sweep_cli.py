@@ -50,7 +50,7 @@ def test_grid_over_two_subsystems_writes_one_row_and_one_folder_per_run(tmp_path
     (["--set", "subsystems.C.parameters.k=1"], "subsystems.C.parameters.k: no 'C'"),
     (["--set", "subsystems.A.parameters.k99=1,2"], "subsystems.A.parameters.k99: A: the FMU DuffingSide.fmu has no"),
     (["--set", "master.K=0,-1"], "master.K: must be >= 0, got -1"),
-    (["--set", "subsystems.B.parameters.m2=heavy"], "subsystems.B.parameters.m2: must be a number"),
+    (["--set", "subsystems.B.parameters.m2=heavy"], "subsystems.B.parameters.m2: B: m2 is a Real variable of LinearSide.fmu; got 'heavy'"),
     (["--set", "subsystems.A.start.q1=uniform(0.1,0.5)"], "give --sample N"),
     (["--sample", "3"], "--sample: needs at least one"),
     (["--K", "0,x", "--workers", "1"], "--K: must be comma-separated integers"),

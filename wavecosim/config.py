@@ -160,10 +160,13 @@ class _Checker:
             self.fail(path, f"must be a list of variable names, got {value!r}")
         return list(value)
 
-    def numbers(self, value, path):
+    def values(self, value, path):
+        """Start values and parameters of any FMI type: numbers, true/false or strings (each is
+        checked against the type its variable declares when the FMU is opened)."""
         value = value or {}
         self.mapping(value, path, list(value))
-        return {k: self.number(v, f"{path}.{k}") for k, v in value.items()}
+        return {str(k): v if isinstance(v, (bool, str)) or (isinstance(v, int) and not isinstance(v, bool))
+                else self.number(v, f"{path}.{k}") for k, v in value.items()}
 
 
 PORT_KEYS = ("wave_in", "wave_out", "effort", "flow", "physical_in", "physical_out", "input", "sign", "energy")
@@ -242,8 +245,8 @@ def _subsystem(ck, name, raw, base_dir):
     fmu_path = None
     if fmu.endswith(".fmu") or "/" in fmu:
         fmu_path = (base_dir / fmu).resolve()
-    return SubsystemConfig(name=name, fmu=fmu, parameters=ck.numbers(raw.get("parameters"), f"{path}.parameters"),
-                           start=ck.numbers(raw.get("start"), f"{path}.start"), integers=integers, port=spec,
+    return SubsystemConfig(name=name, fmu=fmu, parameters=ck.values(raw.get("parameters"), f"{path}.parameters"),
+                           start=ck.values(raw.get("start"), f"{path}.start"), integers=integers, port=spec,
                            fmu_path=fmu_path,
                            gamma=ck.number(raw["gamma"], f"{path}.gamma", positive=True) if "gamma" in raw else None)
 

@@ -55,10 +55,31 @@ def extract_fmu(path: Path) -> Path:
     return target
 
 
+def _is_number(v):
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _is_whole(v):
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+# FMI type -> (FMU2Slave setter, (accepts the YAML value, converts it))
+SETTERS = {
+    "Real": ("setReal", (_is_number, float)),
+    "Integer": ("setInteger", (_is_whole, int)),
+    "Enumeration": ("setInteger", (_is_whole, int)),
+    "Boolean": ("setBoolean", (lambda v: isinstance(v, bool), bool)),
+    "String": ("setString", (lambda v: isinstance(v, str), str)),
+}
+
+
 class Fmu:
     """One instantiated, initialized FMU; `name` is the subsystem name used in messages."""
 
-    def __init__(self, path, name, real_values=None, integer_values=None, start_time=0.0, optional=()):
+    def __init__(self, path, name, values=None, integer_values=None, start_time=0.0, optional=()):
+        """Load, instantiate and initialize; `values` (and `integer_values`) are start values and
+        parameters by name, each set with the FMI type its variable declares (Real, Integer,
+        Enumeration, Boolean, String); names in `optional` are skipped when the FMU lacks them."""
         self.path, self.name = Path(path), name
         self._dir = extract_fmu(self.path)
         try:
@@ -78,9 +99,8 @@ class Fmu:
         self._checked(self._slave.instantiate, "fmi2Instantiate", callbacks=self._callbacks)
         self.component = self._slave.component
         drop = [k for k in optional if k not in self.variables]
-        reals = {k: v for k, v in (real_values or {}).items() if k not in drop}
-        integers = {k: v for k, v in (integer_values or {}).items() if k not in drop}
-        self._setup(reals, integers, start_time)
+        given = {k: v for k, v in {**(values or {}), **(integer_values or {})}.items() if k not in drop}
+        self._setup(given, start_time)
 
     def _make_callbacks(self):
         def logger(env, instance, status, category, message):
@@ -106,16 +126,20 @@ class Fmu:
         except Exception as exc:
             raise FmuError(f"{self.name}: {fname} failed: {self.last_message()}", subsystem=self.name) from exc
 
-    def _setup(self, reals, integers, start_time):
+    def _setup(self, given, start_time):
         self._checked(self._slave.setupExperiment, "fmi2SetupExperiment", startTime=start_time)
-        for key, value in {**reals, **integers}.items():
-            self.variable(key)
-        if reals:
-            self._checked(self._slave.setReal, "fmi2SetReal", [self.vr(k) for k in reals],
-                          [float(v) for v in reals.values()])
-        if integers:
-            self._checked(self._slave.setInteger, "fmi2SetInteger", [self.vr(k) for k in integers],
-                          [int(v) for v in integers.values()])
+        by_type = {}
+        for name, value in given.items():
+            kind = self.variable(name).type
+            setter, convert = SETTERS.get(kind, (None, None))
+            if setter is None or not convert[0](value):
+                raise FmuError(f"{self.name}: {name} is a {kind} variable of {self.path.name}; got {value!r}",
+                               subsystem=self.name, variable=name)
+            by_type.setdefault(setter, ([], []))
+            by_type[setter][0].append(self.vr(name))
+            by_type[setter][1].append(convert[1](value))
+        for setter, (vrs, vals) in by_type.items():
+            self._checked(getattr(self._slave, setter), f"fmi2{setter[0].upper()}{setter[1:]}", vrs, vals)
         self._checked(self._slave.enterInitializationMode, "fmi2EnterInitializationMode")
         self._checked(self._slave.exitInitializationMode, "fmi2ExitInitializationMode")
 
