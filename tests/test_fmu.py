@@ -1,10 +1,12 @@
 """master/fmu.py: safe extraction, errors that name the FMU and the variable, state handles freed."""
+import re
 import zipfile
 
 import pytest
 
 from wavecosim.errors import FmuError
 from wavecosim.builtin import ROOT
+from wavecosim.cli import main
 from wavecosim.fmu import Fmu, extract_fmu
 
 
@@ -72,3 +74,45 @@ def test_an_integer_parameter_can_be_given_with_the_others(built_fmus):
         assert fmu.get_real(fmu.vrs(["m1"])).tolist() == [8.0]
     finally:
         fmu.close()
+
+
+def rewritten(source, target, rename=None, description=None):
+    """A copy of a built FMU with members renamed (rename: old prefix -> new) or its
+    modelDescription.xml changed (description: text -> text)."""
+    with zipfile.ZipFile(source) as src, zipfile.ZipFile(target, "w") as dst:
+        for item in src.infolist():
+            data = src.read(item.filename)
+            name = item.filename
+            if rename and name.startswith(rename[0]):
+                name = rename[1] + name[len(rename[0]):]
+            if description and name == "modelDescription.xml":
+                data = data.decode().replace(*description).encode()
+            dst.writestr(name, data)
+    return target
+
+
+@pytest.mark.parametrize("change, words", [
+    ({"description": ('fmiVersion="2.0"', 'fmiVersion="1.0"')},
+     "LinearSide.fmu is an FMI 1.0 FMU; wavecosim runs FMI 2.0 co-simulation FMUs"),
+    ({"rename": ("binaries/linux64/", "binaries/win64/")},
+     "LinearSide.fmu has no binary for this platform (linux64; it has: win64)"),
+])
+def test_an_fmu_this_build_cannot_run_is_one_line_and_exit_2(built_fmus, tmp_path, capsys, change, words):
+    fmu = rewritten(built_fmus["LinearSide"], tmp_path / "LinearSide.fmu", **change)
+    with pytest.raises(FmuError, match=re.escape(words)):
+        Fmu(fmu, "B")
+    scene = (ROOT / "configs" / "two_oscillators.yaml").read_text().replace("fmu: LinearSide", f"fmu: {fmu}")
+    (tmp_path / "scene.yaml").write_text(scene)
+    with pytest.raises(SystemExit) as info:
+        main(["run", str(tmp_path / "scene.yaml"), "--out", str(tmp_path / "out"), "--quiet"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert info.value.code == 2 and len(err) == 1 and "subsystems.B.fmu: " in err[0] and words in err[0]
+
+
+FMI3 = ROOT.parent / "shared" / "third_party" / "reference_fmus" / "fmi3" / "Dahlquist.fmu"
+
+
+@pytest.mark.skipif(not FMI3.exists(), reason="the third-party FMUs (../shared/third_party) are absent")
+def test_an_fmi3_fmu_is_refused_in_one_line():
+    with pytest.raises(FmuError, match=r"^Dahlquist.fmu is an FMI 3.0 FMU; wavecosim runs FMI 2.0 co-simulation FMUs"):
+        Fmu(FMI3, "x")

@@ -13,7 +13,8 @@ import zipfile
 from pathlib import Path
 
 import numpy as np
-from fmpy import read_model_description
+from fmpy import platform as fmpy_platform
+from fmpy import read_model_description, sharedLibraryExtension
 from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
 from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, fmi2StepFinishedTYPE
 
@@ -55,6 +56,31 @@ def extract_fmu(path: Path) -> Path:
     return target
 
 
+def check_version(path, folder):
+    """FMI 2.0 only, read from modelDescription.xml's root before anything else parses it."""
+    import xml.etree.ElementTree as ET
+    try:
+        version = ET.parse(folder / "modelDescription.xml").getroot().get("fmiVersion", "?")
+    except ET.ParseError as exc:
+        raise FmuError(f"{path}: cannot read modelDescription.xml: {exc}") from None
+    if version != "2.0":
+        raise FmuError(f"{path.name} is an FMI {version} FMU; wavecosim runs FMI 2.0 co-simulation FMUs"
+                       + (" (FMI 3.0 support is not built yet)" if version.startswith("3") else ""))
+
+
+def check_runnable(path, folder, description):
+    """One line naming the FMU and the reason when this build cannot run it: no co-simulation
+    interface, or no binary for this platform."""
+    cs = description.coSimulation
+    if cs is None:
+        raise FmuError(f"{path}: the FMU has no co-simulation interface")
+    binary = folder / "binaries" / fmpy_platform / f"{cs.modelIdentifier}{sharedLibraryExtension}"
+    if not binary.exists():
+        have = sorted(p.name for p in (folder / "binaries").iterdir()) if (folder / "binaries").is_dir() else []
+        raise FmuError(f"{path.name} has no binary for this platform ({fmpy_platform}; it has: "
+                       f"{', '.join(have) or 'none'})")
+
+
 def _is_number(v):
     return isinstance(v, (int, float)) and not isinstance(v, bool)
 
@@ -82,13 +108,13 @@ class Fmu:
         Enumeration, Boolean, String); names in `optional` are skipped when the FMU lacks them."""
         self.path, self.name = Path(path), name
         self._dir = extract_fmu(self.path)
+        check_version(self.path, self._dir)
         try:
             self.description = read_model_description(str(self._dir), validate=False)
         except Exception as exc:  # fmpy raises bare exceptions for malformed XML
             raise FmuError(f"{self.path}: cannot read modelDescription.xml: {exc}") from None
         cs = self.description.coSimulation
-        if cs is None:
-            raise FmuError(f"{self.path}: the FMU has no co-simulation interface")
+        check_runnable(self.path, self._dir, self.description)
         self.can_save_state = bool(cs.canGetAndSetFMUstate)
         self.variables = {v.name: v for v in self.description.modelVariables}
         self.messages = []
