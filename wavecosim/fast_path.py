@@ -1,8 +1,9 @@
 """The fast path of the DR master: Algorithm 1 for a whole macro-step in one call into C.
 
 The C kernel (fmus/kernel/drkernel.c, built with the FMUs into build/lib/libdrkernel.so) calls
-each FMU through its own fmi2 function pointers with preallocated buffers, and does the DR
-arithmetic in the operation order of wavecosim/linalg.py, so its numbers are bit-identical to the
+each FMU through its own fmi2 function pointers (an FMI 3 FMU through those of fmus/kernel/fmi3shim.c,
+with its shim as the fmi2Component: `Fmu.function_pointer`, `Fmu.component`) with preallocated
+buffers, and does the DR arithmetic in the operation order of wavecosim/linalg.py, so its numbers are bit-identical to the
 readable reference `DRMaster` (wavecosim/masters/dr.py). This module wires the kernel up through
 ctypes: `Kernel` owns one C kernel for a scene's subsystems and the buffers it shares with
 Python. The master that uses it is wavecosim/masters/dr_fast.py::FastDRMaster.
@@ -137,9 +138,11 @@ def unusable(scene):
             return f"subsystem {s.name} cannot get and set its FMU state"
         for name in _FMI_NAMES:
             try:
-                s.fmu.function_pointer(name)
+                s.fmu.function_pointer(name)      # FMI 3: fmus/kernel/fmi3shim.c's, in fmi2 form
             except AttributeError:
-                return f"subsystem {s.name}: the FMU does not export {name}"
+                return f"subsystem {s.name}: the FMU does not export {s.fmu.function_name(name)}"
+            except FmuError as exc:
+                return str(exc)
     try:
         load_library()
     except FmuError as exc:
@@ -183,8 +186,8 @@ class Kernel:
         self._handle = ctypes.c_void_p(self.handle)
         for i, (s, off) in enumerate(zip(self.subsystems, scene.offsets)):
             fns = DRFunctions(*[s.fmu.function_pointer(name) for name in _FMI_NAMES])
-            vr_in = (ctypes.c_uint * s.m)(*[s.fmu.vr(v) for v in s.port.wave_in])
-            vr_out = (ctypes.c_uint * s.m)(*[s.fmu.vr(v) for v in s.port.wave_out])
+            vr_in = (ctypes.c_uint * s.m)(*s.fmu.real_vrs(s.port.wave_in))
+            vr_out = (ctypes.c_uint * s.m)(*s.fmu.real_vrs(s.port.wave_out))
             # x_i^n goes into the Subsystem's own handle, so that after a fast macro-step the
             # Subsystem holds x_i^n exactly as after the reference one (restore_frozen, thaw work)
             state = s.state_handle_address()
@@ -203,7 +206,7 @@ class Kernel:
     def observe(self, names):
         """Read these variables of each subsystem (names[i], H_i first) after every commit of run_steps."""
         for i, (s, vars_i) in enumerate(zip(self.subsystems, names)):
-            vrs = (ctypes.c_uint * len(vars_i))(*[s.fmu.vr(v) for v in vars_i])
+            vrs = (ctypes.c_uint * len(vars_i))(*s.fmu.real_vrs(vars_i))
             if self.lib.dr_set_observed(self._handle, i, vrs, len(vars_i)):
                 raise FmuError(f"subsystem {s.name}: the DR kernel could not keep {len(vars_i)} observed values")
         self.width = self.lib.dr_log_width(self._handle)
