@@ -16,6 +16,7 @@ import zipfile
 import numpy as np
 import pytest
 
+from wavecosim.cli import main
 from wavecosim.config import ROOT, load_scenario
 from wavecosim.errors import FmuError
 from wavecosim.fmu import Fmu
@@ -131,3 +132,130 @@ def test_terminate_simulation_is_an_fmu_error_naming_fmu_step_and_time(route):
         assert (err.subsystem, err.step, err.time) == ("stair", 17, 8.5)
     finally:
         fmu.close()
+
+
+def damper(fmu_dir=FMI3, T=1.0, **master):
+    """configs/fmi3_damper.yaml, with the Feedthrough of `fmu_dir` (FMI 3 or FMI 2) and a master."""
+    scenario = load_scenario(DAMPER)
+    sub = next(s for s in scenario.subsystems if s.name == "D")
+    sub = dataclasses.replace(sub, fmu_path=fmu_dir / "Feedthrough.fmu")
+    scenario = dataclasses.replace(scenario, T=T, subsystems=[s if s.name != "D" else sub for s in scenario.subsystems])
+    return scenario.with_master(**master) if master else scenario
+
+
+@pytest.mark.parametrize("algorithm", ["explicit", "gauss-seidel-iter", "dr"])
+def test_the_damper_scene_gives_the_numbers_of_the_fmi2_build(algorithm):
+    """Feedthrough's FMI 3 and FMI 2 builds in the same scene: the same numbers to the last bit."""
+    three = run(damper(FMI3, algorithm=algorithm), certificates=False)
+    two = run(damper(FMI2, algorithm=algorithm), certificates=False)
+    assert three.status == two.status == "finished"
+    assert bits(three.outputs) == bits(two.outputs) and bits(three.steps["iterations"]) == bits(two.steps["iterations"])
+    q2, v2 = three.outputs[:, 0], three.outputs[:, 1]
+    energy = 0.5 * 50.0 * q2 ** 2 + 0.5 * 4.0 * v2 ** 2                         # k2 = 50, m2 = 4
+    assert np.abs(v2).max() > 0.2 and energy[-1] < 0.85 * energy[0]             # it moves, and the damper takes energy
+
+
+def test_the_dr_error_falls_with_K():
+    ref = run(damper(T=2.0, algorithm="newton"), certificates=False)
+    errors = []
+    for K in (0, 5, 20):
+        res = run(damper(T=2.0, K=K), certificates=False)
+        errors.append(float(np.abs(res.outputs[:, :2] - ref.outputs[:, :2]).max()))
+    assert errors[0] > 1e-3 and errors[1] < errors[0] / 10 and errors[2] < 1e-10, errors
+
+
+def wire_scene(T=0.5):
+    """The paper's two oscillators joined through an FMI 3 'wire': Feedthrough as a wave 2-port that
+    swaps its incident waves (b_0 = a_1, b_1 = a_0), a lossless zero-length line. A, W[0] and W[1], B
+    meet like A and B in configs/two_oscillators.yaml. Scenes cannot declare a wave port on an FMU
+    without one, so the scene is put together here from its parts."""
+    scenario = dataclasses.replace(load_scenario(ROOT / "configs" / "two_oscillators.yaml"), T=T)
+    pair = build_scene(scenario)
+    A, B = pair.subsystems
+    port = PortSpec(wave_in=["Float64_continuous_input", "Float64_discrete_input"],
+                    wave_out=["Float64_discrete_output", "Float64_continuous_output"],
+                    effort=[], flow=[], energy=None)
+    W = Subsystem("W", Fmu(FMI3 / "Feedthrough.fmu", "W"), port, scenario.dt)
+    E2, F2, _ = coupling_structure(scenario, [1, 1])
+    E, F = np.zeros((4, 4)), np.zeros((4, 4))
+    for k in (0, 2):
+        E[k:k + 2, k:k + 2], F[k:k + 2, k:k + 2] = E2, F2
+    return Scene(scenario, [A, W, B], [0, 1, 3], E, F, True, {"A": 0.4, "W": 0.4, "B": 0.4}), pair
+
+
+def wire_run(fast, K, steps):
+    scene, pair = wire_scene()
+    settings = dataclasses.replace(scene.scenario.master, K=K, fast=fast)
+    master = FastDRMaster(scene, settings)
+    try:
+        assert master.fast == (fast == "true")
+        logs = [master.step(n, n * scene.scenario.dt) for n in range(steps)]
+        A, B = scene.subsystems[0], scene.subsystems[2]
+        return logs, list(master.b), list(A.read(["q1", "v1"])) + list(B.read(["q2", "v2"]))
+    finally:
+        master.close()
+        scene.close()
+
+
+def test_the_c_kernel_runs_an_fmi3_subsystem_to_the_last_bit():
+    """The kernel calls W through fmus/kernel/fmi3shim.c, the reference through wavecosim/fmi3.py."""
+    ref, fast = wire_run("false", 8, 40), wire_run("true", 8, 40)
+    assert bits(ref[1]) == bits(fast[1]) and bits(ref[2]) == bits(fast[2])
+    for a, b in zip(ref[0], fast[0]):
+        assert (a.iterations, a.reason) == (b.iterations, b.reason)
+        assert bits(a.a_hat) == bits(b.a_hat) and bits(a.residual) == bits(b.residual)
+
+
+def test_the_fmi3_wire_is_lossless():
+    """Converged, the wire joins A and B as the direct coupling does: the same states."""
+    _, _, wired = wire_run("true", 100, 50)
+    scenario = load_scenario(ROOT / "configs" / "two_oscillators.yaml").with_master(K=100)
+    direct = run(dataclasses.replace(scenario, T=0.5), certificates=False)
+    cols = [direct.columns.index(c) for c in ("q1", "v1", "q2", "v2")]
+    assert np.abs(np.array(wired) - direct.outputs[-1, cols]).max() < 1e-9
+
+
+def rewritten_feedthrough(tmp_path, name, rename=None, description=None):
+    """A copy of the FMI 3 Feedthrough with members renamed or its modelDescription.xml changed, and
+    configs/fmi3_damper.yaml pointing at it; returns the config's path."""
+    target = tmp_path / f"{name}.fmu"
+    with zipfile.ZipFile(FMI3 / "Feedthrough.fmu") as src, zipfile.ZipFile(target, "w") as dst:
+        for item in src.infolist():
+            data, member = src.read(item.filename), item.filename
+            if rename and member.startswith(rename[0]):
+                member = rename[1] + member[len(rename[0]):]
+            if description and member == "modelDescription.xml":
+                assert description[0] in data.decode()
+                data = data.decode().replace(*description).encode()
+            dst.writestr(member, data)
+    config = tmp_path / f"{name}.yaml"
+    config.write_text(DAMPER.read_text().replace("../../shared/third_party/reference_fmus/fmi3/Feedthrough.fmu",
+                                                 str(target)).replace("T: 5.0", "T: 0.2"))
+    return config
+
+
+def cli_run(config, tmp_path, capsys, *options):
+    with pytest.raises(SystemExit) as info:
+        main(["run", str(config), "--out", str(tmp_path / "out"), "--quiet", *options])
+    return info.value.code, capsys.readouterr().err.strip().splitlines()
+
+
+@pytest.mark.parametrize("algorithm", ["dr", "explicit"])
+def test_an_fmi3_fmu_without_a_binary_for_this_platform_is_one_line_and_exit_2(tmp_path, capsys, algorithm):
+    config = rewritten_feedthrough(tmp_path, "NoBinary", rename=("binaries/x86_64-linux/", "binaries/aarch64-darwin/"))
+    code, err = cli_run(config, tmp_path, capsys, "--master", algorithm)
+    assert code == 2 and len(err) == 1
+    assert "subsystems.D.fmu: NoBinary.fmu has no binary for this platform (x86_64-linux; it has: aarch64-darwin)" in err[0]
+
+
+def test_an_fmi3_fmu_without_state_save_runs_only_with_masters_that_do_not_iterate(tmp_path, capsys):
+    config = rewritten_feedthrough(tmp_path, "NoState", description=('canGetAndSetFMUState="true"',
+                                                                      'canGetAndSetFMUState="false"'))
+    for algorithm in ("dr", "gauss-seidel-iter"):
+        code, err = cli_run(config, tmp_path, capsys, "--master", algorithm)
+        assert code == 2 and len(err) == 1 and "subsystems.D.fmu: NoState.fmu cannot get and set its state" in err[0]
+    code, err = cli_run(config, tmp_path, capsys, "--master", "explicit")          # its reference rolls back
+    assert code == 2 and len(err) == 1 and "(needed by the monolithic reference; --no-reference runs" in err[0]
+    with pytest.raises(SystemExit) as info:
+        main(["run", str(config), "--out", str(tmp_path / "out"), "--quiet", "--master", "explicit", "--no-reference"])
+    assert info.value.code in (0, None)

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import Interrupted, NumericalError, RunFailed, WavecosimError
+from .errors import ConfigError, Interrupted, NumericalError, RunFailed, WavecosimError
 from .fast_path import REASONS as KERNEL_REASONS
 from .gamma_tuning import GammaTuner
 from .masters import MASTERS
@@ -474,8 +474,11 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
     try:
         rows = None
         if reference == "lockstep":
-            ref = LiveRun(reference_scenario(scenario), out_dir, "monolithic", False, warn, True,
-                          output_interval, formats)
+            try:
+                ref = LiveRun(reference_scenario(scenario), out_dir, "monolithic", False, warn, True,
+                              output_interval, formats)
+            except ConfigError as exc:     # e.g. an FMU without state save that only the reference rolls back
+                raise type(exc)(f"{exc} (needed by the monolithic reference; --no-reference runs without it)") from None
             reference = lambda k: ref.recent.get(k)          # noqa: E731  (ref steps first)
         elif reference is not None:
             reference, rows = stored_reference(reference), stored_rows(reference)
