@@ -101,8 +101,10 @@ class Fmi3:
         shim = self.shim
         out = [ctypes.byref(shim, getattr(Shim, name).offset) for name in _OUT]
 
+        flags = (ctypes.c_bool(False), ctypes.c_bool(True))
+
         def do_step(comp, t, h, no_set_prior):
-            status = fn(inst, t, h, ctypes.c_bool(no_set_prior), *out)
+            status = fn(inst, t, h, flags[bool(no_set_prior)], *out)
             return 3 if status <= 1 and (shim.terminateSimulation or shim.earlyReturn) else status
         return do_step
 
