@@ -245,7 +245,8 @@ def test_an_fmi3_fmu_without_a_binary_for_this_platform_is_one_line_and_exit_2(t
     config = rewritten_feedthrough(tmp_path, "NoBinary", rename=("binaries/x86_64-linux/", "binaries/aarch64-darwin/"))
     code, err = cli_run(config, tmp_path, capsys, "--master", algorithm)
     assert code == 2 and len(err) == 1
-    assert "subsystems.D.fmu: NoBinary.fmu has no binary for this platform (x86_64-linux; it has: aarch64-darwin)" in err[0]
+    assert ("subsystems.D.fmu: NoBinary.fmu has no binary for this platform (x86_64-linux; it has: "
+            "aarch64-darwin)") in err[0]
 
 
 def test_an_fmi3_fmu_without_state_save_runs_only_with_masters_that_do_not_iterate(tmp_path, capsys):

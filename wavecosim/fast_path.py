@@ -1,12 +1,13 @@
 """The fast path of the DR master: Algorithm 1 for a whole macro-step in one call into C.
 
 The C kernel (fmus/kernel/drkernel.c, built with the FMUs into build/lib/libdrkernel.so) calls
-each FMU through its own fmi2 function pointers (an FMI 3 FMU through those of fmus/kernel/fmi3shim.c,
-with its shim as the fmi2Component: `Fmu.function_pointer`, `Fmu.component`) with preallocated
-buffers, and does the DR arithmetic in the operation order of wavecosim/linalg.py, so its numbers are bit-identical to the
+each FMU through its own fmi2 function pointers with preallocated buffers, and does the DR
+arithmetic in the operation order of wavecosim/linalg.py, so its numbers are bit-identical to the
 readable reference `DRMaster` (wavecosim/masters/dr.py). This module wires the kernel up through
 ctypes: `Kernel` owns one C kernel for a scene's subsystems and the buffers it shares with
 Python. The master that uses it is wavecosim/masters/dr_fast.py::FastDRMaster.
+An FMI 3 FMU is handed over in fmi2 form: `Fmu.function_pointer` gives the functions of
+fmus/kernel/fmi3shim.c, which take the FMU's shim (`Fmu.component`) as their fmi2Component.
 """
 import ctypes
 import math

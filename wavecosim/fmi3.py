@@ -18,7 +18,7 @@ from .fmu import is_number
 
 PLATFORM = platform_tuple               # binaries/x86_64-linux/
 SHIM = "libfmi3shim.so"
-# fmi2 name (what callers ask for) -> (fmi3 function, fmi3shim.c function)
+# fmi2 name (what callers ask for) -> (fmi3 function, fmi3shim.c function), in Fmi3Shim's field order
 FUNCTIONS = {"fmi2GetFMUstate": ("fmi3GetFMUState", "fmi3shim_getFMUstate"),
              "fmi2SetFMUstate": ("fmi3SetFMUState", "fmi3shim_setFMUstate"),
              "fmi2FreeFMUstate": ("fmi3FreeFMUState", "fmi3shim_freeFMUstate"),
@@ -70,7 +70,11 @@ class Fmi3:
         self._shim_lib = None
 
     def address(self, fname):
-        return ctypes.cast(self.slave.dll[fname], ctypes.c_void_p).value
+        """Address of one of the FMU's fmi3 functions; None if it does not export it."""
+        try:
+            return ctypes.cast(self.slave.dll[fname], ctypes.c_void_p).value
+        except AttributeError:
+            return None
 
     def setup_experiment(self, fmu, start_time):
         """FMI 3 has no fmi2SetupExperiment: the start time goes to enter_initialization."""
@@ -88,8 +92,9 @@ class Fmi3:
         self.slave.fmi3FreeFMUState(self.slave.component, ctypes.byref(handle))
 
     def raw_function(self, fname):
-        """A Python callable with the fmi2 signature of `fname`, taking `component` first; it calls
-        the instance's own fmi3 function (no argtypes: callers pass pre-converted arguments)."""
+        """A Python callable with the fmi2 signature of `fname`, taking `component` first; as that is
+        this FMU's own shim, it calls the instance's fmi3 function directly (no argtypes: callers
+        pass pre-converted arguments)."""
         fn, inst = self.slave.dll[FUNCTIONS[fname][0]], ctypes.c_void_p(self.slave.component)
         if fname in ("fmi2SetReal", "fmi2GetReal"):
             return lambda comp, vr, n, values: fn(inst, vr, n, values, n)
@@ -100,7 +105,6 @@ class Fmi3:
     def _do_step(self, fn, inst):
         shim = self.shim
         out = [ctypes.byref(shim, getattr(Shim, name).offset) for name in _OUT]
-
         flags = (ctypes.c_bool(False), ctypes.c_bool(True))
 
         def do_step(comp, t, h, no_set_prior):
@@ -109,7 +113,10 @@ class Fmi3:
         return do_step
 
     def function_pointer(self, fname):
-        """Address of fmi3shim.c's fmi2-signature function for `fname` (it takes `component`)."""
+        """Address of fmi3shim.c's fmi2-signature function for `fname` (it takes `component`);
+        AttributeError, as for FMI 2, when the FMU does not export the fmi3 function behind it."""
+        if getattr(self.shim, FUNCTIONS[fname][0]) is None:
+            raise AttributeError(f"{FUNCTIONS[fname][0]} is not exported")
         if self._shim_lib is None:
             builtin_fmus()                   # fmus/build.py compiles fmus/kernel/fmi3shim.c too
             path = ROOT / "build" / "lib" / SHIM
