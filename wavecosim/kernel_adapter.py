@@ -11,7 +11,9 @@ import ctypes
 
 from . import ports
 from .builtin import kernel_library
+from .errors import FmuError
 
+LIBRARY_NAME = "adapter"                   # build/lib/libadapter.so, from fmus/kernel/adapter.c
 SHIM = ("getFMUstate", "setFMUstate", "freeFMUstate", "setReal", "doStep", "getReal")   # drkernel.h DRFunctions
 AD_OK, AD_FMU, AD_SINGULAR, AD_STALLED = range(4)
 _D, _L = ctypes.POINTER(ctypes.c_double), ctypes.c_long
@@ -40,11 +42,15 @@ def load_library():
     """The adapter library, built (with the FMUs) if missing or stale; raises FmuError if it cannot be."""
     global _lib
     if _lib is None:
-        lib = kernel_library("adapter", "the wave adapter library")
+        lib = kernel_library(LIBRARY_NAME, "the wave adapter library")
         lib.adapter_work_size.restype = ctypes.c_size_t
         lib.adapter_work_size.argtypes = [ctypes.c_int]
         lib.adapter_solve.argtypes = [ctypes.POINTER(AdapterC), ctypes.c_double, ctypes.c_double]
         lib.adapter_reinvert.argtypes = [ctypes.POINTER(AdapterC)]
+        lib.adapter_struct_size.restype = ctypes.c_size_t
+        if lib.adapter_struct_size() != ctypes.sizeof(AdapterC):
+            raise FmuError(f"{LIBRARY_NAME}: WaveAdapterC has {lib.adapter_struct_size()} bytes, "
+                           f"kernel_adapter.AdapterC {ctypes.sizeof(AdapterC)} (the layouts differ)")
         _lib = lib
     return _lib
 
