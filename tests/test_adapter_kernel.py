@@ -3,12 +3,14 @@ subsystems with physical ports through the adapter's fmi2 shim, bit-identical to
 reference (wavecosim/ports.py::WaveAdapter): trajectories, steps tables, doSteps per frozen-map
 evaluation and FMU call counts; a failed query gives the same error line; two-channel ports
 (Gauss-Jordan inverse, Broyden updates, stalled queries) give the same numbers query by query."""
+import copy
+
 import numpy as np
 import pytest
 
 from wavecosim import linalg, ports
 from wavecosim.config import ROOT, load_scenario, parse_scenario
-from wavecosim.errors import NumericalError, RunFailed
+from wavecosim.errors import FmuError, NumericalError, RunFailed
 from wavecosim.fast_path import adapter_port, fmu_functions
 from wavecosim.kernel_adapter import KernelAdapter
 from wavecosim.runner import run
@@ -82,6 +84,21 @@ def test_an_unsolved_query_fails_with_the_same_line_on_both_routes(pair, monkeyp
         errors.append(str(failed.value.error))
     assert errors[0] == errors[1]
     assert errors[0].startswith("subsystem A: wave adapter at step 0 (t = 0): no convergence in 30 Newton iterations")
+
+
+def test_an_fmu_error_inside_a_query_is_the_same_on_both_routes(pair):
+    """A spring so stiff that one doStep overflows its force: the FMU's own error, named as the
+    Python route names it (the call inside the adapter, not the kernel's call of the adapter)."""
+    stiff = copy.deepcopy(pair.with_changes(gamma=1.0))
+    stiff.subsystems[1].parameters["k"] = 1e300
+    errors = []
+    for fast in ("true", "false"):
+        with pytest.raises(RunFailed) as failed:
+            run(stiff.with_master(fast=fast, K=5), warn=quiet)
+        assert isinstance(failed.value.error, FmuError)
+        errors.append(str(failed.value.error))
+    assert errors[0] == errors[1]
+    assert errors[0].startswith("subsystem B: fmi2DoStep returned Error at step 0 (t = 0)")
 
 
 def chain_pair():
