@@ -19,7 +19,8 @@ The cost of one inner iteration (both subsystems queried once, plus the DR updat
 marginal cost: the slope of the time per macro-step against K (least squares over K = 0, 8, 50),
 so the per-step freeze, commit and call overhead do not dilute it. Also measured: the master time of the full Table I sweep (K = 0..50, 1000 steps each,
 through the runner, certificates and FNE watch off), and the parallel speedup of the fast path on
-the heavy scene (configs/heavy_chain.yaml): master time with threads = 1 over threads = 2.
+the heavy scene (configs/heavy_chain.yaml): master time with threads = 1 over threads = 2, and
+the wave adapter's cost per query on its Python and C routes (wavecosim/bench_adapter.py).
 """
 import dataclasses
 import os
@@ -28,6 +29,7 @@ import time
 
 import numpy as np
 
+from .bench_adapter import adapter_bench, report_lines
 from .builtin import ROOT
 from .config import load_scenario
 from .fast_path import Kernel, available_cpus
@@ -300,6 +302,7 @@ def run_bench(quick=False, progress=print):
         "run_over_master": {"K0": over["plain_K0"], "K50": over["plain_K50"]},
         "run_over_master_certificates": {"K0": over["certificates_K0"], "K50": over["certificates_K50"]},
         "run_over_master_in_memory": {"K0": over["memory_K0"], "K50": over["memory_K50"]},
+        "wave_adapter": adapter_bench(quick, 1 if quick else repeats, progress),
         "targets": {
             "fast_over_floor <= 1.5": ratios["fast_over_floor"] <= TARGETS["fast_over_floor_max"],
             "fast / floor at K = 0 <= 3": ratios["fast_over_floor_K0"] <= TARGETS["fast_over_floor_K0_max"],
@@ -338,5 +341,6 @@ def report(result):
     for key, w in result["whole_run"].items():
         lines.append(f"{key:<30}{w['run_us_per_step']:>14.2f}{w['master_us_per_step']:>16.2f}"
                      f"{w['run_us_per_step'] / w['master_us_per_step']:>14.2f}")
+    lines.extend(report_lines(result["wave_adapter"]))
     lines.append("targets: " + ", ".join(f"{k}: {'met' if v else 'MISSED'}" for k, v in result["targets"].items()))
     return lines

@@ -16,10 +16,11 @@ import time
 
 import numpy as np
 
-from .builtin import ROOT, builtin_fmus
+from .builtin import kernel_library
 from .errors import FmuError
+from .kernel_adapter import KernelAdapter
+from .kernel_adapter import load_library as load_adapter_library
 
-LIBRARY = ROOT / "build" / "lib" / "libdrkernel.so"
 PARALLEL_MIN_US = 150.0
 REASONS = ("budget", "tolerance", "deadline", "explicit")
 FUNCTIONS = (None, "fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2SetReal", "fmi2DoStep", "fmi2GetReal")
@@ -78,10 +79,7 @@ def load_library():
     """The kernel library, built (with the FMUs) if missing or stale; raises FmuError if it cannot be."""
     global _lib
     if _lib is None:
-        builtin_fmus()                       # fmus/build.py also compiles fmus/kernel/*.c
-        if not LIBRARY.exists():
-            raise FmuError(f"the kernel library {LIBRARY} was not built")
-        lib = ctypes.CDLL(str(LIBRARY))
+        lib = kernel_library("drkernel", "the kernel library")
         p, i, d = ctypes.c_void_p, ctypes.c_int, ctypes.POINTER(ctypes.c_double)
         lib.dr_create.restype = p
         lib.dr_create.argtypes = [i, i, d, d, d, d, d, d]
@@ -133,8 +131,6 @@ class BlockLog:
 def unusable(scene):
     """Why the kernel cannot run this scene, or None if it can."""
     for s in scene.subsystems:
-        if s.adapter:
-            return f"subsystem {s.name} has a physical port (wave adapter, Python only for now)"
         if not s.fmu.can_save_state:
             return f"subsystem {s.name} cannot get and set its FMU state"
         for name in _FMI_NAMES:
@@ -146,6 +142,8 @@ def unusable(scene):
                 return str(exc)
     try:
         load_library()
+        if any(s.adapter for s in scene.subsystems):
+            load_adapter_library()
     except FmuError as exc:
         return str(exc)
     return None
@@ -168,6 +166,22 @@ def thread_plan(costs_us, n_threads):
     return plan, load
 
 
+def fmu_functions(s):
+    """The FMU functions and component the kernel calls for subsystem s: its own fmi2 ones."""
+    return DRFunctions(*[s.fmu.function_pointer(name) for name in _FMI_NAMES]), s.fmu.component
+
+
+def adapter_port(s, fns, comp):
+    """A subsystem with a physical port: its wave adapter goes to C over the FMU's table (fns, comp)
+    (wavecosim/kernel_adapter.py), and the kernel calls the adapter's fmi2 shim as a wave port with
+    value references 0 .. m - 1. Returns (functions, component, vr_in, vr_out)."""
+    if not isinstance(s.map, KernelAdapter):
+        s.map = KernelAdapter(s.map, fns, comp, FUNCTIONS)
+    table, adapter = s.map.shim()
+    vrs = (ctypes.c_uint * s.m)(*range(s.m))
+    return DRFunctions(*table), adapter, vrs, vrs
+
+
 class Kernel:
     """One C kernel over a scene's subsystems (wave mode), with its buffers b, a_hat, u^0, u^K."""
 
@@ -186,13 +200,16 @@ class Kernel:
             raise FmuError("the DR kernel could not be created (out of memory)")
         self._handle = ctypes.c_void_p(self.handle)
         for i, (s, off) in enumerate(zip(self.subsystems, scene.offsets)):
-            fns = DRFunctions(*[s.fmu.function_pointer(name) for name in _FMI_NAMES])
-            vr_in = (ctypes.c_uint * s.m)(*s.fmu.real_vrs(s.port.wave_in))
-            vr_out = (ctypes.c_uint * s.m)(*s.fmu.real_vrs(s.port.wave_out))
+            fns, comp = fmu_functions(s)
+            if s.adapter:
+                fns, comp, vr_in, vr_out = adapter_port(s, fns, comp)
+            else:
+                vr_in = (ctypes.c_uint * s.m)(*s.fmu.real_vrs(s.port.wave_in))
+                vr_out = (ctypes.c_uint * s.m)(*s.fmu.real_vrs(s.port.wave_out))
             # x_i^n goes into the Subsystem's own handle, so that after a fast macro-step the
             # Subsystem holds x_i^n exactly as after the reference one (restore_frozen, thaw work)
             state = s.state_handle_address()
-            if lib.dr_set_subsystem(self.handle, i, ctypes.byref(fns), s.fmu.component, state, vr_in, vr_out, s.m,
+            if lib.dr_set_subsystem(self.handle, i, ctypes.byref(fns), comp, state, vr_in, vr_out, s.m,
                                     int(off)):
                 self.close()
                 raise FmuError(f"subsystem {s.name}: the DR kernel refused its port")
@@ -290,7 +307,8 @@ class Kernel:
     def failure(self, n, t):
         io = self.io
         sub = self.subsystems[io.failed_subsystem]
-        return sub.fmu.status_error(FUNCTIONS[io.failed_function], io.failed_status, n, t)
+        inner = sub.map.kernel_error(n, t) if sub.adapter else None      # the wave adapter's own failure
+        return inner or sub.fmu.status_error(FUNCTIONS[io.failed_function], io.failed_status, n, t)
 
     def costs(self):
         """Median µs per evaluation of each subsystem since the last call (steps run with measure)."""

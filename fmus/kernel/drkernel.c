@@ -11,6 +11,7 @@
 #include <time.h>
 
 #include "drkernel.h"
+#include "linalg.h"
 
 /* A thread waiting for the other spins this long, then sleeps on a condition variable: spinning
  * answers within a microsecond when both have a core, sleeping leaves the core to the other
@@ -77,27 +78,6 @@ static void cpu_relax(void) {
 #if defined(__x86_64__) || defined(__i386__)
     __builtin_ia32_pause();
 #endif
-}
-
-/* ---- the arithmetic of master/linalg.py, in the same operation order ---- */
-
-/* y_i = sum_j M_ij x_j, summed left to right from 0.0 (linalg.matvec). */
-static void matvec(const double *M, const double *x, double *y, size_t n) {
-    for (size_t i = 0; i < n; i++) {
-        double acc = 0.0;
-        for (size_t j = 0; j < n; j++) acc += M[i * n + j] * x[j];
-        y[i] = acc;
-    }
-}
-
-/* |x - y|, squares summed left to right (linalg.distance). */
-static double distance(const double *x, const double *y, size_t n) {
-    double acc = 0.0;
-    for (size_t j = 0; j < n; j++) {
-        double d = x[j] - y[j];
-        acc += d * d;
-    }
-    return sqrt(acc);
 }
 
 /* ---- one subsystem: the frozen port map (frozen_port_map.Subsystem) ---- */
