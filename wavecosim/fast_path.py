@@ -19,7 +19,9 @@ from .errors import FmuError
 
 LIBRARY = ROOT / "build" / "lib" / "libdrkernel.so"
 PARALLEL_MIN_US = 150.0
-REASONS = ("budget", "tolerance", "deadline", "explicit")
+REASONS = ("budget", "tolerance", "deadline", "explicit", "converged", "energy-guard")  # as masters/base.py (the
+#                                                  runner asserts it); the kernel never gives "converged"
+LEDGER_LOG = ("supplied", "ledger", "traffic", "scale", "action", "rounds", "step_s", "round_s")  # drkernel.h
 FUNCTIONS = (None, "fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2SetReal", "fmi2DoStep", "fmi2GetReal")
 _FMI_NAMES = ("fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate", "fmi2SetReal", "fmi2DoStep",
               "fmi2GetReal")
@@ -66,7 +68,7 @@ class DRStep(ctypes.Structure):
                 ("reason", ctypes.c_int), ("residual", ctypes.c_double), ("failed_subsystem", ctypes.c_int),
                 ("failed_function", ctypes.c_int), ("failed_status", ctypes.c_int), ("stopped", ctypes.c_int),
                 ("ledger_on", ctypes.c_int), ("ledger", ctypes.c_double), ("traffic", ctypes.c_double),
-                ("ledger_rtol", ctypes.c_double)]
+                ("ledger_rtol", ctypes.c_double), ("step_deadline_s", ctypes.c_double), ("round_s", ctypes.c_double)]
 
 
 _lib = None
@@ -108,13 +110,16 @@ def load_library():
 class BlockLog:
     """The macro-steps run in one kernel call, one row per step: iterations, reason (index into
     REASONS), residual, a (steps x n), b^{n+1} (steps x n); `observed` holds the observed values one
-    per row (values x steps), as the kernel logs them (each value contiguous). `stopped`: the kernel
-    stopped early after the last step (its H may exceed the cap, or a value is not finite)."""
+    per row (values x steps), as the kernel logs them (each value contiguous), and `ledger` the energy
+    ledger's (LEDGER_LOG x steps). `stopped`: the kernel stopped early after the last step (its H may
+    exceed the cap, or a value is not finite)."""
 
     def __init__(self, columns, n, stopped=False):
         self.columns, self.n, self.stopped = columns, n, stopped     # one row per logged value
         self.iterations, self.reason, self.residual = columns[0], columns[1], columns[2]
-        self.a_hat, self.b, self.observed = columns[3:3 + n].T, columns[3 + n:3 + 2 * n].T, columns[3 + 2 * n:]
+        end = len(columns) - len(LEDGER_LOG)
+        self.a_hat, self.b, self.observed = columns[3:3 + n].T, columns[3 + n:3 + 2 * n].T, columns[3 + 2 * n:end]
+        self.ledger = dict(zip(LEDGER_LOG, columns[end:]))
 
     def __len__(self):
         return self.columns.shape[1]
@@ -208,10 +213,12 @@ class Kernel:
                 raise FmuError(f"subsystem {s.name}: the DR kernel could not keep {len(vars_i)} observed values")
         self.width = self.lib.dr_log_width(self._handle)
 
-    def keep_ledger(self, ledger, traffic, rtol):
+    def keep_ledger(self, ledger, traffic, rtol, step_deadline_s=None):
         """From the next run_steps on, the kernel books the interface energy ledger from (L, traffic)
-        and stops a block before a step the ledger guard would redo (drkernel.c, ledger_stops)."""
-        self.io.ledger_on, self.io.ledger, self.io.traffic, self.io.ledger_rtol = 1, ledger, traffic, rtol
+        and redoes a step that would lift it above tol, within step_deadline_s (drkernel.c, ledger_step)."""
+        io = self.io
+        io.ledger_on, io.ledger, io.traffic, io.ledger_rtol = 1, ledger, traffic, rtol
+        io.step_deadline_s = step_deadline_s or 0.0
 
     def run_steps(self, n0, count, H_cap=math.inf, measure=False):
         """Macro-steps n0 .. n0 + count - 1 in one call (drkernel.h, dr_run_steps): (steps done, their

@@ -120,8 +120,9 @@ class FastDRMaster(DRMaster):
         self.kernel.observe(names)
 
     def keep_ledger(self, ledger, traffic, rtol):
-        """The energy ledger's state for the kernel's next blocks (see fast_path.Kernel.keep_ledger)."""
-        self.kernel.keep_ledger(ledger, traffic, rtol)
+        """The energy ledger's state for the kernel's next blocks, which it keeps within master.deadline_us
+        (see fast_path.Kernel.keep_ledger)."""
+        self.kernel.keep_ledger(ledger, traffic, rtol, self.deadline_s)
 
     def run_steps(self, n0, count, H_cap=math.inf):
         """Macro-steps n0 .. n0 + count - 1 in one kernel call, stopping early after a step whose H
@@ -163,9 +164,9 @@ class FastDRMaster(DRMaster):
         if not done:
             return
         last = n0 + done - 1
-        iterations = int(log.iterations.sum())
+        iterations, redone = int(log.iterations.sum()), int(log.ledger["rounds"].sum())
         for s in self.subsystems:
-            s.note_kernel_step(last, last * self.dt, iterations, done)
+            s.note_kernel_step(last, last * self.dt, iterations, done, redone)
         self._b_step_start = log.b[done - 2].tolist() if done > 1 else self._b
         self._b = self.kernel.b[:]
         if self._trace is not None:

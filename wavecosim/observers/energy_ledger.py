@@ -16,10 +16,7 @@ I(s) = TARGET * budget in [0, 1); the redo at that s is checked, and replaced by
 import math
 import time
 
-import numpy as np
-
 from ..masters.base import StepLog
-from ..readings import row_sums
 from .recorder import Labels
 from . import Observer
 
@@ -48,7 +45,7 @@ def largest_root(q0, qh, q1, target):
 
 class EnergyLedger(Observer):
     """First of the observers: it may redo the step before anyone reads it. Wave masters' blocks
-    (the C kernel books the ledger and stops before a step to redo) are taken whole."""
+    (the C kernel books the ledger and makes the redo itself) are taken whole."""
     redoes = True
     columns = ("interface_energy", "ledger", "scale", "ledger_action")
     formats = {"ledger_action": Labels(ACTIONS)}
@@ -62,21 +59,23 @@ class EnergyLedger(Observer):
         self.step_times = []                            # realised step times (s), when a deadline is set
 
     def kernel_state(self):
-        """(L, traffic, RTOL): what the C kernel needs to book the ledger itself between guarded steps."""
+        """(L, traffic, RTOL): what the C kernel needs to keep the ledger itself (blocks)."""
         return self.L, self.traffic, RTOL
 
     def after_block(self, n0, logs, readings, rows):
-        """Book a block the kernel made: it stopped before any step this guard would redo, so every
-        step is kept; the same sums, in the same order, as after_step step by step."""
-        aa, bb = row_sums(logs.a_hat * logs.a_hat), row_sums(logs.b * logs.b)
-        supplied, traffic = 0.5 * (aa - bb), 0.5 * (aa + bb)
-        L = np.cumsum(np.concatenate([[self.L], supplied]))
-        T = np.cumsum(np.concatenate([[self.traffic], traffic]))
-        if np.any(L[:-1] + supplied > RTOL * (T[:-1] + traffic)):
-            raise RuntimeError("energy ledger: the kernel booked a step the guard would redo")
-        rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3] = supplied, L[1:], 1.0, 0
-        self.L, self.traffic = float(L[-1]), float(T[-1])
-        self.max_L = max(self.max_L, float(L[1:].max()))
+        """Book a block the kernel made: it kept the ledger itself, redoing steps as _redo does, bit
+        for bit (drkernel.c, ledger_step), and logged each step's I^n, L^n, s, action and redo rounds."""
+        led = logs.ledger
+        rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3] = led["supplied"], led["ledger"], led["scale"], led["action"]
+        acted, rounds = led["action"] > 0, led["rounds"]
+        self.acted += int(acted.sum())
+        self.extra += len(self.master.subsystems) * int(rounds.sum())
+        self.fallbacks += int((rounds == 3).sum())
+        self.L, self.traffic = float(led["ledger"][-1]), float(led["traffic"][-1])
+        self.max_L = max(self.max_L, float(led["ledger"].max()))
+        if self.master.deadline_s is not None:
+            self.round_s = self.redo_round_s = float(led["round_s"][-1])
+            self.step_times.extend(zip(led["step_s"].tolist(), acted.tolist()))
 
     def after_step(self, n, t, log, reading, row):
         """Book I^n; redo the commit when the ledger would exceed tol."""
