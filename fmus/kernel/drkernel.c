@@ -74,6 +74,13 @@ static double now_ns(void) {
     return 1e9 * (double)ts.tv_sec + (double)ts.tv_nsec;
 }
 
+/* This thread's CPU time: a step's wall time beyond it is time the machine ran something else. */
+static double cpu_ns(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return 1e9 * (double)ts.tv_sec + (double)ts.tv_nsec;
+}
+
 static void cpu_relax(void) {
 #if defined(__x86_64__) || defined(__i386__)
     __builtin_ia32_pause();
@@ -444,8 +451,11 @@ static int restore_all(DRKernel *k) {
     return -1;
 }
 
-/* The running time of one evaluation round (every subsystem once), as EnergyLedger._time_round. */
+/* The running time of one evaluation round (every subsystem once), as EnergyLedger._time_round: a
+ * sample is taken at most at twice the estimate, so that a step the machine descheduled does not
+ * shorten the next steps' inner loops (a real rise is followed within a few steps). */
 static void track_round(DRStep *io, double seconds) {
+    if (io->round_s > 0.0 && seconds > 2.0 * io->round_s) seconds = 2.0 * io->round_s;
     io->round_s = io->round_s > 0.0 ? (1.0 - LEDGER_SMOOTH) * io->round_s + LEDGER_SMOOTH * seconds : seconds;
 }
 
@@ -496,9 +506,10 @@ static int ledger_redo(DRKernel *k, DRStep *io, double supplied_1, double budget
 
 /* Book the step just committed (EnergyLedger.after_step): I = 1/2 (|a|^2 - |b|^2); a step with
  * L + I > tol = rtol (traffic + its own) is redone by ledger_redo first. Its row goes into the log's
- * last DR_LEDGER_COLUMNS columns; io->reason becomes DR_ENERGY_GUARD when it was redone. t0: the
- * step's start (ns). The first failing subsystem, or -1 (the step then is neither booked nor logged). */
-static int ledger_step(DRKernel *k, DRStep *io, double t0, double *rows, size_t count, size_t s) {
+ * last DR_LEDGER_COLUMNS columns; io->reason becomes DR_ENERGY_GUARD when it was redone. t0, c0: the
+ * step's start, wall and CPU (ns). The first failing subsystem, or -1 (the step then is neither
+ * booked nor logged). */
+static int ledger_step(DRKernel *k, DRStep *io, double t0, double c0, double *rows, size_t count, size_t s) {
     double *row = rows + (dr_log_width(k) - DR_LEDGER_COLUMNS) * count + s;
     double out[5] = {1.0, NAN, NAN, LEDGER_KEPT, 0.0};
     if (io->ledger_on) {
@@ -516,8 +527,11 @@ static int ledger_step(DRKernel *k, DRStep *io, double t0, double *rows, size_t 
         io->ledger += out[1];
         io->traffic += out[2];
     }
+    /* the wall clock is read between the CPU clock's reads (system calls), which it so leaves out */
+    double wall = 1e-9 * (now_ns() - t0);
+    double cpu = c0 > 0.0 ? 1e-9 * (cpu_ns() - c0) : NAN;
     double logged[DR_LEDGER_COLUMNS] = {out[1], io->ledger_on ? io->ledger : NAN, io->ledger_on ? io->traffic : NAN,
-                                        out[0], out[3], out[4], 1e-9 * (now_ns() - t0), io->round_s};
+                                        out[0], out[3], out[4], wall, io->round_s, cpu};
     for (int c = 0; c < DR_LEDGER_COLUMNS; c++) row[(size_t)c * count] = logged[c];
     return -1;
 }
@@ -540,9 +554,9 @@ int dr_run_steps(DRKernel *k, DRStep *io, int n0, int count, double *rows, doubl
     io->stopped = 0;
     for (int s = 0; s < count; s++) {
         io->t = (double)(n0 + s) * io->dt;
-        double t0 = now_ns();
+        double c0 = io->ledger_on && io->step_deadline_s > 0.0 ? cpu_ns() : 0.0, t0 = now_ns();
         if (guarded_macro_step(k, io)) return s;
-        int f = ledger_step(k, io, t0, rows, m, (size_t)s);
+        int f = ledger_step(k, io, t0, c0, rows, m, (size_t)s);
         if (f < 0) f = log_step(k, io, rows, m, (size_t)s);
         if (f >= 0) {
             report_failure(k, io, f);

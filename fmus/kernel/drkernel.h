@@ -25,9 +25,10 @@
 enum { DR_BUDGET = 0, DR_TOLERANCE = 1, DR_DEADLINE = 2, DR_EXPLICIT = 3, DR_ENERGY_GUARD = 5 };
 
 /* The energy ledger's columns at the end of each dr_run_steps log row: I^n, L^n, the cumulative
- * traffic, s, action (0 kept, 1 scaled, 2 zero), redo rounds (0-3), the step's wall time (s) and the
- * running time of one evaluation round (s). Without the ledger: NaN, NaN, NaN, 1, 0, 0, time, round. */
-#define DR_LEDGER_COLUMNS 8
+ * traffic, s, action (0 kept, 1 scaled, 2 zero), redo rounds (0-3), the step's wall time (s), the
+ * running time of one evaluation round (s) and, under a step deadline, the step's CPU time on the
+ * calling thread (s; else NaN). Without the ledger: NaN, NaN, NaN, 1, 0, 0, wall time, round, NaN. */
+#define DR_LEDGER_COLUMNS 9
 
 /* FMU functions, as reported in DRStep.failed_function. */
 enum { DR_FN_NONE = 0, DR_FN_GET_STATE, DR_FN_SET_STATE, DR_FN_SET_REAL, DR_FN_DO_STEP, DR_FN_GET_REAL };

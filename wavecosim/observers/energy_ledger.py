@@ -56,7 +56,7 @@ class EnergyLedger(Observer):
         self.L, self.traffic, self.max_L = 0.0, 0.0, -math.inf
         self.acted, self.extra, self.fallbacks = 0, 0, 0
         self.round_s, self.redo_round_s = 0.0, 0.0      # running time of one evaluation round: master's, redo's
-        self.step_times = []                            # realised step times (s), when a deadline is set
+        self.step_times = []            # under a deadline, per step: (wall time, acted, round it may overrun by, CPU time)
 
     def kernel_state(self):
         """(L, traffic, RTOL): what the C kernel needs to keep the ledger itself (blocks)."""
@@ -75,7 +75,8 @@ class EnergyLedger(Observer):
         self.max_L = max(self.max_L, float(led["ledger"].max()))
         if self.master.deadline_s is not None:
             self.round_s = self.redo_round_s = float(led["round_s"][-1])
-            self.step_times.extend(zip(led["step_s"].tolist(), acted.tolist()))
+            self.step_times.extend(zip(led["step_s"].tolist(), acted.tolist(), led["round_s"].tolist(),
+                                       led["cpu_s"].tolist()))
 
     def after_step(self, n, t, log, reading, row):
         """Book I^n; redo the commit when the ledger would exceed tol."""
@@ -96,7 +97,7 @@ class EnergyLedger(Observer):
         self.max_L = max(self.max_L, self.L)
         row[0], row[1], row[2], row[3] = supplied, self.L, s, action
         if master.deadline_s is not None:
-            self.step_times.append((time.perf_counter() - master.step_started, action > 0))
+            self.step_times.append((time.perf_counter() - master.step_started, action > 0, self.redo_round_s, math.nan))
         return redo
 
     def _redo(self, inputs, out_1, supplied_1, budget):
@@ -144,21 +145,33 @@ class EnergyLedger(Observer):
         if master.deadline_s is None:
             return
         spent = (time.perf_counter() - master.step_started) / (log.iterations + 1)
-        self.round_s = spent if not self.round_s else (1 - SMOOTH) * self.round_s + SMOOTH * spent
+        self.round_s = smoothed(self.round_s, spent)
         self.redo_round_s = self.redo_round_s or self.round_s
         master.reserve_time(self.round_s + self.redo_round_s)
 
     def _time_redo(self, seconds, rounds):
         """Track the time per evaluation round of a redo (Python calls: slower than the kernel's)."""
-        self.redo_round_s = (1 - SMOOTH) * self.redo_round_s + SMOOTH * seconds / rounds
+        self.redo_round_s = smoothed(self.redo_round_s, seconds / rounds)
 
     def summary(self):
         out = {"energy_guard_steps": self.acted, "energy_guard_extra_doSteps": self.extra,
                "energy_guard_fallbacks": self.fallbacks, "max_ledger": self.max_L, "ledger_final": self.L}
         if self.step_times:
-            out["step_time_us"] = spread([t for t, _ in self.step_times])
-            out["guarded_step_time_us"] = spread([t for t, acted in self.step_times if acted])
+            out["step_time_us"] = spread([t for t, _, _, _ in self.step_times])
+            out["guarded_step_time_us"] = spread([t for t, acted, _, _ in self.step_times if acted])
+            out["deadline_bound"] = deadline_bound(self.step_times, self.master.settings.deadline_us)
         return out
+
+
+def smoothed(estimate, sample):
+    """A running time after a new sample, taken at most at twice the estimate so that a step the
+    machine descheduled does not shorten the next inner loops (drkernel.c track_round)."""
+    return (1 - SMOOTH) * estimate + SMOOTH * min(sample, 2.0 * estimate) if estimate else sample
+
+
+def rank(ordered, q):
+    """The q-quantile of a sorted list by nearest rank."""
+    return ordered[max(math.ceil(q * len(ordered)) - 1, 0)]
 
 
 def spread(seconds):
@@ -166,5 +179,23 @@ def spread(seconds):
     if not seconds:
         return {}
     ordered = sorted(seconds)
-    return {"median": 1e6 * ordered[len(ordered) // 2], "p99": 1e6 * ordered[int(0.99 * (len(ordered) - 1))],
-            "max": 1e6 * ordered[-1], "count": len(ordered)}
+    return {"median": 1e6 * rank(ordered, 0.5), "p99": 1e6 * rank(ordered, 0.99), "max": 1e6 * ordered[-1],
+            "count": len(ordered)}
+
+
+def deadline_bound(step_times, deadline_us):
+    """The bound a step keeps, deadline + one evaluation round (every subsystem's doStep once, as the
+    guard measured it at that step; the median given); the share of all steps, of guarded steps and
+    of the steps the machine left on the CPU (wall - CPU time below a round; kernel blocks) within it."""
+    within = [1e6 * t <= deadline_us + 1e6 * r for t, _, r, _ in step_times]
+    guarded = [w for w, (_, acted, _, _) in zip(within, step_times) if acted]
+    on_cpu = [w for w, (t, _, r, cpu) in zip(within, step_times) if t - cpu < r]
+    round_us = 1e6 * rank(sorted(r for _, _, r, _ in step_times), 0.5)
+    return {"deadline_us": deadline_us, "round_us": round_us, "bound_us": deadline_us + round_us,
+            "within": share(within), "guarded_within": share(guarded), "on_cpu_within": share(on_cpu),
+            "on_cpu_steps": len(on_cpu)}
+
+
+def share(flags):
+    """The fraction of true flags (None for none)."""
+    return sum(flags) / len(flags) if flags else None
