@@ -16,6 +16,7 @@ import yaml
 from wavecosim.config import ROOT, parse_scenario
 from wavecosim.errors import ConfigError
 from wavecosim.observers import energy_ledger
+from wavecosim import runner
 from wavecosim.runner import run
 
 ROUNDOFF = 1e-12
@@ -159,10 +160,10 @@ def test_default_guard_is_the_ledger_for_dr_and_off_for_the_classical_masters():
     assert wc.simulate(guarded, reference=False).summary["energy_guard"] == "ledger"
 
 
-def same_run(ref, fast):
+def same_run(ref, fast, blocks=True):
     """Kernel and Python reference runs agree byte for byte: rows, outputs, FMU calls, ledger figures."""
     assert fast.summary["fast_path"] and not ref.summary["fast_path"]
-    assert fast.summary["block_steps"] == fast.summary["steps"]          # the kernel made every step
+    assert fast.summary["block_steps"] == (fast.summary["steps"] if blocks else 0)   # blocks: the kernel made all
     assert ref.steps_table.array().tobytes() == fast.steps_table.array().tobytes()
     assert ref.outputs.tobytes() == fast.outputs.tobytes()
     keys = ("fmu_calls", "energy_guard_steps", "energy_guard_extra_doSteps", "energy_guard_fallbacks", "max_ledger",
@@ -170,12 +171,16 @@ def same_run(ref, fast):
     assert [ref.summary[k] for k in keys] == [fast.summary[k] for k in keys]
 
 
-def test_the_kernels_redo_is_the_reference_in_every_action():
+@pytest.mark.parametrize("blocks", [True, False])
+def test_the_kernels_redo_is_the_reference_in_every_action(monkeypatch, blocks):
     """A stiff Duffing spring (knl = 8e7) at K = 4 on the star: kept, scaled and fallen-back-to-zero
-    steps, made by the kernel in blocks, byte for byte the Python reference's."""
+    steps, redone by the kernel in blocks or step by step (dr_ledger_redo), byte for byte the Python
+    reference's."""
+    if not blocks:
+        monkeypatch.setattr(runner, "BLOCK_STEPS", 1)
     base = scenario(STAR, "ledger", 4, T=5.0, parameters={("A", "knl"): 8e7})
     ref, fast = (run(base.with_master(fast=f), certificates=False) for f in ("false", "true"))
-    same_run(ref, fast)
+    same_run(ref, fast, blocks)
     assert set(column(fast, "ledger_action")) == {0, 1, 2} and fast.summary["energy_guard_fallbacks"] > 0
     assert max(fast.energy) <= fast.energy[0] * (1 + ROUNDOFF)
 

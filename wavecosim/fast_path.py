@@ -103,6 +103,7 @@ def load_library():
         lib.dr_log_width.argtypes = [p]
         lib.dr_log_width.restype = ctypes.c_size_t
         lib.dr_run_steps.argtypes = [p, ctypes.POINTER(DRStep), i, i, d, ctypes.c_double]
+        lib.dr_ledger_redo.argtypes = [p, ctypes.POINTER(DRStep), ctypes.c_double, ctypes.c_double, i, d]
         _lib = lib
     return _lib
 
@@ -198,6 +199,7 @@ class Kernel:
                 self.close()
                 raise FmuError(f"subsystem {s.name}: the DR kernel refused its port")
         self.io = DRStep(measure=0, eps=-1.0, deadline_s=0.0)
+        self.at = (None, None)                     # (n, t) of the last macro_step
         self._io = ctypes.byref(self.io)
         self._macro_step = lib.dr_macro_step       # called with pre-converted arguments
         self.threads = 1
@@ -262,10 +264,18 @@ class Kernel:
     def macro_step(self, n, t, measure=False):
         """Algorithm 1, lines 3-22, in C; raises the FmuError the reference path would raise."""
         io = self.io
-        io.t, io.measure = t, measure
+        io.t, io.measure, self.at = t, measure, (n, t)
         if self._macro_step(self._handle, self._io):
             raise self.failure(n, t)
         return io
+
+    def redo(self, supplied, budget, fitted):
+        """The energy ledger's redo of the step macro_step just made (drkernel.h, dr_ledger_redo):
+        (s, supply, traffic, action, rounds); b and a_hat become the redo's."""
+        out = (ctypes.c_double * 5)()
+        if self.lib.dr_ledger_redo(self._handle, self._io, supplied, budget, int(fitted), out):
+            raise self.failure(*self.at)
+        return out[0], out[1], out[2], int(out[3]), int(out[4])
 
     def floor(self, n_steps, K, inputs=None, t0=0.0):
         """The FMU calls of n_steps macro-steps with budget K and no DR logic (the floor); returns

@@ -477,18 +477,18 @@ static int scaled_redo(DRKernel *k, DRStep *io, double supplied_1, double budget
     return -1;
 }
 
-/* Undo the step and commit it again with s a (EnergyLedger._redo): the fitted s when two rounds are
- * left (time_left_s), kept if it fits the budget; else, or on a miss, s = 0 (matched loads, always
+/* Undo the step and commit it again with s a (EnergyLedger._redo): the fitted s if `fitted` (two
+ * rounds are left), kept if it fits the budget; else, or on a miss, s = 0 (matched loads, always
  * safe). out: s, supply, traffic, action, rounds. k->a_hat ends as s a (the log's), k->b as b^{n+1}.
  * The first failing subsystem, or -1. */
-static int ledger_redo(DRKernel *k, DRStep *io, double supplied_1, double budget, double time_left_s, double *out) {
+static int ledger_redo(DRKernel *k, DRStep *io, double supplied_1, double budget, int fitted, double *out) {
     size_t n = k->n;
     double *a1 = k->redo, *y1 = a1 + n, *zero = y1 + 2 * n;
     memcpy(a1, k->a_hat, n * sizeof *a1);
     memcpy(y1, k->b, n * sizeof *y1);
     for (size_t j = 0; j < n; j++) zero[j] = 0.0;
     int f = restore_all(k), rounds = 0;
-    if (f < 0 && time_left_s >= 2.0 * io->round_s) {
+    if (f < 0 && fitted) {
         f = scaled_redo(k, io, supplied_1, budget, out);
         if (f >= 0 || out[1] <= budget) return f;
         rounds = 2;
@@ -519,7 +519,7 @@ static int ledger_step(DRKernel *k, DRStep *io, double t0, double c0, double *ro
         tol = io->ledger_rtol * (io->traffic + out[2]);
         if (io->ledger + out[1] > tol) {
             double left = io->step_deadline_s > 0.0 ? io->step_deadline_s - 1e-9 * (now - t0) : INFINITY;
-            int f = ledger_redo(k, io, out[1], tol - io->ledger, left, out);
+            int f = ledger_redo(k, io, out[1], tol - io->ledger, left >= 2.0 * io->round_s, out);
             if (f >= 0) return f;
             track_round(io, 1e-9 * (now_ns() - now) / out[4]);
             io->reason = DR_ENERGY_GUARD;
@@ -534,6 +534,11 @@ static int ledger_step(DRKernel *k, DRStep *io, double t0, double c0, double *ro
                                         out[0], out[3], out[4], wall, io->round_s, cpu};
     for (int c = 0; c < DR_LEDGER_COLUMNS; c++) row[(size_t)c * count] = logged[c];
     return -1;
+}
+
+int dr_ledger_redo(DRKernel *k, DRStep *io, double supplied, double budget, int fitted, double *out) {
+    int f = ledger_redo(k, io, supplied, budget, fitted, out);
+    return f >= 0 ? report_failure(k, io, f) : 0;
 }
 
 /* dr_macro_step; under a step deadline with the ledger, its inner loop stops two rounds before it

@@ -117,6 +117,14 @@ size_t dr_log_width(const DRKernel *k);
  * failed in (the one after those done) has no entries. */
 int dr_run_steps(DRKernel *k, DRStep *io, int n0, int count, double *rows, double H_cap);
 
+/* The energy ledger's redo of the step dr_macro_step just committed (a_hat and b as it left them),
+ * whose commit supplied `supplied` beyond the ledger's `budget` (wavecosim/observers/energy_ledger.py
+ * _redo): every subsystem back at x_i^n, then, if `fitted`, a probe at s = 0 and the commit at the
+ * fitted s, kept if it fits the budget; else, or on a miss, the commit at s = 0. a_hat becomes s a,
+ * b the new b^{n+1}; out[0..4] = s, supply, traffic, action (1 scaled, 2 zero), rounds. Returns 0,
+ * or -1 when an FMU call failed (see io->failed_*). */
+int dr_ledger_redo(DRKernel *k, DRStep *io, double supplied, double budget, int fitted, double *out);
+
 /* The floor: n_steps macro-steps making the same FMU calls as dr_macro_step with K = io->K
  * (serial), with no DR arithmetic; t = io->t + s dt at step s. The inputs of step s are
  * inputs[((K + 1) s + k) n ..] for query k < K and the commit k = K (e.g. u^k and a recorded from

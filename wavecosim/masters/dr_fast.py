@@ -109,6 +109,17 @@ class FastDRMaster(DRMaster):
         return StepLog(iterations=k, residual=io.residual, reason=REASONS[io.reason], a_hat=out[n_ch:2 * n_ch],
                        u0=out[2 * n_ch:3 * n_ch], uK=out[3 * n_ch:])
 
+    def redo_in_kernel(self, supplied, budget, fitted):
+        """The energy ledger's redo of the step just made, by the kernel (fast_path.Kernel.redo); its
+        rounds are booked on the Subsystems and b^{n+1} becomes the redo's."""
+        if self.kernel is None:
+            return None
+        done = self.kernel.redo(supplied, budget, fitted)
+        self._b = self.kernel.b[:]
+        for s in self.subsystems:
+            s.note_kernel_step(s.step_index, s.t, 0, 0, done[4])
+        return done
+
     def can_run_steps(self, n):
         """Whether run_steps may make macro-step n: the kernel runs and no trial of two threads is on
         (threads=auto times it on the macro-step after the first, alone)."""

@@ -104,10 +104,16 @@ class EnergyLedger(Observer):
         """Undo the step and commit it again with s * inputs; (s, supply, traffic, action) of the new commit.
 
         The fitted s needs two evaluation rounds (probe, commit): under a deadline with less time
-        left, s = 0 is committed at once (one round)."""
-        master = self.master
+        left, s = 0 is committed at once (one round). A master with a kernel makes the redo in C."""
+        master, fitted = self.master, self._time_left() >= 2.0 * self.redo_round_s
+        started = time.perf_counter()
+        done = master.redo_in_kernel(supplied_1, budget, fitted)
+        if done is not None:                            # the same operations, in C (drkernel.c ledger_redo)
+            self._time_redo(time.perf_counter() - started, done[4])
+            self.fallbacks += done[4] == 3
+            return done[:4]
         master.undo_step()
-        if self._time_left() >= 2.0 * self.redo_round_s:
+        if fitted:
             s, supplied, traffic = self._scaled(inputs, out_1, supplied_1, budget)
             if supplied <= budget:
                 return s, supplied, traffic, 1
