@@ -61,8 +61,8 @@ typedef struct {
     double ledger;       /* in/out: L, the energy the interface supplied so far (steps accepted) */
     double traffic;      /* in/out: the interface's cumulative traffic 1/2 (|a|^2 + |b|^2) */
     double ledger_rtol;  /* in: a step with L + I^n > rtol (traffic + its own) is redone with its inputs scaled */
-    double step_deadline_s; /* in (dr_run_steps, ledger): wall-clock budget of a whole step, redo included; <= 0 = none */
-    double round_s;      /* in/out (dr_run_steps, ledger): running time of one evaluation round (every subsystem once) */
+    double step_deadline_s; /* in (dr_run_steps, ledger): wall-clock budget of a step, redo included; <= 0 = none */
+    double round_s;      /* in/out (dr_run_steps, ledger): running time of one evaluation round (all subsystems) */
 } DRStep;
 
 typedef struct DRKernel DRKernel;

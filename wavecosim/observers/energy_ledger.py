@@ -56,7 +56,7 @@ class EnergyLedger(Observer):
         self.L, self.traffic, self.max_L = 0.0, 0.0, -math.inf
         self.acted, self.extra, self.fallbacks = 0, 0, 0
         self.round_s, self.redo_round_s = 0.0, 0.0      # running time of one evaluation round: master's, redo's
-        self.step_times = []            # under a deadline, per step: (wall time, acted, round it may overrun by, CPU time)
+        self.step_times = []            # under a deadline, per step: (wall, acted, round it may overrun by, CPU) s
 
     def kernel_state(self):
         """(L, traffic, RTOL): what the C kernel needs to keep the ledger itself (blocks)."""
