@@ -22,7 +22,9 @@ from .kernel_adapter import KernelAdapter
 from .kernel_adapter import load_library as load_adapter_library
 
 PARALLEL_MIN_US = 150.0
-REASONS = ("budget", "tolerance", "deadline", "explicit")
+REASONS = ("budget", "tolerance", "deadline", "explicit", "converged", "energy-guard")  # as masters/base.py (the
+#                                                  runner asserts it); the kernel never gives "converged"
+LEDGER_LOG = ("supplied", "ledger", "traffic", "scale", "action", "rounds", "step_s", "round_s", "cpu_s")  # drkernel.h
 FUNCTIONS = (None, "fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2SetReal", "fmi2DoStep", "fmi2GetReal")
 _FMI_NAMES = ("fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate", "fmi2SetReal", "fmi2DoStep",
               "fmi2GetReal")
@@ -69,7 +71,7 @@ class DRStep(ctypes.Structure):
                 ("reason", ctypes.c_int), ("residual", ctypes.c_double), ("failed_subsystem", ctypes.c_int),
                 ("failed_function", ctypes.c_int), ("failed_status", ctypes.c_int), ("stopped", ctypes.c_int),
                 ("ledger_on", ctypes.c_int), ("ledger", ctypes.c_double), ("traffic", ctypes.c_double),
-                ("ledger_rtol", ctypes.c_double)]
+                ("ledger_rtol", ctypes.c_double), ("step_deadline_s", ctypes.c_double), ("round_s", ctypes.c_double)]
 
 
 _lib = None
@@ -101,6 +103,7 @@ def load_library():
         lib.dr_log_width.argtypes = [p]
         lib.dr_log_width.restype = ctypes.c_size_t
         lib.dr_run_steps.argtypes = [p, ctypes.POINTER(DRStep), i, i, d, ctypes.c_double]
+        lib.dr_ledger_redo.argtypes = [p, ctypes.POINTER(DRStep), ctypes.c_double, ctypes.c_double, i, d]
         _lib = lib
     return _lib
 
@@ -108,13 +111,16 @@ def load_library():
 class BlockLog:
     """The macro-steps run in one kernel call, one row per step: iterations, reason (index into
     REASONS), residual, a (steps x n), b^{n+1} (steps x n); `observed` holds the observed values one
-    per row (values x steps), as the kernel logs them (each value contiguous). `stopped`: the kernel
-    stopped early after the last step (its H may exceed the cap, or a value is not finite)."""
+    per row (values x steps), as the kernel logs them (each value contiguous), and `ledger` the energy
+    ledger's (LEDGER_LOG x steps). `stopped`: the kernel stopped early after the last step (its H may
+    exceed the cap, or a value is not finite)."""
 
     def __init__(self, columns, n, stopped=False):
         self.columns, self.n, self.stopped = columns, n, stopped     # one row per logged value
         self.iterations, self.reason, self.residual = columns[0], columns[1], columns[2]
-        self.a_hat, self.b, self.observed = columns[3:3 + n].T, columns[3 + n:3 + 2 * n].T, columns[3 + 2 * n:]
+        end = len(columns) - len(LEDGER_LOG)
+        self.a_hat, self.b, self.observed = columns[3:3 + n].T, columns[3 + n:3 + 2 * n].T, columns[3 + 2 * n:end]
+        self.ledger = dict(zip(LEDGER_LOG, columns[end:]))
 
     def __len__(self):
         return self.columns.shape[1]
@@ -214,6 +220,7 @@ class Kernel:
                 self.close()
                 raise FmuError(f"subsystem {s.name}: the DR kernel refused its port")
         self.io = DRStep(measure=0, eps=-1.0, deadline_s=0.0)
+        self.at = (None, None)                     # (n, t) of the last macro_step
         self._io = ctypes.byref(self.io)
         self._macro_step = lib.dr_macro_step       # called with pre-converted arguments
         self.threads = 1
@@ -229,10 +236,12 @@ class Kernel:
                 raise FmuError(f"subsystem {s.name}: the DR kernel could not keep {len(vars_i)} observed values")
         self.width = self.lib.dr_log_width(self._handle)
 
-    def keep_ledger(self, ledger, traffic, rtol):
+    def keep_ledger(self, ledger, traffic, rtol, step_deadline_s=None):
         """From the next run_steps on, the kernel books the interface energy ledger from (L, traffic)
-        and stops a block before a step the ledger guard would redo (drkernel.c, ledger_stops)."""
-        self.io.ledger_on, self.io.ledger, self.io.traffic, self.io.ledger_rtol = 1, ledger, traffic, rtol
+        and redoes a step that would lift it above tol, within step_deadline_s (drkernel.c, ledger_step)."""
+        io = self.io
+        io.ledger_on, io.ledger, io.traffic, io.ledger_rtol = 1, ledger, traffic, rtol
+        io.step_deadline_s = step_deadline_s or 0.0
 
     def run_steps(self, n0, count, H_cap=math.inf, measure=False):
         """Macro-steps n0 .. n0 + count - 1 in one call (drkernel.h, dr_run_steps): (steps done, their
@@ -276,10 +285,18 @@ class Kernel:
     def macro_step(self, n, t, measure=False):
         """Algorithm 1, lines 3-22, in C; raises the FmuError the reference path would raise."""
         io = self.io
-        io.t, io.measure = t, measure
+        io.t, io.measure, self.at = t, measure, (n, t)
         if self._macro_step(self._handle, self._io):
             raise self.failure(n, t)
         return io
+
+    def redo(self, supplied, budget, fitted):
+        """The energy ledger's redo of the step macro_step just made (drkernel.h, dr_ledger_redo):
+        (s, supply, traffic, action, rounds); b and a_hat become the redo's."""
+        out = (ctypes.c_double * 5)()
+        if self.lib.dr_ledger_redo(self._handle, self._io, supplied, budget, int(fitted), out):
+            raise self.failure(*self.at)
+        return out[0], out[1], out[2], int(out[3]), int(out[4])
 
     def floor(self, n_steps, K, inputs=None, t0=0.0):
         """The FMU calls of n_steps macro-steps with budget K and no DR logic (the floor); returns

@@ -192,13 +192,14 @@ class Subsystem:
         kernel macro-step this Subsystem holds x_i^n exactly as after a Python one."""
         return ctypes.addressof(self._state)
 
-    def note_kernel_step(self, step_index, t, iterations, steps=1):
+    def note_kernel_step(self, step_index, t, iterations, steps=1, redone=0):
         """Book `steps` macro-steps the C kernel made, the last one step n at t (frozen at x^n):
-        each a save, its queries and one commit; `iterations` counts the queries of them all."""
+        each a save, its queries and one commit; `iterations` counts the queries of them all and
+        `redone` the energy ledger's redo rounds (a restore and a doStep each)."""
         self.begin(step_index, t)
         self.calls["save"] += steps
-        self.calls["doStep"] += iterations + steps
-        self.calls["restore"] += iterations
+        self.calls["doStep"] += iterations + steps + redone
+        self.calls["restore"] += iterations + redone
         self._dirty = False
 
     def release(self):

@@ -111,6 +111,16 @@ class FastDRMaster(DRMaster):
         return StepLog(iterations=k, residual=io.residual, reason=REASONS[io.reason], a_hat=out[n_ch:2 * n_ch],
                        u0=out[2 * n_ch:3 * n_ch], uK=out[3 * n_ch:])
 
+    def redo_in_kernel(self, supplied, budget, fitted):
+        """The energy ledger's redo of the step just made, by the kernel (fast_path.Kernel.redo); its
+        rounds are booked on the Subsystems and b^{n+1} becomes the redo's."""
+        if self.kernel is None:
+            return None
+        done = self.kernel.redo(supplied, budget, fitted)
+        self._b = self.kernel.b[:]
+        self._note_kernel_steps(self.subsystems[0].step_index, self.subsystems[0].t, 0, 0, done[4])
+        return done
+
     def can_run_steps(self, n):
         """Whether run_steps may make macro-step n: the kernel runs and no trial of two threads is on
         (threads=auto times it on the macro-step after the first, alone)."""
@@ -123,8 +133,9 @@ class FastDRMaster(DRMaster):
             self.kernel.observe(names)
 
     def keep_ledger(self, ledger, traffic, rtol):
-        """The energy ledger's state for the kernel's next blocks (see fast_path.Kernel.keep_ledger)."""
-        self.kernel.keep_ledger(ledger, traffic, rtol)
+        """The energy ledger's state for the kernel's next blocks, which it keeps within master.deadline_us
+        (see fast_path.Kernel.keep_ledger)."""
+        self.kernel.keep_ledger(ledger, traffic, rtol, self.deadline_s)
 
     def run_steps(self, n0, count, H_cap=math.inf):
         """Macro-steps n0 .. n0 + count - 1 in one kernel call, stopping early after a step whose H
@@ -166,21 +177,23 @@ class FastDRMaster(DRMaster):
         if not done:
             return
         last = n0 + done - 1
-        self._note_kernel_steps(last, last * self.dt, int(log.iterations.sum()), done)
+        iterations, redone = int(log.iterations.sum()), int(log.ledger["rounds"].sum())
+        self._note_kernel_steps(last, last * self.dt, iterations, done, redone)
         self._b_step_start = log.b[done - 2].tolist() if done > 1 else self._b
         self._b = self.kernel.b[:]
         if self._trace is not None:
             self._trace = self.kernel.recorded(int(log.iterations[-1]))
 
-    def _note_kernel_steps(self, n, t, iterations, steps=1):
-        """Book `steps` kernel macro-steps (the last one step n at t) on the Subsystems; a wave
-        adapter's FMU calls are its own count (its queries take a varying number of doSteps)."""
+    def _note_kernel_steps(self, n, t, iterations, steps=1, redone=0):
+        """Book `steps` kernel macro-steps (the last one step n at t) and `redone` ledger redo rounds
+        on the Subsystems; a wave adapter's FMU calls are its own count (its queries take a varying
+        number of doSteps)."""
         for s in self.subsystems:
             if s.adapter:
                 s.note_kernel_step(n, t, 0, 0)
                 s.map.book()
             else:
-                s.note_kernel_step(n, t, iterations, steps)
+                s.note_kernel_step(n, t, iterations, steps, redone)
 
     def step_log(self, log, j):
         """The StepLog of row j of a BlockLog (without u^0 and u^K)."""
