@@ -5,24 +5,19 @@ Without a C compiler the library is missing and `block_writer` returns None (the
 formats in Python)."""
 import ctypes
 
-from .builtin import build_module
+from .builtin import helper_library
 
 _lib = None
-_tried = False
 WIDTH = 26                    # at most 25 characters of repr (e.g. -2.2250738585072014e-308) and a comma
 
 
 def library():
     """libcsvfmt, built on first use; None when it cannot be built."""
-    global _lib, _tried
-    if not _tried:
-        _tried = True
-        build = build_module()
-        try:
-            path = build.kernel_library("csvfmt", log=lambda msg: None)
-        except (build.BuildError, OSError):
+    global _lib
+    if _lib is None:
+        lib = helper_library("csvfmt")
+        if lib is None:
             return None
-        lib = ctypes.CDLL(str(path))
         lib.csv_init.restype = None
         lib.csv_init()
         lib.csv_repr.argtypes = [ctypes.c_double, ctypes.c_char_p]
