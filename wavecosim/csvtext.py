@@ -58,6 +58,8 @@ class BlockWriter:
         """The first `rows` rows of the block as bytes."""
         n = self.lib.csv_rows(self.block.ctypes.data, self.block.shape[0], rows, self.block.shape[1], self.kinds,
                               self.names, self.starts, self.out)
+        if n < 0:
+            raise MemoryError("out of memory while formatting CSV rows")
         return ctypes.string_at(self.out, n)
 
 

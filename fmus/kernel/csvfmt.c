@@ -99,13 +99,21 @@ static uint64_t shortest(uint64_t m, int e, int even, int asym, int *dexp)
     uint64_t lo = L.q + (!L.exact || !even), hi = H.q - (H.exact && !even);
     uint64_t vq = V.q;
     int removed = 0, last = 0, tail_zero = V.exact;
-    while (hi / 10 >= (lo + 9) / 10) {
-        tail_zero = tail_zero && last == 0;
-        last = (int)(vq % 10);
-        vq /= 10;
-        lo = (lo + 9) / 10;
-        hi /= 10;
-        removed++;
+    for (;;) {                       /* four digits at a time while a multiple of 10^4 fits, then one */
+        uint64_t dropped;
+        if (hi / 10000 >= (lo + 9999) / 10000) {
+            dropped = vq % 10000;
+            tail_zero = tail_zero && last == 0 && dropped % 1000 == 0;
+            last = (int)(dropped / 1000);
+            vq /= 10000, lo = (lo + 9999) / 10000, hi /= 10000, removed += 4;
+        } else if (hi / 10 >= (lo + 9) / 10) {
+            dropped = vq % 10;
+            tail_zero = tail_zero && last == 0;
+            last = (int)dropped;
+            vq /= 10, lo = (lo + 9) / 10, hi /= 10, removed += 1;
+        } else {
+            break;
+        }
     }
     int up;
     if (removed == 0)
@@ -163,22 +171,22 @@ static const char DIGIT_PAIRS[] =
 /* The decimal digits of d (no leading zeros) into out; returns how many. */
 static int write_digits(uint64_t d, char *out)
 {
-    char tmp[24];
-    int n = 0;
+    int n = 1;
+    for (uint64_t p = 10; n < 20 && d >= p; p *= 10)
+        n++;
+    char *o = out + n;
     while (d >= 100) {
         int r = (int)(d % 100);
         d /= 100;
-        tmp[n++] = DIGIT_PAIRS[2 * r + 1];
-        tmp[n++] = DIGIT_PAIRS[2 * r];
+        *--o = DIGIT_PAIRS[2 * r + 1];
+        *--o = DIGIT_PAIRS[2 * r];
     }
     if (d >= 10) {
-        tmp[n++] = DIGIT_PAIRS[2 * d + 1];
-        tmp[n++] = DIGIT_PAIRS[2 * d];
+        *--o = DIGIT_PAIRS[2 * d + 1];
+        *--o = DIGIT_PAIRS[2 * d];
     } else {
-        tmp[n++] = (char)('0' + d);
+        *--o = (char)('0' + d);
     }
-    for (int i = 0; i < n; i++)
-        out[i] = tmp[n - 1 - i];
     return n;
 }
 
@@ -272,30 +280,47 @@ static int write_int(double v, char *out)
 }
 
 /* Rows 0 .. rows-1 of a column-major block (column j at block + j*ld) as CSV lines ending in \r\n.
- * kinds[j]: 0 repr of a float, 1 an integer, 2 a label: labels[label_at[j] + (int)v].
- * out must hold rows * (cols * 26 + 2) characters plus the labels' lengths; returns the length. */
+ * kinds[j]: 0 repr of a float, 1 an integer, 2 a label: labels[label_at[j] + (int)v]. A float equal
+ * (bit for bit) to the one above it takes that one's text (constant columns cost little).
+ * out must hold rows * (cols * 26 + 2) characters plus the labels' lengths; returns the length,
+ * or -1 when out of memory. */
 long csv_rows(const double *block, long ld, int rows, int cols, const int *kinds, const char *const *labels,
               const int *label_at, char *out)
 {
+    char **above = malloc((size_t)cols * sizeof *above);     /* where each column's last text starts */
+    int *len = malloc((size_t)cols * sizeof *len);
+    if (!above || !len) {
+        free(above);
+        free(len);
+        return -1;
+    }
     char *o = out;
     for (int r = 0; r < rows; r++) {
         for (int j = 0; j < cols; j++) {
-            double v = block[j * ld + r];
+            const double *v = block + j * ld + r;
             if (j)
                 *o++ = ',';
             if (kinds[j] == 0) {
-                o += csv_repr(v, o);
+                if (r && !memcmp(v, v - 1, sizeof *v)) {
+                    memcpy(o, above[j], (size_t)len[j]);
+                } else {
+                    len[j] = csv_repr(*v, o);
+                }
+                above[j] = o;
+                o += len[j];
             } else if (kinds[j] == 1) {
-                o += write_int(v, o);
+                o += write_int(*v, o);
             } else {
-                const char *name = labels[label_at[j] + (int)v];
-                size_t len = strlen(name);
-                memcpy(o, name, len);
-                o += len;
+                const char *name = labels[label_at[j] + (int)*v];
+                size_t n = strlen(name);
+                memcpy(o, name, n);
+                o += n;
             }
         }
         *o++ = '\r';
         *o++ = '\n';
     }
+    free(above);
+    free(len);
     return (long)(o - out);
 }
