@@ -51,7 +51,7 @@ class BlockWriter:
         self.kinds = (ctypes.c_int * cols)(*[2 if isinstance(k, list) else k for k in kinds])
         self.starts = (ctypes.c_int * cols)(*starts)
         self.names = (ctypes.c_char_p * max(1, len(names)))(*names)
-        longest = sum(max(len(n) for n in k) + 1 for k in ([[b""]] + [[n.encode() for n in k] for k in labels]))
+        longest = sum(max(len(name.encode()) for name in k) for k in labels)     # label columns beyond WIDTH at most
         self.out = ctypes.create_string_buffer(block.shape[0] * (cols * WIDTH + 2 + longest))
 
     def __call__(self, rows):
