@@ -4,20 +4,26 @@ the recorder's formatters do, so a file is byte for byte what the Python formatt
 Without a C compiler the library is missing and `block_writer` returns None (the recorder then
 formats in Python)."""
 import ctypes
+import threading
 
 from .builtin import helper_library
 
 _lib = None
+_loading = threading.Lock()                # csv_init fills tables that no formatting may read half-filled
 WIDTH = 26                    # at most 25 characters of repr (e.g. -2.2250738585072014e-308) and a comma
 
 
 def library():
     """libcsvfmt, built on first use; None when it cannot be built."""
+    with _loading:
+        return _lib or _load()
+
+
+def _load():
+    """Load the library and fill its tables (once)."""
     global _lib
-    if _lib is None:
-        lib = helper_library("csvfmt")
-        if lib is None:
-            return None
+    lib = helper_library("csvfmt")
+    if lib is not None:
         lib.csv_init.restype = None
         lib.csv_init()
         lib.csv_repr.argtypes = [ctypes.c_double, ctypes.c_char_p]

@@ -66,7 +66,7 @@ static Scaled scale(uint64_t x, int k, int s)
     p[n++] = carry;
     p[n] = 0;
     if (s <= 0) {
-        r.q = (p[0] << -s);          /* the product is below 2^56 here */
+        r.q = p[0] << -s;            /* e in 2..6: the product is below 2^59, shifted by at most 4 */
         return r;
     }
     int w = s >> 6, b = s & 63;
