@@ -279,6 +279,8 @@ def run_bench(quick=False, progress=print):
     par = parallel(load_scenario(HEAVY), heavy_steps, heavy_repeats, progress)
     whole = run_overhead(scenario.with_changes(T=n_steps * scenario.dt), repeats, progress)
     over = {k: v["run_us_per_step"] / v["master_us_per_step"] for k, v in whole.items()}
+    from .bench_scale import scale_rows          # it uses this module's helpers
+    scale = scale_rows(quick, progress)
     ratios = {"fast_over_floor": per_iter["fast"] / per_iter["floor"],
               "fast_over_floor_K0": per_step["fast"][0] / per_step["floor"][0],
               "fast_step_over_floor_K0": per_step["fast_step"][0] / per_step["floor"][0],
@@ -300,6 +302,8 @@ def run_bench(quick=False, progress=print):
         "run_over_master": {"K0": over["plain_K0"], "K50": over["plain_K50"]},
         "run_over_master_certificates": {"K0": over["certificates_K0"], "K50": over["certificates_K50"]},
         "run_over_master_in_memory": {"K0": over["memory_K0"], "K50": over["memory_K50"]},
+        "us_per_subsystem_iter": scale["us_per_subsystem_iter"],
+        "scale": scale,
         "targets": {
             "fast_over_floor <= 1.5": ratios["fast_over_floor"] <= TARGETS["fast_over_floor_max"],
             "fast / floor at K = 0 <= 3": ratios["fast_over_floor_K0"] <= TARGETS["fast_over_floor_K0_max"],
@@ -309,6 +313,7 @@ def run_bench(quick=False, progress=print):
             "run / master <= 1.5": max(over["plain_K0"], over["plain_K50"]) <= TARGETS["run_over_master_max"],
             "run / master <= 3 with certificates": max(over["certificates_K0"], over["certificates_K50"])
             <= TARGETS["run_over_master_certificates_max"],
+            "N = 512 within 1.5x of N = 8 per subsystem and iteration": scale["target_met"],
         },
     }
 
@@ -338,5 +343,7 @@ def report(result):
     for key, w in result["whole_run"].items():
         lines.append(f"{key:<30}{w['run_us_per_step']:>14.2f}{w['master_us_per_step']:>16.2f}"
                      f"{w['run_us_per_step'] / w['master_us_per_step']:>14.2f}")
+    from .bench_scale import report_scale
+    lines.extend(report_scale(result["scale"]))
     lines.append("targets: " + ", ".join(f"{k}: {'met' if v else 'MISSED'}" for k, v in result["targets"].items()))
     return lines

@@ -56,6 +56,33 @@ def extract_fmu(path: Path) -> Path:
     return target
 
 
+def shared_folder(path: Path, pool):
+    """(key, folder): one extraction per FMU file for all its instances opened with the same pool
+    (a dict the caller owns, e.g. one per scene), so they share one loaded binary and N instances
+    of one FMU cost no more code in the caches than one; pool None: a folder of its own."""
+    path = Path(path)
+    if pool is None or not path.exists():
+        return None, extract_fmu(path)
+    st = path.resolve().stat()
+    key = (str(path.resolve()), st.st_mtime_ns, st.st_size)
+    entry = pool.get(key)
+    if entry is None:
+        entry = pool[key] = [extract_fmu(path), 0]
+    entry[1] += 1
+    return key, entry[0]
+
+
+def release_folder(pool, key, folder):
+    """One instance less on a shared extraction; the folder goes with the last one."""
+    entry = pool.get(key) if pool is not None else None
+    if entry is not None and entry[0] == folder:
+        entry[1] -= 1
+        if entry[1] > 0:
+            return
+        del pool[key]
+    shutil.rmtree(folder, ignore_errors=True)
+
+
 def check_version(path, folder):
     """FMI 2.0 only, read from modelDescription.xml's root before anything else parses it."""
     import xml.etree.ElementTree as ET
@@ -102,12 +129,14 @@ SETTERS = {
 class Fmu:
     """One instantiated, initialized FMU; `name` is the subsystem name used in messages."""
 
-    def __init__(self, path, name, values=None, integer_values=None, start_time=0.0, optional=()):
+    def __init__(self, path, name, values=None, integer_values=None, start_time=0.0, optional=(), pool=None):
         """Load, instantiate and initialize; `values` (and `integer_values`) are start values and
         parameters by name, each set with the FMI type its variable declares (Real, Integer,
-        Enumeration, Boolean, String); names in `optional` are skipped when the FMU lacks them."""
+        Enumeration, Boolean, String); names in `optional` are skipped when the FMU lacks them.
+        Instances opened with one `pool` share the extracted FMU (see shared_folder)."""
         self.path, self.name = Path(path), name
-        self._dir = extract_fmu(self.path)
+        self._pool = pool
+        self._key, self._dir = shared_folder(self.path, pool)
         check_version(self.path, self._dir)
         try:
             self.description = read_model_description(str(self._dir), validate=False)
@@ -115,6 +144,9 @@ class Fmu:
             raise FmuError(f"{self.path}: cannot read modelDescription.xml: {exc}") from None
         cs = self.description.coSimulation
         check_runnable(self.path, self._dir, self.description)
+        if cs.canBeInstantiatedOnlyOncePerProcess:       # its own copy of the binary for each instance
+            release_folder(pool, self._key, self._dir)
+            self._key, self._dir = None, extract_fmu(self.path)
         self.can_save_state = bool(cs.canGetAndSetFMUstate)
         self.variables = {v.name: v for v in self.description.modelVariables}
         self.messages = []
@@ -225,4 +257,6 @@ class Fmu:
             except Exception:
                 pass
             self._slave = None
-        shutil.rmtree(self._dir, ignore_errors=True)
+        if self._dir is not None:
+            release_folder(self._pool, self._key, self._dir)
+            self._dir = None

@@ -36,6 +36,14 @@ typedef struct {
     int n_samples;
 } Sub;
 
+/* A coupling map (P or J_L) in compressed rows, one block: row i holds col[start[i] .. start[i+1])
+ * (ascending) and val. */
+typedef struct {
+    size_t n, nnz;
+    int *start, *col;
+    double *val;
+} Csr;
+
 typedef struct {
     DRKernel *k;
     int id, started;
@@ -51,7 +59,7 @@ struct DRKernel {
     int n_sub;
     size_t n;
     Sub *sub;
-    double *P, *J_L;
+    Csr *P, *J_L;                  /* one malloc each (freed with free) */
     double *b, *a_hat, *u0, *uK;   /* the caller's */
     double *u, *u_next, *b_hat, *z, *w;
     double *trace;                 /* the caller's, or NULL */
@@ -81,13 +89,61 @@ static void cpu_relax(void) {
 
 /* ---- the arithmetic of master/linalg.py, in the same operation order ---- */
 
-/* y_i = sum_j M_ij x_j, summed left to right from 0.0 (linalg.matvec). */
-static void matvec(const double *M, const double *x, double *y, size_t n) {
+/* y_i = sum_j M_ij x_j over row i's stored entries, left to right from 0.0 (linalg.matvec): the
+ * same bits as the dense sum, whose other terms are exact zeros added to a sum that is never -0.0. */
+static void matvec(const Csr *M, const double *x, double *y, size_t n) {
     for (size_t i = 0; i < n; i++) {
         double acc = 0.0;
-        for (size_t j = 0; j < n; j++) acc += M[i * n + j] * x[j];
+        for (int p = M->start[i]; p < M->start[i + 1]; p++) acc += M->val[p] * x[M->col[p]];
         y[i] = acc;
     }
+}
+
+/* A Csr of n rows with nnz entries in one block (val first, so it stays aligned), or NULL. */
+static Csr *csr_alloc(size_t n, size_t nnz) {
+    Csr *M = malloc(sizeof *M + nnz * sizeof(double) + (n + 1 + nnz) * sizeof(int));
+    if (!M) return NULL;
+    M->n = n;
+    M->nnz = nnz;
+    M->val = (double *)(M + 1);
+    M->start = (int *)(M->val + nnz);
+    M->col = M->start + n + 1;
+    return M;
+}
+
+/* The nonzero entries of a dense row-major n x n matrix. */
+static Csr *csr_from_dense(const double *D, size_t n) {
+    size_t nnz = 0;
+    for (size_t j = 0; j < n * n; j++) nnz += D[j] != 0.0;
+    Csr *M = csr_alloc(n, nnz);
+    if (!M) return NULL;
+    size_t p = 0;
+    for (size_t i = 0; i < n; i++) {
+        M->start[i] = (int)p;
+        for (size_t j = 0; j < n; j++)
+            if (D[i * n + j] != 0.0) {
+                M->col[p] = (int)j;
+                M->val[p++] = D[i * n + j];
+            }
+    }
+    M->start[n] = (int)p;
+    return M;
+}
+
+/* A copy of the caller's compressed rows, or NULL if they are malformed (or no memory). */
+static Csr *csr_copy(const int *start, const int *col, const double *val, size_t n) {
+    if (start[0] != 0) return NULL;
+    for (size_t i = 0; i < n; i++)
+        if (start[i + 1] < start[i]) return NULL;
+    size_t nnz = (size_t)start[n];
+    for (size_t p = 0; p < nnz; p++)
+        if (col[p] < 0 || (size_t)col[p] >= n) return NULL;
+    Csr *M = csr_alloc(n, nnz);
+    if (!M) return NULL;
+    memcpy(M->start, start, (n + 1) * sizeof(int));
+    memcpy(M->col, col, nnz * sizeof(int));
+    memcpy(M->val, val, nnz * sizeof(double));
+    return M;
 }
 
 /* |x - y|, squares summed left to right (linalg.distance). */
@@ -435,15 +491,15 @@ DRKernel *dr_create(int n_sub, int n, const double *P, const double *J_L, double
     k->n_sub = n_sub;
     k->n = nn;
     k->sub = calloc((size_t)n_sub, sizeof *k->sub);
-    k->P = malloc(nn * nn * sizeof(double));
-    k->J_L = malloc(nn * nn * sizeof(double));
+    k->P = P ? csr_from_dense(P, nn) : csr_alloc(nn, 0);
+    k->J_L = J_L ? csr_from_dense(J_L, nn) : csr_alloc(nn, 0);
     k->u = calloc(5 * nn, sizeof(double));
     if (!k->sub || !k->P || !k->J_L || !k->u) {
         dr_destroy(k);
         return NULL;
     }
-    memcpy(k->P, P, nn * nn * sizeof(double));
-    memcpy(k->J_L, J_L, nn * nn * sizeof(double));
+    if (!P) memset(k->P->start, 0, (nn + 1) * sizeof(int));
+    if (!J_L) memset(k->J_L->start, 0, (nn + 1) * sizeof(int));
     k->u_next = k->u + nn;
     k->b_hat = k->u + 2 * nn;
     k->z = k->u + 3 * nn;
@@ -477,9 +533,19 @@ int dr_set_subsystem(DRKernel *k, int i, const DRFunctions *fn, fmi2Component co
     return 0;
 }
 
-void dr_set_maps(DRKernel *k, const double *P, const double *J_L) {
-    memcpy(k->P, P, k->n * k->n * sizeof(double));
-    memcpy(k->J_L, J_L, k->n * k->n * sizeof(double));
+int dr_set_maps(DRKernel *k, const int *P_start, const int *P_col, const double *P_val, const int *J_start,
+                const int *J_col, const double *J_val) {
+    Csr *P = csr_copy(P_start, P_col, P_val, k->n), *J_L = csr_copy(J_start, J_col, J_val, k->n);
+    if (!P || !J_L) {
+        free(P);
+        free(J_L);
+        return -1;
+    }
+    free(k->P);
+    free(k->J_L);
+    k->P = P;
+    k->J_L = J_L;
+    return 0;
 }
 
 void dr_set_trace(DRKernel *k, double *trace, int capacity) {
