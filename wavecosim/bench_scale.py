@@ -39,7 +39,7 @@ def chain_raw(n, T=2.0):
                       {"repeat": {"i": f"0..{n - 2}"}, "type": "equal_effort_opposite_flow",
                        "ports": ["L{i}[1]", "L{i+1}[0]"]},
                       {"type": "clamped_end", "ports": [f"L{n - 1}[1]"]}],
-        "master": {"algorithm": "dr", "K": 20},
+        "master": {"algorithm": "dr", "K": 50},
         "outputs": {"q{i}": {"repeat": {"i": f"0..{n - 1}"}, "value": "L{i}.q"}},
         "error": [{"repeat": {"i": f"0..{n - 1}"}, "value": "q{i}"}],
     }
