@@ -159,8 +159,8 @@ def build_all(force=False, log=print) -> dict:
         path = build_spec(spec, force, log)
         fmus[model_identifier(GEN / spec.stem)] = path
     if KERNEL.is_dir():
-        for c_file in sorted(KERNEL.glob("*.c")):
-            build_library(c_file.stem, [c_file, *KERNEL.glob("*.h")], force, log)
+        # one library: the DR kernel and the routes that share its subsystem evaluation (classical.c)
+        build_library("drkernel", sorted(KERNEL.glob("*.c")) + sorted(KERNEL.glob("*.h")), force, log)
     return fmus
 
 

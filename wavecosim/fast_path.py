@@ -169,6 +169,8 @@ class Kernel:
     """One C kernel over a scene's subsystems (wave mode), with its buffers b, a_hat, u^0, u^K."""
 
     def __init__(self, scene, P, J_L):
+        """P, J_L: linalg.Sparse or dense rows; None for a route without them (classical_path.py),
+        which then runs the subsystems in the port mode the scene opened them in."""
         lib = self.lib = load_library()
         n = scene.n_channels
         self.subsystems = scene.subsystems
@@ -182,14 +184,14 @@ class Kernel:
             raise FmuError("the DR kernel could not be created (out of memory)")
         self._handle = ctypes.c_void_p(self.handle)
         try:
-            self.set_maps(P, J_L)
+            if P is not None:
+                self.set_maps(P, J_L)
         except FmuError:
             self.close()
             raise
         for i, (s, off) in enumerate(zip(self.subsystems, scene.offsets)):
             fns = DRFunctions(*[s.fmu.function_pointer(name) for name in _FMI_NAMES])
-            vr_in = (ctypes.c_uint * s.m)(*[s.fmu.vr(v) for v in s.port.wave_in])
-            vr_out = (ctypes.c_uint * s.m)(*[s.fmu.vr(v) for v in s.port.wave_out])
+            vr_in, vr_out = s.port_vrs()
             # x_i^n goes into the Subsystem's own handle, so that after a fast macro-step the
             # Subsystem holds x_i^n exactly as after the reference one (restore_frozen, thaw work)
             state = s.state_handle_address()

@@ -73,6 +73,17 @@ def matvec(M, x):
     return y
 
 
+def matvec_rows(M, x, r0, r1):
+    """Rows r0 .. r1 - 1 of matvec(M, x) for a Sparse M, in the same order."""
+    y = []
+    for cols, vals in M.rows[r0:r1]:
+        acc = 0.0
+        for c, v in zip(cols, vals):
+            acc += v * x[c]
+        y.append(acc)
+    return y
+
+
 def distance(x, y):
     """|x - y|, squares summed left to right."""
     acc = 0.0

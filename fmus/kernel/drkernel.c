@@ -11,6 +11,7 @@
 #include <time.h>
 
 #include "drkernel.h"
+#include "kernel_internal.h"
 
 /* A thread waiting for the other spins this long, then sleeps on a condition variable: spinning
  * answers within a microsecond when both have a core, sleeping leaves the core to the other
@@ -35,14 +36,6 @@ typedef struct {
     double sample_ns[MAX_SAMPLES];
     int n_samples;
 } Sub;
-
-/* A coupling map (P or J_L) in compressed rows, one block: row i holds col[start[i] .. start[i+1])
- * (ascending) and val. */
-typedef struct {
-    size_t n, nnz;
-    int *start, *col;
-    double *val;
-} Csr;
 
 typedef struct {
     DRKernel *k;
@@ -89,14 +82,20 @@ static void cpu_relax(void) {
 
 /* ---- the arithmetic of master/linalg.py, in the same operation order ---- */
 
-/* y_i = sum_j M_ij x_j over row i's stored entries, left to right from 0.0 (linalg.matvec): the
- * same bits as the dense sum, whose other terms are exact zeros added to a sum that is never -0.0. */
-static void matvec(const Csr *M, const double *x, double *y, size_t n) {
-    for (size_t i = 0; i < n; i++) {
+/* Rows r0 .. r1 - 1 of y = M x, each summed over its stored entries left to right from 0.0
+ * (linalg.matvec_rows): the same bits as the dense sum, whose other terms are exact zeros added to
+ * a sum that is never -0.0. */
+void dr_csr_rows(const Csr *M, const double *x, double *y, size_t r0, size_t r1) {
+    for (size_t i = r0; i < r1; i++) {
         double acc = 0.0;
         for (int p = M->start[i]; p < M->start[i + 1]; p++) acc += M->val[p] * x[M->col[p]];
         y[i] = acc;
     }
+}
+
+/* y = M x (linalg.matvec). */
+static void matvec(const Csr *M, const double *x, double *y, size_t n) {
+    dr_csr_rows(M, x, y, 0, n);
 }
 
 /* A Csr of n rows with nnz entries in one block (val first, so it stays aligned), or NULL. */
@@ -131,7 +130,7 @@ static Csr *csr_from_dense(const double *D, size_t n) {
 }
 
 /* A copy of the caller's compressed rows, or NULL if they are malformed (or no memory). */
-static Csr *csr_copy(const int *start, const int *col, const double *val, size_t n) {
+Csr *dr_csr_copy(const int *start, const int *col, const double *val, size_t n) {
     if (start[0] != 0) return NULL;
     for (size_t i = 0; i < n; i++)
         if (start[i + 1] < start[i]) return NULL;
@@ -535,7 +534,7 @@ int dr_set_subsystem(DRKernel *k, int i, const DRFunctions *fn, fmi2Component co
 
 int dr_set_maps(DRKernel *k, const int *P_start, const int *P_col, const double *P_val, const int *J_start,
                 const int *J_col, const double *J_val) {
-    Csr *P = csr_copy(P_start, P_col, P_val, k->n), *J_L = csr_copy(J_start, J_col, J_val, k->n);
+    Csr *P = dr_csr_copy(P_start, P_col, P_val, k->n), *J_L = dr_csr_copy(J_start, J_col, J_val, k->n);
     if (!P || !J_L) {
         free(P);
         free(J_L);
@@ -625,3 +624,26 @@ void dr_destroy(DRKernel *k) {
     free(k->obs);
     free(k);
 }
+
+/* ---- for the other routes on the same subsystem evaluation (kernel_internal.h) ---- */
+
+size_t dr_channels(const DRKernel *k) { return k->n; }
+
+int dr_subsystems(const DRKernel *k) { return k->n_sub; }
+
+void dr_span(const DRKernel *k, int i, size_t *offset, size_t *m) {
+    *offset = k->sub[i].offset;
+    *m = k->sub[i].m;
+}
+
+void dr_begin(DRKernel *k, DRStep *io) { begin_macro_step(k, io); }
+
+int dr_evaluate(DRKernel *k, int i, const double *in, double *out, double t, double h, int commit) {
+    return evaluate(&k->sub[i], in, out, t, h, commit, 0);
+}
+
+int dr_fail(DRKernel *k, DRStep *io, int i) { return report_failure(k, io, i); }
+
+double dr_distance(const double *x, const double *y, size_t n) { return distance(x, y, n); }
+
+double dr_now_ns(void) { return now_ns(); }

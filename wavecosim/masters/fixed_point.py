@@ -2,12 +2,14 @@
 
 Per macro-step: freeze x^n; y^0 = y^n; y^{k+1} = S^n(G y^k) by queries (a Jacobi or Gauss-Seidel
 pass), stopped by the budget K, the tolerance |y^{k+1} - y^k| <= eps, or the deadline; then commit
-with inputs G y^K. K = 0 is the explicit master of the same ordering.
+with inputs G y^K. K = 0 is the explicit master of the same ordering. With `master.fast` (auto, as
+for DR) the whole macro-step runs in C (wavecosim/classical_path.py), to the last bit the same.
 """
 import time
 
-import numpy as np
-
+from ..classical_path import ClassicalKernel, refusal
+from ..fast_path import REASONS
+from ..linalg import distance
 from .base import StepLog
 from .physical import RollbackPhysicalMaster
 
@@ -20,8 +22,15 @@ class JacobiIterMaster(RollbackPhysicalMaster):
     def __init__(self, scene, settings):
         super().__init__(scene, settings)
         self.K, self.eps = settings.K, settings.eps
+        self.kernel, self.fast_note = None, "Python reference (this master's update has no kernel route)"
+        if type(self).update is JacobiIterMaster.update:             # plain Picard: Jacobi or Gauss-Seidel
+            self.fast_note = refusal(scene, str(settings.fast).lower())
+            if self.fast_note is None:
+                self.kernel, self.fast_note = ClassicalKernel(scene, self.G), "C kernel"
 
     def step(self, n, t) -> StepLog:
+        if self.kernel is not None:
+            return self._kernel_step(n, t)
         self.step_started = time.perf_counter()
         self.scene.freeze(n, t)
         deadline = self.step_started + self.inner_deadline_s if self.deadline_s else None
@@ -29,7 +38,7 @@ class JacobiIterMaster(RollbackPhysicalMaster):
         self.restart()
         while k < self.K:
             y_tilde = self.sweep(y, lambda sub, inputs: sub.query(inputs))
-            residual = float(np.linalg.norm(y_tilde - y))
+            residual = distance(y_tilde.tolist(), y.tolist())
             y, k = self.update(y, y_tilde), k + 1
             if self.eps is not None and residual <= self.eps:
                 reason = "tolerance"
@@ -39,6 +48,25 @@ class JacobiIterMaster(RollbackPhysicalMaster):
                 break
         self.commit(y)
         return StepLog(iterations=k, residual=residual, reason=reason if self.K else "explicit")
+
+    def _kernel_step(self, n, t) -> StepLog:
+        """The same macro-step in C (classical.c); the Subsystems book its calls."""
+        self.step_started = time.perf_counter()
+        self.kernel.configure(self.K, self.eps, self.inner_deadline_s if self.deadline_s else None)
+        io, y_next, u = self.kernel.fixed_point_step(n, t, self.y, int(self.sequential))
+        for s in self.subsystems:
+            s.note_kernel_step(n, t, io.iterations)
+        self.y_step_start, self.y, self.u = self.y, y_next, u
+        return StepLog(iterations=io.iterations, residual=io.residual, reason=REASONS[io.reason])
+
+    def run_info(self):
+        return {"fast_path": self.kernel is not None, "fast_note": self.fast_note}
+
+    def close(self):
+        if self.kernel is not None:
+            self.kernel.close()
+            self.kernel = None
+        super().close()
 
     def restart(self):
         """A new macro-step's iteration begins (accelerators forget what they learnt)."""
