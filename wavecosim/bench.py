@@ -267,6 +267,19 @@ def slope(x, y):
     return float(np.polyfit(x, y, 1)[0])
 
 
+def with_scale_and_classical(result, scenario, quick, progress):
+    """The result with the scale rows (bench_scale.py) and the classical masters' kernel route
+    (bench_classical.py) added, and their targets."""
+    from .bench_classical import classical_rows   # both use this module's helpers
+    from .bench_scale import scale_rows
+    scale, classical = scale_rows(quick, progress), classical_rows(scenario, quick, progress)
+    result.update(us_per_subsystem_iter=scale["us_per_subsystem_iter"], scale=scale, classical_kernel=classical)
+    result["targets"].update({"N = 512 within 1.5x of N = 8 per subsystem and iteration": scale["target_met"],
+                              "classical masters on the kernel >= 10x faster than their Python loops":
+                              classical["target_met"]})
+    return result
+
+
 def run_bench(quick=False, progress=print):
     """All measurements; returns the JSON-ready result."""
     n_steps, repeats = (200, 3) if quick else (1000, 3)
@@ -279,16 +292,12 @@ def run_bench(quick=False, progress=print):
     par = parallel(load_scenario(HEAVY), heavy_steps, heavy_repeats, progress)
     whole = run_overhead(scenario.with_changes(T=n_steps * scenario.dt), repeats, progress)
     over = {k: v["run_us_per_step"] / v["master_us_per_step"] for k, v in whole.items()}
-    from .bench_classical import classical_rows   # both use this module's helpers
-    from .bench_scale import scale_rows
-    scale = scale_rows(quick, progress)
-    classical = classical_rows(scenario, quick, progress)
     ratios = {"fast_over_floor": per_iter["fast"] / per_iter["floor"],
               "fast_over_floor_K0": per_step["fast"][0] / per_step["floor"][0],
               "fast_step_over_floor_K0": per_step["fast_step"][0] / per_step["floor"][0],
               "naive_over_fast": per_iter["naive_fmpy"] / per_iter["fast"],
               "python_over_fast": per_iter["python"] / per_iter["fast"]}
-    return {
+    return with_scale_and_classical({
         "scene": scenario.name, "steps": n_steps, "repeats": repeats, "quick": quick,
         "us_per_step": {p: {str(K): v for K, v in per_step[p].items()} for p in PATHS},
         "us_per_iter": per_iter,
@@ -304,9 +313,6 @@ def run_bench(quick=False, progress=print):
         "run_over_master": {"K0": over["plain_K0"], "K50": over["plain_K50"]},
         "run_over_master_certificates": {"K0": over["certificates_K0"], "K50": over["certificates_K50"]},
         "run_over_master_in_memory": {"K0": over["memory_K0"], "K50": over["memory_K50"]},
-        "us_per_subsystem_iter": scale["us_per_subsystem_iter"],
-        "scale": scale,
-        "classical_kernel": classical,
         "targets": {
             "fast_over_floor <= 1.5": ratios["fast_over_floor"] <= TARGETS["fast_over_floor_max"],
             "fast / floor at K = 0 <= 3": ratios["fast_over_floor_K0"] <= TARGETS["fast_over_floor_K0_max"],
@@ -316,10 +322,8 @@ def run_bench(quick=False, progress=print):
             "run / master <= 1.5": max(over["plain_K0"], over["plain_K50"]) <= TARGETS["run_over_master_max"],
             "run / master <= 3 with certificates": max(over["certificates_K0"], over["certificates_K50"])
             <= TARGETS["run_over_master_certificates_max"],
-            "N = 512 within 1.5x of N = 8 per subsystem and iteration": scale["target_met"],
-            "classical masters on the kernel >= 10x faster than their Python loops": classical["target_met"],
         },
-    }
+    }, scenario, quick, progress)
 
 
 def report(result):
