@@ -1,9 +1,9 @@
-"""The classical fixed-point masters on the kernel route give their Python reference's numbers to
-the last bit.
+"""The classical masters on the kernel route give their Python reference's numbers to the last bit.
 
-Claims: jacobi-iter and gauss-seidel-iter with `master.fast` (auto, as DR) run each macro-step in C
-(fmus/kernel/classical.c) and, on every shipped scene they can run, K = 0, 3 and 10 with a
-tolerance, give trajectories, per-step logs and FMU call counts equal bit for bit to `fast: false`;
+Claims: explicit, gauss-seidel, jacobi-iter and gauss-seidel-iter with `master.fast` (auto, as DR)
+run each macro-step in C (fmus/kernel/classical.c) and, on every shipped scene they can run (the
+fixed-point masters at K = 0, 3 and 10 with a tolerance), give trajectories, per-step logs and FMU
+call counts equal bit for bit to `fast: false`;
 the energy ledger guard (undo, redo) works on it alike; an FMU error comes back as the reference's
 FmuError; a declared physical port keeps the Python reference (`fast: true` then is a config error).
 """
@@ -49,6 +49,17 @@ def test_kernel_route_is_bit_identical_to_the_reference(name, master, K, eps, bu
     fast = run(sc.with_master(fast="auto"), certificates=False)
     assert ref.summary["fast_path"] is False and fast.summary["fast_path"] is True
     runs_identical(ref, fast)
+
+
+@pytest.mark.parametrize("master", ["explicit", "gauss-seidel"])
+@pytest.mark.parametrize("name", SCENES)
+def test_explicit_masters_on_the_kernel_route(name, master, built_fmus):
+    sc = scenario(name, algorithm=master)
+    ref = run(sc.with_master(fast="false"), certificates=False)
+    fast = run(sc.with_master(fast="auto"), certificates=False)
+    assert ref.summary["fast_path"] is False and fast.summary["fast_path"] is True
+    runs_identical(ref, fast)
+    assert fast.summary["fmu_calls"]["save"] == 0                      # nothing saved, as in Python
 
 
 @pytest.mark.parametrize("master", MASTER_NAMES)

@@ -1,7 +1,7 @@
-"""The kernel route of the classical fixed-point masters (jacobi-iter, gauss-seidel-iter).
+"""The kernel route of the classical masters (explicit, gauss-seidel, jacobi-iter, gauss-seidel-iter).
 
 fmus/kernel/classical.c runs a whole macro-step of the Python reference
-(wavecosim/masters/fixed_point.py) in C, through the DR kernel's subsystem evaluation with the FMUs
+(wavecosim/masters/explicit.py, fixed_point.py) in C, through the DR kernel's subsystem evaluation with the FMUs
 in their physical port mode, in the reference's operation order, so the numbers are bit-identical.
 `ClassicalKernel` wires it up through ctypes; the masters pick it with `master.fast` like DR.
 """
@@ -22,6 +22,7 @@ def _library():
         lib.cl_create.restype = p
         lib.cl_create.argtypes = [p, ip, ip, _double_p]
         lib.cl_fixed_point_step.argtypes = [p, p, p, p, p, ctypes.c_int]      # arrays by address
+        lib.cl_explicit_step.argtypes = [p, p, p, p, ctypes.c_int]
         lib.cl_destroy.argtypes = [p]
         lib.cl_destroy.restype = None
         lib._classical_ready = True
@@ -70,8 +71,38 @@ class ClassicalKernel:
             raise self.base.failure(n, t)
         return io, y_next, u
 
+    def explicit_step(self, n, t, y, sequential):
+        """Explicit macro-step n from outputs y, nothing saved: (io, y^{n+1})."""
+        self.base.io.t = t
+        y_n = np.ascontiguousarray(y, dtype=np.float64)
+        y_next = np.empty(self.n)
+        if self.lib.cl_explicit_step(self._handle, self.base._io, y_n.ctypes.data, y_next.ctypes.data, sequential):
+            raise self.base.failure(n, t)
+        return self.base.io, y_next
+
     def close(self):
         if self.handle:
             self.lib.cl_destroy(self.handle)
             self.handle = None
         self.base.close()
+
+
+class KernelRoute:
+    """What a classical master with a kernel route adds: `kernel` (a ClassicalKernel, or None and
+    the Python reference runs), `fast_note` (why), and their summary and release."""
+
+    def attach_kernel(self, scene, settings, has_route=True):
+        self.kernel, self.fast_note = None, "Python reference (this master has no kernel route)"
+        if has_route:
+            self.fast_note = refusal(scene, str(settings.fast).lower())
+            if self.fast_note is None:
+                self.kernel, self.fast_note = ClassicalKernel(scene, self.G), "C kernel"
+
+    def run_info(self):
+        return {"fast_path": self.kernel is not None, "fast_note": self.fast_note}
+
+    def close(self):
+        if self.kernel is not None:
+            self.kernel.close()
+            self.kernel = None
+        super().close()

@@ -1,5 +1,6 @@
-/* The classical fixed-point masters on the kernel route: jacobi-iter and gauss-seidel-iter
- * (wavecosim/masters/fixed_point.py, the passes of wavecosim/masters/physical.py), with the FMUs in
+/* The classical masters on the kernel route: explicit and gauss-seidel (wavecosim/masters/explicit.py,
+ * gauss_seidel.py), jacobi-iter and gauss-seidel-iter (fixed_point.py), each made of the passes of
+ * wavecosim/masters/physical.py, with the FMUs in
  * their physical port mode, evaluated by drkernel.c's subsystem evaluation (kernel_internal.h).
  * The arithmetic follows the Python reference operation by operation (inputs G y by
  * linalg.matvec_rows, the residual by linalg.distance), so the numbers are bit-identical. */
@@ -32,10 +33,13 @@ CLKernel *cl_create(DRKernel *k, const int *G_start, const int *G_col, const dou
     return c;
 }
 
+enum { QUERY = 0, COMMIT = 1, FORWARD = 2 };
+
 /* One pass (PhysicalMaster.sweep): y_new = y, then each subsystem in order gets inputs G y (or,
  * sequential, G y_new with its predecessors' new outputs) and writes its outputs into y_new; the
- * inputs handed out are left in `inputs`. The first failing subsystem, or -1. */
-static int sweep(CLKernel *c, const double *y, double *y_new, double *inputs, double t, double h, int commit,
+ * inputs handed out are left in `inputs`. how: QUERY from x_i^n (state discarded), COMMIT from x_i^n,
+ * FORWARD from the current state with nothing saved. The first failing subsystem, or -1. */
+static int sweep(CLKernel *c, const double *y, double *y_new, double *inputs, double t, double h, int how,
                  int sequential) {
     DRKernel *k = c->k;
     memcpy(y_new, y, dr_channels(k) * sizeof *y);
@@ -44,7 +48,8 @@ static int sweep(CLKernel *c, const double *y, double *y_new, double *inputs, do
         size_t off, m;
         dr_span(k, i, &off, &m);
         dr_csr_rows(c->G, source, inputs, off, off + m);
-        if (dr_evaluate(k, i, inputs, y_new, t, h, commit)) return i;
+        if (how == FORWARD ? dr_advance(k, i, inputs, y_new, t, h) : dr_evaluate(k, i, inputs, y_new, t, h, how))
+            return i;
     }
     return -1;
 }
@@ -59,7 +64,7 @@ int cl_fixed_point_step(CLKernel *c, DRStep *io, const double *y_n, double *y_ne
     int it = 0, reason = DR_BUDGET;
     double residual = NAN;
     while (it < io->K) {
-        int f = sweep(c, y, y_new, c->inputs, io->t, io->dt, 0, sequential);   /* y~ = S^n(G y) */
+        int f = sweep(c, y, y_new, c->inputs, io->t, io->dt, QUERY, sequential);   /* y~ = S^n(G y) */
         if (f >= 0) return dr_fail(k, io, f);
         residual = dr_distance(y_new, y, n);
         double *swap = y;                                        /* y^{k+1} = y~ (Picard) */
@@ -78,8 +83,17 @@ int cl_fixed_point_step(CLKernel *c, DRStep *io, const double *y_n, double *y_ne
     io->iterations = it;
     io->residual = residual;
     io->reason = io->K ? reason : DR_EXPLICIT;
-    int f = sweep(c, y, y_next, u, io->t, io->dt, 1, sequential);  /* the commit, inputs G y^K */
+    int f = sweep(c, y, y_next, u, io->t, io->dt, COMMIT, sequential);  /* the commit, inputs G y^K */
     return f >= 0 ? dr_fail(k, io, f) : 0;
+}
+
+int cl_explicit_step(CLKernel *c, DRStep *io, const double *y_n, double *y_next, int sequential) {
+    dr_begin(c->k, io);
+    io->iterations = 0;
+    io->residual = NAN;
+    io->reason = DR_EXPLICIT;
+    int f = sweep(c, y_n, y_next, c->inputs, io->t, io->dt, FORWARD, sequential);  /* y^{n+1} = Phi(x^n, G y^n) */
+    return f >= 0 ? dr_fail(c->k, io, f) : 0;
 }
 
 void cl_destroy(CLKernel *c) {

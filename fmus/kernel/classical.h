@@ -19,6 +19,11 @@ CLKernel *cl_create(DRKernel *k, const int *G_start, const int *G_col, const dou
  * Returns 0, or -1 when an FMU call failed (io->failed_*). */
 int cl_fixed_point_step(CLKernel *c, DRStep *io, const double *y_n, double *y_next, double *u, int sequential);
 
+/* One macro-step of explicit coupling (no state saved): every subsystem steps once with inputs
+ * G y_n (sequential: Gauss-Seidel, the newest outputs), outputs into y_next (the caller's, not y_n).
+ * Returns like cl_fixed_point_step. */
+int cl_explicit_step(CLKernel *c, DRStep *io, const double *y_n, double *y_next, int sequential);
+
 void cl_destroy(CLKernel *c);
 
 #endif

@@ -7,14 +7,14 @@ for DR) the whole macro-step runs in C (wavecosim/classical_path.py), to the las
 """
 import time
 
-from ..classical_path import ClassicalKernel, refusal
+from ..classical_path import KernelRoute
 from ..fast_path import REASONS
 from ..linalg import distance
 from .base import StepLog
 from .physical import RollbackPhysicalMaster
 
 
-class JacobiIterMaster(RollbackPhysicalMaster):
+class JacobiIterMaster(KernelRoute, RollbackPhysicalMaster):
     """Fixed-point (Picard) iteration, all subsystems queried with the previous iterate."""
     budgets = (1, 2, 3, 5, 10)
     style = ("tab:purple", "s")
@@ -22,11 +22,7 @@ class JacobiIterMaster(RollbackPhysicalMaster):
     def __init__(self, scene, settings):
         super().__init__(scene, settings)
         self.K, self.eps = settings.K, settings.eps
-        self.kernel, self.fast_note = None, "Python reference (this master's update has no kernel route)"
-        if type(self).update is JacobiIterMaster.update:             # plain Picard: Jacobi or Gauss-Seidel
-            self.fast_note = refusal(scene, str(settings.fast).lower())
-            if self.fast_note is None:
-                self.kernel, self.fast_note = ClassicalKernel(scene, self.G), "C kernel"
+        self.attach_kernel(scene, settings, type(self).update is JacobiIterMaster.update)   # plain Picard only
 
     def step(self, n, t) -> StepLog:
         if self.kernel is not None:
@@ -58,15 +54,6 @@ class JacobiIterMaster(RollbackPhysicalMaster):
             s.note_kernel_step(n, t, io.iterations)
         self.y_step_start, self.y, self.u = self.y, y_next, u
         return StepLog(iterations=io.iterations, residual=io.residual, reason=REASONS[io.reason])
-
-    def run_info(self):
-        return {"fast_path": self.kernel is not None, "fast_note": self.fast_note}
-
-    def close(self):
-        if self.kernel is not None:
-            self.kernel.close()
-            self.kernel = None
-        super().close()
 
     def restart(self):
         """A new macro-step's iteration begins (accelerators forget what they learnt)."""
