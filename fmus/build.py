@@ -160,13 +160,21 @@ def build_all(force=False, log=print) -> dict:
         fmus[model_identifier(GEN / spec.stem)] = path
     if KERNEL.is_dir():
         for c_file in sorted(KERNEL.glob("*.c")):
-            kernel_library(c_file.stem, force, log)
+            if c_file.name not in PART_OF_LIBRARY:
+                kernel_library(c_file.stem, force, log)
     return fmus
 
 
+# C files compiled into another file's library: the routes built on the DR kernel's subsystem
+# evaluation (classical.c) go into libdrkernel.so.
+PART_OF_LIBRARY = {"classical.c": "drkernel"}
+
+
 def kernel_library(name: str, force=False, log=print) -> Path:
-    """build/lib/lib<name>.so from fmus/kernel/<name>.c (with the kernel's headers)."""
-    return build_library(name, [KERNEL / f"{name}.c", *KERNEL.glob("*.h")], force, log)
+    """build/lib/lib<name>.so from fmus/kernel/<name>.c and the files PART_OF_LIBRARY puts in it
+    (with the kernel's headers)."""
+    parts = sorted(KERNEL / f for f, lib in PART_OF_LIBRARY.items() if lib == name)
+    return build_library(name, [KERNEL / f"{name}.c", *parts, *sorted(KERNEL.glob("*.h"))], force, log)
 
 
 if __name__ == "__main__":

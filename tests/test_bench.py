@@ -23,3 +23,6 @@ def test_bench_quick_reports_every_path_and_the_run_over_master_ratio(tmp_path, 
     assert set(bound) == {"star", "heavy_chain"} and [b["deadline_us"] for b in bound.values()] == [30.0, 1500.0]
     assert all(b["bound_us"] == b["deadline_us"] + b["round_us"] and {"median", "p99", "max"} <= set(b["all_us"])
                for b in bound.values())
+    assert set(data["us_per_subsystem_iter"]) == {"8", "64", "512"} and all(v > 0 for v in data["us_per_subsystem_iter"].values())
+    assert set(data["classical_kernel"]["masters"]) == {"explicit", "gauss-seidel", "jacobi-iter", "gauss-seidel-iter"}
+    assert "chain of N" in out and "classical masters" in out

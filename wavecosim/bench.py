@@ -291,6 +291,19 @@ def slope(x, y):
     return float(np.polyfit(x, y, 1)[0])
 
 
+def with_scale_and_classical(result, scenario, quick, progress):
+    """The result with the scale rows (bench_scale.py) and the classical masters' kernel route
+    (bench_classical.py) added, and their targets."""
+    from .bench_classical import classical_rows   # both use this module's helpers
+    from .bench_scale import scale_rows
+    scale, classical = scale_rows(quick, progress), classical_rows(scenario, quick, progress)
+    result.update(us_per_subsystem_iter=scale["us_per_subsystem_iter"], scale=scale, classical_kernel=classical)
+    result["targets"].update({"N = 512 within 1.5x of N = 8 per subsystem and iteration": scale["target_met"],
+                              "classical masters on the kernel >= 10x faster than their Python loops at K = 10":
+                              classical["target_met"]})
+    return result
+
+
 def run_bench(quick=False, progress=print):
     """All measurements; returns the JSON-ready result."""
     n_steps, repeats = (200, 3) if quick else (1000, 3)
@@ -308,7 +321,7 @@ def run_bench(quick=False, progress=print):
               "fast_step_over_floor_K0": per_step["fast_step"][0] / per_step["floor"][0],
               "naive_over_fast": per_iter["naive_fmpy"] / per_iter["fast"],
               "python_over_fast": per_iter["python"] / per_iter["fast"]}
-    return {
+    return with_scale_and_classical({
         "scene": scenario.name, "steps": n_steps, "repeats": repeats, "quick": quick,
         "us_per_step": {p: {str(K): v for K, v in per_step[p].items()} for p in PATHS},
         "us_per_iter": per_iter,
@@ -336,7 +349,7 @@ def run_bench(quick=False, progress=print):
             "run / master <= 3 with certificates": max(over["certificates_K0"], over["certificates_K50"])
             <= TARGETS["run_over_master_certificates_max"],
         },
-    }
+    }, scenario, quick, progress)
 
 
 def report(result):
@@ -373,5 +386,9 @@ def report(result):
         on_cpu = "-" if d["on_cpu_within"] is None else f"{100 * d['on_cpu_within']:.1f}%"
         lines.append(f"{name:<20}{d['deadline_us']:>9.1f}{d['bound_us']:>9.1f}{a['median']:>9.1f}{a['p99']:>9.1f}"
                      f"{a['max']:>10.1f}{100 * d['within']:>7.1f}%{on_cpu:>8}{d['steps_acted']:>7}{guarded:>22}")
+    from .bench_classical import report_classical
+    from .bench_scale import report_scale
+    lines.extend(report_scale(result["scale"]))
+    lines.extend(report_classical(result["classical_kernel"]))
     lines.append("targets: " + ", ".join(f"{k}: {'met' if v else 'MISSED'}" for k, v in result["targets"].items()))
     return lines

@@ -331,7 +331,7 @@ def load_scenario(path=None) -> Scenario:
 
 
 def load_raw(path) -> dict:
-    """The YAML mapping of a scenario file, read safely but not yet checked."""
+    """The YAML mapping of a scenario file, read safely, its repeats expanded, not yet checked."""
     path = Path(path)
     if not path.exists():
         raise ConfigError(f"{path}: scenario file not found")
@@ -343,7 +343,7 @@ def load_raw(path) -> dict:
         raise ConfigError(f"{path}: not valid YAML ({where}: {getattr(exc, 'problem', exc)})") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{path}: cannot read: {exc}") from None
-    return raw
+    return expand_repeats(raw, _Checker(str(path)))         # so that --set sees every repeated entry
 
 
 def _master(ck, m) -> MasterConfig:
@@ -392,9 +392,77 @@ def _outputs(ck, raw, names):
     return dict(outputs), list(error)
 
 
+REPEAT_SECTIONS = ("subsystems", "couplings", "outputs", "error")
+REPEAT_RANGE = re.compile(r"^\s*(-?\d+)\s*\.\.\s*(-?\d+)\s*$")
+INDEX_EXPR = re.compile(r"\{\s*(?:(\d+)\s*\*\s*)?([A-Za-z_]\w*)\s*(?:([+-])\s*(\d+))?\s*\}")
+
+
+def expand_repeats(raw, ck):
+    """N identical entries in a few lines: in subsystems, couplings, outputs and error, an entry
+    that is a mapping with `repeat: {i: a..b}` stands for its copies for i = a..b (inclusive), with
+    `{i}`, `{i+1}`, `{2*i-1}` ... replaced in its strings and in its key; a copy is the mapping
+    without `repeat`, or its `value` when that is the only other key. Returns the expanded mapping."""
+    if not isinstance(raw, dict):
+        return raw
+    out = dict(raw)
+    for section in REPEAT_SECTIONS:
+        node = raw.get(section)
+        if isinstance(node, list):
+            out[section] = [c for k, item in enumerate(node)
+                            for _, c in _repeat_copies(ck, f"{section}[{k}]", None, item)]
+        elif isinstance(node, dict):
+            out[section] = {}
+            for key, value in node.items():
+                for new_key, c in _repeat_copies(ck, f"{section}.{key}", key, value):
+                    if new_key in out[section]:
+                        ck.fail(f"{section}.{key}", f"gives {new_key!r}, which is already given")
+                    out[section][new_key] = c
+    return out
+
+
+def _repeat_copies(ck, where, key, item):
+    """[(key, entry)] of one entry: itself, or its copies when it has a `repeat`."""
+    if not isinstance(item, dict) or "repeat" not in item:
+        return [(key, item)]
+    spec = item["repeat"]
+    if not isinstance(spec, dict) or len(spec) != 1:
+        ck.fail(f"{where}.repeat", f"must be one index and its range, like {{i: 0..7}}, got {spec!r}")
+    (var, span), = spec.items()
+    m = REPEAT_RANGE.match(str(span))
+    if not re.fullmatch(r"[A-Za-z_]\w*", str(var)) or not m or int(m.group(1)) > int(m.group(2)):
+        ck.fail(f"{where}.repeat", f"must be one index and its range a..b (a <= b), like {{i: 0..7}}, got {spec!r}")
+    body = {k: v for k, v in item.items() if k != "repeat"}
+    body = body["value"] if set(body) == {"value"} else body
+    values = range(int(m.group(1)), int(m.group(2)) + 1)
+    return [(_substitute(key, var, i), _substitute(body, var, i)) for i in values]
+
+
+def _substitute(node, var, i):
+    """node with every {var}, {var+c}, {k*var-c} in its strings (keys too) replaced by its value at
+    var = i; a string that is one such expression becomes the integer."""
+    if isinstance(node, dict):
+        return {_substitute(k, var, i): _substitute(v, var, i) for k, v in node.items()}
+    if isinstance(node, list):
+        return [_substitute(v, var, i) for v in node]
+    if not isinstance(node, str):
+        return node
+
+    def value(m):
+        if m.group(2) != var:
+            return None
+        offset = int(m.group(4) or 0) * (-1 if m.group(3) == "-" else 1)
+        return int(m.group(1) or 1) * i + offset
+
+    whole = INDEX_EXPR.fullmatch(node.strip())
+    if whole and value(whole) is not None:
+        return value(whole)
+    return INDEX_EXPR.sub(lambda m: m.group(0) if value(m) is None else str(value(m)), node)
+
+
 def parse_scenario(raw, source="<scenario>", base_dir=Path(".")) -> Scenario:
     """Check a parsed scenario mapping key by key; the first problem is a ConfigError naming the key."""
     ck = _Checker(source)
+    raw = expand_repeats(raw, ck)
     top = ("name", "description", "dt", "T", "gamma", "subsystems", "couplings", "master", "certificates",
            "outputs", "error", "fne_watch")
     ck.mapping(raw, "", top, required=("dt", "T", "gamma", "subsystems", "couplings"))

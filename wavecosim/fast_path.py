@@ -20,6 +20,7 @@ from .builtin import kernel_library
 from .errors import FmuError
 from .kernel_adapter import KernelAdapter
 from .kernel_adapter import load_library as load_adapter_library
+from .linalg import Sparse
 
 PARALLEL_MIN_US = 150.0
 REASONS = ("budget", "tolerance", "deadline", "explicit", "converged", "energy-guard")  # as masters/base.py (the
@@ -95,8 +96,8 @@ def load_library():
         lib.dr_destroy.argtypes = [p]
         lib.dr_destroy.restype = None
         lib.dr_floor.argtypes = [p, ctypes.POINTER(DRStep), d, i]
-        lib.dr_set_maps.argtypes = [p, d, d]
-        lib.dr_set_maps.restype = None
+        ip = ctypes.POINTER(ctypes.c_int)
+        lib.dr_set_maps.argtypes = [p, ip, ip, d, ip, ip, d]
         lib.dr_set_trace.argtypes = [p, d, i]
         lib.dr_set_trace.restype = None
         lib.dr_set_observed.argtypes = [p, i, ctypes.POINTER(ctypes.c_uint), i]
@@ -192,6 +193,8 @@ class Kernel:
     """One C kernel over a scene's subsystems (wave mode), with its buffers b, a_hat, u^0, u^K."""
 
     def __init__(self, scene, P, J_L):
+        """P, J_L: linalg.Sparse or dense rows; None for a route without them (classical_path.py),
+        which then runs the subsystems in the port mode the scene opened them in."""
         lib = self.lib = load_library()
         n = scene.n_channels
         self.subsystems = scene.subsystems
@@ -200,18 +203,22 @@ class Kernel:
         # b^n, a, u^0, u^K side by side, so that one slice reads all four after a macro-step
         self.results = (ctypes.c_double * (4 * n))()
         self.b, self.a_hat, self.u0, self.uK = [array.from_buffer(self.results, 8 * n * j) for j in range(4)]
-        self.handle = lib.dr_create(len(self.subsystems), n, self._flat(P), self._flat(J_L), self.b, self.a_hat,
-                                    self.u0, self.uK)
+        self.handle = lib.dr_create(len(self.subsystems), n, None, None, self.b, self.a_hat, self.u0, self.uK)
         if not self.handle:
             raise FmuError("the DR kernel could not be created (out of memory)")
         self._handle = ctypes.c_void_p(self.handle)
+        try:
+            if P is not None:
+                self.set_maps(P, J_L)
+        except FmuError:
+            self.close()
+            raise
         for i, (s, off) in enumerate(zip(self.subsystems, scene.offsets)):
             fns, comp = fmu_functions(s)
             if s.adapter:
                 fns, comp, vr_in, vr_out = adapter_port(s, fns, comp)
             else:
-                vr_in = (ctypes.c_uint * s.m)(*s.fmu.real_vrs(s.port.wave_in))
-                vr_out = (ctypes.c_uint * s.m)(*s.fmu.real_vrs(s.port.wave_out))
+                vr_in, vr_out = s.port_vrs()
             # x_i^n goes into the Subsystem's own handle, so that after a fast macro-step the
             # Subsystem holds x_i^n exactly as after the reference one (restore_frozen, thaw work)
             state = s.state_handle_address()
@@ -256,11 +263,16 @@ class Kernel:
         columns = self.log[:count * self.width].reshape(self.width, count)[:, :done]
         return done, BlockLog(columns, self.n, bool(self.io.stopped)), error
 
-    def _flat(self, M):
-        return (ctypes.c_double * (self.n * self.n))(*[float(x) for row in M for x in row])
-
     def set_maps(self, P, J_L):
-        self.lib.dr_set_maps(self.handle, self._flat(P), self._flat(J_L))
+        """P and J_L (linalg.Sparse, or dense rows) for the next macro-steps, copied by the kernel."""
+        args = []
+        for M in (P, J_L):
+            M = M if isinstance(M, Sparse) else Sparse.from_dense(M)
+            args += [M.start.ctypes.data_as(ctypes.POINTER(ctypes.c_int)),
+                     M.col.ctypes.data_as(ctypes.POINTER(ctypes.c_int)),
+                     M.val.ctypes.data_as(ctypes.POINTER(ctypes.c_double))]
+        if self.lib.dr_set_maps(self.handle, *args):
+            raise FmuError("the DR kernel refused the coupling maps (out of memory)")
 
     def record(self, capacity):
         """Record up to `capacity` inner-loop queries (u^k, S(u^k)) per macro-step (0 = stop)."""

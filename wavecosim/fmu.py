@@ -57,6 +57,33 @@ def extract_fmu(path: Path) -> Path:
     return target
 
 
+def shared_folder(path: Path, pool):
+    """(key, folder): one extraction per FMU file for all its instances opened with the same pool
+    (a dict the caller owns, e.g. one per scene), so they share one loaded binary and N instances
+    of one FMU cost no more code in the caches than one; pool None: a folder of its own."""
+    path = Path(path)
+    if pool is None or not path.exists():
+        return None, extract_fmu(path)
+    st = path.resolve().stat()
+    key = (str(path.resolve()), st.st_mtime_ns, st.st_size)
+    entry = pool.get(key)
+    if entry is None:
+        entry = pool[key] = [extract_fmu(path), 0]
+    entry[1] += 1
+    return key, entry[0]
+
+
+def release_folder(pool, key, folder):
+    """One instance less on a shared extraction; the folder goes with the last one."""
+    entry = pool.get(key) if pool is not None else None
+    if entry is not None and entry[0] == folder:
+        entry[1] -= 1
+        if entry[1] > 0:
+            return
+        del pool[key]
+    shutil.rmtree(folder, ignore_errors=True)
+
+
 def check_version(path, folder) -> str:
     """FMI 2.0 or 3.0, read from modelDescription.xml's root before anything else parses it."""
     import xml.etree.ElementTree as ET
@@ -162,13 +189,15 @@ class Fmi2:
 class Fmu:
     """One instantiated, initialized FMU (FMI 2.0 or 3.0); `name` is the subsystem name used in messages."""
 
-    def __init__(self, path, name, values=None, integer_values=None, start_time=0.0, optional=()):
+    def __init__(self, path, name, values=None, integer_values=None, start_time=0.0, optional=(), pool=None):
         """Load, instantiate and initialize; `values` (and `integer_values`) are start values and
         parameters by name, each set with the FMI type its variable declares (Real, Integer,
         Enumeration, Boolean, String; in FMI 3 also Float32 and every IntN/UIntN); names in
-        `optional` are skipped when the FMU lacks them."""
+        `optional` are skipped when the FMU lacks them. Instances opened with one `pool` share the
+        extracted FMU (see shared_folder)."""
         self.path, self.name = Path(path), name
-        self.folder = extract_fmu(self.path)
+        self._pool = pool
+        self._key, self.folder = shared_folder(self.path, pool)
         self.fmi_version = check_version(self.path, self.folder)
         try:
             self.description = read_model_description(str(self.folder), validate=False)
@@ -179,6 +208,9 @@ class Fmu:
             from .fmi3 import Fmi3 as binding
         cs = self.description.coSimulation
         check_runnable(self.path, self.folder, self.description, binding.platform)
+        if cs.canBeInstantiatedOnlyOncePerProcess:       # its own copy of the binary for each instance
+            release_folder(pool, self._key, self.folder)
+            self._key, self.folder = None, extract_fmu(self.path)
         self.can_save_state = bool(cs.canGetAndSetFMUstate)
         self.variables = {v.name: v for v in self.description.modelVariables}
         self.messages = []
@@ -295,4 +327,6 @@ class Fmu:
                 call()
             except Exception:
                 pass
-        shutil.rmtree(self.folder, ignore_errors=True)
+        if getattr(self, "folder", None) is not None:
+            release_folder(self._pool, self._key, self.folder)
+            self.folder = None

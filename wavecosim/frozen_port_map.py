@@ -222,6 +222,10 @@ class Subsystem:
             return buf
         return read, buf
 
+    def port_vrs(self):
+        """The value references (ctypes arrays) of the inputs a query sets and the outputs it reads."""
+        return self._in_vr, self._out_vr
+
     def state_handle_address(self):
         """Address of the handle x_i^n is saved into; the C kernel saves into it too, so after a
         kernel macro-step this Subsystem holds x_i^n exactly as after a Python one."""

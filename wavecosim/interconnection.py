@@ -3,12 +3,18 @@
 With per-channel impedances Gamma, substituting eq. (4) gives
 P = (F Gamma^-1/2 + E Gamma^1/2)^-1 (F Gamma^-1/2 - E Gamma^1/2), orthogonal when E F^T + F E^T = 0
 and [E F] has full row rank (paper eqs. 9-10, Remark 1). J_L = (2I - P)^-1 (eq. 16) is cached.
+
+Couplings that share no channel are independent: after a permutation E and F are block diagonal,
+and so are P and J_L, one block per connected component of [E F]'s pattern. Each block is compiled
+alone and P, J_L are kept sparse (linalg.Sparse), so compiling and applying them grows with the
+number of couplings, not its square.
 """
 from dataclasses import dataclass
 
 import numpy as np
 
 from .errors import CouplingError
+from .linalg import Sparse
 
 TOL = 1e-10
 
@@ -111,23 +117,63 @@ TAKES_RATIO = ("transformer", "gyrator")
 
 @dataclass
 class WaveInterconnection:
-    """The compiled interconnection: P (orthogonal), J_L = (2I - P)^-1 and |P^T P - I|."""
-    P: np.ndarray
-    J_L: np.ndarray
+    """The compiled interconnection: P (orthogonal) and J_L = (2I - P)^-1, sparse (P_sparse,
+    J_L_sparse; the dense P and J_L are built when asked), and |P^T P - I|."""
+    P_sparse: Sparse
+    J_L_sparse: Sparse
     orthogonality_residual: float
+
+    @property
+    def P(self):
+        return np.asarray(self.P_sparse)
+
+    @property
+    def J_L(self):
+        return np.asarray(self.J_L_sparse)
+
+
+def components(E, F):
+    """(rows, columns) of each connected component of [E F]'s nonzero pattern, in order of their
+    first row; one component over everything when a component is not square."""
+    n = E.shape[0]
+    parent = list(range(2 * n))                  # rows 0..n-1, columns n..2n-1
+
+    def root(i):
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    for r, c in zip(*np.nonzero((E != 0) | (F != 0))):
+        a, b = root(int(r)), root(n + int(c))
+        if a != b:
+            parent[max(a, b)] = min(a, b)
+    groups = {}
+    for i in range(2 * n):
+        groups.setdefault(root(i), ([], []))[i >= n].append(i % n)
+    found = [(rows, cols) for rows, cols in groups.values() if rows or cols]
+    if any(len(rows) != len(cols) for rows, cols in found):
+        return [(list(range(n)), list(range(n)))]
+    return found
 
 
 def check_dirac(E, F, where="coupling"):
-    """Raise CouplingError unless E e + F f = 0 is a lossless Dirac structure of full rank."""
+    """Raise CouplingError unless E e + F f = 0 is a lossless Dirac structure of full rank
+    (checked per connected component: the rank of a block-diagonal matrix is the sum of its blocks')."""
     E, F = np.asarray(E, float), np.asarray(F, float)
     if E.ndim != 2 or E.shape != F.shape or E.shape[0] != E.shape[1]:
         raise CouplingError(f"{where}: E and F must be square matrices of the same size, got "
                             f"{E.shape} and {F.shape}")
     n = E.shape[0]
-    if np.linalg.matrix_rank(np.hstack([E, F]), tol=TOL * max(1.0, np.abs(np.hstack([E, F])).max())) < n:
-        raise CouplingError(f"{where}: [E F] is not of full rank {n}; the coupling leaves port variables free")
+    tol = TOL * max(1.0, np.abs(E).max(initial=0.0), np.abs(F).max(initial=0.0))
     scale = max(1.0, np.abs(E).max() * np.abs(F).max())
-    lossless = float(np.abs(E @ F.T + F @ E.T).max() / scale)
+    rank, lossless = 0, 0.0
+    for rows, cols in components(E, F):
+        Eb, Fb = E[np.ix_(rows, cols)], F[np.ix_(rows, cols)]
+        rank += np.linalg.matrix_rank(np.hstack([Eb, Fb]), tol=tol)
+        lossless = max(lossless, float(np.abs(Eb @ Fb.T + Fb @ Eb.T).max() / scale))
+    if rank < n:
+        raise CouplingError(f"{where}: [E F] is not of full rank {n}; the coupling leaves port variables free")
     if lossless > TOL:
         raise CouplingError(f"{where}: not lossless, |E F^T + F E^T| = {lossless:.3g} (must be 0)")
     return lossless
@@ -148,6 +194,19 @@ def compile_wave_map(E, F, gammas, where="coupling") -> WaveInterconnection:
         raise CouplingError(f"{where}: gamma must be finite and > 0 on each of the {E.shape[0]} channels")
     left = F / np.sqrt(g) + E * np.sqrt(g)
     right = F / np.sqrt(g) - E * np.sqrt(g)
+    P_parts, J_parts, ortho = [], [], 0.0
+    for rows, cols in components(E, F):
+        P, J_L, residual = _compile_block(left[np.ix_(rows, cols)], right[np.ix_(rows, cols)], where)
+        ortho = max(ortho, residual)
+        P_parts.append((cols, P))
+        J_parts.append((cols, J_L))
+    n = E.shape[0]
+    return WaveInterconnection(P_sparse=_gather(P_parts, n), J_L_sparse=_gather(J_parts, n),
+                               orthogonality_residual=ortho)
+
+
+def _compile_block(left, right, where):
+    """P = left^-1 right (snapped), |P^T P - I| and J_L = (2I - P)^-1 of one component."""
     try:
         P = _snap(np.linalg.solve(left, right))
     except np.linalg.LinAlgError:
@@ -156,8 +215,22 @@ def compile_wave_map(E, F, gammas, where="coupling") -> WaveInterconnection:
     ortho = float(np.abs(P.T @ P - np.eye(n)).max())
     if ortho > 1e-9:
         raise CouplingError(f"{where}: compiled wave map is not orthogonal (|P^T P - I| = {ortho:.3g})")
-    J_L = np.linalg.inv(2.0 * np.eye(n) - P)
-    return WaveInterconnection(P=P, J_L=J_L, orthogonality_residual=ortho)
+    return P, np.linalg.inv(2.0 * np.eye(n) - P), ortho
+
+
+def _gather(parts, n):
+    """One Sparse n x n matrix from blocks (channels, dense block on those channels)."""
+    rows, cols, vals = [], [], []
+    for channels, block in parts:
+        r, c = np.nonzero(block)
+        ch = np.asarray(channels)
+        rows.append(ch[r])
+        cols.append(ch[c])
+        vals.append(block[r, c])
+    rows, cols, vals = (np.concatenate(x) for x in (rows, cols, vals))
+    order = np.lexsort((cols, rows))
+    start = np.searchsorted(rows[order], np.arange(n + 1))
+    return Sparse(n, start, cols[order], vals[order])
 
 
 def assemble(blocks, n_channels, where="coupling"):

@@ -1,15 +1,85 @@
-"""Small dense vector arithmetic in a fixed operation order, shared by the Python reference path
-and mirrored line by line in the C fast path (fmus/kernel), so both give bit-identical numbers."""
+"""Small vector arithmetic in a fixed operation order, shared by the Python reference path and
+mirrored line by line in the C fast path (fmus/kernel), so both give bit-identical numbers.
+
+The coupling maps P and J_L are stored sparse (`Sparse`, compressed rows with the columns of each
+row ascending): a row's sum over its stored entries, left to right from 0.0, has the same bits as
+the dense sum over every column, because adding an exact zero to a running sum that started at
++0.0 changes nothing (the sum is never -0.0; only a NaN or inf in a skipped column would differ).
+"""
 import math
+
+import numpy as np
+
+
+class Sparse:
+    """A square matrix in compressed rows: row i holds col[start[i]:start[i+1]] (ascending) and val;
+    np.asarray(M) gives the dense matrix (built once, for the few callers that need it)."""
+
+    def __init__(self, n, start, col, val):
+        self.n = n
+        self.start = np.ascontiguousarray(start, dtype=np.int32)
+        self.col = np.ascontiguousarray(col, dtype=np.int32)
+        self.val = np.ascontiguousarray(val, dtype=np.float64)
+        cols, vals = self.col.tolist(), self.val.tolist()
+        bounds = self.start.tolist()
+        self.rows = [(cols[a:b], vals[a:b]) for a, b in zip(bounds, bounds[1:])]
+        self._dense = None
+
+    @classmethod
+    def from_dense(cls, M):
+        """The nonzero entries of a dense square matrix, row by row, columns ascending."""
+        M = np.asarray(M, dtype=np.float64)
+        rows, cols = np.nonzero(M)
+        start = np.searchsorted(rows, np.arange(M.shape[0] + 1))
+        return cls(M.shape[0], start, cols, M[rows, cols])
+
+    @property
+    def nnz(self):
+        return len(self.val)
+
+    @property
+    def shape(self):
+        return (self.n, self.n)
+
+    def __array__(self, dtype=None, copy=None):
+        if self._dense is None:
+            self._dense = np.zeros((self.n, self.n))
+            rows = np.repeat(np.arange(self.n), np.diff(self.start))
+            self._dense[rows, self.col] = self.val
+            self._dense.flags.writeable = False
+        return self._dense if dtype is None else self._dense.astype(dtype)
+
+    def tolist(self):
+        """Dense rows as lists (for printing and old callers)."""
+        return np.asarray(self).tolist()
 
 
 def matvec(M, x):
-    """y_i = sum_j M_ij x_j, summed left to right from 0.0."""
+    """y_i = sum_j M_ij x_j, summed left to right from 0.0 over row i's stored entries (a Sparse
+    M) or over every column (dense rows)."""
     y = []
+    if isinstance(M, Sparse):
+        for cols, vals in M.rows:
+            acc = 0.0
+            for c, v in zip(cols, vals):
+                acc += v * x[c]
+            y.append(acc)
+        return y
     for row in M:
         acc = 0.0
         for mij, xj in zip(row, x):
             acc += mij * xj
+        y.append(acc)
+    return y
+
+
+def matvec_rows(M, x, r0, r1):
+    """Rows r0 .. r1 - 1 of matvec(M, x) for a Sparse M, in the same order."""
+    y = []
+    for cols, vals in M.rows[r0:r1]:
+        acc = 0.0
+        for c, v in zip(cols, vals):
+            acc += v * x[c]
         y.append(acc)
     return y
 

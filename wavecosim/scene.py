@@ -222,13 +222,13 @@ def coupling_structure(scenario: Scenario, sizes):
     return E, F, offsets
 
 
-def _open_fmu(scenario, sub, path, gamma, wave):
+def _open_fmu(scenario, sub, path, gamma, wave, pool=None):
     """One FMU instance with the subsystem's parameters, start values and port mode; a name the FMU
-    lacks is reported at its key."""
+    lacks is reported at its key. Instances of one scene share the pool (one extraction per FMU file)."""
     reals = {**sub.parameters, **sub.start, "gamma": gamma}
     integers = {**sub.integers, "port_mode": 0 if wave else 1}
     try:
-        return Fmu(path, sub.name, reals, integers, optional=("gamma", "port_mode"))
+        return Fmu(path, sub.name, reals, integers, optional=("gamma", "port_mode"), pool=pool)
     except FmuError as exc:
         key = next((f"{k}.{exc.variable}" for k in ("parameters", "start", "integers")
                     if exc.variable in getattr(sub, k)), "fmu")
@@ -265,8 +265,8 @@ def _orient(scenario, subsystem, notes):
     return {"sign": list(port.sign), "probed": probed}
 
 
-def _subsystem(scenario, sub, gamma, wave, needs_rollback, notes):
-    fmu = _open_fmu(scenario, sub, resolve_fmu(sub, scenario.source), gamma, wave)
+def _subsystem(scenario, sub, gamma, wave, needs_rollback, notes, pool=None):
+    fmu = _open_fmu(scenario, sub, resolve_fmu(sub, scenario.source), gamma, wave, pool)
     try:
         _check_fmu(scenario, sub, fmu, wave, needs_rollback)
         spec = _port_spec(sub, fmu)
@@ -290,10 +290,10 @@ def _check_outputs(scenario, subsystems):
 def build_scene(scenario: Scenario, wave=True, needs_rollback=True) -> Scene:
     """Instantiate every subsystem (wave or physical port mode) at its initial gamma and compile the coupling."""
     gammas = initial_gammas(scenario)
-    subsystems, notes, signs = [], [], {}
+    subsystems, notes, signs, pool = [], [], {}, {}
     try:
         for sub in scenario.subsystems:
-            subsystem, sign = _subsystem(scenario, sub, gammas[sub.name], wave, needs_rollback, notes)
+            subsystem, sign = _subsystem(scenario, sub, gammas[sub.name], wave, needs_rollback, notes, pool)
             subsystems.append(subsystem)
             if sign is not None:
                 signs[sub.name] = sign

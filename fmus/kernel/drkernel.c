@@ -11,6 +11,7 @@
 #include <time.h>
 
 #include "drkernel.h"
+#include "kernel_internal.h"
 #include "linalg.h"
 
 /* A thread waiting for the other spins this long, then sleeps on a condition variable: spinning
@@ -52,7 +53,7 @@ struct DRKernel {
     int n_sub;
     size_t n;
     Sub *sub;
-    double *P, *J_L;
+    Csr *P, *J_L;                  /* one malloc each (freed with free) */
     double *b, *a_hat, *u0, *uK;   /* the caller's */
     double *u, *u_next, *b_hat, *z, *w;
     double *trace;                 /* the caller's, or NULL */
@@ -86,6 +87,71 @@ static void cpu_relax(void) {
 #if defined(__x86_64__) || defined(__i386__)
     __builtin_ia32_pause();
 #endif
+}
+
+/* ---- the arithmetic of master/linalg.py, in the same operation order ---- */
+
+/* Rows r0 .. r1 - 1 of y = M x, each summed over its stored entries left to right from 0.0
+ * (linalg.matvec_rows): the same bits as the dense sum, whose other terms are exact zeros added to
+ * a sum that is never -0.0. */
+void dr_csr_rows(const Csr *M, const double *x, double *y, size_t r0, size_t r1) {
+    for (size_t i = r0; i < r1; i++) {
+        double acc = 0.0;
+        for (int p = M->start[i]; p < M->start[i + 1]; p++) acc += M->val[p] * x[M->col[p]];
+        y[i] = acc;
+    }
+}
+
+/* y = M x (linalg.matvec). */
+static void csr_matvec(const Csr *M, const double *x, double *y, size_t n) {
+    dr_csr_rows(M, x, y, 0, n);
+}
+
+/* A Csr of n rows with nnz entries in one block (val first, so it stays aligned), or NULL. */
+static Csr *csr_alloc(size_t n, size_t nnz) {
+    Csr *M = malloc(sizeof *M + nnz * sizeof(double) + (n + 1 + nnz) * sizeof(int));
+    if (!M) return NULL;
+    M->n = n;
+    M->nnz = nnz;
+    M->val = (double *)(M + 1);
+    M->start = (int *)(M->val + nnz);
+    M->col = M->start + n + 1;
+    return M;
+}
+
+/* The nonzero entries of a dense row-major n x n matrix. */
+static Csr *csr_from_dense(const double *D, size_t n) {
+    size_t nnz = 0;
+    for (size_t j = 0; j < n * n; j++) nnz += D[j] != 0.0;
+    Csr *M = csr_alloc(n, nnz);
+    if (!M) return NULL;
+    size_t p = 0;
+    for (size_t i = 0; i < n; i++) {
+        M->start[i] = (int)p;
+        for (size_t j = 0; j < n; j++)
+            if (D[i * n + j] != 0.0) {
+                M->col[p] = (int)j;
+                M->val[p++] = D[i * n + j];
+            }
+    }
+    M->start[n] = (int)p;
+    return M;
+}
+
+/* A copy of the caller's compressed rows, or NULL if they are malformed (or no memory). */
+Csr *dr_csr_copy(const int *start, const int *col, const double *val, size_t n) {
+    if (start[0] != 0) return NULL;
+    for (size_t i = 0; i < n; i++)
+        if (start[i + 1] < start[i]) return NULL;
+    size_t nnz = (size_t)start[n];
+    for (size_t p = 0; p < nnz; p++)
+        if (col[p] < 0 || (size_t)col[p] >= n) return NULL;
+    Csr *M = csr_alloc(n, nnz);
+    if (!M) return NULL;
+    memcpy(M->start, start, (n + 1) * sizeof(int));
+    memcpy(M->col, col, nnz * sizeof(int));
+    memcpy(M->val, val, nnz * sizeof(double));
+    return M;
 }
 
 /* ---- one subsystem: the frozen port map (frozen_port_map.Subsystem) ---- */
@@ -256,7 +322,7 @@ int dr_macro_step(DRKernel *k, DRStep *io) {
     begin_macro_step(k, io);
     double deadline = io->deadline_s > 0.0 ? now_ns() + 1e9 * io->deadline_s : 0.0;
     double *u = k->u, *u_next = k->u_next;
-    matvec(k->P, k->b, u, n);                                    /* line 6, eq. (19): u^0 = P b^n */
+    csr_matvec(k->P, k->b, u, n);                                    /* line 6, eq. (19): u^0 = P b^n */
     memcpy(k->u0, u, n * sizeof *u);
     const double *b_star = k->b;                                 /* line 7, eq. (19): b^* = b^n */
     int it = 0, reason = DR_BUDGET;
@@ -269,7 +335,7 @@ int dr_macro_step(DRKernel *k, DRStep *io) {
             memcpy(k->trace + 2 * n * (size_t)it + n, k->b_hat, n * sizeof *u);
         }
         for (size_t j = 0; j < n; j++) k->z[j] = 2.0 * k->b_hat[j] - u[j];
-        matvec(k->J_L, k->z, k->w, n);                           /* line 11, eq. (17): w = J_L(2b - u) */
+        csr_matvec(k->J_L, k->z, k->w, n);                           /* line 11, eq. (17): w = J_L(2b - u) */
         for (size_t j = 0; j < n; j++) u_next[j] = u[j] + k->w[j] - k->b_hat[j]; /* line 12, eq. (17) update */
         b_star = k->b_hat;                                       /* line 13, eq. (20): b^* = last b */
         residual = distance(u_next, u, n);
@@ -286,7 +352,7 @@ int dr_macro_step(DRKernel *k, DRStep *io) {
             break;
         }
     }
-    matvec(k->P, b_star, k->a_hat, n);                           /* line 19, eq. (21): a = P b^* */
+    csr_matvec(k->P, b_star, k->a_hat, n);                           /* line 19, eq. (21): a = P b^* */
     memcpy(k->uK, u, n * sizeof *u);
     io->iterations = it;
     io->residual = residual;
@@ -580,16 +646,16 @@ DRKernel *dr_create(int n_sub, int n, const double *P, const double *J_L, double
     k->n_sub = n_sub;
     k->n = nn;
     k->sub = calloc((size_t)n_sub, sizeof *k->sub);
-    k->P = malloc(nn * nn * sizeof(double));
-    k->J_L = malloc(nn * nn * sizeof(double));
+    k->P = P ? csr_from_dense(P, nn) : csr_alloc(nn, 0);
+    k->J_L = J_L ? csr_from_dense(J_L, nn) : csr_alloc(nn, 0);
     k->u = calloc(5 * nn, sizeof(double));
     k->redo = calloc(4 * nn, sizeof(double));
     if (!k->sub || !k->P || !k->J_L || !k->u || !k->redo) {
         dr_destroy(k);
         return NULL;
     }
-    memcpy(k->P, P, nn * nn * sizeof(double));
-    memcpy(k->J_L, J_L, nn * nn * sizeof(double));
+    if (!P) memset(k->P->start, 0, (nn + 1) * sizeof(int));
+    if (!J_L) memset(k->J_L->start, 0, (nn + 1) * sizeof(int));
     k->u_next = k->u + nn;
     k->b_hat = k->u + 2 * nn;
     k->z = k->u + 3 * nn;
@@ -623,9 +689,19 @@ int dr_set_subsystem(DRKernel *k, int i, const DRFunctions *fn, fmi2Component co
     return 0;
 }
 
-void dr_set_maps(DRKernel *k, const double *P, const double *J_L) {
-    memcpy(k->P, P, k->n * k->n * sizeof(double));
-    memcpy(k->J_L, J_L, k->n * k->n * sizeof(double));
+int dr_set_maps(DRKernel *k, const int *P_start, const int *P_col, const double *P_val, const int *J_start,
+                const int *J_col, const double *J_val) {
+    Csr *P = dr_csr_copy(P_start, P_col, P_val, k->n), *J_L = dr_csr_copy(J_start, J_col, J_val, k->n);
+    if (!P || !J_L) {
+        free(P);
+        free(J_L);
+        return -1;
+    }
+    free(k->P);
+    free(k->J_L);
+    k->P = P;
+    k->J_L = J_L;
+    return 0;
 }
 
 void dr_set_trace(DRKernel *k, double *trace, int capacity) {
@@ -706,3 +782,32 @@ void dr_destroy(DRKernel *k) {
     free(k->redo);
     free(k);
 }
+
+/* ---- for the other routes on the same subsystem evaluation (kernel_internal.h) ---- */
+
+size_t dr_channels(const DRKernel *k) { return k->n; }
+
+int dr_subsystems(const DRKernel *k) { return k->n_sub; }
+
+void dr_span(const DRKernel *k, int i, size_t *offset, size_t *m) {
+    *offset = k->sub[i].offset;
+    *m = k->sub[i].m;
+}
+
+void dr_begin(DRKernel *k, DRStep *io) { begin_macro_step(k, io); }
+
+int dr_evaluate(DRKernel *k, int i, const double *in, double *out, double t, double h, int commit) {
+    return evaluate(&k->sub[i], in, out, t, h, commit, 0);
+}
+
+int dr_advance(DRKernel *k, int i, const double *in, double *out, double t, double h) {
+    k->sub[i].frozen = 1;                                   /* nothing saved, nothing to restore */
+    k->sub[i].dirty = 0;
+    return evaluate(&k->sub[i], in, out, t, h, 1, 0);
+}
+
+int dr_fail(DRKernel *k, DRStep *io, int i) { return report_failure(k, io, i); }
+
+double dr_distance(const double *x, const double *y, size_t n) { return distance(x, y, n); }
+
+double dr_now_ns(void) { return now_ns(); }

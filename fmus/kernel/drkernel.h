@@ -67,7 +67,8 @@ typedef struct {
 
 typedef struct DRKernel DRKernel;
 
-/* A kernel for n_sub subsystems with n channels in all. P and J_L (n x n, row-major) are copied.
+/* A kernel for n_sub subsystems with n channels in all. P and J_L (n x n, dense row-major) are
+ * copied as sparse rows, or NULL: then dr_set_maps gives them (sparse) before the first macro-step.
  * b (b^n, updated to b^{n+1} by each macro-step), a_hat, u0 and uK (length n) stay the caller's. */
 DRKernel *dr_create(int n_sub, int n, const double *P, const double *J_L, double *b, double *a_hat,
                     double *u0, double *uK);
@@ -79,8 +80,12 @@ DRKernel *dr_create(int n_sub, int n, const double *P, const double *J_L, double
 int dr_set_subsystem(DRKernel *k, int i, const DRFunctions *fn, fmi2Component comp, fmi2FMUstate *state,
                      const fmi2ValueReference *in_vr, const fmi2ValueReference *out_vr, int m, int offset);
 
-/* New P and J_L (n x n, row-major, copied), e.g. after gamma was re-tuned between macro-steps. */
-void dr_set_maps(DRKernel *k, const double *P, const double *J_L);
+/* New P and J_L (copied), e.g. after gamma was re-tuned between macro-steps, in compressed rows:
+ * row i of P holds the columns P_col[P_start[i] .. P_start[i+1]) (ascending, for the order of the
+ * sums) with values P_val, P_start[0] = 0; J_L alike. Returns 0, or -1 on malformed rows or no
+ * memory (the maps in force stay). */
+int dr_set_maps(DRKernel *k, const int *P_start, const int *P_col, const double *P_val, const int *J_start,
+                const int *J_col, const double *J_val);
 
 /* Record the inner loop's queries: trace[2 n k .. 2 n k + n) = u^k and the next n values S(u^k),
  * for k < capacity; trace = NULL stops recording. The buffer stays the caller's. */

@@ -108,7 +108,7 @@ class WaveMaster(Master):
 
     def _compile(self):
         coupling = self.scene.wave_map()
-        self.P, self.J_L = coupling.P.tolist(), coupling.J_L.tolist()
+        self.P, self.J_L = coupling.P_sparse, coupling.J_L_sparse        # linalg.Sparse; np.asarray gives them dense
 
     def _set_b(self, b):
         self._b = b

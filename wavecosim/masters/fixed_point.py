@@ -2,17 +2,19 @@
 
 Per macro-step: freeze x^n; y^0 = y^n; y^{k+1} = S^n(G y^k) by queries (a Jacobi or Gauss-Seidel
 pass), stopped by the budget K, the tolerance |y^{k+1} - y^k| <= eps, or the deadline; then commit
-with inputs G y^K. K = 0 is the explicit master of the same ordering.
+with inputs G y^K. K = 0 is the explicit master of the same ordering. With `master.fast` (auto, as
+for DR) the whole macro-step runs in C (wavecosim/classical_path.py), to the last bit the same.
 """
 import time
 
-import numpy as np
-
+from ..classical_path import KernelRoute
+from ..fast_path import REASONS
+from ..linalg import distance
 from .base import StepLog
 from .physical import RollbackPhysicalMaster
 
 
-class JacobiIterMaster(RollbackPhysicalMaster):
+class JacobiIterMaster(KernelRoute, RollbackPhysicalMaster):
     """Fixed-point (Picard) iteration, all subsystems queried with the previous iterate."""
     budgets = (1, 2, 3, 5, 10)
     style = ("tab:purple", "s")
@@ -20,8 +22,11 @@ class JacobiIterMaster(RollbackPhysicalMaster):
     def __init__(self, scene, settings):
         super().__init__(scene, settings)
         self.K, self.eps = settings.K, settings.eps
+        self.attach_kernel(scene, settings, type(self).update is JacobiIterMaster.update)   # plain Picard only
 
     def step(self, n, t) -> StepLog:
+        if self.kernel is not None:
+            return self._kernel_step(n, t)
         self.step_started = time.perf_counter()
         self.scene.freeze(n, t)
         deadline = self.step_started + self.inner_deadline_s if self.deadline_s else None
@@ -29,7 +34,7 @@ class JacobiIterMaster(RollbackPhysicalMaster):
         self.restart()
         while k < self.K:
             y_tilde = self.sweep(y, lambda sub, inputs: sub.query(inputs))
-            residual = float(np.linalg.norm(y_tilde - y))
+            residual = distance(y_tilde.tolist(), y.tolist())
             y, k = self.update(y, y_tilde), k + 1
             if self.eps is not None and residual <= self.eps:
                 reason = "tolerance"
@@ -39,6 +44,16 @@ class JacobiIterMaster(RollbackPhysicalMaster):
                 break
         self.commit(y)
         return StepLog(iterations=k, residual=residual, reason=reason if self.K else "explicit")
+
+    def _kernel_step(self, n, t) -> StepLog:
+        """The same macro-step in C (classical.c); the Subsystems book its calls."""
+        self.step_started = time.perf_counter()
+        self.kernel.configure(self.K, self.eps, self.inner_deadline_s if self.deadline_s else None)
+        io, y_next, u = self.kernel.fixed_point_step(n, t, self.y, int(self.sequential))
+        for s in self.subsystems:
+            s.note_kernel_step(n, t, io.iterations)
+        self.y_step_start, self.y, self.u = self.y, y_next, u
+        return StepLog(iterations=io.iterations, residual=io.residual, reason=REASONS[io.reason])
 
     def restart(self):
         """A new macro-step's iteration begins (accelerators forget what they learnt)."""

@@ -7,6 +7,7 @@ produced (Gauss-Seidel, `sequential`).
 """
 import numpy as np
 
+from ..linalg import Sparse, matvec_rows
 from .base import Master
 
 
@@ -17,7 +18,7 @@ class PhysicalMaster(Master):
 
     def __init__(self, scene, settings):
         super().__init__(scene, settings)
-        self.G = scene.input_map()
+        self.G = Sparse.from_dense(scene.input_map())    # rows summed in order, as the C kernel does
         self.y = np.zeros(scene.n_channels)          # the FMUs output e = f = 0 before their first step
 
     def sweep(self, y, call, inputs_used=None):
@@ -26,10 +27,10 @@ class PhysicalMaster(Master):
         y_new = y.copy()
         source = y_new if self.sequential else y
         for sub, off in zip(self.subsystems, self.scene.offsets):
-            inputs = self.G[off:off + sub.m] @ source
+            inputs = matvec_rows(self.G, source, off, off + sub.m)
             if inputs_used is not None:
                 inputs_used[off:off + sub.m] = inputs
-            y_new[off:off + sub.m] = call(sub, list(inputs))
+            y_new[off:off + sub.m] = call(sub, inputs)
         return y_new
 
 

@@ -1,0 +1,104 @@
+/* The classical masters on the kernel route: explicit and gauss-seidel (wavecosim/masters/explicit.py,
+ * gauss_seidel.py), jacobi-iter and gauss-seidel-iter (fixed_point.py), each made of the passes of
+ * wavecosim/masters/physical.py, with the FMUs in
+ * their physical port mode, evaluated by drkernel.c's subsystem evaluation (kernel_internal.h).
+ * The arithmetic follows the Python reference operation by operation (inputs G y by
+ * linalg.matvec_rows, the residual by linalg.distance), so the numbers are bit-identical. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "classical.h"
+#include "kernel_internal.h"
+
+struct CLKernel {
+    DRKernel *k;
+    Csr *G;                        /* inputs = G outputs */
+    double *y, *y_new, *inputs;    /* scratch: the iterate, its image, a pass's inputs */
+};
+
+CLKernel *cl_create(DRKernel *k, const int *G_start, const int *G_col, const double *G_val) {
+    CLKernel *c = calloc(1, sizeof *c);
+    if (!c) return NULL;
+    size_t n = dr_channels(k);
+    c->k = k;
+    c->G = dr_csr_copy(G_start, G_col, G_val, n);
+    c->y = calloc(3 * n, sizeof(double));
+    if (!c->G || !c->y) {
+        cl_destroy(c);
+        return NULL;
+    }
+    c->y_new = c->y + n;
+    c->inputs = c->y + 2 * n;
+    return c;
+}
+
+enum { QUERY = 0, COMMIT = 1, FORWARD = 2 };
+
+/* One pass (PhysicalMaster.sweep): y_new = y, then each subsystem in order gets inputs G y (or,
+ * sequential, G y_new with its predecessors' new outputs) and writes its outputs into y_new; the
+ * inputs handed out are left in `inputs`. how: QUERY from x_i^n (state discarded), COMMIT from x_i^n,
+ * FORWARD from the current state with nothing saved. The first failing subsystem, or -1. */
+static int sweep(CLKernel *c, const double *y, double *y_new, double *inputs, double t, double h, int how,
+                 int sequential) {
+    DRKernel *k = c->k;
+    memcpy(y_new, y, dr_channels(k) * sizeof *y);
+    const double *source = sequential ? y_new : y;
+    for (int i = 0; i < dr_subsystems(k); i++) {
+        size_t off, m;
+        dr_span(k, i, &off, &m);
+        dr_csr_rows(c->G, source, inputs, off, off + m);
+        if (how == FORWARD ? dr_advance(k, i, inputs, y_new, t, h) : dr_evaluate(k, i, inputs, y_new, t, h, how))
+            return i;
+    }
+    return -1;
+}
+
+int cl_fixed_point_step(CLKernel *c, DRStep *io, const double *y_n, double *y_next, double *u, int sequential) {
+    DRKernel *k = c->k;
+    size_t n = dr_channels(k);
+    dr_begin(k, io);
+    double deadline = io->deadline_s > 0.0 ? dr_now_ns() + 1e9 * io->deadline_s : 0.0;
+    double *y = c->y, *y_new = c->y_new;
+    memcpy(y, y_n, n * sizeof *y);                               /* y^0 = y^n */
+    int it = 0, reason = DR_BUDGET;
+    double residual = NAN;
+    while (it < io->K) {
+        int f = sweep(c, y, y_new, c->inputs, io->t, io->dt, QUERY, sequential);   /* y~ = S^n(G y) */
+        if (f >= 0) return dr_fail(k, io, f);
+        residual = dr_distance(y_new, y, n);
+        double *swap = y;                                        /* y^{k+1} = y~ (Picard) */
+        y = y_new;
+        y_new = swap;
+        it++;
+        if (io->eps >= 0.0 && residual <= io->eps) {
+            reason = DR_TOLERANCE;
+            break;
+        }
+        if (deadline > 0.0 && dr_now_ns() >= deadline) {
+            reason = DR_DEADLINE;
+            break;
+        }
+    }
+    io->iterations = it;
+    io->residual = residual;
+    io->reason = io->K ? reason : DR_EXPLICIT;
+    int f = sweep(c, y, y_next, u, io->t, io->dt, COMMIT, sequential);  /* the commit, inputs G y^K */
+    return f >= 0 ? dr_fail(k, io, f) : 0;
+}
+
+int cl_explicit_step(CLKernel *c, DRStep *io, const double *y_n, double *y_next, int sequential) {
+    dr_begin(c->k, io);
+    io->iterations = 0;
+    io->residual = NAN;
+    io->reason = DR_EXPLICIT;
+    int f = sweep(c, y_n, y_next, c->inputs, io->t, io->dt, FORWARD, sequential);  /* y^{n+1} = Phi(x^n, G y^n) */
+    return f >= 0 ? dr_fail(c->k, io, f) : 0;
+}
+
+void cl_destroy(CLKernel *c) {
+    if (!c) return;
+    free(c->G);
+    free(c->y);
+    free(c);
+}

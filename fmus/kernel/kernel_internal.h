@@ -1,0 +1,47 @@
+/* What drkernel.c shares with the other routes built on its subsystem evaluation (classical.c);
+ * not part of the ctypes interface. */
+#ifndef WAVECOSIM_KERNEL_INTERNAL_H
+#define WAVECOSIM_KERNEL_INTERNAL_H
+
+#include "drkernel.h"
+
+/* A square matrix (P, J_L, the classical masters' input map G) in compressed rows, one block:
+ * row i holds col[start[i] .. start[i+1]) (ascending) and val. */
+typedef struct {
+    size_t n, nnz;
+    int *start, *col;
+    double *val;
+} Csr;
+
+/* A copy of compressed rows (freed with free), or NULL if they are malformed or memory is short. */
+Csr *dr_csr_copy(const int *start, const int *col, const double *val, size_t n);
+
+/* Rows r0 .. r1 - 1 of y = M x, each summed left to right from 0.0 (linalg.matvec_rows). */
+void dr_csr_rows(const Csr *M, const double *x, double *y, size_t r0, size_t r1);
+
+size_t dr_channels(const DRKernel *k);
+int dr_subsystems(const DRKernel *k);
+
+/* Offset of subsystem i's first channel in the stacked vectors, and its channel count. */
+void dr_span(const DRKernel *k, int i, size_t *offset, size_t *m);
+
+/* A new macro-step: the first evaluation of each subsystem saves x_i^n; failures cleared. */
+void dr_begin(DRKernel *k, DRStep *io);
+
+/* Subsystem i at in -> out on its channels (commit = 0: from x_i^n, state discarded; 1: kept);
+ * nonzero when an FMU call failed. */
+int dr_evaluate(DRKernel *k, int i, const double *in, double *out, double t, double h, int commit);
+
+/* Subsystem i one step forward from its current state, nothing saved first (masters that never
+ * roll back: frozen_port_map.py's begin + advance). */
+int dr_advance(DRKernel *k, int i, const double *in, double *out, double t, double h);
+
+/* Report subsystem i's failed call in io; returns -1. */
+int dr_fail(DRKernel *k, DRStep *io, int i);
+
+/* |x - y|, squares summed left to right (linalg.distance). */
+double dr_distance(const double *x, const double *y, size_t n);
+
+double dr_now_ns(void);
+
+#endif
