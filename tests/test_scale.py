@@ -178,11 +178,11 @@ def test_a_bad_repeat_is_one_line_naming_its_key(change, key, needle):
 
 def test_instances_of_one_fmu_in_a_scene_share_one_extraction(built_fmus):
     scene = build_scene(chain_scenario(8))
-    folders = {Path(s.fmu._dir) for s in scene.subsystems}
+    folders = {Path(s.fmu.folder) for s in scene.subsystems}
     other = build_scene(chain_scenario(2))
     try:
         assert len(folders) == 1 and all(f.exists() for f in folders)
-        assert {Path(s.fmu._dir) for s in other.subsystems}.isdisjoint(folders)   # a scene of its own
+        assert {Path(s.fmu.folder) for s in other.subsystems}.isdisjoint(folders)   # a scene of its own
     finally:
         other.close()
         scene.close()
