@@ -291,7 +291,9 @@ def validate_cmd(config):
     scene = build_scene(scenario, wave=True)
     try:
         wm = scene.wave_map()
-        click.echo(f"{scenario.source}: OK ({len(scene.subsystems)} subsystems, {scene.n_channels} channels, "
+        signals = (f", {len(scene.signal_only)} signal-only, {len(scenario.signals)} signals, "
+                   f"{len(scenario.sources)} sources") if scenario.signals else ""
+        click.echo(f"{scenario.source}: OK ({len(scene.subsystems)} subsystems{signals}, {scene.n_channels} channels, "
                    f"|P^T P - I| = {wm.orthogonality_residual:.1e})")
     finally:
         scene.close()
