@@ -167,6 +167,8 @@ SCENE_BAD = [
      "signals[1].from: the FMU DuffingSide.fmu of A has no variable 'nope'"),
     ("not-an-input", lambda r: r["signals"][1].update({"to": "S.q2"}),
      "signals[1].to: S.q2 is not an input of LinearSide.fmu (causality output)"),
+    ("default-port-input", lambda r: (r["subsystems"]["A"].pop("port"), r["signals"][0].update({"to": "A.u"})),
+     "signals[0].to: A.u is a port variable of A, so a signal cannot drive it"),
 ]
 
 

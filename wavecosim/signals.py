@@ -42,6 +42,8 @@ def _variable(where, sub, var, target):
     if target and v.causality != "input":
         raise ConfigError(f"{where}: {sub.name}.{var} is not an input of {fmu.path.name} (causality "
                           f"{v.causality})")
+    if target and var in sub.port.physical_in + sub.port.wave_in:
+        raise ConfigError(f"{where}: {sub.name}.{var} is a port variable of {sub.name}, so a signal cannot drive it")
     return fmu.vr(var)
 
 
