@@ -145,6 +145,8 @@ def _report_run(scenario, result, out):
     print_table([s], ["steps", "max_error", "rms_error", "final_error", "max_passivity_pos", "max_augmented_pos",
                       "min_fne_margin", "iterations_mean", "wall_time_s", "total_time_s",
                       *(["energy_guard_steps"] if "energy_guard_steps" in s else [])])
+    if "signal_note" in s:
+        click.echo(f"note: {s['signal_note']}")
 
 
 # sweep: the common options with --K a list, plus those of general sweeps
