@@ -197,3 +197,17 @@ def test_a_subsystem_without_port_and_without_signals_keeps_the_default_wave_por
 def test_the_api_runs_a_scene_with_signals(folder):
     result = wc.simulate(scenario(folder), K=20, warn=quiet)
     assert result.summary["status"] == "finished" and result.summary["signals"] == 2
+
+
+def test_a_non_finite_signal_stops_the_run_naming_the_signal(folder):
+    """A held value that overflows (2 x 1e308 from the table at 0.05 s) stops the run with a
+    NumericalError (exit 4) naming the signal, the step and the time; the steps before it are kept."""
+    (folder / "huge.csv").write_text(f"time,force\n0.0,0.0\n{STEP_AT},1e308\n")
+
+    def huge(raw):
+        raw["sources"] = {"push": {"csv": "huge.csv"}}
+        raw["signals"][0]["factor"] = 2.0
+    with pytest.raises(wc.RunFailed) as info:
+        run(scenario(folder, huge), warn=quiet)
+    assert "signals[0]: push.force gave inf at step 5 (t = 0.05)" in str(info.value)
+    assert info.value.exit_code == 4 and info.value.result.summary["steps"] == 5

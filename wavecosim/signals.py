@@ -7,9 +7,11 @@ so every query and the commit of step n see the same held inputs (an FMI 2 state
 inputs). All values are read before any is set, so the order of the signals never matters. Then
 each signal-only subsystem (no port) makes its one doStep of the macro-step.
 """
+import math
+
 import numpy as np
 
-from .errors import ConfigError
+from .errors import ConfigError, NumericalError
 
 TIME_TOL = 1e-9          # a table time within TIME_TOL * dt above t_n counts as reached
 
@@ -52,6 +54,7 @@ class Signals:
 
     def __init__(self, scenario, subsystems, signal_only):
         self.dt, self.signal_only = scenario.dt, signal_only
+        self.where, self.refs = scenario.source, [sig.source for sig in scenario.signals]
         tables = {s.name: SourceTable(s, scenario.dt) for s in scenario.sources}
         self.reads, self.writes = [], {}               # reads: value(t) per signal; writes: {sub: (vrs, rows)}
         for k, sig in enumerate(scenario.signals):
@@ -80,6 +83,10 @@ class Signals:
         """Read every signal at t_n, then set each on its input (held over macro-step n)."""
         t = n * self.dt
         values = [read(t) for read in self.reads]
+        if not all(map(math.isfinite, values)):
+            k = next(k for k, v in enumerate(values) if not math.isfinite(v))
+            raise NumericalError(f"{self.where}: signals[{k}]: {self.refs[k]} gave {values[k]} at step {n} "
+                                 f"(t = {t:.6g})")
         for sub, (vrs, rows) in self.writes.items():
             sub.fmu.set_real(vrs, [values[k] for k in rows])
 
