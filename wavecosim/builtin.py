@@ -9,6 +9,7 @@ from .errors import FmuError
 ROOT = Path(__file__).resolve().parent.parent
 _build = None
 _built = None
+_helpers = {}
 
 
 def build_module():
@@ -38,11 +39,21 @@ def builtin_fmus() -> dict:
     return _built
 
 
+def helper_library(name):
+    """fmus/kernel/<name>.c as a ctypes library (build/lib/lib<name>.so, built on first use when
+    missing or stale); None when it cannot be built (no C compiler)."""
+    if name not in _helpers:
+        build = build_module()
+        try:
+            _helpers[name] = ctypes.CDLL(str(build.kernel_library(name, log=lambda msg: None)))
+        except (build.BuildError, OSError):
+            _helpers[name] = None
+    return _helpers[name]
+
+
 def kernel_library(name, what):
-    """build/lib/lib<name>.so (from fmus/kernel/<name>.c), built with the FMUs if missing or stale,
-    loaded; raises FmuError naming `what` if it cannot be."""
-    builtin_fmus()                           # fmus/build.py compiles every fmus/kernel/*.c
-    path = ROOT / "build" / "lib" / f"lib{name}.so"
-    if not path.exists():
-        raise FmuError(f"{what} {path} was not built")
-    return ctypes.CDLL(str(path))
+    """helper_library(name), or an FmuError naming `what` when it cannot be built or loaded."""
+    lib = helper_library(name)
+    if lib is None:
+        raise FmuError(f"{what} {ROOT / 'build' / 'lib' / f'lib{name}.so'} could not be built")
+    return lib

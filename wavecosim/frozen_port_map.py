@@ -10,7 +10,11 @@ with only a physical port.
 import ctypes
 from dataclasses import dataclass, field
 
+import numpy as np
+
+from .builtin import helper_library
 from .errors import FmuError
+from .fast_path import _FMI_NAMES, FUNCTIONS, DRFunctions
 from .ports import DirectPort, WaveAdapter
 
 
@@ -64,7 +68,9 @@ class Subsystem:
         self._m = ctypes.c_size_t(m)
         self._state = ctypes.c_void_p()
         self._dirty = False
+        self._batch = None                   # (queries library or None, its DRFunctions), on first raw_queries
         self.t = 0.0
+        self._t = ctypes.c_double(0.0)
         self.calls = {"doStep": 0, "save": 0, "restore": 0}
         self.map = self._port_map(gamma)
 
@@ -156,6 +162,35 @@ class Subsystem:
             self._restore()
         self._dirty = True
         return self._step(u)
+
+    def queries(self, rows):
+        """query of each row of a 2-D array, in order, as rows (one C call when the port is the FMU's own map)."""
+        if isinstance(self.map, DirectPort) and self.map.in_scale is None:
+            return self.raw_queries(rows)
+        return np.array([self.query(list(r)) for r in rows], float).reshape(len(rows), self.m)
+
+    def raw_queries(self, rows):
+        """raw_query of each row of a 2-D array, in order, as rows of outputs: one C call
+        (fmus/kernel/queries.c) making the same FMU calls, or raw_query row by row without it."""
+        if self._batch is None:
+            lib = helper_library("queries")
+            self._batch = (lib, lib and DRFunctions(*[self.fmu.function_pointer(name) for name in _FMI_NAMES]))
+        lib, fns = self._batch
+        if lib is None:
+            return np.array([self.raw_query(list(r)) for r in rows], float).reshape(len(rows), self.m)
+        inputs = np.ascontiguousarray(rows, dtype=float)
+        out, failed, p = np.empty_like(inputs), (ctypes.c_int * 2)(), ctypes.c_void_p
+        done = lib.fq_queries(ctypes.byref(fns), self._comp, ctypes.byref(self._state), self._in_vr, self._out_vr,
+                              self.m, self._t, self._h, p(inputs.ctypes.data), len(inputs), p(out.ctypes.data),
+                              int(self._dirty), failed)
+        fn = failed[0] if done < len(inputs) else 0
+        restore_fn = FUNCTIONS.index("fmi2SetFMUstate")
+        self.calls["restore"] += max(0, done + (fn > 0) - (not self._dirty)) - (fn == restore_fn)
+        self.calls["doStep"] += done + (fn == FUNCTIONS.index("fmi2GetReal"))
+        self._dirty = self._dirty or done > 0 or fn > restore_fn
+        if fn:
+            raise self.fmu.status_error(FUNCTIONS[fn], failed[1], self.step_index, self.t)
+        return out
 
     def raw_advance(self, u):
         """Like raw_query, but the new state is kept."""
