@@ -145,6 +145,8 @@ def _report_run(scenario, result, out):
     print_table([s], ["steps", "max_error", "rms_error", "final_error", "max_passivity_pos", "max_augmented_pos",
                       "min_fne_margin", "iterations_mean", "wall_time_s", "total_time_s",
                       *(["energy_guard_steps"] if "energy_guard_steps" in s else [])])
+    if "signal_note" in s:
+        click.echo(f"note: {s['signal_note']}")
 
 
 # sweep: the common options with --K a list, plus those of general sweeps
@@ -291,7 +293,9 @@ def validate_cmd(config):
     scene = build_scene(scenario, wave=True)
     try:
         wm = scene.wave_map()
-        click.echo(f"{scenario.source}: OK ({len(scene.subsystems)} subsystems, {scene.n_channels} channels, "
+        signals = (f", {len(scene.signal_only)} signal-only, {len(scenario.signals)} signals, "
+                   f"{len(scenario.sources)} sources") if scenario.signals else ""
+        click.echo(f"{scenario.source}: OK ({len(scene.subsystems)} subsystems{signals}, {scene.n_channels} channels, "
                    f"|P^T P - I| = {wm.orthogonality_residual:.1e})")
     finally:
         scene.close()

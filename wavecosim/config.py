@@ -2,9 +2,10 @@
 
 Every problem becomes a ConfigError whose one line names the file and the key path.
 """
+import csv
 import math
 import re
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import yaml
@@ -29,6 +30,30 @@ class SubsystemConfig:
     port: dict
     fmu_path: Path = None
     gamma: float = None
+
+    @property
+    def signal_only(self):
+        """No port: the subsystem only exchanges signals (stepped once per macro-step, never frozen)."""
+        return self.port is None
+
+
+@dataclass
+class SourceConfig:
+    """A time table (CSV with a header, first column `time`): the value at t_n per column."""
+    name: str
+    csv: str
+    interpolation: str                 # hold (the value at the last time <= t_n) | linear
+    times: tuple
+    columns: dict                      # {column: tuple of values, one per time}
+
+
+@dataclass
+class SignalConfig:
+    """A causal connection, held over each macro-step: to = factor * from + offset (SSP LinearTransformation)."""
+    source: str                        # SUBSYSTEM.variable or SOURCE.column
+    target: str                        # SUBSYSTEM.variable (an input)
+    factor: float = 1.0
+    offset: float = 0.0
 
 
 @dataclass
@@ -74,6 +99,9 @@ class Scenario:
     error: list
     description: str = ""
     fne_watch: bool = True
+    signal_subsystems: list = field(default_factory=list)     # subsystems without a port (signals only)
+    sources: list = field(default_factory=list)               # SourceConfig
+    signals: list = field(default_factory=list)               # SignalConfig
 
     @property
     def n_steps(self):
@@ -238,7 +266,9 @@ def _subsystem(ck, name, raw, base_dir):
     path = f"subsystems.{name}"
     ck.mapping(raw, path, ("fmu", "parameters", "start", "integers", "port", "gamma"), required=("fmu",))
     fmu = ck.string(raw["fmu"], f"{path}.fmu")
-    spec = _port(ck, f"{path}.port", ck.mapping(raw.get("port") or {}, f"{path}.port", PORT_KEYS))
+    spec = None                        # no port key: a signal-only subsystem unless a coupling names it
+    if "port" in raw:
+        spec = _port(ck, f"{path}.port", ck.mapping(raw["port"] or {}, f"{path}.port", PORT_KEYS))
     integers = raw.get("integers") or {}
     ck.mapping(integers, f"{path}.integers", list(integers))
     integers = {k: ck.integer(v, f"{path}.integers.{k}") for k, v in integers.items()}
@@ -464,7 +494,7 @@ def parse_scenario(raw, source="<scenario>", base_dir=Path(".")) -> Scenario:
     ck = _Checker(source)
     raw = expand_repeats(raw, ck)
     top = ("name", "description", "dt", "T", "gamma", "subsystems", "couplings", "master", "certificates",
-           "outputs", "error", "fne_watch")
+           "outputs", "error", "fne_watch", "sources", "signals")
     ck.mapping(raw, "", top, required=("dt", "T", "gamma", "subsystems", "couplings"))
     dt = ck.number(raw["dt"], "dt", positive=True)
     T = ck.number(raw["T"], "T", positive=True)
@@ -484,9 +514,121 @@ def parse_scenario(raw, source="<scenario>", base_dir=Path(".")) -> Scenario:
     if not isinstance(couplings, list) or not couplings:
         ck.fail("couplings", "must be a non-empty list of couplings")
     couplings = [_coupling(ck, k, c, names) for k, c in enumerate(couplings)]
+    subsystems, signal_subsystems = _split_signal_only(ck, subsystems, couplings, raw.get("signals"))
+    sources = _sources(ck, raw.get("sources"), names, base_dir)
+    signals = _signals(ck, raw.get("signals"), subsystems + signal_subsystems, sources)
     master, certs = _master(ck, raw.get("master") or {}), _certificates(ck, raw.get("certificates") or {})
     outputs, error = _outputs(ck, raw, names)
     return Scenario(name=str(raw.get("name", Path(source).stem)), source=source, dt=dt, T=T, gamma=gamma,
                     subsystems=subsystems, couplings=couplings, master=master, certificates=certs,
                     outputs=outputs, error=error, description=str(raw.get("description", "")),
-                    fne_watch=ck.boolean(raw.get("fne_watch", True), "fne_watch"))
+                    fne_watch=ck.boolean(raw.get("fne_watch", True), "fne_watch"),
+                    signal_subsystems=signal_subsystems, sources=sources, signals=signals)
+
+
+def _split_signal_only(ck, subsystems, couplings, raw_signals):
+    """(subsystems with a port, signal-only subsystems): a subsystem without `port:` that no coupling
+    names but a signal does has no port; any other gets the default wave port (our FMUs)."""
+    coupled = {PORT_REF.match(p).group(1) for c in couplings for p in c.ports}
+    signalled = {ref.split(".", 1)[0] for sig in (raw_signals if isinstance(raw_signals, list) else [])
+                 if isinstance(sig, dict) for ref in (sig.get("from"), sig.get("to")) if isinstance(ref, str)}
+    for s in subsystems:
+        if s.port is None and (s.name in coupled or s.name not in signalled):
+            s.port = _port(ck, f"subsystems.{s.name}.port", {})
+    ported = [s for s in subsystems if not s.signal_only]
+    if not ported:
+        ck.fail("subsystems", "must have at least one subsystem with a port")
+    return ported, [s for s in subsystems if s.signal_only]
+
+
+INTERPOLATIONS = ("hold", "linear")
+
+
+def _read_table(ck, path, csv_path):
+    """(times, {column: values}) of a CSV time table: a header, first column `time`, numbers,
+    strictly increasing times."""
+    try:
+        with open(csv_path, newline="") as f:
+            rows = [r for r in csv.reader(f) if r and any(x.strip() for x in r)]
+    except (OSError, UnicodeDecodeError) as exc:
+        ck.fail(f"{path}.csv", f"cannot read {csv_path}: {exc}")
+    if not rows or rows[0][0].strip() != "time":
+        ck.fail(f"{path}.csv", f"{csv_path.name}: the first column of the header must be `time`, got "
+                               f"{rows[0][0].strip() if rows else 'an empty file'!r}")
+    header = [h.strip() for h in rows[0]]
+    if len(rows) < 2 or len(header) < 2:
+        ck.fail(f"{path}.csv", f"{csv_path.name}: needs a `time` column, at least one value column and one row")
+    data = []
+    for k, row in enumerate(rows[1:], start=2):
+        try:
+            values = [float(x) for x in row]
+        except ValueError:
+            ck.fail(f"{path}.csv", f"{csv_path.name}: line {k} is not all numbers: {','.join(row)}")
+        if len(values) != len(header) or not all(map(math.isfinite, values)):
+            ck.fail(f"{path}.csv", f"{csv_path.name}: line {k} needs {len(header)} finite numbers, got {len(values)}")
+        if data and values[0] <= data[-1][0]:
+            ck.fail(f"{path}.csv", f"{csv_path.name}: times must increase, line {k} has {values[0]!r} after "
+                                   f"{data[-1][0]!r}")
+        data.append(values)
+    columns = {h: tuple(row[j] for row in data) for j, h in enumerate(header) if j}
+    return tuple(row[0] for row in data), columns
+
+
+def _sources(ck, raw, subsystem_names, base_dir):
+    """sources: {NAME: {csv: FILE, interpolation: hold | linear}}, FILE relative to the scenario."""
+    raw = raw or {}
+    ck.mapping(raw, "sources", list(raw))
+    sources = []
+    for name, spec in raw.items():
+        path = f"sources.{name}"
+        if name in subsystem_names:
+            ck.fail(path, "is also the name of a subsystem")
+        ck.mapping(spec, path, ("csv", "interpolation"), required=("csv",))
+        csv_path = (base_dir / ck.string(spec["csv"], f"{path}.csv")).resolve()
+        how = ck.string(spec.get("interpolation", "hold"), f"{path}.interpolation", INTERPOLATIONS)
+        times, columns = _read_table(ck, path, csv_path)
+        sources.append(SourceConfig(str(name), str(csv_path), how, times, columns))
+    return sources
+
+
+def _endpoint(ck, ref, path, subsystems, sources, target):
+    """A signal's end, SUBSYSTEM.variable or (a `from` only) SOURCE.column; the FMU variable is
+    checked when the FMU is opened."""
+    name, _, var = ref.partition(".") if isinstance(ref, str) else ("", "", "")
+    if not var:
+        ck.fail(path, f"must be SUBSYSTEM.variable{'' if target else ' or SOURCE.column'}, got {ref!r}")
+    source = next((s for s in sources if s.name == name), None)
+    if source is not None and not target:
+        if var not in source.columns:
+            ck.fail(path, f"source {name} has no column {var!r} (have: {', '.join(source.columns)})")
+        return
+    sub = next((s for s in subsystems if s.name == name), None)
+    if sub is None:
+        known = [s.name for s in subsystems] + ([] if target else [s.name for s in sources])
+        ck.fail(path, f"{ref!r} names no subsystem{'' if target else ' or source'} (have: {', '.join(known)})")
+    if target and var in sub.start:
+        ck.fail(path, f"{ref} is driven by a signal, so it cannot also have a start value "
+                      f"(subsystems.{name}.start.{var})")
+    port_vars = [v for key in ("physical_in", "physical_out", "wave_in", "wave_out") for v in (sub.port or {}).get(key, [])]
+    if target and var in port_vars:
+        ck.fail(path, f"{ref} is a port variable of {name}, so a signal cannot drive it")
+
+
+def _signals(ck, raw, subsystems, sources):
+    """signals: [{from: A.y, to: B.u, factor: 1.0, offset: 0.0}, ...]; each input driven at most once."""
+    raw = raw or []
+    if not isinstance(raw, list):
+        ck.fail("signals", f"must be a list of {{from, to}} connections, got {raw!r}")
+    signals, driven = [], {}
+    for k, spec in enumerate(raw):
+        path = f"signals[{k}]"
+        ck.mapping(spec, path, ("from", "to", "factor", "offset"), required=("from", "to"))
+        _endpoint(ck, spec["from"], f"{path}.from", subsystems, sources, target=False)
+        _endpoint(ck, spec["to"], f"{path}.to", subsystems, sources, target=True)
+        if spec["to"] in driven:
+            ck.fail(f"{path}.to", f"{spec['to']} is already driven by signals[{driven[spec['to']]}]")
+        driven[spec["to"]] = k
+        signals.append(SignalConfig(spec["from"], spec["to"],
+                                    ck.number(spec.get("factor", 1.0), f"{path}.factor"),
+                                    ck.number(spec.get("offset", 0.0), f"{path}.offset")))
+    return signals

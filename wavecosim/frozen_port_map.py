@@ -120,6 +120,13 @@ class Subsystem:
         """Start macro-step n at time t without saving the state (masters that never roll back)."""
         self.step_index, self.t, self._t = step_index, t, ctypes.c_double(t)
 
+    def step_alone(self, step_index, t):
+        """One doStep from the current state with the inputs already set: a subsystem without a port
+        (signals only), stepped once per macro-step and never frozen or rolled back."""
+        self.begin(step_index, t)
+        self._call(self._do_step, "fmi2DoStep", self._comp, self._t, self._h, 1)
+        self.calls["doStep"] += 1
+
     def freeze(self, step_index, t):
         """Save x_i^n, the state every query of this macro-step starts from."""
         self.begin(step_index, t)

@@ -32,7 +32,7 @@ def run_metadata(scenario, scene) -> dict:
                      **{p: _version(p) for p in ("numpy", "scipy", "fmpy")}},
         "fmus": {s.name: {"path": str(s.fmu.path), "sha256": _sha256(s.fmu.path),
                           "fmiVersion": s.fmu.description.fmiVersion,
-                          "guid": s.fmu.description.guid} for s in scene.subsystems},
+                          "guid": s.fmu.description.guid} for s in scene.subsystems + scene.signal_only},
         "host": {"node": platform.node(), "machine": platform.machine(), "system": platform.platform(),
                  "cpus": os.cpu_count()},
         "written": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),

@@ -92,13 +92,16 @@ class Sampler:
             read, buf = s.reader(names + cols)
             self.parts.append((read, s.m, len(names)))
             self.observed.append(names + cols)
+        self.alone = [s.reader([var for ref in outputs.values() for name, var in [ref.split(".", 1)]
+                                if name == s.name])[0] for s in scene.signal_only]
         owner = [ref.split(".", 1)[0] for ref in outputs.values()]
+        everyone = scene.subsystems + scene.signal_only
         order = [(i, sum(1 for o in owner[:k] if o == s.name)) for k, o in enumerate(owner)
-                 for i, s in enumerate(scene.subsystems) if s.name == o]
+                 for i, s in enumerate(everyone) if s.name == o]
         self._order = order
-        whole = len(self.observed) == len(self.parts)       # physical ports: no kernel blocks, no columns
+        whole = len(self.observed) == len(self.parts) and not self.alone   # else no kernel blocks
         self._columns = self._block_columns(order) if whole else None
-        by_name = {s.name: s for s in scene.subsystems}
+        by_name = {s.name: s for s in everyone}
         self.units = {col: by_name[ref.split(".", 1)[0]].fmu.variable(ref.split(".", 1)[1]).unit or ""
                       for col, ref in outputs.items()}
 
@@ -142,4 +145,5 @@ class Sampler:
             F.extend(v[1 + m:1 + 2 * m])
             B.extend(v[1 + 2 * m:k])
             own.append(v[k:])
+        own.extend(read()[:] for read in self.alone)         # signal-only subsystems: outputs only
         return Reading(H, E, F, B, [own[i][j] for i, j in self._order])

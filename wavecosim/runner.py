@@ -268,6 +268,7 @@ class LiveRun:
         """Macro-step n: observers before, the master, observers after (the guard may redo), one row;
         returns the Reading of the FMUs after it."""
         t = n * self.dt
+        self.scene.begin_step(n)                     # signals held over the step (none: nothing)
         before = self._totals() if self.bracket else None
         for o in self.observers:
             o.before_step(n, t)
@@ -304,6 +305,7 @@ class LiveRun:
         self.blocks = (getattr(self.master, "fast", False) and hasattr(self.master, "run_steps")
                        and not self.bracket and all(o.blocks for o, _ in self.after)
                        and (guard is None or isinstance(guard, EnergyGuard) or self.ledger)
+                       and self.scene.signals is None
                        and sys.version_info < (3, 12))
         if self.blocks:
             self.master.observe(self.sampler.observed)
@@ -430,6 +432,7 @@ class LiveRun:
         if self.master is not None:
             out.update(self.master.run_info())
             out.update(self.scene.port_info())
+            out.update(self.scene.signal_info(out.get("fast_note")))
         return out
 
     def finish(self, status, message):

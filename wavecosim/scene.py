@@ -11,6 +11,7 @@ from .fmu import Fmu
 from .frozen_port_map import PortSpec, Subsystem
 from .gamma_tuning import initial_gammas
 from .ports import probe_signs
+from .signals import Signals
 
 
 def resolve_fmu(sub, source="<scenario>") -> str:
@@ -85,6 +86,8 @@ class Scene:
     gammas: dict                       # {subsystem: gamma}, the impedances P is compiled for
     notes: list = field(default_factory=list)        # warnings from set-up (orientation found by probing)
     port_signs: dict = field(default_factory=dict)   # {subsystem: {"sign": [...], "probed": bool}}
+    signal_only: list = field(default_factory=list)  # Subsystems without a port (signals only)
+    signals: Signals = None                          # the held signal inputs (None: the scenario has none)
 
     @property
     def n_channels(self):
@@ -110,6 +113,11 @@ class Scene:
                                   f"tunable parameter gamma, so gamma cannot be tuned")
             s.set_gamma(gammas[s.name])
         self.gammas = {s.name: float(gammas[s.name]) for s in self.subsystems}
+
+    def begin_step(self, n):
+        """Before anything of macro-step n: hold the signal inputs, step the signal-only subsystems."""
+        if self.signals is not None:
+            self.signals.begin_step(n)
 
     def freeze(self, n, t):
         """Save every x_i^n (Algorithm 1, line 3)."""
@@ -165,6 +173,26 @@ class Scene:
         adapters = {s.name: s.map.info() for s in self.subsystems if s.adapter}
         return {"port_signs": self.port_signs, **({"wave_adapter": adapters} if adapters else {})}
 
+    def signal_info(self, fast_note=None):
+        """Summary fields when signals drive inputs: which subsystems, and why their energy is not a
+        violation; the kernel runs one macro-step per call (the signals are set between calls)."""
+        if self.signals is None:
+            return {}
+        driven = ", ".join(self.signals.driven)
+        out = {"signals": len(self.scenario.signals), "signal_driven_subsystems": self.signals.driven,
+               "signal_note": f"signals and sources drive inputs of {driven}: the energy they bring in is "
+                              f"legitimate; the energy ledger watches only the interface, and a Condition 2 "
+                              f"residual or H growth of {driven} includes that work, so it is not a passivity "
+                              f"violation"}
+        if fast_note == "C kernel":
+            out["fast_note"] = "C kernel, one macro-step per call (the signals are set from Python before each step)"
+        return out
+
+    def map_noise(self):
+        """Relative accuracy the frozen maps are solved to: the worst residual a wave adapter kept
+        after a stall (an FMU smooth only to its own solver's tolerance); 0.0 for exact maps."""
+        return max([s.map.worst_accepted for s in self.subsystems if s.adapter], default=0.0)
+
     def do_step_calls(self):
         """doStep calls made so far, over all subsystems (what a redo costs is the difference)."""
         return sum(s.calls["doStep"] for s in self.subsystems)
@@ -174,7 +202,7 @@ class Scene:
         return [x[off:off + s.m] for s, off in zip(self.subsystems, self.offsets)]
 
     def close(self):
-        for s in self.subsystems:
+        for s in self.subsystems + self.signal_only:
             s.close()
 
 
@@ -256,7 +284,7 @@ def _orient(scenario, subsystem, notes):
         raise ConfigError(f"{scenario.source}: subsystems.{subsystem.name}.port.sign: missing, and "
                           f"{subsystem.fmu.path.name} cannot restore its state for the orientation probe; give the sign")
     if probed:
-        signs, slopes = probe_signs(subsystem, f"subsystems.{subsystem.name}.port")
+        signs, slopes = probe_signs(subsystem, f"{scenario.source}: subsystems.{subsystem.name}.port")
         subsystem.orient(signs)
         for j, (sign, slope) in enumerate(zip(signs, slopes)):
             notes.append(f"{scenario.source}: subsystems.{subsystem.name}.port.sign not given: one doStep from the "
@@ -265,18 +293,29 @@ def _orient(scenario, subsystem, notes):
     return {"sign": list(port.sign), "probed": probed}
 
 
-def _subsystem(scenario, sub, gamma, wave, needs_rollback, notes, pool=None):
-    fmu = _open_fmu(scenario, sub, resolve_fmu(sub, scenario.source), gamma, wave, pool)
+def _subsystem(scenario, sub, gamma, wave, needs_rollback, pool=None):
+    """One opened subsystem with its port (not yet oriented), or a signal-only one (no port)."""
+    fmu = _open_fmu(scenario, sub, resolve_fmu(sub, scenario.source), gamma, wave and not sub.signal_only, pool)
     try:
+        if sub.signal_only:
+            return Subsystem(sub.name, fmu, PortSpec([], [], [], [], energy=None), scenario.dt, wave=False)
         _check_fmu(scenario, sub, fmu, wave, needs_rollback)
         spec = _port_spec(sub, fmu)
-        subsystem = Subsystem(sub.name, fmu, spec, scenario.dt, wave=wave, adapter=wave and spec.physical,
-                              gamma=gamma)
-        return subsystem, _orient(scenario, subsystem, notes)
+        return Subsystem(sub.name, fmu, spec, scenario.dt, wave=wave, adapter=wave and spec.physical, gamma=gamma)
     except ConfigError as exc:
         fmu.close()
         text = str(exc)
         raise ConfigError(text if text.startswith(scenario.source) else f"{scenario.source}: {text}") from None
+
+
+def _signals(scenario, opened):
+    """The held signals over the opened subsystems, set once at t = 0 (so the orientation and gamma
+    probes see them); None when the scenario has no signals."""
+    if not scenario.signals:
+        return None
+    signals = Signals(scenario, {s.name: s for s in opened}, opened[len(scenario.subsystems):])
+    signals.hold(0)
+    return signals
 
 
 def _check_outputs(scenario, subsystems):
@@ -290,20 +329,24 @@ def _check_outputs(scenario, subsystems):
 def build_scene(scenario: Scenario, wave=True, needs_rollback=True) -> Scene:
     """Instantiate every subsystem (wave or physical port mode) at its initial gamma and compile the coupling."""
     gammas = initial_gammas(scenario)
-    subsystems, notes, signs, pool = [], [], {}, {}
+    opened, notes, signs, pool = [], [], {}, {}
     try:
-        for sub in scenario.subsystems:
-            subsystem, sign = _subsystem(scenario, sub, gammas[sub.name], wave, needs_rollback, notes, pool)
-            subsystems.append(subsystem)
+        for sub in scenario.subsystems + scenario.signal_subsystems:
+            opened.append(_subsystem(scenario, sub, gammas.get(sub.name, 1.0), wave, needs_rollback, pool))
+        _check_outputs(scenario, opened)
+        signals = _signals(scenario, opened)
+        subsystems = opened[:len(scenario.subsystems)]
+        for subsystem in subsystems:
+            sign = _orient(scenario, subsystem, notes)
             if sign is not None:
-                signs[sub.name] = sign
-        _check_outputs(scenario, subsystems)
+                signs[subsystem.name] = sign
         E, F, offsets = coupling_structure(scenario, [s.m for s in subsystems])
-        scene = Scene(scenario, subsystems, offsets, E, F, wave, gammas, notes, signs)
+        scene = Scene(scenario, subsystems, offsets, E, F, wave, gammas, notes, signs,
+                      opened[len(subsystems):], signals)
         if wave:
             scene.wave_map()
         return scene
     except BaseException:
-        for s in subsystems:
+        for s in opened:
             s.close()
         raise

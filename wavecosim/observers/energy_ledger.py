@@ -2,7 +2,9 @@
 
 Per macro-step the interface supplies I^n = sum_i 1/2 (|a_i^n|^2 - |b_i^{n+1}|^2) (wave masters) or
 dt sum e.f over the ports (physical masters). A lossless coupling supplies none, so the ledger
-L^n = sum_{k<=n} I^k is kept <= tol (roundoff: RTOL times the interface's cumulative traffic). With
+L^n = sum_{k<=n} I^k is kept <= tol (roundoff: RTOL times the interface's cumulative traffic; where a
+wave adapter had to keep a stalled query, RTOL plus the relative accuracy the frozen maps are solved
+to, Scene.map_noise, since below that no supply can be measured). With
 Condition 2 every FMU gains at most what its port took in plus the work of its own sources, so
 H^N <= H^0 + tol + (work of sources inside the FMUs), for every budget, scene and horizon; no H
 and no interface solve are needed. K = 0 keeps the ledger by itself (L^n = -|b^{n+1}|^2 / 2).
@@ -59,8 +61,12 @@ class EnergyLedger(Observer):
         self.step_times = []            # under a deadline, per step: (wall, acted, round it may overrun by, CPU) s
 
     def kernel_state(self):
-        """(L, traffic, RTOL): what the C kernel needs to keep the ledger itself (blocks)."""
-        return self.L, self.traffic, RTOL
+        """(L, traffic, rtol): what the C kernel needs to keep the ledger itself (blocks)."""
+        return self.L, self.traffic, self.rtol()
+
+    def rtol(self):
+        """The allowance per unit of traffic: RTOL, plus the frozen maps' own accuracy (0.0 when exact)."""
+        return RTOL + self.master.scene.map_noise()
 
     def after_block(self, n0, logs, readings, rows):
         """Book a block the kernel made: it kept the ledger itself, redoing steps as _redo does, bit
@@ -84,7 +90,7 @@ class EnergyLedger(Observer):
         inputs, outputs = master.committed_inputs(log), master.committed_outputs
         supplied, traffic = master.supply(inputs, outputs)
         self._time_round(log)
-        tol = RTOL * (self.traffic + traffic)
+        tol = self.rtol() * (self.traffic + traffic)
         s, action = 1.0, 0
         if self.L + supplied > tol:
             calls = master.scene.do_step_calls()
