@@ -107,21 +107,44 @@ output_options = [
 with_output = options(output_options)
 
 
+ssp_options = options([
+    click.option("--ports", type=click.Path(dir_okay=False, path_type=Path),
+                 help="SSP input: a YAML overlay with the power ports and the run's settings (README, \"SSP in\")."),
+    click.option("--parameter-set", help="SSP input: use only the parameter sets of this name."),
+])
+
+
+def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None):
+    """A scenario file, or an SSP system (.ssd, .ssp, folder) with its overlay; import notes are warnings."""
+    from .ssp import is_ssp, load_ssp
+    if config is None or not is_ssp(config):
+        if ports or parameter_set:
+            raise ConfigError("--ports and --parameter-set: only for an SSP input (.ssd, .ssp or a folder)")
+        return load_scenario(config)
+    settings = {"dt": dt, "T": T, "gamma": parse_gamma(gamma, "--gamma") if gamma is not None else None}
+    scenario, imported = load_ssp(config, ports, parameter_set, settings)
+    for note in imported.notes:
+        click.echo(f"warning: {note}", err=True)
+    return scenario
+
+
 @cli.command("run")
-@config_argument
+@click.argument("config", required=False, type=click.Path(path_type=Path))
 @with_common
 @with_output
+@ssp_options
 @click.option("--master", "algorithm", type=click.Choice(ALGORITHMS), help="Master algorithm (default: from CONFIG).")
 @click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("out/run"), show_default=True,
               help="Output folder for trajectory.csv, steps.csv, summary.json and metadata.json.")
 @click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and the Condition 1 watch (faster).")
 @click.option("--no-reference", is_flag=True, help="Skip the monolithic reference run (no error figures).")
 @click.option("--plots", is_flag=True, help="Also write PNG figures into the output folder.")
-def run_cmd(config, K, eps, gamma, dt, T, quiet, output_interval, formats, algorithm, out, no_certificates,
-            no_reference, plots):
+def run_cmd(config, K, eps, gamma, dt, T, quiet, output_interval, formats, ports, parameter_set, algorithm, out,
+            no_certificates, no_reference, plots):
     """Run one scenario (with the monolithic reference alongside) and write its trajectory, per-step
-    certificates, summary and metadata."""
-    scenario = _apply_overrides(load_scenario(config), K, eps, gamma, dt, T, algorithm)
+    certificates, summary and metadata. CONFIG is a scenario file or an SSP system (.ssd, .ssp, folder)."""
+    scenario = _apply_overrides(_read_config(config, ports, parameter_set, dt, T, gamma), K, eps, gamma, dt, T,
+                                algorithm)
     result = simulate(scenario, out_dir=out, progress=_progress("run", quiet) or False,
                       certificates=not no_certificates, reference=not no_reference,
                       output_interval=output_interval, formats=("csv", *formats))
@@ -295,6 +318,22 @@ def validate_cmd(config):
                    f"|P^T P - I| = {wm.orthogonality_residual:.1e})")
     finally:
         scene.close()
+
+
+@cli.command("import-ssp")
+@click.argument("ssp", type=click.Path(exists=False, path_type=Path))
+@ssp_options
+@click.option("-o", "--out", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="The YAML draft to write.")
+def import_ssp_cmd(ssp, ports, parameter_set, out):
+    """Write an SSP system (.ssd, .ssp or a folder) as a scenario file to edit, each part commented
+    with where it came from."""
+    from .ssp import import_ssp
+    from .ssp.draft import write_draft
+    imported = import_ssp(ssp, ports, parameter_set)
+    for note in imported.notes:
+        click.echo(f"warning: {note}", err=True)
+    click.echo(f"wrote {write_draft(imported, out)}")
 
 
 @cli.command("build")
