@@ -116,16 +116,11 @@ ssp_options = options([
 
 def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None):
     """A scenario file, or an SSP system (.ssd, .ssp, folder) with its overlay; import notes are warnings."""
-    from .ssp import is_ssp, load_ssp
-    if config is None or not is_ssp(config):
-        if ports or parameter_set:
-            raise ConfigError("--ports and --parameter-set: only for an SSP input (.ssd, .ssp or a folder)")
-        return load_scenario(config)
-    settings = {"dt": dt, "T": T, "gamma": parse_gamma(gamma, "--gamma") if gamma is not None else None}
-    scenario, imported = load_ssp(config, ports, parameter_set, settings)
-    for note in imported.notes:
-        click.echo(f"warning: {note}", err=True)
-    return scenario
+    from .ssp import is_ssp
+    if ports or parameter_set or (config is not None and is_ssp(config)):
+        return api.load(config, ports=ports, parameter_set=parameter_set, dt=dt, T=T, gamma=gamma,
+                        warn=lambda note: click.echo(f"warning: {note}", err=True))
+    return load_scenario(config)
 
 
 @cli.command("run")
