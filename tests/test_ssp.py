@@ -13,10 +13,9 @@ import pytest
 
 import wavecosim as wc
 from wavecosim.cli import main
-from wavecosim.config import ROOT, load_raw, load_scenario, parse_scenario
+from wavecosim.config import ROOT, load_raw, load_scenario
 from wavecosim.errors import ConfigError
 from wavecosim.ssp import import_ssp, load_ssp
-from wavecosim.ssp.draft import write_draft
 
 TABLE_I_SSD = ROOT / "configs" / "two_oscillators.ssd"
 TABLE_I_YAML = ROOT / "configs" / "two_oscillators.yaml"

@@ -9,6 +9,7 @@ the other: so a factor -1 on such a connection becomes a port sign. Signs nothin
 to the run's probe."""
 from dataclasses import dataclass
 
+from ..errors import ConfigError
 from .xmlfile import fail
 
 
@@ -59,7 +60,6 @@ def find_bonds(path, ports, signals):
 
 
 def raise_unbonded(path, name, variable):
-    from ..errors import ConfigError
     raise ConfigError(f"{path.name}: the port of {name} (input {variable}) is connected to no other port")
 
 
@@ -106,7 +106,6 @@ def _propagate(path, bonds, signs, halves):
                 if p in signs and other not in signs:
                     signs[other], changed = rel * signs[p], True
                 elif p in signs and signs[other] != rel * signs[p]:
-                    from ..errors import ConfigError
                     raise ConfigError(f"{path.name} line {bond['line']}: the factors of this power bond need "
                                       f"sign({other[0]}) = {rel:+g} * sign({p[0]}), but they are "
                                       f"{signs[other]:+g} and {signs[p]:+g}")

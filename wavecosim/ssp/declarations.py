@@ -2,7 +2,10 @@
 from OSP-IS `<fmu>_OspModelDescription.xml` beside the FMU (variable groups Force + LinearVelocity,
 Torque + AngularVelocity, Voltage + Current), from our SSP annotation on the component
 (type org.wavecosim.port), and from the overlay's `ports:` (README, "SSP in")."""
+import yaml
 from lxml import etree
+
+from ..errors import ConfigError
 
 from .xmlfile import SSC, SSD, WC, fail, q
 
@@ -25,7 +28,6 @@ def annotation(path, element, kind):
 
 def attributes(element, list_keys=LIST_KEYS):
     """An element's attributes as scenario values: YAML scalars, whitespace lists for `list_keys`."""
-    import yaml
     out = {}
     for key, text in element.attrib.items():
         values = [yaml.safe_load(v) for v in text.split()] if key in list_keys else [yaml.safe_load(text)]
@@ -48,7 +50,6 @@ def _osp_channels(path, md):
     try:
         root = etree.parse(str(path)).getroot()
     except etree.XMLSyntaxError as exc:
-        from ..errors import ConfigError
         raise ConfigError(f"{path.name} line {exc.lineno}: not well-formed XML: {exc.msg}") from None
     causality = {v.name: v.causality for v in md.modelVariables}
     port = {"physical_in": [], "physical_out": [], "input": []}

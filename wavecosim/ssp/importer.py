@@ -93,8 +93,11 @@ def _subsystems(flat, mds, fmus, bindings, out):
     for key, comp in flat.components.items():
         values, origins = bindings.values(comp, mds[key])
         subsystems[comp.name] = {"fmu": fmus[key], **{k: v for k, v in values.items() if v}}
-        out.origins[f"subsystems.{comp.name}"] = (f"component {comp.element.get('name')!r} ({flat.path.name} "
-                                                  f"line {comp.element.sourceline}), {comp.fmu}")
+        asked = comp.element.get("implementation", "any")
+        out.origins[f"subsystems.{comp.name}"] = (
+            f"component {comp.element.get('name')!r} ({flat.path.name} line {comp.element.sourceline}), {comp.fmu}"
+            + ("" if asked in ("any", "CoSimulation") else f"; its {asked} implementation is asked for, its "
+               "co-simulation interface runs"))
         if origins:
             out.origins[f"subsystems.{comp.name}.values"] = "parameter bindings: " + ", ".join(origins)
     out.notes.extend(bindings.unused())

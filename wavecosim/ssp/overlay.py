@@ -4,7 +4,7 @@ from pathlib import Path
 
 from ..errors import ConfigError
 from .declarations import annotation, attributes
-from .xmlfile import q, SSD
+from .xmlfile import SSD, fail, number, q
 
 SCENARIO_ANNOTATION = "org.wavecosim.scenario"
 SETTINGS = ("name", "description", "dt", "T", "gamma", "master", "certificates", "outputs", "error", "fne_watch")
@@ -49,7 +49,6 @@ def experiment_T(path, root):
     exp = root.find(q(SSD, "DefaultExperiment"))
     if exp is None or exp.get("stopTime") is None:
         return None
-    from .xmlfile import fail, number
     if number(path, exp, "startTime", 0.0) != 0.0:
         fail(path, exp, "startTime must be 0 (wavecosim runs start at t = 0)")
     return number(path, exp, "stopTime", None)

@@ -6,6 +6,7 @@ win at one level and a higher level wins over a lower one; names matching no var
 ignored (noted). Whether a value is a parameter or a start value is the variable's role in the
 FMU's modelDescription: causality parameter -> parameters; an input, or a variable with initial
 exact/approx -> start; anything else cannot be set and is an error."""
+from ..errors import ConfigError
 from .xmlfile import SSD, SSV, fail, number, parse, q
 
 VALUE_TYPES = ("Real", "Integer", "Boolean", "String", "Enumeration")
@@ -88,7 +89,6 @@ class Bindings:
 
 
 def raise_missing(flat, chosen, names):
-    from ..errors import ConfigError
     raise ConfigError(f"{flat.path.name}: parameter set {chosen!r} not found (the file has: "
                       f"{', '.join(repr(n) for n in names) or 'none'})")
 

@@ -121,8 +121,8 @@ def _identifier(name):
     return clean if re.match(r"[A-Za-z_]", clean) else f"_{clean}"
 
 
-ROLES = {("output", True): "source", ("input", True): "sink",      # element connectors (inside=False)
-         ("output", False): "sink", ("input", False): "source"}    # the system's own (seen from inside)
+# (connector kind, on an element of the system?) -> role; the system's own connectors are seen from inside
+ROLES = {("output", True): "source", ("input", True): "sink", ("output", False): "sink", ("input", False): "source"}
 
 
 def _end(flat, conn, side, key, elements, kinds):
