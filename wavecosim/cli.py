@@ -266,6 +266,7 @@ def _sweep_progress(total, skipped):
 @cli.command("compare")
 @config_argument
 @with_common
+@ssp_options
 @click.option("--masters", default=",".join(ALGORITHMS), show_default=True,
               help="Comma-separated masters to compare.")
 @click.option("--Ks", "--K-list", "ks", default=None,
@@ -273,7 +274,7 @@ def _sweep_progress(total, skipped):
 @click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("out/compare"), show_default=True)
 @click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and the Condition 1 watch.")
 @click.option("--plots", is_flag=True, help="Also write pareto.png and energy_by_master.png.")
-def compare_cmd(config, K, eps, gamma, dt, T, quiet, masters, ks, out, no_certificates, plots):
+def compare_cmd(config, K, eps, gamma, dt, T, quiet, ports, parameter_set, masters, ks, out, no_certificates, plots):
     """Every master over a grid of budgets against the monolithic reference: error, energy, cost."""
     from .comparison import COMPARE_FIELDS
     names = [m.strip() for m in masters.split(",") if m.strip()]
@@ -285,7 +286,7 @@ def compare_cmd(config, K, eps, gamma, dt, T, quiet, masters, ks, out, no_certif
     Ks = [K] if K is not None else None
     if ks is not None:
         Ks = parse_budgets(ks)
-    scenario = _apply_overrides(load_scenario(config), None, eps, gamma, dt, T)
+    scenario = _apply_overrides(_read_config(config, ports, parameter_set, dt, T, gamma), None, eps, gamma, dt, T)
     table = api.compare(scenario, names, Ks, out_dir=out, progress=(lambda label: _progress(label, quiet)),
                         certificates=not no_certificates)
     reference, results, rows = table.reference, table.results, table.rows
@@ -302,10 +303,11 @@ def compare_cmd(config, K, eps, gamma, dt, T, quiet, masters, ks, out, no_certif
 
 @cli.command("validate")
 @config_argument
-def validate_cmd(config):
-    """Check a scenario file and its FMUs without running it."""
+@ssp_options
+def validate_cmd(config, ports, parameter_set):
+    """Check a scenario file (or an SSP system) and its FMUs without running it."""
     from .scene import build_scene
-    scenario = load_scenario(config)
+    scenario = _read_config(config, ports, parameter_set)
     scene = build_scene(scenario, wave=True)
     try:
         wm = scene.wave_map()
