@@ -29,10 +29,10 @@ def substance(scenario):
     return {k: v for k, v in dataclasses.asdict(scenario).items() if k != "source"}
 
 
-def table_i_copy(folder, replace=(), name="t.ssd", fmu_dir=None):
-    """configs/two_oscillators.ssd written into `folder` with its FMU paths absolute (or into
-    `fmu_dir`) and each (old, new) of `replace` applied once; returns the path."""
-    text = TABLE_I_SSD.read_text().replace('source="../build/fmus/', f'source="{fmu_dir or BUILT}/')
+def table_i_copy(folder, replace=(), name="t.ssd"):
+    """configs/two_oscillators.ssd written into `folder` with its FMU paths absolute and each
+    (old, new) of `replace` applied once; returns the path."""
+    text = TABLE_I_SSD.read_text().replace('source="../build/fmus/', f'source="{BUILT}/')
     for old, new in replace:
         assert old in text, old
         text = text.replace(old, new, 1)
@@ -177,6 +177,10 @@ def test_not_xml_and_missing_settings_are_one_line(tmp_path, capsys, built_fmus)
     assert code == 0, err
     code, _, err = run_cli(capsys, "run", TABLE_I_YAML, "--ports", TABLE_I_YAML, "--quiet")
     assert code == 2 and "only for an SSP input" in err
+    portless = table_i_copy(tmp_path, [('<ssc:Annotation type="org.wavecosim.port">', '<ssc:Annotation type="x.y">')] * 2,
+                            "portless.ssd")
+    code, _, err = run_cli(capsys, "run", portless, "--quiet")
+    assert code == 2 and "couplings: no power bond found; declare which connectors form ports" in err
 
 
 # --- parameters ---------------------------------------------------------------------------------
@@ -359,3 +363,52 @@ def test_dcmotor_from_the_ssd_runs_as_configs_dcmotor_yaml(master):
     theirs = trajectory(load_scenario(yaml_file).with_changes(T=0.01).with_master(algorithm=master))
     assert ours.dtype.names == theirs.dtype.names
     assert all(np.array_equal(ours[n], theirs[n]) for n in ours.dtype.names)
+
+
+NESTED = """<?xml version="1.0" encoding="UTF-8"?>
+<ssd:SystemStructureDescription version="2.0" name="nested"
+    xmlns:ssd="http://ssp-standard.org/SSP1/SystemStructureDescription"
+    xmlns:ssc="http://ssp-standard.org/SSP1/SystemStructureCommon">
+  <ssd:System name="top">
+    <ssd:Connectors><ssd:Connector name="velocity" kind="output"/><ssd:Connector name="drive" kind="input"/>
+    </ssd:Connectors>
+    <ssd:Elements>
+      <ssd:Component name="A" source="{built}/DuffingSide.fmu">
+        <ssd:Connectors><ssd:Connector name="q1" kind="output"/><ssd:Connector name="a" kind="input"/></ssd:Connectors>
+      </ssd:Component>
+      <ssd:System name="Sub">
+        <ssd:Connectors><ssd:Connector name="x" kind="input"/><ssd:Connector name="v" kind="output"/></ssd:Connectors>
+        <ssd:Elements>
+          <ssd:Component name="B" source="{built}/LinearSide.fmu">
+            <ssd:Connectors><ssd:Connector name="a" kind="input"/><ssd:Connector name="v2" kind="output"/>
+            </ssd:Connectors>
+          </ssd:Component>
+        </ssd:Elements>
+        <ssd:Connections>
+          <ssd:Connection startConnector="x" endElement="B" endConnector="a">
+            <ssc:LinearTransformation factor="3.0" offset="0.5"/></ssd:Connection>
+          <ssd:Connection startConnector="v" endElement="B" endConnector="v2"/>
+        </ssd:Connections>
+      </ssd:System>
+    </ssd:Elements>
+    <ssd:Connections>
+      <ssd:Connection startElement="A" startConnector="q1" endElement="Sub" endConnector="x">
+        <ssc:LinearTransformation factor="2.0" offset="1.0"/></ssd:Connection>
+      <ssd:Connection startElement="Sub" startConnector="v" endConnector="velocity"/>
+      <ssd:Connection startConnector="drive" endElement="A" endConnector="a"/>
+    </ssd:Connections>
+  </ssd:System>
+</ssd:SystemStructureDescription>
+"""
+
+
+def test_nested_systems_are_flattened_through_their_connectors(tmp_path, built_fmus):
+    """A.q1 -> Sub.x (2 x + 1) -> B.a (3 x + 0.5) is one signal 6 q1 + 3.5; Sub's output v, which a
+    connection names from its end (the direction comes from the kinds), is the top's output; an
+    input of the top system that nothing drives is a note, not a signal."""
+    path = tmp_path / "nested.ssd"
+    path.write_text(NESTED.format(built=BUILT))
+    imported = import_ssp(path)
+    assert imported.raw["signals"] == [{"from": "A.q1", "to": "B.a", "factor": 6.0, "offset": 3.5}]
+    assert imported.raw["outputs"] == {"velocity": "B.v2"}
+    assert len(imported.notes) == 1 and "A.a is connected to a system connector that nothing drives" in imported.notes[0]

@@ -195,6 +195,10 @@ def load_ssp(path, ports=None, parameter_set=None, settings=None):
     """(Scenario, Imported): the SSP system checked like a scenario file."""
     from ..config import parse_scenario
     imported = import_ssp(path, ports, parameter_set, settings)
+    if not imported.raw["couplings"]:
+        raise ConfigError(f"{imported.ssd}: couplings: no power bond found; declare which connectors form ports "
+                          f"(an OSP-IS model description, the annotation org.wavecosim.port or --ports FILE; "
+                          f"README, \"SSP in\")")
     for key in ("dt", "gamma"):
         if key not in imported.raw:
             raise ConfigError(f"{imported.ssd}: {key}: an SSD has none; give it in the overlay (--ports FILE) "
