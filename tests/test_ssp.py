@@ -412,3 +412,52 @@ def test_nested_systems_are_flattened_through_their_connectors(tmp_path, built_f
     assert imported.raw["signals"] == [{"from": "A.q1", "to": "B.a", "factor": 6.0, "offset": 3.5}]
     assert imported.raw["outputs"] == {"velocity": "B.v2"}
     assert len(imported.notes) == 1 and "A.a is connected to a system connector that nothing drives" in imported.notes[0]
+
+
+OSP_SYSTEM = """<?xml version="1.0" encoding="UTF-8"?>
+<OspSystemStructure xmlns="http://opensimulationplatform.com/MSMI/OSPSystemStructure" version="0.1">
+  <Connections>
+{connections}
+  </Connections>
+</OspSystemStructure>
+"""
+GROUP_BOND = """    <VariableGroupConnection>
+      <VariableGroup simulator="A" name="port"/>
+      <VariableGroup simulator="B" name="port"/>
+    </VariableGroupConnection>"""
+VARIABLE_BOND = """    <VariableConnection powerBond="shaft">
+      <Variable simulator="A" name="F" causality="input"/>
+      <Variable simulator="B" name="F" causality="output"/>
+    </VariableConnection>
+    <VariableConnection powerBond="shaft">
+      <Variable simulator="B" name="v" causality="input"/>
+      <Variable simulator="A" name="v" causality="output"/>
+    </VariableConnection>"""
+
+
+@pytest.mark.parametrize("bond", [GROUP_BOND, VARIABLE_BOND], ids=["group connection", "power-bond variables"])
+def test_power_bonds_of_an_osp_system_structure_stand_for_their_connections(tmp_path, bond, built_fmus):
+    """With the bond only in OspSystemStructure.xml (the SSD has no connection between A and B) the
+    import is the same; a bond contradicting the SSD's wiring names the OSP file and its line."""
+    for ident in ("ForeignMass", "ForeignSpring"):
+        shutil.copy(BUILT / f"{ident}.fmu", tmp_path)
+        (tmp_path / f"{ident}_OspModelDescription.xml").write_text(OSP)
+    (tmp_path / "SystemStructure.ssd").write_text(FOREIGN_SSD)
+    with_ssd = import_ssp(tmp_path).raw
+    text = FOREIGN_SSD
+    for conn in ('<ssd:Connection startElement="B" startConnector="F" endElement="A" endConnector="F"/>',
+                 '<ssd:Connection startElement="A" startConnector="v" endElement="B" endConnector="v"/>'):
+        text = text.replace(conn, "")
+    (tmp_path / "SystemStructure.ssd").write_text(text)
+    (tmp_path / "OspSystemStructure.xml").write_text(OSP_SYSTEM.format(connections=bond))
+    imported = import_ssp(tmp_path)
+    assert imported.raw == with_ssd
+    assert "OspSystemStructure.xml line" in imported.origins["couplings"]
+    (tmp_path / "SystemStructure.ssd").write_text(FOREIGN_SSD.replace(
+        'startElement="A" startConnector="v" endElement="B" endConnector="v"',
+        'startElement="A" startConnector="x" endElement="B" endConnector="v"').replace(
+        '<ssd:Connector name="v" kind="output"/></ssd:Connectors>',
+        '<ssd:Connector name="v" kind="output"/><ssd:Connector name="x" kind="output"/></ssd:Connectors>'))
+    with pytest.raises(ConfigError, match=r"OspSystemStructure.xml line \d+: .*B.v is driven by A.x in "
+                                          r"SystemStructure.ssd line \d+"):
+        import_ssp(tmp_path)

@@ -20,6 +20,7 @@ class Signal:
     factor: float
     offset: float
     elements: list         # the connections it passes, outermost last
+    file: object = None    # the file of those elements when it is not the SSD (OspSystemStructure.xml)
 
 
 def as_list(value):
@@ -44,19 +45,24 @@ def find_bonds(path, ports, signals):
             rest.append(s)
             continue
         if s.source not in outs or outs[s.source][0] == s.target[0]:
-            fail(path, s.elements[0], f"the port input {'.'.join(s.target)} is driven by "
+            fail(s.file or path, s.elements[0], f"the port input {'.'.join(s.target)} is driven by "
                                       f"{'.'.join(s.source)}, which is not the output of another port")
         halves[ins[s.target]] = (*outs[s.source], s)
     for (a, j), (b, k, s) in halves.items():
         back = halves.get((b, k))
         if back is None or back[:2] != (a, j):
-            fail(path, s.elements[0], f"only one half of a power bond: {'.'.join(s.source)} -> "
+            fail(s.file or path, s.elements[0], f"only one half of a power bond: {'.'.join(s.source)} -> "
                                       f"{'.'.join(s.target)}, but {b}'s port input is not driven by {a}'s port output")
     for name, p in ports.items():
         for j, (i, _, _) in enumerate(channels(p)):
             if (name, j) not in halves:
                 raise_unbonded(path, name, i)
     return halves, rest
+
+
+def where(path, signal):
+    """`file line N` of the connection a signal comes from."""
+    return f"{(signal.file or path).name} line {signal.elements[0].sourceline}"
 
 
 def raise_unbonded(path, name, variable):
@@ -69,11 +75,12 @@ def _factors(path, ports, halves, a, j):
     into_b = halves[(b, k)][2]
     kind_a = channels(ports[a])[j][2]
     if kind_a == channels(ports[b])[k][2]:
-        fail(path, into_a.elements[0], f"{a} and {b} both take the {kind_a} as input: not a power bond")
+        fail(into_a.file or path, into_a.elements[0], f"{a} and {b} both take the {kind_a} as input: "
+                                                      "not a power bond")
     effort, flow = (into_a, into_b) if kind_a == "effort" else (into_b, into_a)
     for s in (effort, flow):
         if abs(s.factor) != 1.0 or s.offset != 0.0:
-            fail(path, s.elements[0], f"a power-bond connection must have factor 1 or -1 and offset 0, got "
+            fail(s.file or path, s.elements[0], f"a power-bond connection must have factor 1 or -1 and offset 0, got "
                                       f"factor {s.factor:g}, offset {s.offset:g}")
     return effort.factor, flow.factor, effort
 
@@ -90,7 +97,7 @@ def couplings(path, ports, halves, fixed):
         c_e, c_f, effort = _factors(path, ports, halves, a, j)
         first, second = ((a, j), (b, k)) if channels(ports[a])[j][2] == "flow" else ((b, k), (a, j))
         out.append({"type": "equal_effort_opposite_flow" if c_e == 1 else "one_junction",
-                    "ports": [first, second], "relation": -c_e * c_f, "line": effort.elements[0].sourceline})
+                    "ports": [first, second], "relation": -c_e * c_f, "where": where(path, effort)})
     _propagate(path, out, signs, halves)
     return _merge_channels(out, ports), signs
 
@@ -106,7 +113,7 @@ def _propagate(path, bonds, signs, halves):
                 if p in signs and other not in signs:
                     signs[other], changed = rel * signs[p], True
                 elif p in signs and signs[other] != rel * signs[p]:
-                    raise ConfigError(f"{path.name} line {bond['line']}: the factors of this power bond need "
+                    raise ConfigError(f"{bond['where']}: the factors of this power bond need "
                                       f"sign({other[0]}) = {rel:+g} * sign({p[0]}), but they are "
                                       f"{signs[other]:+g} and {signs[p]:+g}")
 

@@ -10,7 +10,8 @@ from ..builtin import ROOT, builtin_fmus
 from ..errors import ConfigError
 from . import structure
 from .archive import locate_ssd
-from .bonds import Signal, as_list, channels, couplings, find_bonds
+from .bonds import Signal, as_list, channels, couplings, find_bonds, where
+from .osp import bond_connections
 from .declarations import declared_ports
 from .overlay import SETTINGS, annotated_settings, experiment_T, read_overlay
 from .parameters import Bindings
@@ -39,13 +40,13 @@ def import_ssp(path, ports=None, parameter_set=None, settings=None) -> Imported:
     mds, fmus = _descriptions(flat)
     subsystems = _subsystems(flat, mds, fmus, Bindings(flat, parameter_set), out)
     _check_overlay_names(ports, overlay, subsystems)
-    declared, origins = declared_ports(ssd, flat.components, mds, overlay.get("ports", {}))
-    signals = _signals(flat, out.notes)
+    declared, origins, groups = declared_ports(ssd, flat.components, mds, overlay.get("ports", {}))
+    signals = _with_osp_bonds(flat, _signals(flat, out.notes), groups, mds)
     halves, rest = find_bonds(ssd, declared, signals)
     coupled, signs = couplings(ssd, declared, halves, _fixed_signs(declared))
     if halves:
-        lines = sorted({h[2].elements[0].sourceline for h in halves.values()})
-        out.origins["couplings"] = "power bonds: the connections on lines " + ", ".join(map(str, lines))
+        out.origins["couplings"] = "power bonds: the connections at " + ", ".join(
+            sorted({where(ssd, h[2]) for h in halves.values()}))
     for name, port in declared.items():
         subsystems[name]["port"] = _with_signs(name, port, signs, origins[name])
         out.origins[f"subsystems.{name}.port"] = "; ".join(origins[name])
@@ -135,6 +136,20 @@ def _signals(flat, notes):
         source, factor, offset, passed = found
         out.append(Signal((flat.components[source[1]].name, source[2]), target, factor, offset, passed))
     return out
+
+
+def _with_osp_bonds(flat, signals, groups, mds):
+    """The SSD's signals and those the power bonds of an OspSystemStructure.xml beside it stand for
+    (one already in the SSD is kept once; two different sources for one input are an error)."""
+    causality = {flat.components[key].name: {v.name: v.causality for v in md.modelVariables}
+                 for key, md in mds.items()}
+    by_target = {s.target: s for s in signals}
+    for s in bond_connections(flat.path.parent, groups, causality):
+        first = by_target.setdefault(s.target, s)
+        if first.source != s.source:
+            fail(s.file, s.elements[0], f"{'.'.join(s.target)} is driven by {'.'.join(first.source)} in "
+                                        f"{where(flat.path, first)}")
+    return list(by_target.values())
 
 
 def _fixed_signs(ports):
