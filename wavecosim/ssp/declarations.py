@@ -27,9 +27,18 @@ def attributes(element, list_keys=LIST_KEYS):
     """An element's attributes as scenario values: YAML scalars, whitespace lists for `list_keys`."""
     out = {}
     for key, text in element.attrib.items():
-        values = [yaml.safe_load(v) for v in text.split()] if key in list_keys else [yaml.safe_load(text)]
+        values = [_scalar(v) for v in text.split()] if key in list_keys else [_scalar(text)]
         out[key] = values[0] if len(values) == 1 else values
     return out
+
+
+def _scalar(text):
+    """A YAML scalar (0.4, true, null, auto); any other text stays the string it is."""
+    try:
+        value = yaml.safe_load(text)
+    except yaml.YAMLError:
+        return text
+    return text if isinstance(value, (dict, list)) else value
 
 
 def declared_ports(path, components, mds, overlay_ports):
