@@ -160,8 +160,7 @@ def test_a_broken_ssd_is_one_line_naming_file_element_and_line(tmp_path, capsys,
     assert message in err and err.startswith("error: broken.ssd"), err
     if needle:
         lines = [i for i, line in enumerate(path.read_text().splitlines(), 1) if needle in line]
-        at = lines[-1] if what == "input driven twice" else lines[0]
-        assert f"broken.ssd line {at}: " in err or f"broken.ssd line {at + 1}: " in err, err   # lxml: a tag's last line
+        assert f"broken.ssd line {lines[-1] if what == 'input driven twice' else lines[0]}: " in err, err
 
 
 def test_not_xml_and_missing_settings_are_one_line(tmp_path, capsys, built_fmus):

@@ -10,7 +10,7 @@ to the run's probe."""
 from dataclasses import dataclass
 
 from ..errors import ConfigError
-from .xmlfile import fail
+from .xmlfile import at, fail
 
 
 @dataclass
@@ -62,7 +62,7 @@ def find_bonds(path, ports, signals):
 
 def where(path, signal):
     """`file line N` of the connection a signal comes from."""
-    return f"{(signal.file or path).name} line {signal.elements[0].sourceline}"
+    return at(signal.file or path, signal.elements[0])
 
 
 def raise_unbonded(path, name, variable):

@@ -5,7 +5,7 @@ Torque + AngularVelocity, Voltage + Current), from our SSP annotation on the com
 import yaml
 
 from .osp import model_description
-from .xmlfile import SSC, SSD, WC, fail, q
+from .xmlfile import SSC, SSD, WC, at, fail, q
 
 PORT_ANNOTATION = "org.wavecosim.port"
 LIST_KEYS = ("wave_in", "wave_out", "effort", "flow", "physical_in", "physical_out", "input", "sign")
@@ -52,7 +52,7 @@ def declared_ports(path, components, mds, overlay_ports):
         note = annotation(path, comp.element, PORT_ANNOTATION)
         layers = [(osp, f"OSP-IS {osp_file.name}" if osp_file else None),
                   (attributes(note) if note is not None else {}, f"annotation {PORT_ANNOTATION} "
-                   f"({path.name} line {note.sourceline})" if note is not None else None),
+                   f"({at(path, note)})" if note is not None else None),
                   (overlay_ports.get(comp.name, {}), "the overlay (--ports)")]
         for layer, origin in layers:
             if layer:

@@ -15,7 +15,7 @@ from .osp import bond_connections
 from .declarations import declared_ports
 from .overlay import SETTINGS, annotated_settings, experiment_T, read_overlay
 from .parameters import Bindings
-from .xmlfile import fail, parse
+from .xmlfile import at, fail, parse
 
 BUILT = ROOT / "build" / "fmus"
 
@@ -55,8 +55,7 @@ def import_ssp(path, ports=None, parameter_set=None, settings=None) -> Imported:
     if rest:
         out.raw["signals"] = [{"from": ".".join(s.source), "to": ".".join(s.target), "factor": s.factor,
                                "offset": s.offset} for s in rest]
-        out.origins["signals"] = "connections (lines " + ", ".join(
-            str(s.elements[0].sourceline) for s in rest) + ")"
+        out.origins["signals"] = "the connections at " + ", ".join(where(ssd, s) for s in rest)
     outputs = overlay.get("outputs") or _outputs(flat, out)
     out.raw["outputs"] = outputs
     return out
@@ -96,7 +95,7 @@ def _subsystems(flat, mds, fmus, bindings, out):
         subsystems[comp.name] = {"fmu": fmus[key], **{k: v for k, v in values.items() if v}}
         asked = comp.element.get("implementation", "any")
         out.origins[f"subsystems.{comp.name}"] = (
-            f"component {comp.element.get('name')!r} ({flat.path.name} line {comp.element.sourceline}), {comp.fmu}"
+            f"component {comp.element.get('name')!r} ({at(flat.path, comp.element)}), {comp.fmu}"
             + ("" if asked in ("any", "CoSimulation") else f"; its {asked} implementation is asked for, its "
                "co-simulation interface runs"))
         if origins:
@@ -130,7 +129,7 @@ def _signals(flat, notes):
         target = (flat.components[sink[1]].name, sink[2])
         found = structure.trace(flat, sink)
         if found is None:
-            notes.append(f"{flat.path.name} line {flat.incoming[sink].element.sourceline}: {'.'.join(target)} is "
+            notes.append(f"{at(flat.path, flat.incoming[sink].element)}: {'.'.join(target)} is "
                          f"connected to a system connector that nothing drives; it keeps its start value")
             continue
         source, factor, offset, passed = found
@@ -200,7 +199,7 @@ def _outputs(flat, out):
         source, factor, offset, _ = found
         outputs[name] = f"{flat.components[source[1]].name}.{source[2]}"
         if (factor, offset) != (1.0, 0.0):
-            out.notes.append(f"{flat.path.name} line {el.sourceline}: output {name} is recorded as {outputs[name]} "
+            out.notes.append(f"{at(flat.path, el)}: output {name} is recorded as {outputs[name]} "
                              f"without its transformation (factor {factor:g}, offset {offset:g})")
     out.origins["outputs"] = f"output connectors of system {flat.top.get('name')!r}"
     return outputs

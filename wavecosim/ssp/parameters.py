@@ -7,7 +7,7 @@ ignored (noted). Whether a value is a parameter or a start value is the variable
 FMU's modelDescription: causality parameter -> parameters; an input, or a variable with initial
 exact/approx -> start; anything else cannot be set and is an error."""
 from ..errors import ConfigError
-from .xmlfile import SSD, SSV, fail, number, parse, q
+from .xmlfile import SSD, SSV, at, fail, number, parse, q
 
 VALUE_TYPES = ("Real", "Integer", "Boolean", "String", "Enumeration")
 
@@ -71,7 +71,7 @@ class Bindings:
                         role = _role(path, param, var)
                         out[role][var.name] = _value(path, param, var)
                     if hits:
-                        origins.append(f"{self.flat.path.name} line {binding.sourceline}"
+                        origins.append(at(self.flat.path, binding)
                                        + (f" ({binding.get('source')})" if binding.get("source") else ""))
         return out, sorted(set(origins), key=origins.index)
 
@@ -83,7 +83,7 @@ class Bindings:
 
     def unused(self):
         """'file line N: parameter X' for every bound name that reached no FMU variable."""
-        return [f"{path.name} line {param.sourceline}: parameter {param.get('name')!r} matches no variable of "
+        return [f"{at(path, param)}: parameter {param.get('name')!r} matches no variable of "
                 f"any component; ignored (SSP: unmatched names are ignored)"
                 for key, (path, param) in self.seen.items() if key not in self.used]
 

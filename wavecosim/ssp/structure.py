@@ -8,7 +8,7 @@ from pathlib import Path
 from urllib.parse import unquote, urlparse
 
 from ..builtin import ROOT, builtin_fmus
-from .xmlfile import SSC, SSD, fail, number, q
+from .xmlfile import SSC, SSD, fail, number, q, start_line
 
 FMU_TYPE = "application/x-fmu-sharedlibrary"
 
@@ -153,7 +153,7 @@ def _connection(flat, conn, key, elements, kinds):
     (source, _), (sink, _) = sorted(ends, key=lambda e: e[1] == "sink")
     factor, offset = _transformation(flat, conn)
     if sink in flat.incoming:
-        first = flat.incoming[sink].element.sourceline
+        first = start_line(flat.path, flat.incoming[sink].element)
         fail(flat.path, conn, f"{_label(sink)} is already driven by the connection on line {first}")
     flat.incoming[sink] = Link(source, factor, offset, conn)
 

@@ -29,12 +29,31 @@ def short(tag):
     return tag
 
 
+def start_line(path, element):
+    """The line where an element's start tag begins (lxml gives the line where it ends)."""
+    local = etree.QName(element).localname
+    token = f"<{element.prefix}:{local}" if element.prefix else f"<{local}"
+    try:
+        lines = Path(path).read_text(errors="replace").splitlines()
+    except OSError:
+        return element.sourceline
+    for n in range(element.sourceline, max(element.sourceline - 30, 0), -1):
+        if n <= len(lines) and token in lines[n - 1]:
+            return n
+    return element.sourceline
+
+
+def at(path, element):
+    """`file line N` of an element."""
+    return f"{Path(path).name} line {start_line(path, element)}"
+
+
 def where(path, element):
     """`file line N: <ssd:Connection name=...>`, the prefix of every error about one element."""
     attrs = " ".join(f"{k}={v!r}" for k, v in element.attrib.items()
                      if k in ("name", "startElement", "startConnector", "endElement", "endConnector", "source",
                               "factor", "offset", "type", "prefix"))
-    return f"{Path(path).name} line {element.sourceline}: <{short(element.tag)}{' ' + attrs if attrs else ''}>"
+    return f"{at(path, element)}: <{short(element.tag)}{' ' + attrs if attrs else ''}>"
 
 
 def fail(path, element, message):
