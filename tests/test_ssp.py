@@ -136,6 +136,8 @@ BROKEN = [   # (what, (old, new), the erring line holds this (its last such line
      'startElement="C"', "startElement 'C' names no element of system 'two_oscillators'"),
     ("bad factor", ('factor="-1.0"', 'factor="minus one"'), 'factor="minus one"', "not a valid value"),
     ("non-finite factor", ('factor="-1.0"', 'factor="NaN"'), 'factor="NaN"', "factor must be a finite number"),
+    ("bond factor not 1", ('factor="-1.0"', 'factor="-2.0"'), 'startElement="B" startConnector="f"',
+     "a power-bond connection must have factor 1 or -1 and offset 0, got factor -2, offset 0"),
     ("connector the FMU lacks", ('<ssd:Connector name="F" kind="input">',
                                  '<ssd:Connector name="q9" kind="output"/><ssd:Connector name="F" kind="input">'),
      'name="q9"', "LinearSide.fmu has no variable 'q9'"),

@@ -80,8 +80,8 @@ def _factors(path, ports, halves, a, j):
     effort, flow = (into_a, into_b) if kind_a == "effort" else (into_b, into_a)
     for s in (effort, flow):
         if abs(s.factor) != 1.0 or s.offset != 0.0:
-            fail(s.file or path, s.elements[0], f"a power-bond connection must have factor 1 or -1 and offset 0, got "
-                                      f"factor {s.factor:g}, offset {s.offset:g}")
+            fail(s.file or path, s.elements[0], f"a power-bond connection must have factor 1 or -1 and "
+                                                f"offset 0, got factor {s.factor:g}, offset {s.offset:g}")
     return effort.factor, flow.factor, effort
 
 
@@ -98,11 +98,11 @@ def couplings(path, ports, halves, fixed):
         first, second = ((a, j), (b, k)) if channels(ports[a])[j][2] == "flow" else ((b, k), (a, j))
         out.append({"type": "equal_effort_opposite_flow" if c_e == 1 else "one_junction",
                     "ports": [first, second], "relation": -c_e * c_f, "where": where(path, effort)})
-    _propagate(path, out, signs, halves)
+    _propagate(out, signs)
     return _merge_channels(out, ports), signs
 
 
-def _propagate(path, bonds, signs, halves):
+def _propagate(bonds, signs):
     """Fill in signs across the bonds until nothing changes; a contradiction names the bond."""
     changed = True
     while changed:
