@@ -1,5 +1,6 @@
 """The repository's own FMUs: where the sources live and the one loader of the build loop
 (fmus/build.py, a script outside the package), which builds them on demand."""
+import ctypes
 import importlib.util
 from pathlib import Path
 
@@ -35,3 +36,13 @@ def builtin_fmus() -> dict:
     if _built is None:
         _built = build_all()
     return _built
+
+
+def kernel_library(name, what):
+    """build/lib/lib<name>.so (from fmus/kernel/<name>.c), built with the FMUs if missing or stale,
+    loaded; raises FmuError naming `what` if it cannot be."""
+    builtin_fmus()                           # fmus/build.py compiles every fmus/kernel/*.c
+    path = ROOT / "build" / "lib" / f"lib{name}.so"
+    if not path.exists():
+        raise FmuError(f"{what} {path} was not built")
+    return ctypes.CDLL(str(path))

@@ -2,7 +2,8 @@
 
 `freeze()` saves x_i^n; `query(a)` is S_i^n(a) (paper eq. 12): restore x_i^n, apply a, one doStep,
 read b, discard the state; `advance(a)` is Phi_i (eq. 21): the same from x_i^n, but the state is
-kept. Calls go straight to the FMU's C functions with pre-converted arguments. How a becomes b is
+kept. Calls go straight to the FMU's C functions with pre-converted arguments (in fmi2 form; for an
+FMI 3 FMU, wavecosim/fmi3.py puts its fmi3 functions behind the same signatures). How a becomes b is
 the subsystem's port (wavecosim/ports.py): the FMU's own wave mode, or the wave adapter for an FMU
 with only a physical port.
 """
@@ -56,8 +57,8 @@ class Subsystem:
         in_names = port.wave_in if wave and not port.physical else port.physical_in
         out_names = port.wave_out if wave and not port.physical else [e if flow_in else f for e, f, flow_in in
                                                                       zip(port.effort, port.flow, port.input_is_flow)]
-        self._in_vr = (ctypes.c_uint * m)(*[fmu.vr(n) for n in in_names])
-        self._out_vr = (ctypes.c_uint * m)(*[fmu.vr(n) for n in out_names])
+        self._in_vr = (ctypes.c_uint * m)(*fmu.real_vrs(in_names))
+        self._out_vr = (ctypes.c_uint * m)(*fmu.real_vrs(out_names))
         self._in_val = (ctypes.c_double * m)()
         self._out_val = (ctypes.c_double * m)()
         self._m = ctypes.c_size_t(m)
@@ -177,7 +178,7 @@ class Subsystem:
     def reader(self, names):
         """(read, buffer): read() fills the fixed ctypes buffer with `names` in one raw fmi2GetReal."""
         k = len(names)
-        vr = (ctypes.c_uint * k)(*[self.fmu.vr(n) for n in names])
+        vr = (ctypes.c_uint * k)(*self.fmu.real_vrs(names))
         buf, size = (ctypes.c_double * k)(), ctypes.c_size_t(k)
         get_real, comp, call = self._get_real, self._comp, self._call
 
@@ -191,13 +192,14 @@ class Subsystem:
         kernel macro-step this Subsystem holds x_i^n exactly as after a Python one."""
         return ctypes.addressof(self._state)
 
-    def note_kernel_step(self, step_index, t, iterations, steps=1):
+    def note_kernel_step(self, step_index, t, iterations, steps=1, redone=0):
         """Book `steps` macro-steps the C kernel made, the last one step n at t (frozen at x^n):
-        each a save, its queries and one commit; `iterations` counts the queries of them all."""
+        each a save, its queries and one commit; `iterations` counts the queries of them all and
+        `redone` the energy ledger's redo rounds (a restore and a doStep each)."""
         self.begin(step_index, t)
         self.calls["save"] += steps
-        self.calls["doStep"] += iterations + steps
-        self.calls["restore"] += iterations
+        self.calls["doStep"] += iterations + steps + redone
+        self.calls["restore"] += iterations + redone
         self._dirty = False
 
     def release(self):
