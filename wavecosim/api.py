@@ -21,10 +21,29 @@ ScenarioLike = Union[str, Path, Scenario]
 
 
 def load(path: Union[str, Path, None] = None, *, master: Optional[str] = None, K: Optional[int] = None,
-         eps: Optional[float] = None, gamma=None, dt: Optional[float] = None, T: Optional[float] = None) -> Scenario:
-    """Read and validate a scenario file (the built-in Table I scene when `path` is None), with the
-    given values in place of the file's (the same overrides as the CLI's options)."""
-    return with_overrides(load_scenario(path), master=master, K=K, eps=eps, gamma=gamma, dt=dt, T=T)
+         eps: Optional[float] = None, gamma=None, dt: Optional[float] = None, T: Optional[float] = None,
+         ports: Union[str, Path, None] = None, parameter_set: Optional[str] = None,
+         warn: Optional[Callable[[str], None]] = None) -> Scenario:
+    """Read and validate a scenario file (the built-in Table I scene when `path` is None), or an SSP
+    system (.ssd, .ssp, folder) with the overlay `ports` and the parameter sets named
+    `parameter_set`, with the given values in place of the file's (the CLI's options). Notes of
+    an SSP import go to `warn` (default: Python warnings)."""
+    from .ssp import is_ssp, load_ssp
+    if path is not None and is_ssp(path):
+        settings = {"dt": dt, "T": T, "gamma": parse_gamma(gamma, "gamma") if gamma is not None else None}
+        scenario, imported = load_ssp(path, ports, parameter_set, settings)
+        for note in imported.notes:
+            (warn or _python_warning)(note)
+    elif ports is not None or parameter_set is not None:
+        raise ConfigError("ports and parameter_set: only for an SSP input (.ssd, .ssp or a folder)")
+    else:
+        scenario = load_scenario(path)
+    return with_overrides(scenario, master=master, K=K, eps=eps, gamma=gamma, dt=dt, T=T)
+
+
+def _python_warning(message):
+    import warnings
+    warnings.warn(message, stacklevel=3)
 
 
 def with_overrides(scenario: Scenario, *, master=None, K=None, eps=None, gamma=None, dt=None, T=None,

@@ -107,21 +107,39 @@ output_options = [
 with_output = options(output_options)
 
 
+ssp_options = options([
+    click.option("--ports", type=click.Path(dir_okay=False, path_type=Path),
+                 help="SSP input: a YAML overlay with the power ports and the run's settings (README, \"SSP in\")."),
+    click.option("--parameter-set", help="SSP input: use only the parameter sets of this name."),
+])
+
+
+def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None):
+    """A scenario file, or an SSP system (.ssd, .ssp, folder) with its overlay; import notes are warnings."""
+    from .ssp import is_ssp
+    if ports or parameter_set or (config is not None and is_ssp(config)):
+        return api.load(config, ports=ports, parameter_set=parameter_set, dt=dt, T=T, gamma=gamma,
+                        warn=lambda note: click.echo(f"warning: {note}", err=True))
+    return load_scenario(config)
+
+
 @cli.command("run")
-@config_argument
+@click.argument("config", required=False, type=click.Path(path_type=Path))
 @with_common
 @with_output
+@ssp_options
 @click.option("--master", "algorithm", type=click.Choice(ALGORITHMS), help="Master algorithm (default: from CONFIG).")
 @click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("out/run"), show_default=True,
               help="Output folder for trajectory.csv, steps.csv, summary.json and metadata.json.")
 @click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and the Condition 1 watch (faster).")
 @click.option("--no-reference", is_flag=True, help="Skip the monolithic reference run (no error figures).")
 @click.option("--plots", is_flag=True, help="Also write PNG figures into the output folder.")
-def run_cmd(config, K, eps, gamma, dt, T, quiet, output_interval, formats, algorithm, out, no_certificates,
-            no_reference, plots):
+def run_cmd(config, K, eps, gamma, dt, T, quiet, output_interval, formats, ports, parameter_set, algorithm, out,
+            no_certificates, no_reference, plots):
     """Run one scenario (with the monolithic reference alongside) and write its trajectory, per-step
-    certificates, summary and metadata."""
-    scenario = _apply_overrides(load_scenario(config), K, eps, gamma, dt, T, algorithm)
+    certificates, summary and metadata. CONFIG is a scenario file or an SSP system (.ssd, .ssp, folder)."""
+    scenario = _apply_overrides(_read_config(config, ports, parameter_set, dt, T, gamma), K, eps, gamma, dt, T,
+                                algorithm)
     result = simulate(scenario, out_dir=out, progress=_progress("run", quiet) or False,
                       certificates=not no_certificates, reference=not no_reference,
                       output_interval=output_interval, formats=("csv", *formats))
@@ -250,6 +268,7 @@ def _sweep_progress(total, skipped):
 @cli.command("compare")
 @config_argument
 @with_common
+@ssp_options
 @click.option("--masters", default=",".join(ALGORITHMS), show_default=True,
               help="Comma-separated masters to compare.")
 @click.option("--Ks", "--K-list", "ks", default=None,
@@ -257,7 +276,7 @@ def _sweep_progress(total, skipped):
 @click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("out/compare"), show_default=True)
 @click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and the Condition 1 watch.")
 @click.option("--plots", is_flag=True, help="Also write pareto.png and energy_by_master.png.")
-def compare_cmd(config, K, eps, gamma, dt, T, quiet, masters, ks, out, no_certificates, plots):
+def compare_cmd(config, K, eps, gamma, dt, T, quiet, ports, parameter_set, masters, ks, out, no_certificates, plots):
     """Every master over a grid of budgets against the monolithic reference: error, energy, cost."""
     from .comparison import COMPARE_FIELDS
     names = [m.strip() for m in masters.split(",") if m.strip()]
@@ -269,7 +288,7 @@ def compare_cmd(config, K, eps, gamma, dt, T, quiet, masters, ks, out, no_certif
     Ks = [K] if K is not None else None
     if ks is not None:
         Ks = parse_budgets(ks)
-    scenario = _apply_overrides(load_scenario(config), None, eps, gamma, dt, T)
+    scenario = _apply_overrides(_read_config(config, ports, parameter_set, dt, T, gamma), None, eps, gamma, dt, T)
     table = api.compare(scenario, names, Ks, out_dir=out, progress=(lambda label: _progress(label, quiet)),
                         certificates=not no_certificates)
     reference, results, rows = table.reference, table.results, table.rows
@@ -286,10 +305,11 @@ def compare_cmd(config, K, eps, gamma, dt, T, quiet, masters, ks, out, no_certif
 
 @cli.command("validate")
 @config_argument
-def validate_cmd(config):
-    """Check a scenario file and its FMUs without running it."""
+@ssp_options
+def validate_cmd(config, ports, parameter_set):
+    """Check a scenario file (or an SSP system) and its FMUs without running it."""
     from .scene import build_scene
-    scenario = load_scenario(config)
+    scenario = _read_config(config, ports, parameter_set)
     scene = build_scene(scenario, wave=True)
     try:
         wm = scene.wave_map()
@@ -299,6 +319,22 @@ def validate_cmd(config):
                    f"|P^T P - I| = {wm.orthogonality_residual:.1e})")
     finally:
         scene.close()
+
+
+@cli.command("import-ssp")
+@click.argument("ssp", type=click.Path(exists=False, path_type=Path))
+@ssp_options
+@click.option("-o", "--out", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="The YAML draft to write.")
+def import_ssp_cmd(ssp, ports, parameter_set, out):
+    """Write an SSP system (.ssd, .ssp or a folder) as a scenario file to edit, each part commented
+    with where it came from."""
+    from .ssp import import_ssp
+    from .ssp.draft import write_draft
+    imported = import_ssp(ssp, ports, parameter_set)
+    for note in imported.notes:
+        click.echo(f"warning: {note}", err=True)
+    click.echo(f"wrote {write_draft(imported, out)}")
 
 
 @cli.command("build")
