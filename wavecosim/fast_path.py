@@ -101,6 +101,7 @@ def load_library():
         lib.dr_log_width.argtypes = [p]
         lib.dr_log_width.restype = ctypes.c_size_t
         lib.dr_run_steps.argtypes = [p, ctypes.POINTER(DRStep), i, i, d, ctypes.c_double]
+        lib.dr_set_options.argtypes = [p, ctypes.c_double, i, i]
         _lib = lib
     return _lib
 
@@ -228,6 +229,11 @@ class Kernel:
 
     def _flat(self, M):
         return (ctypes.c_double * (self.n * self.n))(*[float(x) for row in M for x in row])
+
+    def set_options(self, relaxation, anderson, warm_start):
+        """The DR master's named options (wavecosim/masters/dr_options.py); forgets b^{n-1}."""
+        if self.lib.dr_set_options(self._handle, float(relaxation), int(anderson), int(bool(warm_start))):
+            raise FmuError(f"the DR kernel refused its options (relaxation {relaxation}, anderson {anderson})")
 
     def set_maps(self, P, J_L):
         self.lib.dr_set_maps(self.handle, self._flat(P), self._flat(J_L))
