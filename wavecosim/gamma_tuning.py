@@ -34,7 +34,7 @@ from . import interconnection as ic
 from .waves import outgoing_wave
 from .errors import ConfigError, NumericalError
 
-MODES = ("auto", "auto-retune", "fastest", "fast-unsafe")       # the one list of gamma modes
+MODES = ("auto", "auto-retune", "fast-unsafe", "fastest")       # the one list of gamma modes
 PROBE_GAMMA = 0.4       # the gamma FMUs start at (when the scenario gives no number) before a mode probes them
 SAFETY = 0.9            # auto stays this far inside the FNE bound (Z_d drifts along the trajectory)
 RETUNE_ABOVE = 0.95     # auto-retune lowers gamma when it exceeds this fraction of the bound
