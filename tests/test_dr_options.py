@@ -183,3 +183,23 @@ def test_dr_options_from_yaml_and_set(table_i):
                              ("anderson", 17, "at most 16"), ("anderson", -1, ">= 0"), ("warm_start", 1, "true or false")):
         with pytest.raises(ConfigError, match=f"master.{key}.*{says}" if says[0] != "(" else f"master.{key}"):
             parse_scenario(apply_overrides(raw, [(f"master.{key}", value)]))
+
+
+def test_compare_with_dr_options_finds_the_cheapest_budget(table_i, tmp_path):
+    from wavecosim.comparison import cheapest, compare
+    from wavecosim.plots import compare_plots
+    sc = dataclasses.replace(table_i, T=0.5)
+    reference, results, rows = compare(sc, tmp_path, masters=["gauss-seidel-iter", "dr"], Ks=[2, 5],
+                                       certificates=False, options=["anderson", "fastest-relaxed"])
+    assert [(r["master"], r["option"], r["K"]) for r in rows] == [
+        ("gauss-seidel-iter", "", 2), ("gauss-seidel-iter", "", 5), ("dr", "", 2), ("dr", "", 5),
+        ("dr", "anderson", 2), ("dr", "anderson", 5), ("dr", "fastest-relaxed", 2), ("dr", "fastest-relaxed", 5)]
+    assert all(r["doSteps_per_step"] == r["doStep"] / r["steps"] for r in rows)
+    best = cheapest(rows, (1e-6,))["1e-06"]
+    for name, entry in best.items():
+        reached = [r for r in rows if (r["master"] + (":" + r["option"] if r["option"] else "")) == name
+                   and r["max_error"] <= 1e-6]
+        assert entry["doSteps_per_step"] == min(r["doSteps_per_step"] for r in reached)
+    assert "dr:anderson" in best and "dr" not in best          # plain DR at K = 5 stays above 1e-6
+    paths = compare_plots(rows, results, reference, tmp_path)
+    assert all(p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for p in paths)

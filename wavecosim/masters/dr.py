@@ -37,7 +37,7 @@ def algorithm1(S, P, J_L, b_n, K, eps=None, deadline=None, u_start=None, lam=1.0
 
 class DRMaster(WaveMaster):
     """Readable reference path: frozen maps queried from Python, Algorithm 1 above, one commit."""
-    budgets = (0, 3, 8, 20, 35, 50)
+    budgets = (0, 1, 2, 3, 4, 5, 6, 8, 10, 12, 15, 20, 25, 30, 35, 40, 50)
     style = ("tab:blue", "o")
     iterates = True
     guardable = True
