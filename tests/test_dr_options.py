@@ -114,7 +114,7 @@ def test_relaxed_iterates_are_fejer_monotone(frozen, lam):
 
 def test_anderson_safeguard_takes_the_plain_step():
     """An accelerated iterate whose residual does not fall by ANDERSON_SAFEGUARD is replaced by the
-    plain step from the last accepted iterate, whose response stays b^*."""
+    plain step from the last accepted iterate; b^* is the response of the smaller residual."""
     acc = Anderson(2)
     f1, b1 = acc.next([0.0, 0.0], [1.0, 1.0], ["b1"])             # first iterate: the plain step
     assert f1 == [1.0, 1.0] and b1 == ["b1"] and not acc.candidate
@@ -123,6 +123,10 @@ def test_anderson_safeguard_takes_the_plain_step():
     g_acc = np.hypot(0.5, 0.25)
     x3, b3 = acc.next(x2, [x2[0] + g_acc, x2[1]], ["b3"])          # residual |g_acc|: not cut enough
     assert ANDERSON_SAFEGUARD < 1.0 and x3 == [1.5, 1.25] and b3 == ["b2"] and not acc.candidate and not acc.dG
+    acc.next([1.5, 1.25], [1.75, 1.375], ["b4"])                   # plain, accepted; accelerated next
+    g_acc = np.hypot(0.25, 0.125)
+    x5 = acc.next([9.0, 9.0], [9.0 + 0.95 * g_acc, 9.0], ["b5"])   # not cut by 0.9, but smaller: its b^*
+    assert x5 == ([1.75, 1.375], ["b5"]) and not acc.candidate
 
 
 def test_anderson_on_a_linear_map_converges_at_once():

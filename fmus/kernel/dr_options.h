@@ -124,15 +124,16 @@ static void options_push(DROptions *o, const double *f) {
 }
 
 /* dr_options.Anderson.next: u the query point, f = T(u) (overwritten by the next iterate), b_hat its
- * response; *b_star becomes the response at the last accepted iterate. */
+ * response; *b_star becomes the response at the last accepted iterate, or at a rejected one whose
+ * residual is still the smaller. */
 static void options_anderson(DROptions *o, const double *u, double *f, const double *b_hat, const double **b_star) {
     size_t n = o->n;
     for (size_t j = 0; j < n; j++) o->g[j] = f[j] - u[j];
-    double limit = DR_ANDERSON_SAFEGUARD * DR_ANDERSON_SAFEGUARD * options_dot(o->g_acc, o->g_acc, n);
-    if (o->candidate && options_dot(o->g, o->g, n) > limit) {
-        o->count = o->start = o->candidate = 0;                  /* rejected: the plain step instead */
+    double gg = options_dot(o->g, o->g, n), acc = o->have_acc ? options_dot(o->g_acc, o->g_acc, n) : 0.0;
+    if (o->candidate && gg > DR_ANDERSON_SAFEGUARD * DR_ANDERSON_SAFEGUARD * acc) {
+        o->count = o->start = o->candidate = 0;                  /* rejected: the plain step instead, */
         memcpy(f, o->f_acc, n * sizeof *f);
-        *b_star = o->b_acc;
+        *b_star = gg < acc ? b_hat : o->b_acc;                   /* b^* the response of smaller residual */
         return;
     }
     if (o->have_acc) options_push(o, f);

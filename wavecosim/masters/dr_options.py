@@ -8,7 +8,7 @@ reference and the C kernel stay bit-identical.
 - anderson m: type-II Anderson acceleration of the (relaxed) DR map over the last m differences,
   safeguarded: an accelerated iterate is kept only when its fixed-point residual is at most
   ANDERSON_SAFEGUARD times that of the last accepted iterate, otherwise the plain step from the
-  last accepted iterate follows. Its iterates are not Fejer monotone, so Theorem 1's per-step
+  last accepted iterate follows (b^* is the response of the smaller residual of the two). Its iterates are not Fejer monotone, so Theorem 1's per-step
   certificate does not apply; the energy ledger guard keeps the run energy-safe.
 - warm start: u^{n,0} = P (2 b^n - b^{n-1}) (the committed wave extrapolated linearly) instead
   of the paper's P b^n (eq. 19).
@@ -93,11 +93,13 @@ class Anderson:
 
     def next(self, u, f, b_hat):
         """From the query point u, its DR step f = T(u) and response b_hat: (next iterate, b^*), b^*
-        the response at the last accepted iterate (Algorithm 1, line 13)."""
+        the response at the last accepted iterate (Algorithm 1, line 13), or at a rejected one whose
+        residual is still the smaller (so a rejection at the last query costs no accuracy)."""
         g = [fi - ui for fi, ui in zip(f, u)]
-        if self.candidate and _dot(g, g) > ANDERSON_SAFEGUARD * ANDERSON_SAFEGUARD * _dot(self.g_acc, self.g_acc):
-            self.dF, self.dG, self.candidate = [], [], False       # rejected: the plain step instead
-            return self.f_acc, self.b_acc
+        gg, acc = _dot(g, g), _dot(self.g_acc, self.g_acc) if self.g_acc is not None else 0.0
+        if self.candidate and gg > ANDERSON_SAFEGUARD * ANDERSON_SAFEGUARD * acc:
+            self.dF, self.dG, self.candidate = [], [], False       # rejected: the plain step instead,
+            return self.f_acc, (b_hat if gg < acc else self.b_acc)  # b^* the response of smaller residual
         if self.g_acc is not None:
             if len(self.dG) == self.m:
                 del self.dF[0], self.dG[0]
