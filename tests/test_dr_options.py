@@ -207,3 +207,24 @@ def test_compare_with_dr_options_finds_the_cheapest_budget(table_i, tmp_path):
     assert "dr:anderson" in best and "dr" not in best          # plain DR at K = 5 stays above 1e-6
     paths = compare_plots(rows, results, reference, tmp_path)
     assert all(p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for p in paths)
+
+
+def test_options_through_the_cli(tmp_path, capsys, built_fmus):
+    """`sweep --set master.anderson=...` varies an option; `compare --options` refuses an unknown name in one line."""
+    import csv
+
+    from wavecosim.cli import main
+    config = str(ROOT / "configs" / "two_oscillators.yaml")
+    with pytest.raises(SystemExit) as exc:
+        main(["sweep", config, "--out", str(tmp_path / "s"), "--K", "4", "--T", "0.5", "--workers", "1",
+              "--set", "master.anderson=0,2", "--quiet"])
+    assert exc.value.code == 0, capsys.readouterr().err
+    with open(tmp_path / "s" / "runs.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [r["master.anderson"] for r in rows] == ["0", "2"]
+    assert float(rows[1]["max_error"]) < 1e-3 * float(rows[0]["max_error"])
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as exc:
+        main(["compare", config, "--out", str(tmp_path / "c"), "--options", "relaxed,nope", "--quiet"])
+    err = capsys.readouterr().err.strip()
+    assert exc.value.code == 2 and "nope" in err and len(err.splitlines()) == 1
