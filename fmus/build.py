@@ -160,8 +160,13 @@ def build_all(force=False, log=print) -> dict:
         fmus[model_identifier(GEN / spec.stem)] = path
     if KERNEL.is_dir():
         for c_file in sorted(KERNEL.glob("*.c")):
-            build_library(c_file.stem, [c_file, *KERNEL.glob("*.h")], force, log)
+            kernel_library(c_file.stem, force, log)
     return fmus
+
+
+def kernel_library(name: str, force=False, log=print) -> Path:
+    """build/lib/lib<name>.so from fmus/kernel/<name>.c (with the kernel's headers)."""
+    return build_library(name, [KERNEL / f"{name}.c", *KERNEL.glob("*.h")], force, log)
 
 
 if __name__ == "__main__":

@@ -15,4 +15,11 @@ def test_bench_quick_reports_every_path_and_the_run_over_master_ratio(tmp_path, 
     assert data["fast_bit_identical_to_python"] is True
     assert set(data["run_over_master"]) == {"K0", "K50"} and all(v > 0 for v in data["run_over_master"].values())
     assert set(data["us_per_step"]) == {"naive_fmpy", "python", "fast_step", "fast", "floor"}
-    assert "whole run" in out and "fast / floor" in out
+    adapter = data["wave_adapter"]["foreign_pair"]
+    assert adapter["bit_identical"] is True and "wave adapter" in out
+    assert adapter["c"]["doSteps_per_evaluation"] == adapter["python"]["doSteps_per_evaluation"] <= 1.3
+    assert "whole run" in out and "fast / floor" in out and "deadline bound" in out
+    bound = data["deadline_bound"]
+    assert set(bound) == {"star", "heavy_chain"} and [b["deadline_us"] for b in bound.values()] == [30.0, 1500.0]
+    assert all(b["bound_us"] == b["deadline_us"] + b["round_us"] and {"median", "p99", "max"} <= set(b["all_us"])
+               for b in bound.values())

@@ -6,6 +6,7 @@ and a converging DR run is left untouched."""
 import copy
 import csv
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +16,7 @@ import yaml
 from wavecosim.config import ROOT, parse_scenario
 from wavecosim.errors import ConfigError
 from wavecosim.observers import energy_ledger
+from wavecosim import runner
 from wavecosim.runner import run
 
 ROUNDOFF = 1e-12
@@ -136,7 +138,7 @@ def test_steps_csv_and_summary_carry_the_ledger(tmp_path):
 
 
 def test_redone_steps_are_bit_identical_on_the_fast_path_and_the_reference():
-    """The redo runs in Python on both paths, so the C kernel and its bit-identity are untouched."""
+    """The kernel's redo (drkernel.c, in blocks) gives the Python reference's numbers."""
     base = scenario(STAR, "ledger", 1, T=2.0)
     ref = run(base.with_master(fast="false"), certificates=False)
     fast = run(base.with_master(fast="true"), certificates=False)
@@ -156,3 +158,55 @@ def test_default_guard_is_the_ledger_for_dr_and_off_for_the_classical_masters():
     assert wc.simulate(sc, master="explicit", reference=False).summary["energy_guard"] == "n/a"
     guarded = sc.with_master(algorithm="jacobi-iter", K=1, energy_guard="ledger")
     assert wc.simulate(guarded, reference=False).summary["energy_guard"] == "ledger"
+
+
+def same_run(ref, fast, blocks=True):
+    """Kernel and Python reference runs agree byte for byte: rows, outputs, FMU calls, ledger figures."""
+    assert fast.summary["fast_path"] and not ref.summary["fast_path"]
+    assert fast.summary["block_steps"] == (fast.summary["steps"] if blocks else 0)   # blocks: the kernel made all
+    assert ref.steps_table.array().tobytes() == fast.steps_table.array().tobytes()
+    assert ref.outputs.tobytes() == fast.outputs.tobytes()
+    keys = ("fmu_calls", "energy_guard_steps", "energy_guard_extra_doSteps", "energy_guard_fallbacks", "max_ledger",
+            "ledger_final")
+    assert [ref.summary[k] for k in keys] == [fast.summary[k] for k in keys]
+
+
+@pytest.mark.parametrize("blocks", [True, False])
+def test_the_kernels_redo_is_the_reference_in_every_action(monkeypatch, blocks):
+    """A stiff Duffing spring (knl = 8e7) at K = 4 on the star: kept, scaled and fallen-back-to-zero
+    steps, redone by the kernel in blocks or step by step (dr_ledger_redo), byte for byte the Python
+    reference's."""
+    if not blocks:
+        monkeypatch.setattr(runner, "BLOCK_STEPS", 1)
+    base = scenario(STAR, "ledger", 4, T=5.0, parameters={("A", "knl"): 8e7})
+    ref, fast = (run(base.with_master(fast=f), certificates=False) for f in ("false", "true"))
+    same_run(ref, fast, blocks)
+    assert set(column(fast, "ledger_action")) == {0, 1, 2} and fast.summary["energy_guard_fallbacks"] > 0
+    assert max(fast.energy) <= fast.energy[0] * (1 + ROUNDOFF)
+
+
+def test_past_the_deadline_the_kernel_commits_s_zero_at_once_and_keeps_the_ledger():
+    """A deadline already passed when the guard looks (1 ns): the inner loop makes one iteration,
+    every redo is the single s = 0 commit (one round), the ledger stays at roundoff and H below H(0),
+    in the kernel as in the Python reference, byte for byte; the bound is reported."""
+    base = scenario(STAR, "ledger", 1000, T=5.0).with_master(deadline_us=1e-3)
+    ref, fast = (run(base.with_master(fast=f), certificates=False) for f in ("false", "true"))
+    same_run(ref, fast)
+    s, acted = fast.summary, column(fast, "ledger_action") > 0
+    assert s["energy_guard_steps"] > 0 and np.all(column(fast, "scale")[acted] == 0.0)
+    assert np.all(column(fast, "iterations") == 1)
+    assert s["energy_guard_extra_doSteps"] == 4 * s["energy_guard_steps"] and s["energy_guard_fallbacks"] == 0
+    assert column(fast, "ledger").max() <= 1e3 * ROUNDOFF * fast.energy[0]
+    assert max(fast.energy) <= fast.energy[0] * (1 + ROUNDOFF)
+    bound = s["deadline_bound"]
+    assert bound["deadline_us"] == 1e-3 and bound["bound_us"] == bound["deadline_us"] + bound["round_us"] > 0
+    assert s["step_time_us"]["count"] == s["steps"] and 0.0 <= bound["within"] <= 1.0
+
+
+def test_step_time_spread_and_bound_by_nearest_rank():
+    times = [(1e-6 * t, t >= 30, 1e-6, math.nan) for t in range(1, 101)]          # 1 .. 100 µs
+    assert energy_ledger.spread([t for t, _, _, _ in times]) == pytest.approx(
+        {"median": 50.0, "p99": 99.0, "max": 100.0, "count": 100})
+    bound = energy_ledger.deadline_bound(times, 40.0)
+    assert bound["bound_us"] == pytest.approx(41.0) and bound["within"] == 0.41
+    assert bound["guarded_within"] == pytest.approx(12 / 71) and bound["on_cpu_within"] is None

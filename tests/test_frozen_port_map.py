@@ -1,5 +1,6 @@
 """master/frozen_port_map.py: a query never moves the committed state, the commit does, the calls
 are counted, and the raw reader agrees with fmpy's getReal."""
+import numpy as np
 import pytest
 
 from wavecosim.config import load_scenario
@@ -46,3 +47,21 @@ def test_kernel_steps_are_booked_like_python_steps(scene):
     A = scene.subsystems[0]
     A.note_kernel_step(4, 0.04, iterations=7)
     assert (A.step_index, A.t) == (4, 0.04) and A.calls == {"doStep": 8, "save": 1, "restore": 7}
+
+
+@pytest.mark.parametrize("dirty", [False, True], ids=["just-frozen", "after-a-query"])
+def test_queries_in_one_call_are_the_queries_one_by_one(scene, dirty):
+    """raw_queries makes the same FMU calls as raw_query row by row: the same outputs to the bit,
+    the same counts, and the instance left where those would leave it."""
+    A = scene.subsystems[0]
+    rows = np.random.default_rng(4).standard_normal((9, A.m))
+    results = []
+    for batch in (False, True):
+        A.calls.update(doStep=0, save=0, restore=0)
+        A.freeze(3, 0.03)
+        if dirty:
+            A.raw_query([0.5])
+        out = A.raw_queries(rows) if batch else np.array([A.raw_query(list(r)) for r in rows])
+        A.thaw()
+        results.append((out.tobytes(), dict(A.calls), list(A.read(["q1", "v1", "d"]))))
+    assert results[0] == results[1] and results[0][1]["doStep"] == 9 + dirty

@@ -119,8 +119,8 @@ def same_files_and_figures(one, blocks, out, names=("trajectory.csv", "steps.csv
 @pytest.mark.parametrize("K,guard,guarded", [(0, "monolithic", 0), (1, "monolithic", 0), (8, "monolithic", 3),
                                              (50, "monolithic", 0), (0, "ledger", 0), (8, "ledger", 112)])
 def test_blocks_give_the_step_by_step_files(tmp_path, monkeypatch, K, guard, guarded):
-    """Table I, 1000 steps: at K = 8 the monolithic guard redoes 3 steps and the ledger 112, each
-    stopping a block (the kernel books the ledger itself and stops before a step it would redo)."""
+    """Table I, 1000 steps: at K = 8 the monolithic guard redoes 3 steps, each stopping a block, and
+    the ledger 112 (the kernel keeps the ledger and makes its redo itself, inside the block)."""
     one, blocks = step_by_step(monkeypatch, load_scenario().with_master(K=K, energy_guard=guard), tmp_path)
     same_files_and_figures(one, blocks, tmp_path)
     assert blocks.summary["energy_guard_steps"] == guarded

@@ -19,7 +19,11 @@ The cost of one inner iteration (both subsystems queried once, plus the DR updat
 marginal cost: the slope of the time per macro-step against K (least squares over K = 0, 8, 50),
 so the per-step freeze, commit and call overhead do not dilute it. Also measured: the master time of the full Table I sweep (K = 0..50, 1000 steps each,
 through the runner, certificates and FNE watch off), and the parallel speedup of the fast path on
-the heavy scene (configs/heavy_chain.yaml): master time with threads = 1 over threads = 2.
+the heavy scene (configs/heavy_chain.yaml): master time with threads = 1 over threads = 2,
+the wave adapter's cost per query on its Python and C routes (wavecosim/bench_adapter.py), and
+the deadline bound: DR with the energy ledger under master.deadline_us (light FMUs: the star at
+30 µs; heavy: heavy_chain at γ = 600, 1500 µs), realised step times against deadline + one
+evaluation round.
 """
 import dataclasses
 import os
@@ -28,6 +32,7 @@ import time
 
 import numpy as np
 
+from .bench_adapter import adapter_bench, report_lines
 from .builtin import ROOT
 from .config import load_scenario
 from .fast_path import Kernel, available_cpus
@@ -40,6 +45,8 @@ TABLE_I = ROOT / "configs" / "two_oscillators.yaml"
 HEAVY = ROOT / "configs" / "heavy_chain.yaml"
 KS = (0, 8, 50)
 PATHS = ("naive_fmpy", "python", "fast_step", "fast", "floor")
+DEADLINE_RUNS = (("star", ROOT / "configs" / "star.yaml", 30.0, 20.0, {}),
+                 ("heavy_chain", HEAVY, 1500.0, 4.0, {"gamma": 600.0}))   # name, file, deadline (µs), T (s), changes
 TARGETS = {"fast_over_floor_max": 1.5, "fast_over_floor_K0_max": 3.0, "naive_over_fast_min": 10.0, "sweep_master_s_max": 1.0,
            "parallel_speedup_min": 1.6, "run_over_master_max": 1.5, "run_over_master_certificates_max": 3.0}
 
@@ -261,6 +268,23 @@ def run_overhead(scenario, repeats, progress=print):
     return out
 
 
+def deadline_bound(quick=False, progress=print):
+    """Realised step times of DR with the ledger under master.deadline_us (K = 100000, so the deadline
+    ends every inner loop; serial; in kernel blocks, as `wavecosim run --no-certificates` makes them)
+    against the bound deadline + one evaluation round (every subsystem's doStep once, as measured)."""
+    out = {}
+    for name, path, deadline_us, T, changes in DEADLINE_RUNS:
+        progress(f"  deadline bound: {name} at {deadline_us:g} µs")
+        scenario = load_scenario(path).with_changes(T=T / 4 if quick else T, **changes)
+        scenario = scenario.with_master(K=100000, eps=None, deadline_us=deadline_us, energy_guard="ledger",
+                                        threads="1")
+        s = run(scenario, certificates=False).summary
+        out[name] = {**s["deadline_bound"], "steps": s["steps"], "iterations_mean": s["iterations_mean"],
+                     "steps_acted": s["energy_guard_steps"], "all_us": s["step_time_us"],
+                     "guarded_us": s["guarded_step_time_us"], "load_average_1min": os.getloadavg()[0]}
+    return out
+
+
 def slope(x, y):
     """Least-squares slope of y against x: the marginal cost of one more inner iteration."""
     x, y = np.asarray(x, float), np.asarray(y, float)
@@ -300,6 +324,8 @@ def run_bench(quick=False, progress=print):
         "run_over_master": {"K0": over["plain_K0"], "K50": over["plain_K50"]},
         "run_over_master_certificates": {"K0": over["certificates_K0"], "K50": over["certificates_K50"]},
         "run_over_master_in_memory": {"K0": over["memory_K0"], "K50": over["memory_K50"]},
+        "wave_adapter": adapter_bench(quick, 1 if quick else repeats, progress),
+        "deadline_bound": deadline_bound(quick, progress),
         "targets": {
             "fast_over_floor <= 1.5": ratios["fast_over_floor"] <= TARGETS["fast_over_floor_max"],
             "fast / floor at K = 0 <= 3": ratios["fast_over_floor_K0"] <= TARGETS["fast_over_floor_K0_max"],
@@ -338,5 +364,14 @@ def report(result):
     for key, w in result["whole_run"].items():
         lines.append(f"{key:<30}{w['run_us_per_step']:>14.2f}{w['master_us_per_step']:>16.2f}"
                      f"{w['run_us_per_step'] / w['master_us_per_step']:>14.2f}")
+    lines.extend(report_lines(result["wave_adapter"]))
+    lines.append(f"{'deadline bound (µs)':<20}{'deadline':>9}{'bound':>9}{'median':>9}{'p99':>9}{'max':>10}"
+                 f"{'within':>8}{'on CPU':>8}{'acted':>7}{'guarded median / max':>22}")
+    for name, d in result["deadline_bound"].items():
+        a, g = d["all_us"], d["guarded_us"]
+        guarded = f"{g['median']:.1f} / {g['max']:.1f}" if g else "-"
+        on_cpu = "-" if d["on_cpu_within"] is None else f"{100 * d['on_cpu_within']:.1f}%"
+        lines.append(f"{name:<20}{d['deadline_us']:>9.1f}{d['bound_us']:>9.1f}{a['median']:>9.1f}{a['p99']:>9.1f}"
+                     f"{a['max']:>10.1f}{100 * d['within']:>7.1f}%{on_cpu:>8}{d['steps_acted']:>7}{guarded:>22}")
     lines.append("targets: " + ", ".join(f"{k}: {'met' if v else 'MISSED'}" for k, v in result["targets"].items()))
     return lines

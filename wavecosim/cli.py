@@ -314,7 +314,7 @@ def build_cmd(force):
 @click.option("--quick", is_flag=True, help="Fewer steps and repeats (a few seconds instead of about a minute).")
 @click.option("--json", "json_file", type=click.Path(dir_okay=False, path_type=Path), help="Also write the figures here.")
 def bench_cmd(quick, json_file):
-    """Time the inner iteration: plain fmpy loop, Python reference, C fast path and the C floor."""
+    """Time the inner iteration: plain fmpy loop, Python reference, C fast path and the C floor; the deadline bound."""
     from .bench import report, run_bench
     result = run_bench(quick=quick, progress=lambda msg: click.echo(msg, err=True))
     for line in report(result):

@@ -6,6 +6,8 @@ arithmetic in the operation order of wavecosim/linalg.py, so its numbers are bit
 readable reference `DRMaster` (wavecosim/masters/dr.py). This module wires the kernel up through
 ctypes: `Kernel` owns one C kernel for a scene's subsystems and the buffers it shares with
 Python. The master that uses it is wavecosim/masters/dr_fast.py::FastDRMaster.
+An FMI 3 FMU is handed over in fmi2 form: `Fmu.function_pointer` gives the functions of
+fmus/kernel/fmi3shim.c, which take the FMU's shim (`Fmu.component`) as their fmi2Component.
 """
 import ctypes
 import math
@@ -14,12 +16,15 @@ import time
 
 import numpy as np
 
-from .builtin import ROOT, builtin_fmus
+from .builtin import kernel_library
 from .errors import FmuError
+from .kernel_adapter import KernelAdapter
+from .kernel_adapter import load_library as load_adapter_library
 
-LIBRARY = ROOT / "build" / "lib" / "libdrkernel.so"
 PARALLEL_MIN_US = 150.0
-REASONS = ("budget", "tolerance", "deadline", "explicit")
+REASONS = ("budget", "tolerance", "deadline", "explicit", "converged", "energy-guard")  # as masters/base.py (the
+#                                                  runner asserts it); the kernel never gives "converged"
+LEDGER_LOG = ("supplied", "ledger", "traffic", "scale", "action", "rounds", "step_s", "round_s", "cpu_s")  # drkernel.h
 FUNCTIONS = (None, "fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2SetReal", "fmi2DoStep", "fmi2GetReal")
 _FMI_NAMES = ("fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate", "fmi2SetReal", "fmi2DoStep",
               "fmi2GetReal")
@@ -66,7 +71,7 @@ class DRStep(ctypes.Structure):
                 ("reason", ctypes.c_int), ("residual", ctypes.c_double), ("failed_subsystem", ctypes.c_int),
                 ("failed_function", ctypes.c_int), ("failed_status", ctypes.c_int), ("stopped", ctypes.c_int),
                 ("ledger_on", ctypes.c_int), ("ledger", ctypes.c_double), ("traffic", ctypes.c_double),
-                ("ledger_rtol", ctypes.c_double)]
+                ("ledger_rtol", ctypes.c_double), ("step_deadline_s", ctypes.c_double), ("round_s", ctypes.c_double)]
 
 
 _lib = None
@@ -76,10 +81,7 @@ def load_library():
     """The kernel library, built (with the FMUs) if missing or stale; raises FmuError if it cannot be."""
     global _lib
     if _lib is None:
-        builtin_fmus()                       # fmus/build.py also compiles fmus/kernel/*.c
-        if not LIBRARY.exists():
-            raise FmuError(f"the kernel library {LIBRARY} was not built")
-        lib = ctypes.CDLL(str(LIBRARY))
+        lib = kernel_library("drkernel", "the kernel library")
         p, i, d = ctypes.c_void_p, ctypes.c_int, ctypes.POINTER(ctypes.c_double)
         lib.dr_create.restype = p
         lib.dr_create.argtypes = [i, i, d, d, d, d, d, d]
@@ -102,6 +104,7 @@ def load_library():
         lib.dr_log_width.restype = ctypes.c_size_t
         lib.dr_run_steps.argtypes = [p, ctypes.POINTER(DRStep), i, i, d, ctypes.c_double]
         lib.dr_set_options.argtypes = [p, ctypes.c_double, i, i]
+        lib.dr_ledger_redo.argtypes = [p, ctypes.POINTER(DRStep), ctypes.c_double, ctypes.c_double, i, d]
         _lib = lib
     return _lib
 
@@ -109,13 +112,16 @@ def load_library():
 class BlockLog:
     """The macro-steps run in one kernel call, one row per step: iterations, reason (index into
     REASONS), residual, a (steps x n), b^{n+1} (steps x n); `observed` holds the observed values one
-    per row (values x steps), as the kernel logs them (each value contiguous). `stopped`: the kernel
-    stopped early after the last step (its H may exceed the cap, or a value is not finite)."""
+    per row (values x steps), as the kernel logs them (each value contiguous), and `ledger` the energy
+    ledger's (LEDGER_LOG x steps). `stopped`: the kernel stopped early after the last step (its H may
+    exceed the cap, or a value is not finite)."""
 
     def __init__(self, columns, n, stopped=False):
         self.columns, self.n, self.stopped = columns, n, stopped     # one row per logged value
         self.iterations, self.reason, self.residual = columns[0], columns[1], columns[2]
-        self.a_hat, self.b, self.observed = columns[3:3 + n].T, columns[3 + n:3 + 2 * n].T, columns[3 + 2 * n:]
+        end = len(columns) - len(LEDGER_LOG)
+        self.a_hat, self.b, self.observed = columns[3:3 + n].T, columns[3 + n:3 + 2 * n].T, columns[3 + 2 * n:end]
+        self.ledger = dict(zip(LEDGER_LOG, columns[end:]))
 
     def __len__(self):
         return self.columns.shape[1]
@@ -132,17 +138,19 @@ class BlockLog:
 def unusable(scene):
     """Why the kernel cannot run this scene, or None if it can."""
     for s in scene.subsystems:
-        if s.adapter:
-            return f"subsystem {s.name} has a physical port (wave adapter, Python only for now)"
         if not s.fmu.can_save_state:
             return f"subsystem {s.name} cannot get and set its FMU state"
         for name in _FMI_NAMES:
             try:
-                s.fmu.function_pointer(name)
+                s.fmu.function_pointer(name)      # FMI 3: fmus/kernel/fmi3shim.c's, in fmi2 form
             except AttributeError:
-                return f"subsystem {s.name}: the FMU does not export {name}"
+                return f"subsystem {s.name}: the FMU does not export {s.fmu.function_name(name)}"
+            except FmuError as exc:
+                return str(exc)
     try:
         load_library()
+        if any(s.adapter for s in scene.subsystems):
+            load_adapter_library()
     except FmuError as exc:
         return str(exc)
     return None
@@ -165,6 +173,22 @@ def thread_plan(costs_us, n_threads):
     return plan, load
 
 
+def fmu_functions(s):
+    """The FMU functions and component the kernel calls for subsystem s: its own fmi2 ones."""
+    return DRFunctions(*[s.fmu.function_pointer(name) for name in _FMI_NAMES]), s.fmu.component
+
+
+def adapter_port(s, fns, comp):
+    """A subsystem with a physical port: its wave adapter goes to C over the FMU's table (fns, comp)
+    (wavecosim/kernel_adapter.py), and the kernel calls the adapter's fmi2 shim as a wave port with
+    value references 0 .. m - 1. Returns (functions, component, vr_in, vr_out)."""
+    if not isinstance(s.map, KernelAdapter):
+        s.map = KernelAdapter(s.map, fns, comp, FUNCTIONS)
+    table, adapter = s.map.shim()
+    vrs = (ctypes.c_uint * s.m)(*range(s.m))
+    return DRFunctions(*table), adapter, vrs, vrs
+
+
 class Kernel:
     """One C kernel over a scene's subsystems (wave mode), with its buffers b, a_hat, u^0, u^K."""
 
@@ -183,17 +207,21 @@ class Kernel:
             raise FmuError("the DR kernel could not be created (out of memory)")
         self._handle = ctypes.c_void_p(self.handle)
         for i, (s, off) in enumerate(zip(self.subsystems, scene.offsets)):
-            fns = DRFunctions(*[s.fmu.function_pointer(name) for name in _FMI_NAMES])
-            vr_in = (ctypes.c_uint * s.m)(*[s.fmu.vr(v) for v in s.port.wave_in])
-            vr_out = (ctypes.c_uint * s.m)(*[s.fmu.vr(v) for v in s.port.wave_out])
+            fns, comp = fmu_functions(s)
+            if s.adapter:
+                fns, comp, vr_in, vr_out = adapter_port(s, fns, comp)
+            else:
+                vr_in = (ctypes.c_uint * s.m)(*s.fmu.real_vrs(s.port.wave_in))
+                vr_out = (ctypes.c_uint * s.m)(*s.fmu.real_vrs(s.port.wave_out))
             # x_i^n goes into the Subsystem's own handle, so that after a fast macro-step the
             # Subsystem holds x_i^n exactly as after the reference one (restore_frozen, thaw work)
             state = s.state_handle_address()
-            if lib.dr_set_subsystem(self.handle, i, ctypes.byref(fns), s.fmu.component, state, vr_in, vr_out, s.m,
+            if lib.dr_set_subsystem(self.handle, i, ctypes.byref(fns), comp, state, vr_in, vr_out, s.m,
                                     int(off)):
                 self.close()
                 raise FmuError(f"subsystem {s.name}: the DR kernel refused its port")
         self.io = DRStep(measure=0, eps=-1.0, deadline_s=0.0)
+        self.at = (None, None)                     # (n, t) of the last macro_step
         self._io = ctypes.byref(self.io)
         self._macro_step = lib.dr_macro_step       # called with pre-converted arguments
         self.threads = 1
@@ -204,15 +232,17 @@ class Kernel:
     def observe(self, names):
         """Read these variables of each subsystem (names[i], H_i first) after every commit of run_steps."""
         for i, (s, vars_i) in enumerate(zip(self.subsystems, names)):
-            vrs = (ctypes.c_uint * len(vars_i))(*[s.fmu.vr(v) for v in vars_i])
+            vrs = (ctypes.c_uint * len(vars_i))(*s.fmu.real_vrs(vars_i))
             if self.lib.dr_set_observed(self._handle, i, vrs, len(vars_i)):
                 raise FmuError(f"subsystem {s.name}: the DR kernel could not keep {len(vars_i)} observed values")
         self.width = self.lib.dr_log_width(self._handle)
 
-    def keep_ledger(self, ledger, traffic, rtol):
+    def keep_ledger(self, ledger, traffic, rtol, step_deadline_s=None):
         """From the next run_steps on, the kernel books the interface energy ledger from (L, traffic)
-        and stops a block before a step the ledger guard would redo (drkernel.c, ledger_stops)."""
-        self.io.ledger_on, self.io.ledger, self.io.traffic, self.io.ledger_rtol = 1, ledger, traffic, rtol
+        and redoes a step that would lift it above tol, within step_deadline_s (drkernel.c, ledger_step)."""
+        io = self.io
+        io.ledger_on, io.ledger, io.traffic, io.ledger_rtol = 1, ledger, traffic, rtol
+        io.step_deadline_s = step_deadline_s or 0.0
 
     def run_steps(self, n0, count, H_cap=math.inf, measure=False):
         """Macro-steps n0 .. n0 + count - 1 in one call (drkernel.h, dr_run_steps): (steps done, their
@@ -261,10 +291,18 @@ class Kernel:
     def macro_step(self, n, t, measure=False):
         """Algorithm 1, lines 3-22, in C; raises the FmuError the reference path would raise."""
         io = self.io
-        io.t, io.measure = t, measure
+        io.t, io.measure, self.at = t, measure, (n, t)
         if self._macro_step(self._handle, self._io):
             raise self.failure(n, t)
         return io
+
+    def redo(self, supplied, budget, fitted):
+        """The energy ledger's redo of the step macro_step just made (drkernel.h, dr_ledger_redo):
+        (s, supply, traffic, action, rounds); b and a_hat become the redo's."""
+        out = (ctypes.c_double * 5)()
+        if self.lib.dr_ledger_redo(self._handle, self._io, supplied, budget, int(fitted), out):
+            raise self.failure(*self.at)
+        return out[0], out[1], out[2], int(out[3]), int(out[4])
 
     def floor(self, n_steps, K, inputs=None, t0=0.0):
         """The FMU calls of n_steps macro-steps with budget K and no DR logic (the floor); returns
@@ -292,7 +330,8 @@ class Kernel:
     def failure(self, n, t):
         io = self.io
         sub = self.subsystems[io.failed_subsystem]
-        return sub.fmu.status_error(FUNCTIONS[io.failed_function], io.failed_status, n, t)
+        inner = sub.map.kernel_error(n, t) if sub.adapter else None      # the wave adapter's own failure
+        return inner or sub.fmu.status_error(FUNCTIONS[io.failed_function], io.failed_status, n, t)
 
     def costs(self):
         """Median µs per evaluation of each subsystem since the last call (steps run with measure)."""

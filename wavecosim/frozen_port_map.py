@@ -2,14 +2,19 @@
 
 `freeze()` saves x_i^n; `query(a)` is S_i^n(a) (paper eq. 12): restore x_i^n, apply a, one doStep,
 read b, discard the state; `advance(a)` is Phi_i (eq. 21): the same from x_i^n, but the state is
-kept. Calls go straight to the FMU's C functions with pre-converted arguments. How a becomes b is
+kept. Calls go straight to the FMU's C functions with pre-converted arguments (in fmi2 form; for an
+FMI 3 FMU, wavecosim/fmi3.py puts its fmi3 functions behind the same signatures). How a becomes b is
 the subsystem's port (wavecosim/ports.py): the FMU's own wave mode, or the wave adapter for an FMU
 with only a physical port.
 """
 import ctypes
 from dataclasses import dataclass, field
 
+import numpy as np
+
+from .builtin import helper_library
 from .errors import FmuError
+from .fast_path import _FMI_NAMES, FUNCTIONS, DRFunctions
 from .ports import DirectPort, WaveAdapter
 
 
@@ -56,14 +61,16 @@ class Subsystem:
         in_names = port.wave_in if wave and not port.physical else port.physical_in
         out_names = port.wave_out if wave and not port.physical else [e if flow_in else f for e, f, flow_in in
                                                                       zip(port.effort, port.flow, port.input_is_flow)]
-        self._in_vr = (ctypes.c_uint * m)(*[fmu.vr(n) for n in in_names])
-        self._out_vr = (ctypes.c_uint * m)(*[fmu.vr(n) for n in out_names])
+        self._in_vr = (ctypes.c_uint * m)(*fmu.real_vrs(in_names))
+        self._out_vr = (ctypes.c_uint * m)(*fmu.real_vrs(out_names))
         self._in_val = (ctypes.c_double * m)()
         self._out_val = (ctypes.c_double * m)()
         self._m = ctypes.c_size_t(m)
         self._state = ctypes.c_void_p()
         self._dirty = False
+        self._batch = None                   # (queries library or None, its DRFunctions), on first raw_queries
         self.t = 0.0
+        self._t = ctypes.c_double(0.0)
         self.calls = {"doStep": 0, "save": 0, "restore": 0}
         self.map = self._port_map(gamma)
 
@@ -149,6 +156,35 @@ class Subsystem:
         self._dirty = True
         return self._step(u)
 
+    def queries(self, rows):
+        """query of each row of a 2-D array, in order, as rows (one C call when the port is the FMU's own map)."""
+        if isinstance(self.map, DirectPort) and self.map.in_scale is None:
+            return self.raw_queries(rows)
+        return np.array([self.query(list(r)) for r in rows], float).reshape(len(rows), self.m)
+
+    def raw_queries(self, rows):
+        """raw_query of each row of a 2-D array, in order, as rows of outputs: one C call
+        (fmus/kernel/queries.c) making the same FMU calls, or raw_query row by row without it."""
+        if self._batch is None:
+            lib = helper_library("queries")
+            self._batch = (lib, lib and DRFunctions(*[self.fmu.function_pointer(name) for name in _FMI_NAMES]))
+        lib, fns = self._batch
+        if lib is None:
+            return np.array([self.raw_query(list(r)) for r in rows], float).reshape(len(rows), self.m)
+        inputs = np.ascontiguousarray(rows, dtype=float)
+        out, failed, p = np.empty_like(inputs), (ctypes.c_int * 2)(), ctypes.c_void_p
+        done = lib.fq_queries(ctypes.byref(fns), self._comp, ctypes.byref(self._state), self._in_vr, self._out_vr,
+                              self.m, self._t, self._h, p(inputs.ctypes.data), len(inputs), p(out.ctypes.data),
+                              int(self._dirty), failed)
+        fn = failed[0] if done < len(inputs) else 0
+        restore_fn = FUNCTIONS.index("fmi2SetFMUstate")
+        self.calls["restore"] += max(0, done + (fn > 0) - (not self._dirty)) - (fn == restore_fn)
+        self.calls["doStep"] += done + (fn == FUNCTIONS.index("fmi2GetReal"))
+        self._dirty = self._dirty or done > 0 or fn > restore_fn
+        if fn:
+            raise self.fmu.status_error(FUNCTIONS[fn], failed[1], self.step_index, self.t)
+        return out
+
     def raw_advance(self, u):
         """Like raw_query, but the new state is kept."""
         if self._dirty:
@@ -177,7 +213,7 @@ class Subsystem:
     def reader(self, names):
         """(read, buffer): read() fills the fixed ctypes buffer with `names` in one raw fmi2GetReal."""
         k = len(names)
-        vr = (ctypes.c_uint * k)(*[self.fmu.vr(n) for n in names])
+        vr = (ctypes.c_uint * k)(*self.fmu.real_vrs(names))
         buf, size = (ctypes.c_double * k)(), ctypes.c_size_t(k)
         get_real, comp, call = self._get_real, self._comp, self._call
 
@@ -191,13 +227,14 @@ class Subsystem:
         kernel macro-step this Subsystem holds x_i^n exactly as after a Python one."""
         return ctypes.addressof(self._state)
 
-    def note_kernel_step(self, step_index, t, iterations, steps=1):
+    def note_kernel_step(self, step_index, t, iterations, steps=1, redone=0):
         """Book `steps` macro-steps the C kernel made, the last one step n at t (frozen at x^n):
-        each a save, its queries and one commit; `iterations` counts the queries of them all."""
+        each a save, its queries and one commit; `iterations` counts the queries of them all and
+        `redone` the energy ledger's redo rounds (a restore and a doStep each)."""
         self.begin(step_index, t)
         self.calls["save"] += steps
-        self.calls["doStep"] += iterations + steps
-        self.calls["restore"] += iterations
+        self.calls["doStep"] += iterations + steps + redone
+        self.calls["restore"] += iterations + redone
         self._dirty = False
 
     def release(self):

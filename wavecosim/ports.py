@@ -17,6 +17,7 @@ import math
 
 import numpy as np
 
+from . import linalg
 from .errors import ConfigError, NumericalError
 from .linalg import matvec
 
@@ -55,14 +56,75 @@ class DirectPort:
         return None
 
 
-class WaveAdapter:
-    """Eq. 12 through the FMU's physical port: S_i^n(a) by Newton on the held input (module docstring)."""
+class AdapterPort:
+    """What every wave adapter shares, whichever solves eq. 12 (WaveAdapter here in Python, or
+    wavecosim/kernel_adapter.py::KernelAdapter in C): orientation, wave weights, the outgoing wave,
+    the error of an unsolved query and the figures. A subclass provides `_solve(a) -> (e, f)`."""
 
-    def __init__(self, sub, effort_in, signs, gamma):
+    def __init__(self, sub, effort_in, signs):
         self.sub, self.m = sub, sub.m
         self.effort_in, self.sign = [bool(x) for x in effort_in], [float(x) for x in signs]
+
+    def weights(self, gamma):
+        """Impedance of the waves: c, k and the residual's weights wu, wy, r(u) = wu u + wy y(u) - c a."""
+        self.gamma = float(gamma)
+        dt = self.sub.dt
+        self.c, self.k = math.sqrt(2.0 * gamma / dt), math.sqrt(dt / (2.0 * gamma))
+        self.wu = [1.0 if ein else gamma * s for ein, s in zip(self.effort_in, self.sign)]
+        self.wy = [gamma * s if ein else 1.0 for ein, s in zip(self.effort_in, self.sign)]
+
+    def error(self, r, why, step=None, t=None):
+        """The NumericalError of an unsolved query (at the subsystem's step unless given)."""
+        s = self.sub
+        step, t = (s.step_index, s.t) if step is None else (step, t)
+        return NumericalError(f"subsystem {s.name}: wave adapter at step {step} (t = {t:.6g}): {why}; "
+                              f"residual |e + gamma f - c a| = {math.hypot(*r):.3g}")
+
+    def stage(self, u, y):
+        """Oriented (e, f) from the FMU's input and output values."""
+        e = [ui if ein else yi for ein, ui, yi in zip(self.effort_in, u, y)]
+        f = [s * (yi if ein else ui) for ein, s, ui, yi in zip(self.effort_in, self.sign, u, y)]
+        return e, f
+
+    def outgoing(self, e, f):
+        """b = sqrt(dt / (2 gamma)) (e - gamma f) per channel (eq. 3)."""
+        return [self.k * (ei - self.gamma * fi) for ei, fi in zip(e, f)]
+
+    def query(self, a):
+        """S_i^n(a); the state is discarded."""
+        return self.outgoing(*self._solve(a))
+
+    def advance(self, a):
+        """Phi_i: the solved step is kept as x_i^{n+1}."""
+        out = self.outgoing(*self._solve(a))
+        self.sub.keep()
+        return out
+
+    def info(self):
+        """Frozen-map evaluations and the doSteps they took."""
+        return {"map_evaluations": self.evaluations, "doSteps": self.doSteps,
+                "doSteps_per_evaluation": self.doSteps / self.evaluations if self.evaluations else math.nan,
+                "stalled_queries": self.accepted, "worst_stalled_residual": self.worst_accepted}
+
+
+def singular_why():
+    return "the port's slope makes the Newton matrix singular (is the port's sign right?)"
+
+
+def stalled_why(rel):
+    return f"no convergence in {MAX_ITER} Newton iterations (best relative residual {rel:.3g} > {ACCEPT:g})"
+
+
+class WaveAdapter(AdapterPort):
+    """Eq. 12 through the FMU's physical port: S_i^n(a) by Newton on the held input (module docstring).
+    The arithmetic is explicit loops in a fixed order (wavecosim/linalg.py), mirrored operation by
+    operation in C (fmus/kernel/adapter.c), so both give the same numbers to the last bit."""
+
+    def __init__(self, sub, effort_in, signs, gamma):
+        super().__init__(sub, effort_in, signs)
         self.u = [0.0] * self.m                # warm start: the last solved input, kept across macro-steps
-        self.y = self.D = None                 # output at u and slope dy/du, valid within one macro-step
+        self.y = self.D = None                 # output at u and slope dy/du (rows), valid within one macro-step
+        self.J_inv = None                      # the Newton matrix's inverse, for D
         self.h2 = 0.0                          # |input step|^2 D was estimated with
         self.u_scale = 1.0                     # the input's scale in this macro-step (sum over channels)
         self.evaluations = self.doSteps = self.accepted = 0
@@ -70,12 +132,8 @@ class WaveAdapter:
         self.set_gamma(gamma)
 
     def set_gamma(self, gamma):
-        """Impedance of the waves; the residual is r(u) = wu u + wy y(u) - c a."""
-        self.gamma = float(gamma)
-        dt = self.sub.dt
-        self.c, self.k = math.sqrt(2.0 * gamma / dt), math.sqrt(dt / (2.0 * gamma))
-        self.wu = [1.0 if ein else gamma * s for ein, s in zip(self.effort_in, self.sign)]
-        self.wy = [gamma * s if ein else 1.0 for ein, s in zip(self.effort_in, self.sign)]
+        """A new impedance (between macro-steps); the Newton matrix follows."""
+        self.weights(gamma)
         if self.D is not None:
             self._invert()
 
@@ -92,21 +150,18 @@ class WaveAdapter:
 
     def _invert(self):
         """The Newton matrix diag(wu) + diag(wy) D, inverted once per slope."""
-        J = np.diag(self.wu) + np.asarray(self.wy)[:, None] * self.D
-        try:
-            inverse = np.linalg.inv(J)
-        except np.linalg.LinAlgError:
-            inverse = np.full_like(J, np.nan)
-        if not np.all(np.isfinite(inverse)):
-            self._fail(self._residual(self.u, self.y, [0.0] * self.m),
-                       "the port's slope makes the Newton matrix singular (is the port's sign right?)")
-        self.J_inv = inverse.tolist()
+        J = [[(wu if i == j else 0.0) + wy * dij for j, dij in enumerate(row)]
+             for i, (wu, wy, row) in enumerate(zip(self.wu, self.wy, self.D))]
+        inverse = linalg.inverse(J)
+        if not all(math.isfinite(x) for row in inverse for x in row):
+            raise self.error(self._residual(self.u, self.y, [0.0] * self.m), singular_why())
+        self.J_inv = inverse
 
     def _estimate_slope(self, target):
         """dy/du at the warm start by forward differences (m + 1 doSteps from x_i^n)."""
         u = self.u
         self.y = y = self._eval(u)
-        self.D = np.zeros((self.m, self.m))
+        self.D = [[0.0] * self.m for _ in range(self.m)]
         self.h2 = self.u_scale = 0.0
         for j in range(self.m):
             scale = abs(u[j]) + (abs(target[j]) + abs(self.wy[j] * y[j])) / abs(self.wu[j])
@@ -116,16 +171,19 @@ class WaveAdapter:
             self.h2 += h * h
             du = list(u)
             du[j] += h
-            self.D[:, j] = [(yj - y0) / h for yj, y0 in zip(self._eval(du), y)]
+            for row, yj, y0 in zip(self.D, self._eval(du), y):
+                row[j] = (yj - y0) / h
         self._invert()
 
     def _secant(self, du, dy):
         """Broyden update of D from one step, unless it is shorter than the slope's own step
         (then it would carry more roundoff than D)."""
-        du2 = sum(x * x for x in du)
+        du2 = linalg.dot(du, du)
         if du2 >= self.h2:
-            du_, dy_ = np.asarray(du), np.asarray(dy)
-            self.D += np.outer(dy_ - self.D @ du_, du_) / du2
+            miss = [p - q for p, q in zip(dy, matvec(self.D, du))]
+            for row, mi in zip(self.D, miss):
+                for j, dj in enumerate(du):
+                    row[j] += mi * dj / du2
             self._invert()
 
     def _solve(self, a):
@@ -156,9 +214,11 @@ class WaveAdapter:
     def _relative(self, r, u, y, target):
         """The residual relative to the terms it balances, or the next Newton correction relative
         to the input's scale (near rest, where the terms themselves vanish): the smaller."""
-        size = sum(abs(t) + abs(wu * ui) + abs(wy * yi) for t, wu, ui, wy, yi in zip(target, self.wu, u, self.wy, y))
-        norm = sum(abs(x) for x in r)
-        step = sum(abs(x) for x in matvec(self.J_inv, r)) / self.u_scale
+        size = 0.0
+        for t, wu, ui, wy, yi in zip(target, self.wu, u, self.wy, y):
+            size += abs(t) + abs(wu * ui) + abs(wy * yi)
+        norm = linalg.norm1(r)
+        step = linalg.norm1(matvec(self.J_inv, r)) / self.u_scale
         return min(norm / size if size > 0 else (0.0 if norm == 0 else math.inf), step)
 
     def _accept(self, best, r):
@@ -166,44 +226,12 @@ class WaveAdapter:
         best point is kept when within ACCEPT, and the FMU put there; otherwise the query fails."""
         rel, u, y = best
         if rel > ACCEPT:
-            self._fail(r, f"no convergence in {MAX_ITER} Newton iterations (best relative residual {rel:.3g} "
-                          f"> {ACCEPT:g})")
+            raise self.error(r, stalled_why(rel))
         self.accepted += 1
         self.worst_accepted = max(self.worst_accepted, rel)
         if u is not self.u:
             self.u, self.y = u, self._eval(u)
         return self.stage(self.u, self.y)
-
-    def _fail(self, r, why):
-        s = self.sub
-        raise NumericalError(f"subsystem {s.name}: wave adapter at step {s.step_index} (t = {s.t:.6g}): {why}; "
-                             f"residual |e + gamma f - c a| = {math.hypot(*r):.3g}")
-
-    def stage(self, u, y):
-        """Oriented (e, f) from the FMU's input and output values."""
-        e = [ui if ein else yi for ein, ui, yi in zip(self.effort_in, u, y)]
-        f = [s * (yi if ein else ui) for ein, s, ui, yi in zip(self.effort_in, self.sign, u, y)]
-        return e, f
-
-    def outgoing(self, e, f):
-        """b = sqrt(dt / (2 gamma)) (e - gamma f) per channel (eq. 3)."""
-        return [self.k * (ei - self.gamma * fi) for ei, fi in zip(e, f)]
-
-    def query(self, a):
-        """S_i^n(a); the state is discarded."""
-        return self.outgoing(*self._solve(a))
-
-    def advance(self, a):
-        """Phi_i: the solved step is kept as x_i^{n+1}."""
-        out = self.outgoing(*self._solve(a))
-        self.sub.keep()
-        return out
-
-    def info(self):
-        """Frozen-map evaluations and the doSteps they took."""
-        return {"map_evaluations": self.evaluations, "doSteps": self.doSteps,
-                "doSteps_per_evaluation": self.doSteps / self.evaluations if self.evaluations else math.nan,
-                "stalled_queries": self.accepted, "worst_stalled_residual": self.worst_accepted}
 
 
 def probe_signs(sub, where):

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import Interrupted, NumericalError, RunFailed, WavecosimError
+from .errors import ConfigError, Interrupted, NumericalError, RunFailed, WavecosimError
 from .fast_path import REASONS as KERNEL_REASONS
 from .gamma_tuning import GammaTuner
 from .masters import MASTERS
@@ -300,7 +300,7 @@ class LiveRun:
         step, and builtin sum() adds left to right (Python < 3.12: the blocks' sums are written so)."""
         guard = self.guard
         self.cap = guard.cap if isinstance(guard, EnergyGuard) else math.inf
-        self.ledger = isinstance(guard, EnergyLedger) and self.master.deadline_s is None
+        self.ledger = isinstance(guard, EnergyLedger)
         self.blocks = (getattr(self.master, "fast", False) and hasattr(self.master, "run_steps")
                        and not self.bracket and all(o.blocks for o, _ in self.after)
                        and (guard is None or isinstance(guard, EnergyGuard) or self.ledger)
@@ -325,19 +325,23 @@ class LiveRun:
     def step_block(self, n0, count):
         """Macro-steps n0 .. n0 + count - 1 in one call of the master; the master stops early after a
         step the energy guard must judge (or with a non-finite value), which is then finished as in
-        step(). Returns the steps made; raises the FmuError of the step after them."""
+        step() (the ledger is kept, and redone, in the kernel: such a step is in the block, and a
+        non-finite value ends the run after it). Returns the steps made; raises the FmuError of the
+        step after them."""
         if self.ledger:
             self.master.keep_ledger(*self.guard.kernel_state())
         t0 = time.perf_counter()
         done, log, error = self.master.run_steps(n0, count, self.cap)
         self.master_time += time.perf_counter() - t0
         self.block_steps += done
-        whole = done - 1 if log.stopped else done
+        whole = done - 1 if log.stopped and not self.ledger else done      # the ledger's kernel books every step
         if whole:
             self._after_block(n0, log.first(whole))
         if whole < done:
             n = n0 + whole
             self._after_master(n, n * self.dt, self.master.step_log(log, whole))
+        elif log.stopped:
+            self._check_finite(self.sampler.read(), n0 + done - 1)
         self.loop_time = time.perf_counter() - self.loop_started
         if error is not None:
             raise error
@@ -474,8 +478,11 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
     try:
         rows = None
         if reference == "lockstep":
-            ref = LiveRun(reference_scenario(scenario), out_dir, "monolithic", False, warn, True,
-                          output_interval, formats)
+            try:
+                ref = LiveRun(reference_scenario(scenario), out_dir, "monolithic", False, warn, True,
+                              output_interval, formats)
+            except ConfigError as exc:     # e.g. an FMU without state save that only the reference rolls back
+                raise type(exc)(f"{exc} (needed by the monolithic reference; --no-reference runs without it)") from None
             reference = lambda k: ref.recent.get(k)          # noqa: E731  (ref steps first)
         elif reference is not None:
             reference, rows = stored_reference(reference), stored_rows(reference)

@@ -9,6 +9,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "linalg.h"
+
 #define DR_ANDERSON_MAX 16          /* dr_options.ANDERSON_MAX */
 #define DR_ANDERSON_SAFEGUARD 0.9   /* dr_options.ANDERSON_SAFEGUARD */
 #define DR_ANDERSON_REG 1e-12       /* dr_options.ANDERSON_REG */
@@ -54,12 +56,6 @@ static DROptions *options_create(double lambda, int m, int warm_start, size_t n)
     return o;
 }
 
-static double options_dot(const double *x, const double *y, size_t n) {
-    double acc = 0.0;
-    for (size_t j = 0; j < n; j++) acc += x[j] * y[j];
-    return acc;
-}
-
 /* dr_options.solve: A x = r (p x p, row-major, overwritten; x in r), partial pivoting; -1 if singular. */
 static int options_solve(double *A, double *r, int p) {
     for (int c = 0; c < p; c++) {
@@ -100,12 +96,12 @@ static int options_least_squares(DROptions *o) {
     double top = 0.0;
     for (int i = 0; i < p; i++)
         for (int j = 0; j < p; j++)
-            o->A[i * p + j] = options_dot(options_col(o, o->dG, i), options_col(o, o->dG, j), o->n);
+            o->A[i * p + j] = dot(options_col(o, o->dG, i), options_col(o, o->dG, j), o->n);
     for (int i = 0; i < p; i++)
         if (i == 0 || o->A[i * p + i] > top) top = o->A[i * p + i];
     if (!(top > 0.0)) return -1;
     for (int i = 0; i < p; i++) o->A[i * p + i] += DR_ANDERSON_REG * top;
-    for (int i = 0; i < p; i++) o->r[i] = options_dot(options_col(o, o->dG, i), o->g, o->n);
+    for (int i = 0; i < p; i++) o->r[i] = dot(options_col(o, o->dG, i), o->g, o->n);
     if (options_solve(o->A, o->r, p)) return -1;
     for (int i = 0; i < p; i++)
         if (!isfinite(o->r[i])) return -1;
@@ -129,7 +125,7 @@ static void options_push(DROptions *o, const double *f) {
 static void options_anderson(DROptions *o, const double *u, double *f, const double *b_hat, const double **b_star) {
     size_t n = o->n;
     for (size_t j = 0; j < n; j++) o->g[j] = f[j] - u[j];
-    double gg = options_dot(o->g, o->g, n), acc = o->have_acc ? options_dot(o->g_acc, o->g_acc, n) : 0.0;
+    double gg = dot(o->g, o->g, n), acc = o->have_acc ? dot(o->g_acc, o->g_acc, n) : 0.0;
     if (o->candidate && gg > DR_ANDERSON_SAFEGUARD * DR_ANDERSON_SAFEGUARD * acc) {
         o->count = o->start = o->candidate = 0;                  /* rejected: the plain step instead, */
         memcpy(f, o->f_acc, n * sizeof *f);

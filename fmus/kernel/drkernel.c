@@ -11,6 +11,7 @@
 #include <time.h>
 
 #include "drkernel.h"
+#include "linalg.h"
 #include "dr_options.h"
 
 /* A thread waiting for the other spins this long, then sleeps on a condition variable: spinning
@@ -56,6 +57,7 @@ struct DRKernel {
     double *b, *a_hat, *u0, *uK;   /* the caller's */
     double *u, *u_next, *b_hat, *z, *w;
     double *trace;                 /* the caller's, or NULL */
+    double *redo;                  /* the ledger's redo: a, b^{n+1}, the probe's b, zeros (4 n) */
     double *obs;                   /* one subsystem's observed values, read before they are logged */
     int trace_capacity;
     int n_threads;
@@ -75,31 +77,17 @@ static double now_ns(void) {
     return 1e9 * (double)ts.tv_sec + (double)ts.tv_nsec;
 }
 
+/* This thread's CPU time: a step's wall time beyond it is time the machine ran something else. */
+static double cpu_ns(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return 1e9 * (double)ts.tv_sec + (double)ts.tv_nsec;
+}
+
 static void cpu_relax(void) {
 #if defined(__x86_64__) || defined(__i386__)
     __builtin_ia32_pause();
 #endif
-}
-
-/* ---- the arithmetic of master/linalg.py, in the same operation order ---- */
-
-/* y_i = sum_j M_ij x_j, summed left to right from 0.0 (linalg.matvec). */
-static void matvec(const double *M, const double *x, double *y, size_t n) {
-    for (size_t i = 0; i < n; i++) {
-        double acc = 0.0;
-        for (size_t j = 0; j < n; j++) acc += M[i * n + j] * x[j];
-        y[i] = acc;
-    }
-}
-
-/* |x - y|, squares summed left to right (linalg.distance). */
-static double distance(const double *x, const double *y, size_t n) {
-    double acc = 0.0;
-    for (size_t j = 0; j < n; j++) {
-        double d = x[j] - y[j];
-        acc += d * d;
-    }
-    return sqrt(acc);
 }
 
 /* ---- one subsystem: the frozen port map (frozen_port_map.Subsystem) ---- */
@@ -370,7 +358,7 @@ int dr_set_observed(DRKernel *k, int i, const fmi2ValueReference *vrs, int count
 size_t dr_log_width(const DRKernel *k) {
     size_t width = 3 + 2 * k->n;
     for (int i = 0; i < k->n_sub; i++) width += k->sub[i].n_obs;
-    return width;
+    return width + DR_LEDGER_COLUMNS;
 }
 
 /* Log step s (of a call of `count` steps) after its commit, column-major: value c at
@@ -413,19 +401,174 @@ static int stop_after(const DRKernel *k, const double *obs, size_t count, double
     return isfinite(H_cap) && sum + 4.0 * k->n_sub * DBL_EPSILON * magnitude > H_cap;
 }
 
-/* The interface energy ledger of master/observers/energy_ledger.py, in its operation order: the step
- * supplied I = 1/2 (|a|^2 - |b|^2) with traffic 1/2 (|a|^2 + |b|^2) (sums from 0.0, left to right).
- * A step the ledger would redo (L + I > rtol (T + traffic)) stops the block unbooked, for the
- * caller's guard to judge; otherwise it is booked. */
-static int ledger_stops(const DRKernel *k, DRStep *io) {
+/* ---- the interface energy ledger and its scaled redo (wavecosim/observers/energy_ledger.py) ---- */
+
+#define LEDGER_TARGET 0.9          /* energy_ledger.TARGET */
+#define LEDGER_SMOOTH 0.1          /* energy_ledger.SMOOTH */
+#define LEDGER_MIN_INNER_S 1e-9    /* masters/base.py MIN_INNER_S */
+enum { LEDGER_KEPT = 0, LEDGER_SCALED = 1, LEDGER_ZERO = 2 };   /* energy_ledger.ACTIONS */
+
+/* The interface's supply 1/2 (|in|^2 - |out|^2) and traffic 1/2 (|in|^2 + |out|^2) (masters/base.py
+ * WaveMaster.supply: sums from 0.0, left to right). */
+static void supply_of(const double *in, const double *out, size_t n, double *supplied, double *traffic) {
     double aa = 0.0, bb = 0.0;
-    for (size_t j = 0; j < k->n; j++) aa += k->a_hat[j] * k->a_hat[j];
-    for (size_t j = 0; j < k->n; j++) bb += k->b[j] * k->b[j];
-    double supplied = 0.5 * (aa - bb), traffic = 0.5 * (aa + bb);
-    if (io->ledger + supplied > io->ledger_rtol * (io->traffic + traffic)) return 1;
-    io->ledger += supplied;
-    io->traffic += traffic;
-    return 0;
+    for (size_t j = 0; j < n; j++) aa += in[j] * in[j];
+    for (size_t j = 0; j < n; j++) bb += out[j] * out[j];
+    *supplied = 0.5 * (aa - bb);
+    *traffic = 0.5 * (aa + bb);
+}
+
+/* The supply of the step with inputs s a1, its outputs interpolated between y0 (s = 0) and y1 (s = 1). */
+static double model_supply(const double *a1, const double *y0, const double *y1, size_t n, double s) {
+    double aa = 0.0, bb = 0.0;
+    for (size_t j = 0; j < n; j++) {
+        double x = s * a1[j];
+        aa += x * x;
+    }
+    for (size_t j = 0; j < n; j++) {
+        double y = y0[j] + s * (y1[j] - y0[j]);
+        bb += y * y;
+    }
+    return 0.5 * (aa - bb);
+}
+
+/* energy_ledger.largest_root, operation for operation (Python's max keeps the first of equals). */
+static double largest_root(double q0, double qh, double q1, double target) {
+    double alpha = 2.0 * (q1 - 2.0 * qh + q0), beta = q1 - q0 - alpha, gamma = q0 - target;
+    double roots[2];
+    int count = 0;
+    if (fabs(alpha) <= 1e-12 * (fabs(beta) + fabs(gamma))) {
+        if (beta != 0.0) roots[count++] = -gamma / beta;
+    } else {
+        double disc = beta * beta - 4.0 * alpha * gamma;
+        if (0.0 > disc) disc = 0.0;
+        double sq = beta != 0.0 ? copysign(sqrt(disc), beta) : sqrt(disc);
+        double big = -0.5 * (beta + sq);                          /* the stable pair of quadratic roots */
+        roots[count++] = big / alpha;
+        if (big != 0.0) roots[count++] = gamma / big;
+    }
+    int found = 0;
+    double best = 0.0;
+    for (int i = 0; i < count; i++)
+        if (0.0 <= roots[i] && roots[i] < 1.0 && (!found || roots[i] > best)) {
+            best = roots[i];
+            found = 1;
+        }
+    return best;
+}
+
+/* Every subsystem back at x_i^n after the commit (masters/base.py undo_step); the first failing one, or -1. */
+static int restore_all(DRKernel *k) {
+    for (int i = 0; i < k->n_sub; i++) {
+        Sub *s = &k->sub[i];
+        if (failed(s, DR_FN_SET_STATE, s->fn.setFMUstate(s->comp, *s->state))) return i;
+        s->n_restore++;
+        s->dirty = 0;
+    }
+    return -1;
+}
+
+/* The running time of one evaluation round (every subsystem once), as EnergyLedger._time_round: a
+ * sample is taken at most at twice the estimate, so that a step the machine descheduled does not
+ * shorten the next steps' inner loops (a real rise is followed within a few steps). */
+static void track_round(DRStep *io, double seconds) {
+    if (io->round_s > 0.0 && seconds > 2.0 * io->round_s) seconds = 2.0 * io->round_s;
+    io->round_s = io->round_s > 0.0 ? (1.0 - LEDGER_SMOOTH) * io->round_s + LEDGER_SMOOTH * seconds : seconds;
+}
+
+/* The probe at s = 0 and the commit at the fitted s (EnergyLedger._scaled); out as in ledger_redo. */
+static int scaled_redo(DRKernel *k, DRStep *io, double supplied_1, double budget, double *out) {
+    size_t n = k->n;
+    double *a1 = k->redo, *y1 = a1 + n, *y0 = y1 + n, *zero = y0 + n;
+    int f = evaluate_all(k, zero, y0, io->t, io->dt, 0, 0);
+    if (f >= 0) return f;
+    double s = largest_root(model_supply(a1, y0, y1, n, 0.0), model_supply(a1, y0, y1, n, 0.5), supplied_1,
+                            LEDGER_TARGET * budget);
+    for (size_t j = 0; j < n; j++) k->a_hat[j] = s * a1[j];
+    f = evaluate_all(k, k->a_hat, k->b, io->t, io->dt, 1, 0);
+    if (f >= 0) return f;
+    out[0] = s;
+    supply_of(k->a_hat, k->b, n, &out[1], &out[2]);
+    out[3] = LEDGER_SCALED;
+    out[4] = 2.0;
+    return -1;
+}
+
+/* Undo the step and commit it again with s a (EnergyLedger._redo): the fitted s if `fitted` (two
+ * rounds are left), kept if it fits the budget; else, or on a miss, s = 0 (matched loads, always
+ * safe). out: s, supply, traffic, action, rounds. k->a_hat ends as s a (the log's), k->b as b^{n+1}.
+ * The first failing subsystem, or -1. */
+static int ledger_redo(DRKernel *k, DRStep *io, double supplied_1, double budget, int fitted, double *out) {
+    size_t n = k->n;
+    double *a1 = k->redo, *y1 = a1 + n, *zero = y1 + 2 * n;
+    memcpy(a1, k->a_hat, n * sizeof *a1);
+    memcpy(y1, k->b, n * sizeof *y1);
+    for (size_t j = 0; j < n; j++) zero[j] = 0.0;
+    int f = restore_all(k), rounds = 0;
+    if (f < 0 && fitted) {
+        f = scaled_redo(k, io, supplied_1, budget, out);
+        if (f >= 0 || out[1] <= budget) return f;
+        rounds = 2;
+        f = restore_all(k);
+    }
+    if (f >= 0) return f;
+    f = evaluate_all(k, zero, k->b, io->t, io->dt, 1, 0);
+    for (size_t j = 0; j < n; j++) k->a_hat[j] = 0.0 * a1[j];   /* the reference logs s a with s = 0 */
+    out[0] = 0.0;
+    supply_of(zero, k->b, n, &out[1], &out[2]);
+    out[3] = LEDGER_ZERO;
+    out[4] = rounds + 1;
+    return f;
+}
+
+/* Book the step just committed (EnergyLedger.after_step): I = 1/2 (|a|^2 - |b|^2); a step with
+ * L + I > tol = rtol (traffic + its own) is redone by ledger_redo first. Its row goes into the log's
+ * last DR_LEDGER_COLUMNS columns; io->reason becomes DR_ENERGY_GUARD when it was redone. t0, c0: the
+ * step's start, wall and CPU (ns). The first failing subsystem, or -1 (the step then is neither
+ * booked nor logged). */
+static int ledger_step(DRKernel *k, DRStep *io, double t0, double c0, double *rows, size_t count, size_t s) {
+    double *row = rows + (dr_log_width(k) - DR_LEDGER_COLUMNS) * count + s;
+    double out[5] = {1.0, NAN, NAN, LEDGER_KEPT, 0.0};
+    if (io->ledger_on) {
+        double now = now_ns(), tol;
+        track_round(io, 1e-9 * (now - t0) / (io->iterations + 1));
+        supply_of(k->a_hat, k->b, k->n, &out[1], &out[2]);
+        tol = io->ledger_rtol * (io->traffic + out[2]);
+        if (io->ledger + out[1] > tol) {
+            double left = io->step_deadline_s > 0.0 ? io->step_deadline_s - 1e-9 * (now - t0) : INFINITY;
+            int f = ledger_redo(k, io, out[1], tol - io->ledger, left >= 2.0 * io->round_s, out);
+            if (f >= 0) return f;
+            track_round(io, 1e-9 * (now_ns() - now) / out[4]);
+            io->reason = DR_ENERGY_GUARD;
+        }
+        io->ledger += out[1];
+        io->traffic += out[2];
+    }
+    /* the wall clock is read between the CPU clock's reads (system calls), which it so leaves out */
+    double wall = 1e-9 * (now_ns() - t0);
+    double cpu = c0 > 0.0 ? 1e-9 * (cpu_ns() - c0) : NAN;
+    double logged[DR_LEDGER_COLUMNS] = {out[1], io->ledger_on ? io->ledger : NAN, io->ledger_on ? io->traffic : NAN,
+                                        out[0], out[3], out[4], wall, io->round_s, cpu};
+    for (int c = 0; c < DR_LEDGER_COLUMNS; c++) row[(size_t)c * count] = logged[c];
+    return -1;
+}
+
+int dr_ledger_redo(DRKernel *k, DRStep *io, double supplied, double budget, int fitted, double *out) {
+    int f = ledger_redo(k, io, supplied, budget, fitted, out);
+    return f >= 0 ? report_failure(k, io, f) : 0;
+}
+
+/* dr_macro_step; under a step deadline with the ledger, its inner loop stops two rounds before it
+ * (it may overrun by one, the commit takes one), so that an s = 0 redo ends within a round of it. */
+static int guarded_macro_step(DRKernel *k, DRStep *io) {
+    double caller = io->deadline_s;
+    if (io->ledger_on && io->step_deadline_s > 0.0) {
+        double inner = io->step_deadline_s - 2.0 * io->round_s;
+        io->deadline_s = inner > LEDGER_MIN_INNER_S ? inner : LEDGER_MIN_INNER_S;
+    }
+    int failure = dr_macro_step(k, io);
+    io->deadline_s = caller;
+    return failure;
 }
 
 int dr_run_steps(DRKernel *k, DRStep *io, int n0, int count, double *rows, double H_cap) {
@@ -433,13 +576,15 @@ int dr_run_steps(DRKernel *k, DRStep *io, int n0, int count, double *rows, doubl
     io->stopped = 0;
     for (int s = 0; s < count; s++) {
         io->t = (double)(n0 + s) * io->dt;
-        if (dr_macro_step(k, io)) return s;
-        int f = log_step(k, io, rows, m, (size_t)s);
+        double c0 = io->ledger_on && io->step_deadline_s > 0.0 ? cpu_ns() : 0.0, t0 = now_ns();
+        if (guarded_macro_step(k, io)) return s;
+        int f = ledger_step(k, io, t0, c0, rows, m, (size_t)s);
+        if (f < 0) f = log_step(k, io, rows, m, (size_t)s);
         if (f >= 0) {
             report_failure(k, io, f);
             return s;
         }
-        if (stop_after(k, rows + first_observed + s, m, H_cap) || (io->ledger_on && ledger_stops(k, io))) {
+        if (stop_after(k, rows + first_observed + s, m, H_cap)) {
             io->stopped = 1;
             return s + 1;
         }
@@ -475,7 +620,8 @@ DRKernel *dr_create(int n_sub, int n, const double *P, const double *J_L, double
     k->P = malloc(nn * nn * sizeof(double));
     k->J_L = malloc(nn * nn * sizeof(double));
     k->u = calloc(5 * nn, sizeof(double));
-    if (!k->sub || !k->P || !k->J_L || !k->u) {
+    k->redo = calloc(4 * nn, sizeof(double));
+    if (!k->sub || !k->P || !k->J_L || !k->u || !k->redo) {
         dr_destroy(k);
         return NULL;
     }
@@ -594,6 +740,7 @@ void dr_destroy(DRKernel *k) {
     free(k->J_L);
     free(k->u);
     free(k->obs);
+    free(k->redo);
     options_free(k->opt);
     free(k);
 }

@@ -22,7 +22,13 @@
 #define DR_MAX_THREADS 8
 
 /* Termination reasons (StepLog.reason in Python). */
-enum { DR_BUDGET = 0, DR_TOLERANCE = 1, DR_DEADLINE = 2, DR_EXPLICIT = 3 };
+enum { DR_BUDGET = 0, DR_TOLERANCE = 1, DR_DEADLINE = 2, DR_EXPLICIT = 3, DR_ENERGY_GUARD = 5 };
+
+/* The energy ledger's columns at the end of each dr_run_steps log row: I^n, L^n, the cumulative
+ * traffic, s, action (0 kept, 1 scaled, 2 zero), redo rounds (0-3), the step's wall time (s), the
+ * running time of one evaluation round (s) and, under a step deadline, the step's CPU time on the
+ * calling thread (s; else NaN). Without the ledger: NaN, NaN, NaN, 1, 0, 0, wall time, round, NaN. */
+#define DR_LEDGER_COLUMNS 9
 
 /* FMU functions, as reported in DRStep.failed_function. */
 enum { DR_FN_NONE = 0, DR_FN_GET_STATE, DR_FN_SET_STATE, DR_FN_SET_REAL, DR_FN_DO_STEP, DR_FN_GET_REAL };
@@ -54,7 +60,9 @@ typedef struct {
     int ledger_on;       /* in (dr_run_steps): keep the interface energy ledger (wavecosim/observers/energy_ledger.py) */
     double ledger;       /* in/out: L, the energy the interface supplied so far (steps accepted) */
     double traffic;      /* in/out: the interface's cumulative traffic 1/2 (|a|^2 + |b|^2) */
-    double ledger_rtol;  /* in: a step with L + I^n > rtol (traffic + its own) stops the block before booking */
+    double ledger_rtol;  /* in: a step with L + I^n > rtol (traffic + its own) is redone with its inputs scaled */
+    double step_deadline_s; /* in (dr_run_steps, ledger): wall-clock budget of a step, redo included; <= 0 = none */
+    double round_s;      /* in/out (dr_run_steps, ledger): running time of one evaluation round (all subsystems) */
 } DRStep;
 
 typedef struct DRKernel DRKernel;
@@ -96,18 +104,31 @@ int dr_macro_step(DRKernel *k, DRStep *io);
  * the first is its stored energy H_i. Returns 0, or -1 on bad arguments or no memory. */
 int dr_set_observed(DRKernel *k, int i, const fmi2ValueReference *vrs, int count);
 
-/* Doubles per row of dr_run_steps' log: 3 + 2 n + every subsystem's observed count. */
+/* Doubles per row of dr_run_steps' log: 3 + 2 n + every subsystem's observed count + DR_LEDGER_COLUMNS. */
 size_t dr_log_width(const DRKernel *k);
 
 /* Macro-steps n0 .. n0 + count - 1, each exactly dr_macro_step at t = (double)n dt, logged
  * column-major (value c of step s at rows[c count + s], so each value is one contiguous column):
  * iterations, reason, residual, a (n), b^{n+1} (n), then every subsystem's observed values in
- * subsystem order. It stops right after a step whose observed values are not all finite or whose
+ * subsystem order, then the ledger's DR_LEDGER_COLUMNS. With io->ledger_on it keeps the interface
+ * energy ledger of wavecosim/observers/energy_ledger.py, bit for bit: a step that would lift L above
+ * tol is undone and committed again with its inputs scaled (a, b and the observed values logged are
+ * the redo's, its reason DR_ENERGY_GUARD); with io->step_deadline_s the inner loop stops two rounds
+ * before it and the fitted scale is tried only when two rounds are left (else s = 0), so a step ends
+ * within about one round of the deadline. It stops right after a step whose observed values are not all finite or whose
  * stored energy may exceed H_cap (pass INFINITY for none; the caller decides exactly), setting
  * io->stopped (also when that step was the last of the call). Returns the
  * number of steps done and logged; when an FMU call failed, io->failed_* name it and the step it
  * failed in (the one after those done) has no entries. */
 int dr_run_steps(DRKernel *k, DRStep *io, int n0, int count, double *rows, double H_cap);
+
+/* The energy ledger's redo of the step dr_macro_step just committed (a_hat and b as it left them),
+ * whose commit supplied `supplied` beyond the ledger's `budget` (wavecosim/observers/energy_ledger.py
+ * _redo): every subsystem back at x_i^n, then, if `fitted`, a probe at s = 0 and the commit at the
+ * fitted s, kept if it fits the budget; else, or on a miss, the commit at s = 0. a_hat becomes s a,
+ * b the new b^{n+1}; out[0..4] = s, supply, traffic, action (1 scaled, 2 zero), rounds. Returns 0,
+ * or -1 when an FMU call failed (see io->failed_*). */
+int dr_ledger_redo(DRKernel *k, DRStep *io, double supplied, double budget, int fitted, double *out);
 
 /* The floor: n_steps macro-steps making the same FMU calls as dr_macro_step with K = io->K
  * (serial), with no DR arithmetic; t = io->t + s dt at step s. The inputs of step s are

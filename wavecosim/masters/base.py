@@ -70,6 +70,11 @@ class Master:
         """After undo_step: the outputs of macro-step n from x^n with `inputs` (stacked); state discarded."""
         return self.scene.S(inputs)
 
+    def redo_in_kernel(self, supplied, budget, fitted):
+        """The energy ledger's redo of the step just made, done in C: (s, supply, traffic, action,
+        rounds); None where there is no kernel (the ledger then redoes it through the methods above)."""
+        return None
+
     def enable_trace(self, on=True):
         """Record the inner loop's queries (u, S(u)) of each macro-step; False if this master cannot."""
         return False

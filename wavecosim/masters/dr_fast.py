@@ -37,6 +37,9 @@ class FastDRMaster(DRMaster):
     def __init__(self, scene, settings):
         super().__init__(scene, settings)
         self.kernel, self.fast, self.threads = None, False, 1
+        # blocks of steps (run_steps) read the observed values in C; a physical port's b is computed
+        # from them in Python (readings.py), so scenes with wave adapters run one step per call
+        self._blocks = not any(s.adapter for s in scene.subsystems)
         self.thread_note = "serial"
         self.fast_note = self._kernel_refusal(scene, str(settings.fast).lower())
         if self.fast_note is not None:
@@ -101,8 +104,7 @@ class FastDRMaster(DRMaster):
         k = io.iterations
         if timing:
             per_round = (time.perf_counter() - started) / (k + 1)      # K queries and the commit
-        for s in self.subsystems:
-            s.note_kernel_step(n, t, k)           # frozen at x^n (saved by the kernel), calls counted
+        self._note_kernel_steps(n, t, k)          # frozen at x^n (saved by the kernel), calls counted
         n_ch = kernel.n
         out = kernel.results[:]                  # b^{n+1}, a, u^0, u^K
         self._b_step_start, self._b = self._b, out[:n_ch]
@@ -115,19 +117,31 @@ class FastDRMaster(DRMaster):
         return StepLog(iterations=k, residual=io.residual, reason=REASONS[io.reason], a_hat=out[n_ch:2 * n_ch],
                        u0=out[2 * n_ch:3 * n_ch], uK=out[3 * n_ch:])
 
+    def redo_in_kernel(self, supplied, budget, fitted):
+        """The energy ledger's redo of the step just made, by the kernel (fast_path.Kernel.redo); its
+        rounds are booked on the Subsystems and b^{n+1} becomes the redo's."""
+        if self.kernel is None:
+            return None
+        done = self.kernel.redo(supplied, budget, fitted)
+        self._b = self.kernel.b[:]
+        self._note_kernel_steps(self.subsystems[0].step_index, self.subsystems[0].t, 0, 0, done[4])
+        return done
+
     def can_run_steps(self, n):
         """Whether run_steps may make macro-step n: the kernel runs and no trial of two threads is on
         (threads=auto times it on the macro-step after the first, alone)."""
-        return self.kernel is not None and (self._choose_after is None or n > self._choose_after) \
-            and not self._on_trial
+        return self.kernel is not None and self._blocks and not self._on_trial \
+            and (self._choose_after is None or n > self._choose_after)
 
     def observe(self, names):
         """The variables of each subsystem run_steps reads after every commit (names[i], H_i first)."""
-        self.kernel.observe(names)
+        if self._blocks:
+            self.kernel.observe(names)
 
     def keep_ledger(self, ledger, traffic, rtol):
-        """The energy ledger's state for the kernel's next blocks (see fast_path.Kernel.keep_ledger)."""
-        self.kernel.keep_ledger(ledger, traffic, rtol)
+        """The energy ledger's state for the kernel's next blocks, which it keeps within master.deadline_us
+        (see fast_path.Kernel.keep_ledger)."""
+        self.kernel.keep_ledger(ledger, traffic, rtol, self.deadline_s)
 
     def run_steps(self, n0, count, H_cap=math.inf):
         """Macro-steps n0 .. n0 + count - 1 in one kernel call, stopping early after a step whose H
@@ -169,13 +183,23 @@ class FastDRMaster(DRMaster):
         if not done:
             return
         last = n0 + done - 1
-        iterations = int(log.iterations.sum())
-        for s in self.subsystems:
-            s.note_kernel_step(last, last * self.dt, iterations, done)
+        iterations, redone = int(log.iterations.sum()), int(log.ledger["rounds"].sum())
+        self._note_kernel_steps(last, last * self.dt, iterations, done, redone)
         self._b_step_start = log.b[done - 2].tolist() if done > 1 else self._b
         self._b = self.kernel.b[:]
         if self._trace is not None:
             self._trace = self.kernel.recorded(int(log.iterations[-1]))
+
+    def _note_kernel_steps(self, n, t, iterations, steps=1, redone=0):
+        """Book `steps` kernel macro-steps (the last one step n at t) and `redone` ledger redo rounds
+        on the Subsystems; a wave adapter's FMU calls are its own count (its queries take a varying
+        number of doSteps)."""
+        for s in self.subsystems:
+            if s.adapter:
+                s.note_kernel_step(n, t, 0, 0)
+                s.map.book()
+            else:
+                s.note_kernel_step(n, t, iterations, steps, redone)
 
     def step_log(self, log, j):
         """The StepLog of row j of a BlockLog (without u^0 and u^K)."""

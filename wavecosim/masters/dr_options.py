@@ -13,7 +13,7 @@ reference and the C kernel stay bit-identical.
 - warm start: u^{n,0} = P (2 b^n - b^{n-1}) (the committed wave extrapolated linearly) instead
   of the paper's P b^n (eq. 19).
 """
-from ..linalg import matvec
+from ..linalg import dot, matvec
 
 ANDERSON_SAFEGUARD = 0.9     # an accelerated iterate must cut the fixed-point residual at least this much
 ANDERSON_REG = 1e-12         # Tikhonov term of the least-squares problem, relative to its largest diagonal
@@ -32,13 +32,6 @@ def warm_start(P, b_n, b_prev):
     if b_prev is None:
         return matvec(P, b_n)
     return matvec(P, [2.0 * b - bp for b, bp in zip(b_n, b_prev)])
-
-
-def _dot(x, y):
-    acc = 0.0
-    for xi, yi in zip(x, y):
-        acc += xi * yi
-    return acc
 
 
 def solve(A, r):
@@ -66,13 +59,13 @@ def solve(A, r):
 def least_squares(dG, g):
     """theta = argmin |g - sum_i theta_i dG_i| from the regularized normal equations; None if degenerate."""
     p = len(dG)
-    A = [[_dot(dG[i], dG[j]) for j in range(p)] for i in range(p)]
+    A = [[dot(dG[i], dG[j]) for j in range(p)] for i in range(p)]
     top = max(A[i][i] for i in range(p))
     if not top > 0.0:
         return None
     for i in range(p):
         A[i][i] += ANDERSON_REG * top
-    theta = solve(A, [_dot(dG[i], g) for i in range(p)])
+    theta = solve(A, [dot(dG[i], g) for i in range(p)])
     if theta is None or any(t != t or abs(t) == float("inf") for t in theta):
         return None
     return theta
@@ -96,7 +89,7 @@ class Anderson:
         the response at the last accepted iterate (Algorithm 1, line 13), or at a rejected one whose
         residual is still the smaller (so a rejection at the last query costs no accuracy)."""
         g = [fi - ui for fi, ui in zip(f, u)]
-        gg, acc = _dot(g, g), _dot(self.g_acc, self.g_acc) if self.g_acc is not None else 0.0
+        gg, acc = dot(g, g), dot(self.g_acc, self.g_acc) if self.g_acc is not None else 0.0
         if self.candidate and gg > ANDERSON_SAFEGUARD * ANDERSON_SAFEGUARD * acc:
             self.dF, self.dG, self.candidate = [], [], False       # rejected: the plain step instead,
             return self.f_acc, (b_hat if gg < acc else self.b_acc)  # b^* the response of smaller residual

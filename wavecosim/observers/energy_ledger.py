@@ -16,10 +16,7 @@ I(s) = TARGET * budget in [0, 1); the redo at that s is checked, and replaced by
 import math
 import time
 
-import numpy as np
-
 from ..masters.base import StepLog
-from ..readings import row_sums
 from .recorder import Labels
 from . import Observer
 
@@ -48,7 +45,7 @@ def largest_root(q0, qh, q1, target):
 
 class EnergyLedger(Observer):
     """First of the observers: it may redo the step before anyone reads it. Wave masters' blocks
-    (the C kernel books the ledger and stops before a step to redo) are taken whole."""
+    (the C kernel books the ledger and makes the redo itself) are taken whole."""
     redoes = True
     columns = ("interface_energy", "ledger", "scale", "ledger_action")
     formats = {"ledger_action": Labels(ACTIONS)}
@@ -59,24 +56,27 @@ class EnergyLedger(Observer):
         self.L, self.traffic, self.max_L = 0.0, 0.0, -math.inf
         self.acted, self.extra, self.fallbacks = 0, 0, 0
         self.round_s, self.redo_round_s = 0.0, 0.0      # running time of one evaluation round: master's, redo's
-        self.step_times = []                            # realised step times (s), when a deadline is set
+        self.step_times = []            # under a deadline, per step: (wall, acted, round it may overrun by, CPU) s
 
     def kernel_state(self):
-        """(L, traffic, RTOL): what the C kernel needs to book the ledger itself between guarded steps."""
+        """(L, traffic, RTOL): what the C kernel needs to keep the ledger itself (blocks)."""
         return self.L, self.traffic, RTOL
 
     def after_block(self, n0, logs, readings, rows):
-        """Book a block the kernel made: it stopped before any step this guard would redo, so every
-        step is kept; the same sums, in the same order, as after_step step by step."""
-        aa, bb = row_sums(logs.a_hat * logs.a_hat), row_sums(logs.b * logs.b)
-        supplied, traffic = 0.5 * (aa - bb), 0.5 * (aa + bb)
-        L = np.cumsum(np.concatenate([[self.L], supplied]))
-        T = np.cumsum(np.concatenate([[self.traffic], traffic]))
-        if np.any(L[:-1] + supplied > RTOL * (T[:-1] + traffic)):
-            raise RuntimeError("energy ledger: the kernel booked a step the guard would redo")
-        rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3] = supplied, L[1:], 1.0, 0
-        self.L, self.traffic = float(L[-1]), float(T[-1])
-        self.max_L = max(self.max_L, float(L[1:].max()))
+        """Book a block the kernel made: it kept the ledger itself, redoing steps as _redo does, bit
+        for bit (drkernel.c, ledger_step), and logged each step's I^n, L^n, s, action and redo rounds."""
+        led = logs.ledger
+        rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3] = led["supplied"], led["ledger"], led["scale"], led["action"]
+        acted, rounds = led["action"] > 0, led["rounds"]
+        self.acted += int(acted.sum())
+        self.extra += len(self.master.subsystems) * int(rounds.sum())
+        self.fallbacks += int((rounds == 3).sum())
+        self.L, self.traffic = float(led["ledger"][-1]), float(led["traffic"][-1])
+        self.max_L = max(self.max_L, float(led["ledger"].max()))
+        if self.master.deadline_s is not None:
+            self.round_s = self.redo_round_s = float(led["round_s"][-1])
+            self.step_times.extend(zip(led["step_s"].tolist(), acted.tolist(), led["round_s"].tolist(),
+                                       led["cpu_s"].tolist()))
 
     def after_step(self, n, t, log, reading, row):
         """Book I^n; redo the commit when the ledger would exceed tol."""
@@ -97,17 +97,23 @@ class EnergyLedger(Observer):
         self.max_L = max(self.max_L, self.L)
         row[0], row[1], row[2], row[3] = supplied, self.L, s, action
         if master.deadline_s is not None:
-            self.step_times.append((time.perf_counter() - master.step_started, action > 0))
+            self.step_times.append((time.perf_counter() - master.step_started, action > 0, self.redo_round_s, math.nan))
         return redo
 
     def _redo(self, inputs, out_1, supplied_1, budget):
         """Undo the step and commit it again with s * inputs; (s, supply, traffic, action) of the new commit.
 
         The fitted s needs two evaluation rounds (probe, commit): under a deadline with less time
-        left, s = 0 is committed at once (one round)."""
-        master = self.master
+        left, s = 0 is committed at once (one round). A master with a kernel makes the redo in C."""
+        master, fitted = self.master, self._time_left() >= 2.0 * self.redo_round_s
+        started = time.perf_counter()
+        done = master.redo_in_kernel(supplied_1, budget, fitted)
+        if done is not None:                            # the same operations, in C (drkernel.c ledger_redo)
+            self._time_redo(time.perf_counter() - started, done[4])
+            self.fallbacks += done[4] == 3
+            return done[:4]
         master.undo_step()
-        if self._time_left() >= 2.0 * self.redo_round_s:
+        if fitted:
             s, supplied, traffic = self._scaled(inputs, out_1, supplied_1, budget)
             if supplied <= budget:
                 return s, supplied, traffic, 1
@@ -145,21 +151,33 @@ class EnergyLedger(Observer):
         if master.deadline_s is None:
             return
         spent = (time.perf_counter() - master.step_started) / (log.iterations + 1)
-        self.round_s = spent if not self.round_s else (1 - SMOOTH) * self.round_s + SMOOTH * spent
+        self.round_s = smoothed(self.round_s, spent)
         self.redo_round_s = self.redo_round_s or self.round_s
         master.reserve_time(self.round_s + self.redo_round_s)
 
     def _time_redo(self, seconds, rounds):
         """Track the time per evaluation round of a redo (Python calls: slower than the kernel's)."""
-        self.redo_round_s = (1 - SMOOTH) * self.redo_round_s + SMOOTH * seconds / rounds
+        self.redo_round_s = smoothed(self.redo_round_s, seconds / rounds)
 
     def summary(self):
         out = {"energy_guard_steps": self.acted, "energy_guard_extra_doSteps": self.extra,
                "energy_guard_fallbacks": self.fallbacks, "max_ledger": self.max_L, "ledger_final": self.L}
         if self.step_times:
-            out["step_time_us"] = spread([t for t, _ in self.step_times])
-            out["guarded_step_time_us"] = spread([t for t, acted in self.step_times if acted])
+            out["step_time_us"] = spread([t for t, _, _, _ in self.step_times])
+            out["guarded_step_time_us"] = spread([t for t, acted, _, _ in self.step_times if acted])
+            out["deadline_bound"] = deadline_bound(self.step_times, self.master.settings.deadline_us)
         return out
+
+
+def smoothed(estimate, sample):
+    """A running time after a new sample, taken at most at twice the estimate so that a step the
+    machine descheduled does not shorten the next inner loops (drkernel.c track_round)."""
+    return (1 - SMOOTH) * estimate + SMOOTH * min(sample, 2.0 * estimate) if estimate else sample
+
+
+def rank(ordered, q):
+    """The q-quantile of a sorted list by nearest rank."""
+    return ordered[max(math.ceil(q * len(ordered)) - 1, 0)]
 
 
 def spread(seconds):
@@ -167,5 +185,23 @@ def spread(seconds):
     if not seconds:
         return {}
     ordered = sorted(seconds)
-    return {"median": 1e6 * ordered[len(ordered) // 2], "p99": 1e6 * ordered[int(0.99 * (len(ordered) - 1))],
-            "max": 1e6 * ordered[-1], "count": len(ordered)}
+    return {"median": 1e6 * rank(ordered, 0.5), "p99": 1e6 * rank(ordered, 0.99), "max": 1e6 * ordered[-1],
+            "count": len(ordered)}
+
+
+def deadline_bound(step_times, deadline_us):
+    """The bound a step keeps, deadline + one evaluation round (every subsystem's doStep once, as the
+    guard measured it at that step; the median given); the share of all steps, of guarded steps and
+    of the steps the machine left on the CPU (wall - CPU time below a round; kernel blocks) within it."""
+    within = [1e6 * t <= deadline_us + 1e6 * r for t, _, r, _ in step_times]
+    guarded = [w for w, (_, acted, _, _) in zip(within, step_times) if acted]
+    on_cpu = [w for w, (t, _, r, cpu) in zip(within, step_times) if t - cpu < r]
+    round_us = 1e6 * rank(sorted(r for _, _, r, _ in step_times), 0.5)
+    return {"deadline_us": deadline_us, "round_us": round_us, "bound_us": deadline_us + round_us,
+            "within": share(within), "guarded_within": share(guarded), "on_cpu_within": share(on_cpu),
+            "on_cpu_steps": len(on_cpu)}
+
+
+def share(flags):
+    """The fraction of true flags (None for none)."""
+    return sum(flags) / len(flags) if flags else None

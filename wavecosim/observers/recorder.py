@@ -3,8 +3,9 @@
 Rows go into preallocated blocks of BLOCK rows and are written to disk a block at a time, so a
 failure or Ctrl-C loses nothing already computed and memory does not grow with the run: a table
 keeps all its rows in memory only while they fit in KEEP_VALUES numbers (or when it has no file);
-beyond that it reads them back from its file when asked. Every float is written with repr (the
-shortest text that reads back to the same bits).
+beyond that it reads them back from its file when asked. Every float is written as repr writes it
+(the shortest text that reads back to the same bits): a block at a time in C (wavecosim/csvtext.py),
+or with repr itself when the C formatter is not built or a column has a formatter of its own.
 """
 import json
 import math
@@ -14,6 +15,8 @@ import threading
 from pathlib import Path
 
 import numpy as np
+
+from ..csvtext import block_writer
 
 BLOCK = 1024
 KEEP_VALUES = 262_144             # 2 MB of rows per table at most stays in memory
@@ -52,11 +55,12 @@ class Table:
         self._fill = 0
         self._kept = [] if path is None or expected_rows * len(self.columns) <= KEEP_VALUES else None
         self.rows = 0
-        self._file = None
+        self._file, self._writer = None, None
         if path is not None:
             path.parent.mkdir(parents=True, exist_ok=True)
-            self._file = open(path, "w", newline="")
-            self._file.write(",".join(self.columns) + "\r\n")
+            self._file = open(path, "wb")
+            self._file.write((",".join(self.columns) + "\r\n").encode())
+            self._writer = block_writer(self._block, [_kind(f) for f in self._fmt])
 
     def next_row(self):
         """A row to fill in place (the block's next slot); it is booked by `commit_row`."""
@@ -92,12 +96,16 @@ class Table:
         """Write the filled part of the block (and keep it when the table stays in memory)."""
         block = self._block[:self._fill]
         if self._fill and self._file is not None:
-            cells = [fmt(block[:, j]) for j, fmt in enumerate(self._fmt)]
-            self._file.write("".join(",".join(r) + "\r\n" for r in zip(*cells)))
+            self._file.write(self._writer(self._fill) if self._writer else self._text(block))
             self._file.flush()
         if self._fill and self._kept is not None:
             self._kept.append(block.copy())
         self._fill = 0
+
+    def _text(self, block):
+        """The rows of `block` as CSV lines, formatted in Python."""
+        cells = [fmt(block[:, j]) for j, fmt in enumerate(self._fmt)]
+        return "".join(",".join(r) + "\r\n" for r in zip(*cells)).encode()
 
     def close(self):
         self.flush()
@@ -126,6 +134,13 @@ def _read_csv(path, formats):
 
 
 ints = _ints
+
+
+def _kind(fmt):
+    """What the C formatter calls a column's formatter: 0 floats, 1 integers, label names; None: unknown."""
+    if isinstance(fmt, Labels):
+        return fmt.names
+    return {_floats: 0, _ints: 1}.get(fmt)
 
 
 class Interrupts:
