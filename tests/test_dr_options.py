@@ -24,6 +24,8 @@ from wavecosim.overrides import apply_overrides, parse_set
 from wavecosim.runner import run
 from wavecosim.scene import build_scene
 
+from test_dr import frozen_benchmark  # noqa: F401  (Table I frozen after 40 steps)
+
 STIFF = ROOT / "configs" / "two_oscillators_stiff.yaml"
 OPTIONS = [dict(relaxation=1.5), dict(relaxation=0.6), dict(anderson=3), dict(anderson=1),
            dict(warm_start=True), dict(relaxation=1.3, anderson=2, warm_start=True)]
@@ -80,23 +82,10 @@ def test_anderson_reaches_roundoff_with_a_small_budget(table_i):
     assert plain > 1e-4 and fast < 1e-12
 
 
-@pytest.fixture(scope="module")
-def frozen(built_fmus):
-    """Table I advanced 40 steps, then frozen: S^n at a nontrivial state."""
-    scenario = load_scenario()
-    scene = build_scene(scenario)
-    master = DRMaster(scene, scenario.master)
-    for n in range(40):
-        master.step(n, n * scenario.dt)
-    scene.freeze(40, 40 * scenario.dt)
-    yield scene, master
-    scene.close()
-
-
 @pytest.mark.parametrize("lam", [0.5, 1.5, 1.9])
-def test_relaxed_iterates_are_fejer_monotone(frozen, lam):
+def test_relaxed_iterates_are_fejer_monotone(frozen_benchmark, lam):
     """eq. (28) for the relaxed operator: |u^{k+1} - u*|^2 <= |u^k - u*|^2 - (2 - lam)/lam |u^{k+1} - u^k|^2."""
-    scene, master = frozen
+    scene, master = frozen_benchmark
     u_dag = np.array(master.P) @ solve_interface(scene, master.P, master.b)[0]
     iterates = []
 
