@@ -128,12 +128,13 @@ def sweep(scenario: ScenarioLike = None, Ks: Sequence[int] = (0, 3, 8, 20, 35, 5
 
 def compare(scenario: ScenarioLike = None, masters: Optional[Sequence[str]] = None,
             Ks: Optional[Sequence[int]] = None, *, out_dir=None, certificates: bool = True, progress=False,
-            **overrides) -> Table:
-    """Every master (default: all) over its grid of budgets (or `Ks`) against the monolithic reference."""
-    from .comparison import compare as run_compare
+            options: Sequence[str] = (), **overrides) -> Table:
+    """Every master (default: all) over its grid of budgets (or `Ks`) against the monolithic reference,
+    and DR with each named option in `options` (wavecosim.comparison.DR_OPTIONS)."""
+    from .comparison import compare as run_compare, parse_options
     sc = _scenario(scenario, **overrides)
     reference, results, rows = run_compare(sc, out_dir, masters, Ks, progress=_labelled(progress),
-                                           certificates=certificates)
+                                           certificates=certificates, options=parse_options(options))
     return Table(rows, results, reference)
 
 

@@ -276,9 +276,14 @@ def _sweep_progress(total, skipped):
 @click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("out/compare"), show_default=True)
 @click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and the Condition 1 watch.")
 @click.option("--plots", is_flag=True, help="Also write pareto.png and energy_by_master.png.")
-def compare_cmd(config, K, eps, gamma, dt, T, quiet, ports, parameter_set, masters, ks, out, no_certificates, plots):
+@click.option("--options", "dr_options", default="", metavar="NAMES",
+              help="Also DR with each of these named options (comma-separated, or all): relaxed, anderson, "
+                   "warm, gamma-auto, gamma-fastest, fastest-relaxed, fastest-relaxed-anderson.")
+def compare_cmd(config, K, eps, gamma, dt, T, quiet, ports, parameter_set, masters, ks, out, no_certificates, plots,
+                dr_options):
     """Every master over a grid of budgets against the monolithic reference: error, energy, cost."""
-    from .comparison import COMPARE_FIELDS
+    from .comparison import COMPARE_FIELDS, parse_options
+    options = parse_options(dr_options)
     names = [m.strip() for m in masters.split(",") if m.strip()]
     for name in names:
         if name not in ALGORITHMS:
@@ -290,7 +295,7 @@ def compare_cmd(config, K, eps, gamma, dt, T, quiet, ports, parameter_set, maste
         Ks = parse_budgets(ks)
     scenario = _apply_overrides(_read_config(config, ports, parameter_set, dt, T, gamma), None, eps, gamma, dt, T)
     table = api.compare(scenario, names, Ks, out_dir=out, progress=(lambda label: _progress(label, quiet)),
-                        certificates=not no_certificates)
+                        certificates=not no_certificates, options=options)
     reference, results, rows = table.reference, table.results, table.rows
     click.echo(f"{scenario.name}: {len(rows)} runs of {len(names)} masters -> {out / 'compare.json'}")
     print_table(rows, list(COMPARE_FIELDS))

@@ -15,6 +15,7 @@ from .errors import ConfigError
 from .gamma_tuning import MODES as GAMMA_MODES
 from .interconnection import COUPLINGS, TAKES_RATIO
 from .masters import ALGORITHMS
+from .masters.dr_options import ANDERSON_MAX
 
 DEFAULT_CONFIG = ROOT / "configs" / "two_oscillators.yaml"
 COUPLING_TYPES = tuple(COUPLINGS)
@@ -74,6 +75,9 @@ class MasterConfig:
     fast: str = "auto"
     threads: str = "auto"
     energy_guard: str = None           # ledger | monolithic | off (true/false of old files); None: the master's default
+    relaxation: object = 1.0           # DR: lambda in (0, 2) of line 12, or "auto" (masters/dr_options.py)
+    anderson: int = 0                  # DR: Anderson window m (0: off)
+    warm_start: bool = False           # DR: u^{n,0} = P (2 b^n - b^{n-1}) instead of P b^n
 
 
 @dataclass
@@ -377,7 +381,8 @@ def load_raw(path) -> dict:
 
 
 def _master(ck, m) -> MasterConfig:
-    ck.mapping(m, "master", ("algorithm", "K", "eps", "deadline_us", "fast", "threads", "energy_guard"))
+    ck.mapping(m, "master", ("algorithm", "K", "eps", "deadline_us", "fast", "threads", "energy_guard",
+                             "relaxation", "anderson", "warm_start"))
     master = MasterConfig()
     if "algorithm" in m:
         master.algorithm = ck.string(m["algorithm"], "master.algorithm", ALGORITHMS)
@@ -393,7 +398,23 @@ def _master(ck, m) -> MasterConfig:
         master.energy_guard = _energy_guard(ck, m["energy_guard"])
     if "threads" in m:
         master.threads = ck.string(str(m["threads"]), "master.threads", ("auto", "1", "2"))
+    _dr_options(ck, m, master)
     return master
+
+
+def _dr_options(ck, m, master):
+    """The DR master's named options (wavecosim/masters/dr_options.py)."""
+    if "relaxation" in m:
+        lam = m["relaxation"]
+        master.relaxation = "auto" if lam == "auto" else ck.number(lam, "master.relaxation", positive=True)
+        if lam != "auto" and not master.relaxation < 2.0:
+            ck.fail("master.relaxation", f"must be in (0, 2) or auto, got {lam!r}")
+    if "anderson" in m:
+        master.anderson = ck.integer(m["anderson"], "master.anderson", minimum=0)
+        if master.anderson > ANDERSON_MAX:
+            ck.fail("master.anderson", f"must be at most {ANDERSON_MAX}, got {master.anderson}")
+    if "warm_start" in m:
+        master.warm_start = ck.boolean(m["warm_start"], "master.warm_start")
 
 
 def _certificates(ck, c) -> CertificateConfig:

@@ -104,6 +104,7 @@ def load_library():
         lib.dr_log_width.argtypes = [p]
         lib.dr_log_width.restype = ctypes.c_size_t
         lib.dr_run_steps.argtypes = [p, ctypes.POINTER(DRStep), i, i, d, ctypes.c_double]
+        lib.dr_set_options.argtypes = [p, ctypes.c_double, i, i]
         lib.dr_ledger_redo.argtypes = [p, ctypes.POINTER(DRStep), ctypes.c_double, ctypes.c_double, i, d]
         _lib = lib
     return _lib
@@ -262,6 +263,11 @@ class Kernel:
         error = self.failure(n, n * self.io.dt) if self.io.failed_subsystem >= 0 else None
         columns = self.log[:count * self.width].reshape(self.width, count)[:, :done]
         return done, BlockLog(columns, self.n, bool(self.io.stopped)), error
+
+    def set_options(self, relaxation, anderson, warm_start):
+        """The DR master's named options (wavecosim/masters/dr_options.py); forgets b^{n-1}."""
+        if self.lib.dr_set_options(self._handle, float(relaxation), int(anderson), int(bool(warm_start))):
+            raise FmuError(f"the DR kernel refused its options (relaxation {relaxation}, anderson {anderson})")
 
     def set_maps(self, P, J_L):
         """P and J_L (linalg.Sparse, or dense rows) for the next macro-steps, copied by the kernel."""

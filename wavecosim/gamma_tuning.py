@@ -18,6 +18,9 @@ Modes (YAML `gamma:` or `--gamma`; they override per-subsystem `gamma:` keys):
   Theorem 1 keeps holding;
 - `auto-retune`: the same, and lowered between macro-steps whenever a bound drops below its gamma
   (the committed wave b is re-scattered to the new gammas); gammas never go up again;
+- `fastest`: like `auto`, but each gamma_i up to FASTEST_SAFETY times its FNE bound, found by a
+  coordinate grid before Nelder-Mead, for the fastest contraction of the DR operator with the
+  relaxation in force (`master.relaxation`; with `auto`, the best lambda for each candidate);
 - `fast-unsafe`: one common gamma with the fastest contraction at any value, usually above the
   smaller FNE bound (near the geometric mean of the port impedances). It leaves Condition 1 and
   Theorem 1; the run warns and reports the augmented residual.
@@ -31,11 +34,15 @@ from . import interconnection as ic
 from .waves import outgoing_wave
 from .errors import ConfigError, NumericalError
 
-MODES = ("auto", "auto-retune", "fast-unsafe")       # the one list of gamma modes
+MODES = ("auto", "auto-retune", "fast-unsafe", "fastest")       # the one list of gamma modes
 PROBE_GAMMA = 0.4       # the gamma FMUs start at (when the scenario gives no number) before a mode probes them
 SAFETY = 0.9            # auto stays this far inside the FNE bound (Z_d drifts along the trajectory)
 RETUNE_ABOVE = 0.95     # auto-retune lowers gamma when it exceeds this fraction of the bound
 PROBE_REL = 1e-6        # size of the incident-wave perturbation, relative to the operating point
+FASTEST_SAFETY = 0.99   # fastest stays this far inside the FNE bound
+GRID_POINTS = 25        # fastest: log-spaced gammas per subsystem in each coordinate sweep
+RELAX_GRID = tuple(0.05 * i for i in range(1, 40))      # relaxation: auto tries lambda = 0.05 .. 1.95
+RELAX_GAIN = 0.98       # relaxation: auto keeps lambda = 1 unless the predicted rate falls below this fraction
 
 
 def parse_gamma(value, where="gamma"):
@@ -136,8 +143,8 @@ def probe_scene(scene, b, n, t, P=None):
     return probes
 
 
-def dr_rate(scene, probes, gammas):
-    """Spectral radius of the linearized DR operator T = 1/2 (I + R_L R_S) with impedance gammas[i]
+def _reflections(scene, probes, gammas):
+    """(R_L, R_S) = (2 J_L - I, 2 J_S - I) of the linearized DR iteration with impedance gammas[i]
     on the channels of subsystem i (P and J_L compiled for those impedances)."""
     n = scene.n_channels
     J_S = np.zeros((n, n))
@@ -145,8 +152,61 @@ def dr_rate(scene, probes, gammas):
         J_S[off:off + s.m, off:off + s.m] = p.jacobian(g)
     channel = [g for g, s in zip(gammas, scene.subsystems) for _ in range(s.m)]
     J_L = ic.compile_wave_map(scene.E, scene.F, channel).J_L
-    T = 0.5 * (np.eye(n) + (2.0 * J_L - np.eye(n)) @ (2.0 * J_S - np.eye(n)))
+    return 2.0 * J_L - np.eye(n), 2.0 * J_S - np.eye(n)
+
+
+def dr_rate(scene, probes, gammas):
+    """Spectral radius of the linearized DR operator T = 1/2 (I + R_L R_S)."""
+    R_L, R_S = _reflections(scene, probes, gammas)
+    T = 0.5 * (np.eye(len(R_L)) + R_L @ R_S)
     return float(np.abs(np.linalg.eigvals(T)).max())
+
+
+def relaxed_rate(mu, lam):
+    """Spectral radius of the relaxed DR operator I + lam/2 (R_L R_S - I), from the eigenvalues mu of R_L R_S."""
+    return float(np.abs(1.0 + 0.5 * lam * (mu - 1.0)).max())
+
+
+def best_relaxation(mu):
+    """(lambda, rate): the lambda of RELAX_GRID with the fastest predicted contraction, or 1 (the paper's
+    update) unless that beats it by RELAX_GAIN."""
+    plain = relaxed_rate(mu, 1.0)
+    lam = min(RELAX_GRID, key=lambda x: (relaxed_rate(mu, x), abs(x - 1.0)))
+    best = relaxed_rate(mu, lam)
+    return (lam, best) if best < RELAX_GAIN * plain else (1.0, plain)
+
+
+def dr_eigenvalues(scene, probes, gammas):
+    """Eigenvalues of R_L R_S, the reflected operator whose averages are (relaxed) DR."""
+    R_L, R_S = _reflections(scene, probes, gammas)
+    return np.linalg.eigvals(R_L @ R_S)
+
+
+def choose_relaxation(scene, b, P):
+    """`master.relaxation: auto`: probe the frozen maps at x^0 around u^0 = P b, predict the contraction
+    of each lambda from the linearized operator and pick the fastest (best_relaxation)."""
+    probes = probe_scene(scene, b, 0, 0.0, P)
+    mu = dr_eigenvalues(scene, probes, [scene.gammas[s.name] for s in scene.subsystems])
+    lam, rate = best_relaxation(mu)
+    return {"relaxation": lam, "rate_plain": relaxed_rate(mu, 1.0), "rate_relaxed": rate}
+
+
+def _fastest_rate(scene, probes):
+    """The objective of gamma: fastest: the predicted rate with master.relaxation (auto: the best lambda)."""
+    lam = scene.scenario.master.relaxation
+    if lam == "auto":
+        return lambda g: best_relaxation(dr_eigenvalues(scene, probes, g))[1]
+    return lambda g: relaxed_rate(dr_eigenvalues(scene, probes, g), float(lam))
+
+
+def _coordinate_grid(rate, lo, hi, start):
+    """Two sweeps over the subsystems, each gamma_i over GRID_POINTS log-spaced values in [lo_i, hi_i]."""
+    g = list(start)
+    for _ in range(2):
+        for i in range(len(g)):
+            g[i] = min(np.geomspace(lo[i], hi[i], GRID_POINTS), key=lambda x: rate(g[:i] + [float(x)] + g[i + 1:]))
+            g[i] = float(g[i])
+    return g
 
 
 @dataclass
@@ -183,6 +243,17 @@ def _search(rate, lo, hi, starts):
     return [float(v) for v in np.exp(x)], f(x)
 
 
+def _fast_unsafe(rate, probes, finite, ref, count):
+    """One common gamma, the fastest contraction at any value (usually above the bound)."""
+    top = max([p.scale() for p in probes if math.isfinite(p.scale())] + finite)
+    grid = np.geomspace(1e-3 * ref, 1e3 * top, 121)
+    rates = [rate([g] * count) for g in grid]
+    k = min(range(len(grid)), key=lambda j: (round(rates[j], 12), -grid[j]))
+    common, best = _search(lambda g: rate(g * count), [grid[max(k - 1, 0)]],
+                           [grid[min(k + 1, len(grid) - 1)]], [[grid[k]]])
+    return common * count, best
+
+
 def choose_gamma(scene, probes, mode, where="gamma", secant=None, ceiling=None):
     """Each subsystem's gamma for `mode` (see the module docstring). Condition 1 is per subsystem
     (gamma_i <= lambda_min(Z_d,i)) and P stays orthogonal for any positive channel impedances
@@ -205,14 +276,13 @@ def choose_gamma(scene, probes, mode, where="gamma", secant=None, ceiling=None):
     cap = {k: (b if math.isfinite(b) else 1e3 * max(finite)) for k, b in bounds.items()}
     rate = (lambda g: dr_rate(scene, probes, g))
     if mode == "fast-unsafe":
-        # one common gamma, the fastest contraction at any value (usually above the bound)
-        top = max([p.scale() for p in probes if math.isfinite(p.scale())] + finite)
-        grid = np.geomspace(1e-3 * ref, 1e3 * top, 121)
-        rates = [rate([g] * len(names)) for g in grid]
-        k = min(range(len(grid)), key=lambda j: (round(rates[j], 12), -grid[j]))
-        common, best = _search(lambda g: rate(g * len(names)), [grid[max(k - 1, 0)]],
-                               [grid[min(k + 1, len(grid) - 1)]], [[grid[k]]])
-        gammas = common * len(names)
+        gammas, best = _fast_unsafe(rate, probes, finite, ref, len(names))
+    elif mode == "fastest":
+        rate = _fastest_rate(scene, probes)
+        hi = [FASTEST_SAFETY * cap[k] for k in names]
+        lo = [1e-3 * h for h in hi]
+        common = min(FASTEST_SAFETY * ref, *hi)
+        gammas, best = _search(rate, lo, hi, [[common] * len(names), hi, _coordinate_grid(rate, lo, hi, hi)])
     else:
         hi = [min(SAFETY * cap[k], (ceiling or {}).get(k, math.inf)) for k in names]
         lo = [1e-3 * h for h in hi]

@@ -12,16 +12,10 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.ticker import NullFormatter  # noqa: E402
 
-from .masters import MASTERS  # noqa: E402
+from .comparison import group_name, style as _style  # noqa: E402
 
 FLOOR = 1e-17
 DPI = 130
-
-
-
-def _style(name):
-    """(colour, marker) of a master in the comparison plots."""
-    return MASTERS[name].style if name in MASTERS else ("gray", "o")
 
 
 def _save(fig, path):
@@ -201,36 +195,46 @@ def compare_plots(rows, results, reference, out):
 
 
 def _by_master(rows, results):
-    """{master: [(row, result), ...]} in the order of the rows."""
+    """{master or master:option: [(row, result), ...]} in the order of the rows."""
     groups = {}
     for row, res in zip(rows, results):
-        groups.setdefault(row["master"], []).append((row, res))
+        groups.setdefault(group_name(row), []).append((row, res))
     return groups
 
 
+def _pareto_label(name, members, ok):
+    bad = [str(r["K"]) for r, _ in members if r not in ok]
+    return name if not bad else f"{name} (diverged{'' if bad == ['-'] else ' at K = ' + ', '.join(bad)})"
+
+
 def _pareto(rows, error_label, scenario, path):
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.4), sharey=True)
+    """Max error against master wall time and against doSteps per macro-step, and the energy growth
+    max H/H(0) against doSteps per macro-step: every master and DR option, one line each."""
+    fig, axes = plt.subplots(1, 3, figsize=(18, 5.4))
     for name, members in _by_master(rows, rows).items():
         color, marker = _style(name)
         ok = [r for r, _ in members if r["diverged"] == "no" and np.isfinite(r["max_error"])]
-        bad = [str(r["K"]) for r, _ in members if r not in ok]
-        label = name if not bad else f"{name} (diverged{'' if bad == ['-'] else ' at K = ' + ', '.join(bad)})"
-        for ax, xkey in zip(axes, ("wall_time_s", "doStep")):
-            x = [float(r[xkey]) for r in ok]
-            y = _floored([r["max_error"] for r in ok])
-            ax.loglog(x, y, marker=marker, color=color, ls="-", label=label)
-            if len(ok) > 1 or ok and ok[0]["K"] != "-":
-                for xi, yi, r in zip(x, y, ok):
-                    ax.annotate(f"{r['K']}", (xi, yi), textcoords="offset points", xytext=(4, 3), fontsize=7,
-                                color=color)
+        label = _pareto_label(name, members, ok)
+        for ax, xkey in zip(axes[:2], ("wall_time_s", "doSteps_per_step")):
+            x, y = [float(r[xkey]) for r in ok], _floored([r["max_error"] for r in ok])
+            ax.loglog(x, y, marker=marker, color=color, ls="-" if xkey != "wall_time_s" else "none", ms=4, lw=1,
+                      label=label)
+            for xi, yi, r in zip(x, y, ok if xkey == "doSteps_per_step" and len(members) > 1 else ()):
+                ax.annotate(f"{r['K']}", (xi, yi), textcoords="offset points", xytext=(3, 2), fontsize=6, color=color)
+        done = [r for r, _ in members if r["steps"]]
+        axes[2].loglog([r["doSteps_per_step"] for r in done], [r["H_growth"] for r in done], marker=marker,
+                       color=color, ls="-", ms=4, lw=1)
     axes[0].set(xlabel="master wall time (s), log", ylabel=f"max error {error_label}, log (0 drawn at {FLOOR:g})",
-                title="Error against wall time (numbers: budget K)")
-    axes[1].set(xlabel="FMU doStep calls, log", title="Error against FMU calls")
+                title="Error against master wall time")
+    axes[1].set(xlabel="FMU doSteps per macro-step, log", title="Error against FMU calls (numbers: budget K)")
+    axes[2].axhline(1.0, color="k", lw=0.8, ls="--")
+    axes[2].set(xlabel="FMU doSteps per macro-step, log", ylabel="energy growth max H(t)/H(0), log",
+                title="Energy growth (> 1: energy supplied)")
     for ax in axes:
         ax.grid(alpha=0.3, which="both")
         ax.xaxis.set_minor_formatter(NullFormatter())
-    fig.suptitle(f"{scenario}: accuracy against cost, every master and budget")
-    axes[0].legend(fontsize=8)
+    fig.suptitle(f"{scenario}: accuracy against cost, every master, DR option and budget")
+    axes[0].legend(fontsize=7, loc="upper center", bbox_to_anchor=(1.7, -0.12), ncol=5)
     return _save(fig, path)
 
 
@@ -242,8 +246,8 @@ def _energy_per_master(rows, results, reference, scenario, path):
     for ax, pick, title in ((axes[0], 0, "(a) smallest budget of each master"),
                             (axes[1], -1, "(b) largest budget of each master")):
         for name, members in _by_master(rows, results).items():
-            if name == "newton":                        # it is the monolithic reference, drawn dashed
-                continue
+            if name == "newton" or ":" in name:         # newton is the reference, drawn dashed; DR options:
+                continue                                # their energy growth is in the Pareto figure
             row, res = members[pick]
             color, _ = _style(name)
             t, H = _finite(_energy_t(res), res.energy)

@@ -13,6 +13,7 @@
 #include "drkernel.h"
 #include "kernel_internal.h"
 #include "linalg.h"
+#include "dr_options.h"
 
 /* A thread waiting for the other spins this long, then sleeps on a condition variable: spinning
  * answers within a microsecond when both have a core, sleeping leaves the core to the other
@@ -68,6 +69,7 @@ struct DRKernel {
     double *task_out;
     double task_t, task_h;
     int task_commit, task_measure;
+    DROptions *opt;                /* the DR master's named options, or NULL (the paper's Algorithm 1) */
 };
 
 static double now_ns(void) {
@@ -315,6 +317,39 @@ static void begin_macro_step(DRKernel *k, DRStep *io) {
     io->failed_status = 0;
 }
 
+/* ---- the DR master's named options (dr_options.h; wavecosim/masters/dr_options.py) ---- */
+
+/* Start of a macro-step: forget the Anderson history; with the warm start, u^0 = P (2 b^n - b^{n-1})
+ * once b^{n-1} is known (dr_options.warm_start), and b^n is remembered for the next step. */
+static void options_begin(DRKernel *k, double *u) {
+    DROptions *o = k->opt;
+    o->count = o->start = o->have_acc = o->candidate = 0;
+    if (!o->warm_start) return;
+    if (o->have_prev) {
+        for (size_t j = 0; j < k->n; j++) o->z[j] = 2.0 * k->b[j] - o->b_prev[j];
+        csr_matvec(k->P, o->z, u, k->n);
+    }
+    memcpy(o->b_prev, k->b, k->n * sizeof *u);
+    o->have_prev = 1;
+}
+
+/* Line 12 relaxed (dr_options.relaxed_update), then the safeguarded Anderson step. */
+static void options_step(DRKernel *k, const double *u, double *u_next, const double **b_star) {
+    DROptions *o = k->opt;
+    if (o->lambda != 1.0)
+        for (size_t j = 0; j < k->n; j++) u_next[j] = u[j] + o->lambda * (k->w[j] - k->b_hat[j]);
+    if (o->m > 0) options_anderson(o, u, u_next, k->b_hat, b_star);
+}
+
+int dr_set_options(DRKernel *k, double relaxation, int anderson, int warm_start) {
+    options_free(k->opt);
+    k->opt = NULL;
+    if (relaxation == 1.0 && anderson == 0 && !warm_start) return 0;
+    if (!(relaxation > 0.0 && relaxation < 2.0) || anderson < 0 || anderson > DR_ANDERSON_MAX) return -1;
+    k->opt = options_create(relaxation, anderson, warm_start, k->n);
+    return k->opt ? 0 : -1;
+}
+
 /* ---- the public API ---- */
 
 int dr_macro_step(DRKernel *k, DRStep *io) {
@@ -323,6 +358,7 @@ int dr_macro_step(DRKernel *k, DRStep *io) {
     double deadline = io->deadline_s > 0.0 ? now_ns() + 1e9 * io->deadline_s : 0.0;
     double *u = k->u, *u_next = k->u_next;
     csr_matvec(k->P, k->b, u, n);                                    /* line 6, eq. (19): u^0 = P b^n */
+    if (k->opt) options_begin(k, u);                             /* warm start: u^0 = P (2 b^n - b^{n-1}) */
     memcpy(k->u0, u, n * sizeof *u);
     const double *b_star = k->b;                                 /* line 7, eq. (19): b^* = b^n */
     int it = 0, reason = DR_BUDGET;
@@ -338,6 +374,7 @@ int dr_macro_step(DRKernel *k, DRStep *io) {
         csr_matvec(k->J_L, k->z, k->w, n);                           /* line 11, eq. (17): w = J_L(2b - u) */
         for (size_t j = 0; j < n; j++) u_next[j] = u[j] + k->w[j] - k->b_hat[j]; /* line 12, eq. (17) update */
         b_star = k->b_hat;                                       /* line 13, eq. (20): b^* = last b */
+        if (k->opt) options_step(k, u, u_next, &b_star);         /* relaxation, Anderson acceleration */
         residual = distance(u_next, u, n);
         double *swap = u;
         u = u_next;
@@ -780,6 +817,7 @@ void dr_destroy(DRKernel *k) {
     free(k->u);
     free(k->obs);
     free(k->redo);
+    options_free(k->opt);
     free(k);
 }
 

@@ -46,6 +46,7 @@ class FastDRMaster(DRMaster):
             return
         self.kernel = Kernel(scene, self.P, self.J_L)
         self.kernel.configure(self.dt, self.K, self.eps, self.deadline_s)
+        self.kernel.set_options(self.relaxation, settings.anderson, self.warm_start)
         self.fast, self.fast_note = True, "C kernel"
         self.thread_mode = str(settings.threads)
         # the first macro-step this master makes picks the thread plan (None: not made yet)
@@ -72,6 +73,11 @@ class FastDRMaster(DRMaster):
         super()._compile()
         if getattr(self, "kernel", None) is not None:
             self.kernel.set_maps(self.P, self.J_L)
+
+    def retune(self, b):
+        super().retune(b)
+        if self.kernel is not None:
+            self.kernel.set_options(self.relaxation, self.settings.anderson, self.warm_start)   # b^{n-1} forgotten
 
     def reserve_time(self, seconds):
         super().reserve_time(seconds)
@@ -234,7 +240,7 @@ class FastDRMaster(DRMaster):
 
     def run_info(self):
         """For the run summary: which path and thread plan ran."""
-        return {"fast_path": self.fast, "fast_note": self.fast_note, "threads": self.threads,
+        return {**super().run_info(), "fast_path": self.fast, "fast_note": self.fast_note, "threads": self.threads,
                 "thread_note": self.thread_note}
 
     def close(self):

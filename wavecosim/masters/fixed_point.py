@@ -16,7 +16,7 @@ from .physical import RollbackPhysicalMaster
 
 class JacobiIterMaster(KernelRoute, RollbackPhysicalMaster):
     """Fixed-point (Picard) iteration, all subsystems queried with the previous iterate."""
-    budgets = (1, 2, 3, 5, 10)
+    budgets = (1, 2, 3, 4, 5, 6, 8, 10, 15)
     style = ("tab:purple", "s")
 
     def __init__(self, scene, settings):
