@@ -1,10 +1,11 @@
 """The classical masters on the kernel route give their Python reference's numbers to the last bit.
 
 Claims: explicit, gauss-seidel, jacobi-iter and gauss-seidel-iter with `master.fast` (auto, as DR)
-run each macro-step in C (fmus/kernel/classical.c) and, on every shipped scene they can run (the
-fixed-point masters at K = 0, 3 and 10 with a tolerance), give trajectories, per-step logs and FMU
-call counts equal bit for bit to `fast: false`;
-the energy ledger guard (undo, redo) works on it alike; an FMU error comes back as the reference's
+run in C (fmus/kernel/classical.c), through the runner in blocks of macro-steps per kernel call,
+and, on every shipped scene they can run (the fixed-point masters at K = 0, 3 and 10 with a
+tolerance), give trajectories, per-step logs and FMU call counts equal bit for bit to `fast: false`;
+blocks and one kernel call per step leave the same logs, outputs, inputs and calls;
+the energy ledger guard (undo, redo) works on it alike, step by step; an FMU error comes back as the reference's
 FmuError; a declared physical port keeps the Python reference (`fast: true` then is a config error).
 """
 import dataclasses
@@ -48,6 +49,7 @@ def test_kernel_route_is_bit_identical_to_the_reference(name, master, K, eps, bu
     ref = run(sc.with_master(fast="false"), certificates=False)
     fast = run(sc.with_master(fast="auto"), certificates=False)
     assert ref.summary["fast_path"] is False and fast.summary["fast_path"] is True
+    assert ref.summary["block_steps"] == 0 and fast.summary["block_steps"] == sc.n_steps
     runs_identical(ref, fast)
 
 
@@ -60,6 +62,40 @@ def test_explicit_masters_on_the_kernel_route(name, master, built_fmus):
     assert ref.summary["fast_path"] is False and fast.summary["fast_path"] is True
     runs_identical(ref, fast)
     assert fast.summary["fmu_calls"]["save"] == 0                      # nothing saved, as in Python
+    assert fast.summary["block_steps"] == sc.n_steps
+
+
+@pytest.mark.parametrize("master, K", [("explicit", 0), ("gauss-seidel", 0), ("jacobi-iter", 3),
+                                       ("gauss-seidel-iter", 10)])
+def test_blocks_equal_one_kernel_call_per_step(master, K, built_fmus):
+    """Blocks of 7 steps (the last one short) against step() on the kernel: the same per-step logs,
+    y^{n+1}, committed inputs and FMU calls, and undo_step after a block goes back as after step()."""
+    sc = scenario("two_oscillators_stiff", algorithm=master, K=K, eps=1e-12)
+    settings, steps = dataclasses.replace(sc.master, fast="true"), 40
+    scenes = [build_scene(sc, wave=False) for _ in range(2)]
+    by_step, by_block = [MASTERS[master](s, settings) for s in scenes]
+    try:
+        logs = [by_step.step(n, n * sc.dt) for n in range(steps)]
+        blocks, n = [], 0
+        while n < steps:
+            done, log, error = by_block.run_steps(n, min(7, steps - n))
+            assert error is None and done == min(7, steps - n)
+            blocks += [by_block.step_log(log, j) for j in range(done)]
+            n += done
+        assert [(g.iterations, g.reason) for g in logs] == [(g.iterations, g.reason) for g in blocks]
+        assert bits([g.residual for g in logs]) == bits([g.residual for g in blocks])
+        assert bits(by_step.y) == bits(by_block.y)
+        assert [s.calls for s in scenes[0].subsystems] == [s.calls for s in scenes[1].subsystems]
+        if K:
+            assert bits(by_step.u) == bits(by_block.u)
+            for m in (by_step, by_block):
+                m.undo_step()
+                m.recommit(m.u)
+            assert bits(by_step.y) == bits(by_block.y) and bits(by_step.y_step_start) == bits(by_block.y_step_start)
+    finally:
+        for m, s in zip((by_step, by_block), scenes):
+            m.close()
+            s.close()
 
 
 @pytest.mark.parametrize("master", MASTER_NAMES)
@@ -69,6 +105,7 @@ def test_ledger_guard_redoes_the_same_steps_on_the_kernel_route(master, built_fm
     fast = run(sc.with_master(fast="true"), certificates=False)
     assert fast.summary["energy_guard_steps"] > 0 or master == "gauss-seidel-iter"   # (none needed there)
     assert fast.summary["energy_guard_steps"] == ref.summary["energy_guard_steps"]
+    assert fast.summary["block_steps"] == 0                            # the ledger keeps it step by step
     runs_identical(ref, fast)
 
 

@@ -3,9 +3,12 @@
 fmus/kernel/classical.c runs a whole macro-step of the Python reference
 (wavecosim/masters/explicit.py, fixed_point.py) in C, through the DR kernel's subsystem evaluation with the FMUs
 in their physical port mode, in the reference's operation order, so the numbers are bit-identical.
-`ClassicalKernel` wires it up through ctypes; the masters pick it with `master.fast` like DR.
+`ClassicalKernel` wires it up through ctypes; the masters pick it with `master.fast` like DR
+(wavecosim/masters/kernel_route.py), one macro-step per call or blocks of them.
 """
 import ctypes
+import functools
+import math
 
 import numpy as np
 
@@ -23,6 +26,8 @@ def _library():
         lib.cl_create.argtypes = [p, ip, ip, _double_p]
         lib.cl_fixed_point_step.argtypes = [p, p, p, p, p, ctypes.c_int]      # arrays by address
         lib.cl_explicit_step.argtypes = [p, p, p, p, ctypes.c_int]
+        lib.cl_run_steps.argtypes = [p, p, ctypes.c_int, ctypes.c_int, _double_p, ctypes.c_double, ctypes.c_int,
+                                     ctypes.c_int]
         lib.cl_destroy.argtypes = [p]
         lib.cl_destroy.restype = None
         lib._classical_ready = True
@@ -45,7 +50,7 @@ def refusal(scene, mode):
 class ClassicalKernel:
     """A DR kernel over the scene's subsystems (physical mode) and the classical step on it."""
 
-    def __init__(self, scene, G):
+    def __init__(self, scene, G, explicit, sequential):
         self.lib = _library()
         self.base = Kernel(scene, None, None)
         self.base.configure(scene.scenario.dt, 0)
@@ -57,6 +62,17 @@ class ClassicalKernel:
             self.base.close()
             raise FmuError("the classical kernel could not be created (out of memory)")
         self._handle, self._step = ctypes.c_void_p(self.handle), self.lib.cl_fixed_point_step
+        # the DR kernel's block call, log and observed values, with the classical step in it
+        self.base._run_steps = functools.partial(self._blocks, int(explicit), int(sequential))
+
+    def _blocks(self, explicit, sequential, _, io, n0, count, rows, H_cap):
+        return self.lib.cl_run_steps(self._handle, io, n0, count, rows, H_cap, explicit, sequential)
+
+    def run_steps(self, n0, count, y, H_cap=math.inf):
+        """Macro-steps n0 .. n0 + count - 1 from outputs y in one call (classical.h, cl_run_steps):
+        (steps done, their fast_path.BlockLog, the FmuError of the step after them or None)."""
+        self.base.b[:] = [float(x) for x in y]
+        return self.base.run_steps(n0, count, H_cap)
 
     def configure(self, K, eps, deadline_s):
         self.base.configure(self.base.io.dt, K, eps, deadline_s)
@@ -85,24 +101,3 @@ class ClassicalKernel:
             self.lib.cl_destroy(self.handle)
             self.handle = None
         self.base.close()
-
-
-class KernelRoute:
-    """What a classical master with a kernel route adds: `kernel` (a ClassicalKernel, or None and
-    the Python reference runs), `fast_note` (why), and their summary and release."""
-
-    def attach_kernel(self, scene, settings, has_route=True):
-        self.kernel, self.fast_note = None, "Python reference (this master has no kernel route)"
-        if has_route:
-            self.fast_note = refusal(scene, str(settings.fast).lower())
-            if self.fast_note is None:
-                self.kernel, self.fast_note = ClassicalKernel(scene, self.G), "C kernel"
-
-    def run_info(self):
-        return {"fast_path": self.kernel is not None, "fast_note": self.fast_note}
-
-    def close(self):
-        if self.kernel is not None:
-            self.kernel.close()
-            self.kernel = None
-        super().close()

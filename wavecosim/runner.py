@@ -304,7 +304,8 @@ class LiveRun:
         self.ledger = isinstance(guard, EnergyLedger)
         self.blocks = (getattr(self.master, "fast", False) and hasattr(self.master, "run_steps")
                        and not self.bracket and all(o.blocks for o, _ in self.after)
-                       and (guard is None or isinstance(guard, EnergyGuard) or self.ledger)
+                       and (guard is None or isinstance(guard, EnergyGuard)
+                            or (self.ledger and hasattr(self.master, "keep_ledger")))   # classical: step by step
                        and self.scene.signals is None
                        and sys.version_info < (3, 12))
         if self.blocks:

@@ -15,6 +15,8 @@ struct CLKernel {
     DRKernel *k;
     Csr *G;                        /* inputs = G outputs */
     double *y, *y_new, *inputs;    /* scratch: the iterate, its image, a pass's inputs */
+    double *y_out;                 /* scratch of cl_run_steps: y^{n+1} before it becomes y^n */
+    int explicit_, sequential;     /* the master cl_run_steps runs */
 };
 
 CLKernel *cl_create(DRKernel *k, const int *G_start, const int *G_col, const double *G_val) {
@@ -23,13 +25,14 @@ CLKernel *cl_create(DRKernel *k, const int *G_start, const int *G_col, const dou
     size_t n = dr_channels(k);
     c->k = k;
     c->G = dr_csr_copy(G_start, G_col, G_val, n);
-    c->y = calloc(3 * n, sizeof(double));
+    c->y = calloc(4 * n, sizeof(double));
     if (!c->G || !c->y) {
         cl_destroy(c);
         return NULL;
     }
     c->y_new = c->y + n;
     c->inputs = c->y + 2 * n;
+    c->y_out = c->y + 3 * n;
     return c;
 }
 
@@ -94,6 +97,27 @@ int cl_explicit_step(CLKernel *c, DRStep *io, const double *y_n, double *y_next,
     io->reason = DR_EXPLICIT;
     int f = sweep(c, y_n, y_next, c->inputs, io->t, io->dt, FORWARD, sequential);  /* y^{n+1} = Phi(x^n, G y^n) */
     return f >= 0 ? dr_fail(c->k, io, f) : 0;
+}
+
+/* One macro-step of cl_run_steps from y^n in the kernel's outputs: y^{n+1} replaces it, the inputs
+ * handed out (the commit's, or the explicit pass's) go into the kernel's inputs. */
+static int block_step(void *ctx, DRStep *io) {
+    CLKernel *c = ctx;
+    size_t n = dr_channels(c->k);
+    double *y = dr_outputs(c->k), *u = dr_inputs(c->k);
+    int f = c->explicit_ ? cl_explicit_step(c, io, y, c->y_out, c->sequential)
+                         : cl_fixed_point_step(c, io, y, c->y_out, u, c->sequential);
+    if (f) return f;
+    if (c->explicit_) memcpy(u, c->inputs, n * sizeof *u);
+    memcpy(y, c->y_out, n * sizeof *y);
+    return 0;
+}
+
+int cl_run_steps(CLKernel *c, DRStep *io, int n0, int count, double *rows, double H_cap, int explicit_,
+                 int sequential) {
+    c->explicit_ = explicit_;
+    c->sequential = sequential;
+    return dr_run_steps_of(c->k, io, n0, count, rows, H_cap, block_step, c);
 }
 
 void cl_destroy(CLKernel *c) {

@@ -24,6 +24,14 @@ int cl_fixed_point_step(CLKernel *c, DRStep *io, const double *y_n, double *y_ne
  * Returns like cl_fixed_point_step. */
 int cl_explicit_step(CLKernel *c, DRStep *io, const double *y_n, double *y_next, int sequential);
 
+/* Macro-steps n0 .. n0 + count - 1 of the explicit (explicit_ = 1) or fixed-point master in one call,
+ * from y^n in the DR kernel's b buffer (updated step by step to y^{n+1}), each exactly the step
+ * function above at t = (double)n dt, logged as dr_run_steps logs (a: the inputs handed out, b: y^{n+1};
+ * the ledger's columns as without it: io->ledger_on must be 0), with its stop after a non-finite
+ * observed value or a stored energy that may exceed H_cap. Returns the steps done, as dr_run_steps. */
+int cl_run_steps(CLKernel *c, DRStep *io, int n0, int count, double *rows, double H_cap, int explicit_,
+                 int sequential);
+
 void cl_destroy(CLKernel *c);
 
 #endif

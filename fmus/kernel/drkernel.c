@@ -637,13 +637,20 @@ static int guarded_macro_step(DRKernel *k, DRStep *io) {
     return failure;
 }
 
+static int guarded_step_of(void *k, DRStep *io) { return guarded_macro_step(k, io); }
+
 int dr_run_steps(DRKernel *k, DRStep *io, int n0, int count, double *rows, double H_cap) {
+    return dr_run_steps_of(k, io, n0, count, rows, H_cap, guarded_step_of, k);
+}
+
+int dr_run_steps_of(DRKernel *k, DRStep *io, int n0, int count, double *rows, double H_cap, DRStepFn step,
+                    void *ctx) {
     size_t m = (size_t)count, first_observed = (3 + 2 * k->n) * m;
     io->stopped = 0;
     for (int s = 0; s < count; s++) {
         io->t = (double)(n0 + s) * io->dt;
         double c0 = io->ledger_on && io->step_deadline_s > 0.0 ? cpu_ns() : 0.0, t0 = now_ns();
-        if (guarded_macro_step(k, io)) return s;
+        if (step(ctx, io)) return s;
         int f = ledger_step(k, io, t0, c0, rows, m, (size_t)s);
         if (f < 0) f = log_step(k, io, rows, m, (size_t)s);
         if (f >= 0) {
@@ -849,3 +856,7 @@ int dr_fail(DRKernel *k, DRStep *io, int i) { return report_failure(k, io, i); }
 double dr_distance(const double *x, const double *y, size_t n) { return distance(x, y, n); }
 
 double dr_now_ns(void) { return now_ns(); }
+
+double *dr_outputs(DRKernel *k) { return k->b; }
+
+double *dr_inputs(DRKernel *k) { return k->a_hat; }

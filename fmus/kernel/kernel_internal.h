@@ -44,4 +44,16 @@ double dr_distance(const double *x, const double *y, size_t n);
 
 double dr_now_ns(void);
 
+/* One macro-step of a route at io->t (returns 0, or -1 with io->failed_* set), leaving what it logs
+ * in dr_outputs (b^{n+1}, or the classical masters' y^{n+1}) and dr_inputs (a, or their inputs). */
+typedef int (*DRStepFn)(void *ctx, DRStep *io);
+
+/* dr_run_steps with step(ctx, io) making each macro-step: the same log, observed values and stop. */
+int dr_run_steps_of(DRKernel *k, DRStep *io, int n0, int count, double *rows, double H_cap, DRStepFn step,
+                    void *ctx);
+
+/* The caller's buffers the log reads: b (outputs) and a_hat (inputs), n each. */
+double *dr_outputs(DRKernel *k);
+double *dr_inputs(DRKernel *k);
+
 #endif

@@ -2,7 +2,7 @@
 
 With `master.fast` (auto, as for DR) the step runs in C (wavecosim/classical_path.py), to the last
 bit the same."""
-from ..classical_path import KernelRoute
+from .kernel_route import KernelRoute
 from .base import StepLog
 from .physical import PhysicalMaster, step_forward
 
@@ -19,9 +19,20 @@ class ExplicitMaster(KernelRoute, PhysicalMaster):
     def step(self, n, t) -> StepLog:
         if self.kernel is not None:
             _, self.y = self.kernel.explicit_step(n, t, self.y, int(self.sequential))
-            for sub in self.subsystems:               # as step_forward books it
-                sub.begin(n, t)
-                sub.calls["doStep"] += 1
+            self.book_kernel(n, t, 0, 1)
             return StepLog(iterations=0, reason="explicit")
         self.y = self.sweep(self.y, lambda sub, inputs: step_forward(sub, n, t, inputs))
         return StepLog(iterations=0, reason="explicit")
+
+    def configure_kernel(self):
+        """Nothing to set: an explicit step has no inner loop."""
+
+    def book_kernel(self, n, t, iterations, steps):
+        """Book `steps` kernel macro-steps (the last one step n at t) as step_forward books each."""
+        for sub in self.subsystems:
+            sub.begin(n, t)
+            sub.calls["doStep"] += steps
+
+    def took_block(self, log, done):
+        """After a block of kernel steps: its last y^{n+1} (copied: the next call overwrites the log)."""
+        self.y = log.b[done - 1].copy()

@@ -7,7 +7,7 @@ for DR) the whole macro-step runs in C (wavecosim/classical_path.py), to the las
 """
 import time
 
-from ..classical_path import KernelRoute
+from .kernel_route import KernelRoute
 from ..fast_path import REASONS
 from ..linalg import distance
 from .base import StepLog
@@ -48,12 +48,26 @@ class JacobiIterMaster(KernelRoute, RollbackPhysicalMaster):
     def _kernel_step(self, n, t) -> StepLog:
         """The same macro-step in C (classical.c); the Subsystems book its calls."""
         self.step_started = time.perf_counter()
-        self.kernel.configure(self.K, self.eps, self.inner_deadline_s if self.deadline_s else None)
+        self.configure_kernel()
         io, y_next, u = self.kernel.fixed_point_step(n, t, self.y, int(self.sequential))
-        for s in self.subsystems:
-            s.note_kernel_step(n, t, io.iterations)
+        self.book_kernel(n, t, io.iterations, 1)
         self.y_step_start, self.y, self.u = self.y, y_next, u
         return StepLog(iterations=io.iterations, residual=io.residual, reason=REASONS[io.reason])
+
+    def configure_kernel(self):
+        """The budget, tolerance and deadline of the kernel's next macro-steps."""
+        self.kernel.configure(self.K, self.eps, self.inner_deadline_s if self.deadline_s else None)
+
+    def book_kernel(self, n, t, iterations, steps):
+        """Book `steps` kernel macro-steps (the last one step n at t, `iterations` queries in all)."""
+        for s in self.subsystems:
+            s.note_kernel_step(n, t, iterations, steps)
+
+    def took_block(self, log, done):
+        """After a block of kernel steps: y^n and y^{n+1} of its last step and its committed inputs
+        (copied: the next call overwrites the log), so undo_step works as after step()."""
+        self.y_step_start = log.b[done - 2].copy() if done > 1 else self.y
+        self.y, self.u = log.b[done - 1].copy(), log.a_hat[done - 1].copy()
 
     def restart(self):
         """A new macro-step's iteration begins (accelerators forget what they learnt)."""

@@ -33,7 +33,7 @@ class Passivity(Observer):
 
     def __init__(self, scene, unavailable=()):
         self.scene, self.wave, self.dt = scene, scene.wave, scene.scenario.dt
-        self.blocks = scene.wave
+        self.blocks = scene.wave or all(s.port.energy is not None for s in scene.subsystems)
         self.port_sums = GroupSums([*[slice(off, off + s.m) for s, off in zip(scene.subsystems, scene.offsets)],
                                     slice(0, scene.n_channels)])
         self.names = [s.name for s in scene.subsystems]
@@ -86,10 +86,17 @@ class Passivity(Observer):
         self.H, self.H_final = list(reading.H), total
         self.H_max = max(self.H_max, total) if total == total else total
 
+    def _block_supplied(self, logs, readings):
+        """_supplied of every step of a block: one row per step, each port, then all of them."""
+        if self.wave:
+            a2, b2 = logs.a_hat * logs.a_hat, readings.B * readings.B
+            return 0.5 * (self.port_sums(a2) - self.port_sums(b2))
+        supplied = self.dt * self.port_sums(readings.E * readings.F)[:, :-1]
+        return np.column_stack([supplied, row_sums(supplied)])
+
     def after_block(self, n0, logs, readings, rows):
         H, k = readings.H, len(self.names)
-        a2, b2 = logs.a_hat * logs.a_hat, readings.B * readings.B
-        supplied = 0.5 * (self.port_sums(a2) - self.port_sums(b2))    # each port, then all of them
+        supplied = self._block_supplied(logs, readings)
         dH = np.empty_like(H)
         dH[0], dH[1:] = H[0] - self.H, H[1:] - H[:-1]
         rows[:, :k], rows[:, k], rows[:, k + 1] = dH - supplied[:, :k], supplied[:, k], row_sums(H)
