@@ -5,7 +5,7 @@ run in C (fmus/kernel/classical.c), through the runner in blocks of macro-steps 
 and, on every shipped scene they can run (the fixed-point masters at K = 0, 3 and 10 with a
 tolerance), give trajectories, per-step logs and FMU call counts equal bit for bit to `fast: false`;
 blocks and one kernel call per step leave the same logs, outputs, inputs and calls;
-the energy ledger guard (undo, redo) works on it alike, step by step; an FMU error comes back as the reference's
+the energy ledger guard (undo, redo) works on it alike, step by step; a run that blows up fails alike in blocks; an FMU error comes back as the reference's
 FmuError; a declared physical port keeps the Python reference (`fast: true` then is a config error).
 """
 import dataclasses
@@ -149,3 +149,17 @@ def test_declared_physical_ports_keep_the_reference(built_fmus):
     with pytest.raises(ConfigError) as exc:
         run(sc.with_master(fast="true"), certificates=False)
     assert "\n" not in str(exc.value) and "master.fast: true, but subsystem A has a declared physical port" in str(exc.value)
+
+
+def test_a_diverging_run_fails_alike_in_blocks(built_fmus):
+    """Explicit coupling on the stiff scene blows up until an FMU fails: in blocks (with an output
+    interval) the same failure at the same step, and the same rows before it, as the Python loop."""
+    sc = dataclasses.replace(scenario("two_oscillators_stiff", algorithm="explicit"), T=20.0)
+    failed = []
+    for fast in ("false", "true"):
+        with pytest.raises(RunFailed) as info:
+            run(sc.with_master(fast=fast), certificates=False, output_interval=7)
+        failed.append(info.value)
+    assert str(failed[0]) == str(failed[1]) and "fmi2DoStep returned Error" in str(failed[0])
+    assert failed[1].result.summary["block_steps"] > 0
+    runs_identical(failed[0].result, failed[1].result)

@@ -357,8 +357,9 @@ class LiveRun:
         times = self.time_of(np.arange(n0 + 1, n0 + count + 1, dtype=float))
         rows = self.steps.reserve(count) if self.every == 1 else np.empty((count, len(self.steps.columns)), order="F")
         rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3] = times, log.iterations, log.residual, log.reason
-        for o in ([self.guard] if self.ledger else []) + [o for o, _ in self.after]:
-            o.after_block(n0, log, readings, rows[:, self.spans[id(o)]])
+        with np.errstate(over="ignore", invalid="ignore"):     # as Python floats overflow: inf, nan, silently
+            for o in ([self.guard] if self.ledger else []) + [o for o, _ in self.after]:
+                o.after_block(n0, log, readings, rows[:, self.spans[id(o)]])
         self.steps_done = n0 + count
         self.iterations[0] += int(log.iterations.sum())
         self.iterations[1] = max(self.iterations[1], int(log.iterations.max()))

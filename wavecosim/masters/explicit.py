@@ -1,9 +1,9 @@
 """Zero-order-hold Jacobi: every FMU gets the other's last output, one doStep each, no iteration.
 
-With `master.fast` (auto, as for DR) the step runs in C (wavecosim/classical_path.py), to the last
-bit the same."""
-from .kernel_route import KernelRoute
+With `master.fast` (auto, as for DR) the step runs in C (wavecosim/classical_path.py), one
+call per step or blocks of steps (masters/kernel_route.py), to the last bit the same."""
 from .base import StepLog
+from .kernel_route import KernelRoute
 from .physical import PhysicalMaster, step_forward
 
 

@@ -3,14 +3,15 @@
 Per macro-step: freeze x^n; y^0 = y^n; y^{k+1} = S^n(G y^k) by queries (a Jacobi or Gauss-Seidel
 pass), stopped by the budget K, the tolerance |y^{k+1} - y^k| <= eps, or the deadline; then commit
 with inputs G y^K. K = 0 is the explicit master of the same ordering. With `master.fast` (auto, as
-for DR) the whole macro-step runs in C (wavecosim/classical_path.py), to the last bit the same.
+for DR) the whole macro-step runs in C (wavecosim/classical_path.py), one call per step or blocks
+of steps (masters/kernel_route.py), to the last bit the same.
 """
 import time
 
-from .kernel_route import KernelRoute
 from ..fast_path import REASONS
 from ..linalg import distance
 from .base import StepLog
+from .kernel_route import KernelRoute
 from .physical import RollbackPhysicalMaster
 
 
