@@ -5,8 +5,8 @@ run in C (fmus/kernel/classical.c), through the runner in blocks of macro-steps 
 and, on every shipped scene they can run (the fixed-point masters at K = 0, 3 and 10 with a
 tolerance), give trajectories, per-step logs and FMU call counts equal bit for bit to `fast: false`;
 blocks and one kernel call per step leave the same logs, outputs, inputs and calls;
-the energy ledger guard (undo, redo) works on it alike, step by step; a run that blows up fails alike in blocks; an FMU error comes back as the reference's
-FmuError; a declared physical port keeps the Python reference (`fast: true` then is a config error).
+the energy ledger guard (undo, redo) works on it alike, step by step; a run that blows up fails
+alike in blocks; an FMU error comes back as the reference's FmuError; a declared physical port keeps the Python reference (`fast: true` then is a config error).
 """
 import dataclasses
 
