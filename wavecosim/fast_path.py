@@ -291,7 +291,7 @@ class Kernel:
     def recorded(self, iterations):
         """[(u^k, S(u^k))] of the last macro-step, as the reference DRMaster.S records them."""
         count = min(iterations, self.trace_capacity)
-        copy = self._trace_type()
+        copy = (ctypes.c_double * (2 * self.n * count))()          # not the whole capacity (K may be huge)
         ctypes.memmove(copy, self.trace, 16 * self.n * count)
         return Trace(copy, self.n, count)
 

@@ -85,8 +85,12 @@ class EnergyLedger(Observer):
                                        led["cpu_s"].tolist()))
 
     def after_step(self, n, t, log, reading, row):
-        """Book I^n; redo the commit when the ledger would exceed tol."""
+        """Book I^n; redo the commit when the ledger would exceed tol (unless the master's kernel made
+        step and guard in one call: its one-step log is then booked as a block's, and log is the redo's)."""
         master, redo = self.master, None
+        if getattr(master, "guarded", None) is not None:
+            self.after_block(n, master.guarded, None, row[None, :])
+            return None
         inputs, outputs = master.committed_inputs(log), master.committed_outputs
         supplied, traffic = master.supply(inputs, outputs)
         self._time_round(log)
