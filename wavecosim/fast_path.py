@@ -72,7 +72,8 @@ class DRStep(ctypes.Structure):
                 ("reason", ctypes.c_int), ("residual", ctypes.c_double), ("failed_subsystem", ctypes.c_int),
                 ("failed_function", ctypes.c_int), ("failed_status", ctypes.c_int), ("stopped", ctypes.c_int),
                 ("ledger_on", ctypes.c_int), ("ledger", ctypes.c_double), ("traffic", ctypes.c_double),
-                ("ledger_rtol", ctypes.c_double), ("step_deadline_s", ctypes.c_double), ("round_s", ctypes.c_double)]
+                ("ledger_rtol", ctypes.c_double), ("step_deadline_s", ctypes.c_double), ("round_s", ctypes.c_double),
+                ("tail_s", ctypes.c_double)]
 
 
 _lib = None
