@@ -600,7 +600,8 @@ static int ledger_step(DRKernel *k, DRStep *io, double t0, double c0, double *ro
     if (io->ledger_on) {
         double now = now_ns(), tol;
         track_round(io, 1e-9 * (now - t0) / (io->iterations + 1));
-        if (io->reason == DR_DEADLINE && io->step_deadline_s > 0.0) track(&io->tail_s, 1e-9 * (now - t0) - io->deadline_s);
+        if (io->reason == DR_DEADLINE && io->step_deadline_s > 0.0)      /* past the inner deadline */
+            track(&io->tail_s, 1e-9 * (now - t0) - io->deadline_s);
         supply_of(k->a_hat, k->b, k->n, &out[1], &out[2]);
         tol = io->ledger_rtol * (io->traffic + out[2]);
         if (io->ledger + out[1] > tol) {
@@ -628,14 +629,14 @@ int dr_ledger_redo(DRKernel *k, DRStep *io, double supplied, double budget, int 
 }
 
 /* dr_macro_step; under a step deadline with the ledger, its inner loop stops early enough for its
- * last iteration's overrun (up to a round) and the commit to end by the deadline, so that an s = 0
- * redo ends within a round of it: two rounds before it at first, then the time steps were seen to
- * take past the inner deadline (io->tail_s, from ledger_step: overrun and commit, whose code may be
- * cold when the caller ran between steps) plus half a round (the mean overrun's margin to its worst).
- * The inner deadline stays in io->deadline_s for ledger_step; the caller's is restored by dr_run_steps. */
+ * last iteration's overrun and the commit to end by the deadline, so that an s = 0 redo ends within
+ * a round of it: two rounds before it at first, then the running time steps took past the inner
+ * deadline (io->tail_s, from ledger_step: on average half a round of overrun and the commit, whose
+ * code may be cold when the caller ran between steps) plus a round for the spread of the overrun.
+ * The inner deadline stays in io->deadline_s for ledger_step; dr_run_steps restores the caller's. */
 static int guarded_macro_step(DRKernel *k, DRStep *io) {
     if (io->ledger_on && io->step_deadline_s > 0.0) {
-        double reserve = io->tail_s > 0.0 ? io->tail_s + 0.5 * io->round_s : 2.0 * io->round_s;
+        double reserve = io->tail_s > 0.0 ? io->tail_s + io->round_s : 2.0 * io->round_s;
         double inner = io->step_deadline_s - reserve;
         io->deadline_s = inner > LEDGER_MIN_INNER_S ? inner : LEDGER_MIN_INNER_S;
     }

@@ -121,12 +121,12 @@ size_t dr_log_width(const DRKernel *k);
  * tol is undone and committed again with its inputs scaled (a, b and the observed values logged are
  * the redo's, its reason DR_ENERGY_GUARD); with io->step_deadline_s the inner loop stops early enough
  * for its overrun and the commit to end by the deadline (two rounds at first, then the time steps
- * took past the inner deadline, io->tail_s, plus half a round) and the fitted scale is tried only when
+ * took past the inner deadline, io->tail_s, plus a round) and the fitted scale is tried only when
  * two rounds are left (else s = 0), so a step ends within about one round of the deadline. A call of
- * one step is the guarded step of a step-by-step run (wavecosim/masters/dr_fast.py). It stops right after a step whose observed values are not all finite or whose
- * stored energy may exceed H_cap (pass INFINITY for none; the caller decides exactly), setting
- * io->stopped (also when that step was the last of the call). Returns the
- * number of steps done and logged; when an FMU call failed, io->failed_* name it and the step it
+ * one step is the guarded step of a step-by-step run (wavecosim/masters/dr_fast.py). It stops right
+ * after a step whose observed values are not all finite or whose stored energy may exceed H_cap
+ * (pass INFINITY for none; the caller decides exactly), setting io->stopped (also when that step was
+ * the last of the call). Returns the number of steps done and logged; when an FMU call failed, io->failed_* name it and the step it
  * failed in (the one after those done) has no entries. */
 int dr_run_steps(DRKernel *k, DRStep *io, int n0, int count, double *rows, double H_cap);
 
