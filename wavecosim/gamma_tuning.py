@@ -11,6 +11,8 @@ Z_d is measured, not assumed: each frozen subsystem is queried at the operating 
 m perturbed incident waves, and the stage outputs e, f give dE = Z_d dF directly, which does not
 depend on gamma (the closure e + gamma f = sqrt(2 gamma / dt) a only selects the point). So one
 probe predicts J_S at every gamma: J_S(gamma) = (dE - gamma dF)(dE + gamma dF)^-1.
+The probe gamma is chosen from is checked against a step PROBE_GROWTH times larger and taken
+from larger steps when the two disagree (an FMU smooth only to its solver's tolerance).
 
 Modes (YAML `gamma:` or `--gamma`; they override per-subsystem `gamma:` keys):
 - a number: fixed;

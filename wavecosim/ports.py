@@ -11,7 +11,8 @@
   so an affine step map costs one doStep per query.
 
 Port variables are oriented: e is the effort variable, f = sign * (the flow variable), so that
-e f is the power into the FMU; `probe_signs` finds the sign where the scenario gives none.
+e f is the power into the FMU; `probe_signs` finds the sign where the scenario gives none, from a
+slope that a larger step confirms (an FMU smooth only to its solver's tolerance reads noise at a small one).
 """
 import copy
 import math
@@ -269,9 +270,9 @@ def _probe_slope(sub, u0, y0, j):
     h = PROBE_REL * (1.0 + abs(u0[j]))
     steps, slopes = [], []
     for k in range(PROBE_STEPS):
+        steps.append(h * PROBE_GROWTH ** k)
         u = u0.copy()
-        u[j] += h * PROBE_GROWTH ** k
-        steps.append(u[j] - u0[j] if k else h)
+        u[j] += steps[-1]
         slopes.append((sub.raw_query(list(u))[j] - y0[j]) / steps[-1])
         if not math.isfinite(slopes[-1]):
             break
