@@ -301,7 +301,8 @@ def with_scale_and_classical(result, scenario, quick, progress):
     result["targets"].update({"N = 512 within 1.5x of N = 8 per subsystem and iteration": scale["target_met"],
                               "classical masters on the kernel >= 10x faster than their Python loops at K = 10":
                               classical["target_met"]})
-    return result
+    from .bench_newton import add_newton_rows        # the newton rows (bench_newton.py)
+    return add_newton_rows(result, quick, progress)
 
 
 def run_bench(quick=False, progress=print):
@@ -390,5 +391,7 @@ def report(result):
     from .bench_scale import report_scale
     lines.extend(report_scale(result["scale"]))
     lines.extend(report_classical(result["classical_kernel"]))
+    from .bench_newton import report_newton
+    lines.extend(report_newton(result["newton_kernel"]))
     lines.append("targets: " + ", ".join(f"{k}: {'met' if v else 'MISSED'}" for k, v in result["targets"].items()))
     return lines

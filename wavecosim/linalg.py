@@ -152,9 +152,10 @@ def solve(A, b):
         p = c + int(np.argmax(np.abs(A[c:, c])))
         if A[p, c] == 0.0:
             return None
-        A[[c, p]], x[[c, p]] = A[[p, c]], x[[p, c]]
+        if p != c:
+            A[[c, p]], x[[c, p]] = A[[p, c]], x[[p, c]]
         ell = A[c + 1:, c] * (1.0 / A[c, c])
-        A[c + 1:, c + 1:] -= np.outer(ell, A[c, c + 1:])
+        A[c + 1:, c + 1:] -= ell[:, None] * A[c, c + 1:]
         x[c + 1:] -= ell * x[c]
     for c in range(n - 1, -1, -1):
         x[c] /= A[c, c]

@@ -48,9 +48,8 @@ def newton_matrix(J_S, P, offsets, sizes):
     JP = np.zeros((n, n))
     for off, m in zip(offsets, sizes):
         for k in range(off, off + m):
-            cols, vals = P.rows[k]
-            if cols:
-                JP[off:off + m, cols] += np.outer(J_S[off:off + m, k], vals)
+            cols, vals = P.col[P.start[k]:P.start[k + 1]], P.val[P.start[k]:P.start[k + 1]]
+            JP[off:off + m, cols] += J_S[off:off + m, k, None] * vals
     return np.eye(n) - JP
 
 
