@@ -153,7 +153,8 @@ static int lu_solve(double *A, double *x, size_t n) {
         double inv = 1.0 / A[c * n + c];
         for (size_t r = c + 1; r < n; r++) {
             double ell = A[r * n + c] * inv;
-            for (size_t j = c + 1; j < n; j++) A[r * n + j] -= ell * A[c * n + j];
+            if (ell != 0.0)                         /* a zero multiplier leaves its row as it is */
+                for (size_t j = c + 1; j < n; j++) A[r * n + j] -= ell * A[c * n + j];
             x[r] -= ell * x[c];
         }
     }
