@@ -295,14 +295,15 @@ def with_scale_and_classical(result, scenario, quick, progress):
     """The result with the scale rows (bench_scale.py) and the classical masters' kernel route
     (bench_classical.py) added, and their targets."""
     from .bench_classical import classical_rows   # both use this module's helpers
+    from .bench_newton import add_newton_rows
     from .bench_scale import scale_rows
+    add_newton_rows(result, quick, progress)       # the newton rows (bench_newton.py)
     scale, classical = scale_rows(quick, progress), classical_rows(scenario, quick, progress)
     result.update(us_per_subsystem_iter=scale["us_per_subsystem_iter"], scale=scale, classical_kernel=classical)
     result["targets"].update({"N = 512 within 1.5x of N = 8 per subsystem and iteration": scale["target_met"],
                               "classical masters on the kernel >= 10x faster than their Python loops at K = 10":
                               classical["target_met"]})
-    from .bench_newton import add_newton_rows        # the newton rows (bench_newton.py)
-    return add_newton_rows(result, quick, progress)
+    return result
 
 
 def run_bench(quick=False, progress=print):

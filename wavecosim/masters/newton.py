@@ -5,7 +5,6 @@ the last bit the same.
 """
 import time
 
-from ..classical_path import KernelRoute
 from ..fast_path import kernel_refusal
 from ..linalg import matvec
 from ..monolithic import solve_interface
@@ -13,7 +12,7 @@ from ..newton_path import NewtonKernel, book_kernel_step
 from .base import StepLog, WaveMaster
 
 
-class NewtonMaster(KernelRoute, WaveMaster):
+class NewtonMaster(WaveMaster):
     """Monolithic macro-step: solve b* = S^n(P b*) to roundoff, then advance with a = P b*."""
     style = ("black", "*")
 
@@ -45,3 +44,12 @@ class NewtonMaster(KernelRoute, WaveMaster):
         book_kernel_step(self.subsystems, n, t, evals)
         self._b_step_start, self._b = self._b, b_next
         return StepLog(iterations=io.iterations, residual=io.residual, reason="converged", a_hat=a_hat)
+
+    def run_info(self):
+        return {"fast_path": self.kernel is not None, "fast_note": self.fast_note}
+
+    def close(self):
+        if self.kernel is not None:
+            self.kernel.close()
+            self.kernel = None
+        super().close()
