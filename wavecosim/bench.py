@@ -75,7 +75,7 @@ def naive_fmpy(scene, K, n_steps):
             for fmu, state, a_vr, b_vr, part in zip(fmus, states, a_vrs, b_vrs, parts):
                 fmu.setFMUstate(state)
                 fmu.setReal(a_vr, u[part])
-                fmu.doStep(t, dt)
+                fmu.doStep(t, dt, noSetFMUStatePriorToCurrentPoint=False)      # the state is restored after
                 b_hat[part] = fmu.getReal(b_vr)
             w = J_L @ (2 * b_hat - u)
             u_next = u + w - b_hat

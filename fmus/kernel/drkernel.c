@@ -182,9 +182,9 @@ static int evaluate(Sub *s, const double *in, double *out, double t, double h, i
     }
     s->dirty = !commit;
     if (failed(s, DR_FN_SET_REAL, s->fn.setReal(s->comp, s->in_vr, s->m, in + s->offset))) return 1;
-    /* noSetFMUStatePriorToCurrentPoint = true, as in the reference: a rollback goes back to x_i^n
-     * at t itself, never before t. */
-    if (failed(s, DR_FN_DO_STEP, s->fn.doStep(s->comp, t, h, fmi2True))) return 1;
+    /* noSetFMUStatePriorToCurrentPoint = false, as in the reference: the next query, or an undo of
+     * the commit, restores x_i^n at t, before the point t + h this doStep reaches. */
+    if (failed(s, DR_FN_DO_STEP, s->fn.doStep(s->comp, t, h, fmi2False))) return 1;
     s->n_do_step++;
     if (failed(s, DR_FN_GET_REAL, s->fn.getReal(s->comp, s->out_vr, s->m, out + s->offset))) return 1;
     if (measure && s->n_samples < MAX_SAMPLES) s->sample_ns[s->n_samples++] = now_ns() - t0;
