@@ -28,3 +28,4 @@ def test_bench_quick_reports_every_path_and_the_run_over_master_ratio(tmp_path, 
     assert set(data["us_per_subsystem_iter"]) == {"8", "64", "512"} and all(v > 0 for v in data["us_per_subsystem_iter"].values())
     assert set(data["classical_kernel"]["masters"]) == {"explicit", "gauss-seidel", "jacobi-iter", "gauss-seidel-iter"}
     assert "chain of N" in out and "classical masters" in out
+    assert set(data["newton_kernel"]["scenes"]) == {"Table I", "stiff"} and "newton, " in out

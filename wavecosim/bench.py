@@ -298,7 +298,9 @@ def with_scale_and_classical(result, scenario, quick, progress):
     """The result with the scale rows (bench_scale.py) and the classical masters' kernel route
     (bench_classical.py) added, and their targets."""
     from .bench_classical import classical_rows   # both use this module's helpers
+    from .bench_newton import add_newton_rows
     from .bench_scale import scale_rows
+    add_newton_rows(result, quick, progress)       # the newton rows (bench_newton.py)
     scale, classical = scale_rows(quick, progress), classical_rows(scenario, quick, progress)
     result.update(us_per_subsystem_iter=scale["us_per_subsystem_iter"], scale=scale, classical_kernel=classical)
     result["targets"].update({"N = 512 within 1.5x of N = 8 per subsystem and iteration": scale["target_met"],
@@ -393,5 +395,7 @@ def report(result):
     from .bench_scale import report_scale
     lines.extend(report_scale(result["scale"]))
     lines.extend(report_classical(result["classical_kernel"]))
+    from .bench_newton import report_newton
+    lines.extend(report_newton(result["newton_kernel"]))
     lines.append("targets: " + ", ".join(f"{k}: {'met' if v else 'MISSED'}" for k, v in result["targets"].items()))
     return lines

@@ -17,7 +17,7 @@ import time
 import numpy as np
 
 from .builtin import kernel_library
-from .errors import FmuError
+from .errors import ConfigError, FmuError
 from .kernel_adapter import KernelAdapter
 from .kernel_adapter import load_library as load_adapter_library
 from .linalg import Sparse
@@ -156,6 +156,17 @@ def unusable(scene):
     except FmuError as exc:
         return str(exc)
     return None
+
+
+def kernel_refusal(scene, mode):
+    """Why a master's Python reference runs instead of its kernel route (None: the kernel can run),
+    for master.fast `mode`; `true` insists (a config error when the kernel cannot run)."""
+    if mode == "false":
+        return "master.fast is false"
+    why = unusable(scene)
+    if why is not None and mode == "true":
+        raise ConfigError(f"{scene.scenario.source}: master.fast: true, but {why}")
+    return why
 
 
 def available_cpus():

@@ -130,3 +130,37 @@ def norm1(x):
     for xj in x:
         acc += abs(xj)
     return acc
+
+
+def norm2(x):
+    """|x|, squares summed left to right (numpy's BLAS norm gives these bits up to 8 entries)."""
+    acc = 0.0
+    for xj in x:
+        acc += xj * xj
+    return math.sqrt(acc)
+
+
+def solve(A, b):
+    """x with A x = b by LU with partial pivoting (the first row of largest |pivot|), as LAPACK's
+    dgesv: multipliers times the pivot's reciprocal, rows updated and b reduced column by column,
+    then back substitution dividing by the pivots; for 1 x 1 and 2 x 2 these are numpy's
+    np.linalg.solve's bits. A row whose multiplier is zero is not updated (for finite entries that
+    is what subtracting zero gives: A never holds -0.0), so a banded A costs O(n^2 band).
+    Elementwise numpy operations only (no sums), so fmus/kernel/newton.c's loops give the same
+    bits. None when a pivot is zero (A singular)."""
+    A, x = np.array(A, dtype=np.float64), np.array(b, dtype=np.float64)
+    n = len(x)
+    for c in range(n):
+        p = c + int(np.argmax(np.abs(A[c:, c])))
+        if A[p, c] == 0.0:
+            return None
+        if p != c:
+            A[[c, p]], x[[c, p]] = A[[p, c]], x[[p, c]]
+        ell = A[c + 1:, c] * (1.0 / A[c, c])
+        rows = np.flatnonzero(ell)                    # a zero multiplier leaves its row as it is
+        A[c + 1 + rows, c + 1:] -= ell[rows, None] * A[c, c + 1:]
+        x[c + 1:] -= ell * x[c]
+    for c in range(n - 1, -1, -1):
+        x[c] /= A[c, c]
+        x[:c] -= A[:c, c] * x[c]
+    return x

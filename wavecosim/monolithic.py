@@ -10,16 +10,22 @@ own solver's tolerance (the wave adapter then solves S only to about that), with
 the port-wave scale |a| + |b|. Past the absolute level, Newton also stops after STALL iterations in
 a row that do not halve the residual (it has reached the FMUs' noise floor). Our own FMUs converge
 to TOL well before either applies, so their reference results do not depend on them.
+
+The arithmetic runs in a fixed operation order (wavecosim/linalg.py: sums left to right, the LU
+solve of `solve`), mirrored by fmus/kernel/newton.c, so the Newton master's kernel route
+(wavecosim/newton_path.py) gives the same bits.
 """
 import numpy as np
 
 from .errors import NumericalError
+from .linalg import distance, matvec, norm2, solve
 
 TOL = 1e-14
 ACCEPT = 1e-9           # absolute, scaled by 1 + |b|
 ACCEPT_REL = 1e-5       # relative to the port-wave scale |a| + |b|
 MAX_ITER = 30
 STALL = 3
+NON_FINITE, SINGULAR = "non-finite residual", "singular Jacobian"
 
 
 def _jacobian(scene, a, s, h):
@@ -35,41 +41,66 @@ def _jacobian(scene, a, s, h):
     return J_S
 
 
+def newton_matrix(J_S, P, offsets, sizes):
+    """I - J_S P for the block-diagonal J_S: entry (i, j) sums J_S[i, k] P[k, j] over k ascending
+    (P's stored entries, subsystem blocks of J_S), then is subtracted from the identity's."""
+    n = len(J_S)
+    JP = np.zeros((n, n))
+    for off, m in zip(offsets, sizes):
+        for k in range(off, off + m):
+            cols, vals = P.col[P.start[k]:P.start[k + 1]], P.val[P.start[k]:P.start[k + 1]]
+            JP[off:off + m, cols] += J_S[off:off + m, k, None] * vals
+    return np.eye(n) - JP
+
+
 def solve_interface(scene, P, b0, tol=TOL, max_iter=MAX_ITER, where=""):
-    """Newton on F(b) = b - S^n(P b) at the frozen x^n; returns (b*, iterations, |F(b*)|, S-evaluations)."""
-    P = np.asarray(P)
-    b = np.array(b0, float)
+    """Newton on F(b) = b - S^n(P b) at the frozen x^n (P a linalg.Sparse); returns (b*, iterations,
+    |F(b*)|, S-evaluations)."""
+    b = [float(x) for x in b0]
     evals, best, stalled = 0, None, 0
     for it in range(max_iter + 1):
-        a = P @ b
-        s = np.array(scene.S(list(a)))
+        a = matvec(P, b)
+        s = scene.S(a)
         evals += 1
-        F = b - s
-        res = float(np.linalg.norm(F))
+        res = distance(b, s)
         if not np.isfinite(res):
-            raise NumericalError(f"interface Newton{where}: non-finite residual")
+            raise failed(where, NON_FINITE)
         stalled = stalled + 1 if best is not None and res > 0.5 * best[1] else 0
         if best is None or res < best[1]:
-            best = (b.copy(), res, _wave_scale(a, b))
-        if res <= tol * (1.0 + float(np.linalg.norm(b))) or it == max_iter or _stalled(best, stalled):
+            best = (b, res, _wave_scale(a, b))
+        if res <= tol * (1.0 + norm2(b)) or it == max_iter or _stalled(best, stalled):
             break
-        J_S = _jacobian(scene, a, s, 1e-7 * (1.0 + float(np.abs(a).max())))
+        a = np.array(a)
+        J_S = _jacobian(scene, a, np.array(s), 1e-7 * (1.0 + float(np.abs(a).max())))
         evals += max(scene.sizes)
-        b = b + np.linalg.solve(np.eye(len(b)) - J_S @ P, -F)
+        step = solve(newton_matrix(J_S, P, scene.offsets, scene.sizes), [-(bi - si) for bi, si in zip(b, s)])
+        if step is None:
+            raise failed(where, SINGULAR)
+        b = [bi + di for bi, di in zip(b, step.tolist())]
     b, res, scale = best
-    if res > ACCEPT * (1.0 + float(np.linalg.norm(b))) and res > ACCEPT_REL * scale:
-        raise NumericalError(f"interface Newton{where} did not converge: |b - S(Pb)| = {res:.3g} "
-                             f"(> {ACCEPT_REL:g} of the port-wave scale {scale:.3g})")
-    return b, it, res, evals
+    if res > ACCEPT * (1.0 + norm2(b)) and res > ACCEPT_REL * scale:
+        raise not_converged(where, res, scale)
+    return np.array(b), it, res, evals
+
+
+def not_converged(where, res, scale):
+    """The error of a Newton solve whose best residual is past both acceptance levels."""
+    return NumericalError(f"interface Newton{where} did not converge: |b - S(Pb)| = {res:.3g} "
+                          f"(> {ACCEPT_REL:g} of the port-wave scale {scale:.3g})")
+
+
+def failed(where, why):
+    """The error of a Newton solve that cannot go on (why: "non-finite residual", "singular Jacobian")."""
+    return NumericalError(f"interface Newton{where}: {why}")
 
 
 def _wave_scale(a, b):
     """|a| + |b|: the size of the waves the residual is measured against."""
-    return float(np.linalg.norm(a)) + float(np.linalg.norm(b))
+    return norm2(a) + norm2(b)
 
 
 def _stalled(best, stalled):
     """Newton sits at the FMUs' noise floor: STALL steps without halving, past the absolute level
     but within the relative one (so it is accepted)."""
     b, res, scale = best
-    return stalled >= STALL and ACCEPT * (1.0 + float(np.linalg.norm(b))) < res <= ACCEPT_REL * scale
+    return stalled >= STALL and ACCEPT * (1.0 + norm2(b)) < res <= ACCEPT_REL * scale

@@ -17,9 +17,8 @@ else writes them; observers act through the methods below.
 """
 from dataclasses import dataclass
 
-import numpy as np
-
 from ..errors import ConfigError
+from ..linalg import matvec
 from ..monolithic import solve_interface
 
 
@@ -133,7 +132,7 @@ class WaveMaster(Master):
         """The monolithic incident waves at the frozen x^n: a = P b*, b* = S^n(P b*) (eqs. 14-15),
         solved from b^n; returns (a, iterations, residual)."""
         b_star, iters, res, _ = solve_interface(self.scene, self.P, self._b, where=f"{tag} at step {n} (t = {t:.6g})")
-        return [float(x) for x in (np.asarray(self.P) @ b_star)], iters, res
+        return matvec(self.P, b_star.tolist()), iters, res
 
     def recommit(self, a_hat):
         """After undo_step: commit macro-step n again with other incident waves; returns b^{n+1}."""

@@ -18,8 +18,7 @@ the thread plan never changes a number.
 import math
 import time
 
-from ..errors import ConfigError
-from ..fast_path import PARALLEL_MIN_US, REASONS, BlockLog, Kernel, available_cpus, thread_plan, unusable
+from ..fast_path import PARALLEL_MIN_US, REASONS, BlockLog, Kernel, available_cpus, kernel_refusal, thread_plan
 from .base import StepLog
 from .dr import DRMaster
 
@@ -59,12 +58,7 @@ class FastDRMaster(DRMaster):
     @staticmethod
     def _kernel_refusal(scene, mode):
         """Why the reference path runs (None: the kernel can run); master.fast: true insists."""
-        if mode == "false":
-            return "master.fast is false"
-        why = unusable(scene)
-        if why is not None and mode == "true":
-            raise ConfigError(f"{scene.scenario.source}: master.fast: true, but {why}")
-        return why
+        return kernel_refusal(scene, mode)
 
     def _set_b(self, b):
         super()._set_b(b)

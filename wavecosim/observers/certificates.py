@@ -5,6 +5,7 @@ import math
 import numpy as np
 
 from ..certificates import augmented_residual, fne_margins
+from ..linalg import matvec
 from ..monolithic import solve_interface
 from .passivity import grow_max_pos
 from . import Observer
@@ -30,7 +31,7 @@ class CertificateSampler(Observer):
         master = self.master
         if self.augmented:
             b_star = solve_interface(self.scene, master.P, master.b, where=f" at step {n} (t = {t:.6g})")[0]
-            self.u_star = list(np.asarray(master.P) @ b_star)
+            self.u_star = matvec(master.P, b_star.tolist())
         if self.settings.fne_pairs:
             centre = self.scene.split(list(np.asarray(master.P) @ np.asarray(master.b)))
             self.fne = [fne_margins(s, c, self.settings.fne_pairs, self.rng, self.settings.fne_scale,

@@ -1,0 +1,35 @@
+/* The newton master on the kernel route (newton.c; wavecosim/newton_path.py drives it through
+ * ctypes): the interface Newton of wavecosim/monolithic.py (solve_interface) and the commit, on a
+ * DRKernel whose subsystems run in wave port mode. It owns only P and its scratch. */
+#ifndef WAVECOSIM_NEWTON_H
+#define WAVECOSIM_NEWTON_H
+
+#include "drkernel.h"
+
+typedef struct NTKernel NTKernel;
+
+/* Outcomes of nt_step besides 0 and -1 (an FMU call failed, io->failed_*). */
+enum { NT_NONFINITE = 1, NT_SINGULAR = 2, NT_NOT_CONVERGED = 3 };
+
+/* Newton's constants (monolithic.py: TOL, ACCEPT, ACCEPT_REL, MAX_ITER, STALL). */
+typedef struct {
+    double tol, accept, accept_rel;
+    int max_iter, stall;
+} NTSettings;
+
+/* On kernel k (which must outlive it), with the wave map P (n x n) in compressed rows (columns
+ * ascending), copied. NULL on malformed rows or no memory. */
+NTKernel *nt_create(DRKernel *k, const int *P_start, const int *P_col, const double *P_val, const NTSettings *set);
+
+/* A new P (gamma retuned); nonzero on malformed rows or no memory (the old P is kept). */
+int nt_set_map(NTKernel *c, const int *P_start, const int *P_col, const double *P_val);
+
+/* One macro-step from b^n (b_n, n): Newton on b = S^n(P b) from b^n, then the commit with
+ * a_hat = P b*, its outgoing waves into b_next (the caller's). io gets the Newton iterations and
+ * the residual |b* - S(P b*)|; out[0] the S-evaluations, out[1] the port-wave scale |a| + |b|.
+ * Returns 0, -1 (FMU failure) or NT_* (io->residual, out[1] then say why). */
+int nt_step(NTKernel *c, DRStep *io, const double *b_n, double *b_next, double *a_hat, double *out);
+
+void nt_destroy(NTKernel *c);
+
+#endif
