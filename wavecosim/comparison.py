@@ -33,6 +33,12 @@ DR_OPTIONS = {
     "gamma-fastest": ("fastest", {}, ("teal", "d")),
     "fastest-relaxed": ("fastest", {"relaxation": "auto"}, ("tab:green", "*")),
     "fastest-relaxed-anderson": ("fastest", {"relaxation": "auto", "anderson": 2}, ("darkgreen", "h")),
+    "fastest-relaxed-extrapolated": ("fastest", {"relaxation": "auto", "anderson": 2, "anderson_extrapolate": True},
+                                     ("tab:brown", "8")),
+    "fastest-relaxed-memory": ("fastest", {"relaxation": "auto", "anderson": 4, "anderson_memory": True,
+                                           "anderson_extrapolate": True}, ("maroon", "p")),
+    "fastest-relaxed-memory1": ("fastest", {"relaxation": "auto", "anderson": 1, "anderson_memory": True,
+                                            "anderson_extrapolate": True}, ("olive", "P")),
 }
 CERTIFIED = ("", "relaxed", "warm", "gamma-auto", "gamma-fastest", "fastest-relaxed")   # Theorem 1 applies
 TARGETS = (1e-3, 1e-6, 1e-10)      # max errors the cheapest budget is sought for
