@@ -5,7 +5,9 @@ reference, over whole runs (blocks of macro-steps included) on Table I and the s
 DR keeps the inner iterates Fejer monotone (eq. 28) for lambda in (0, 2); the Anderson safeguard
 takes the plain step when an accelerated iterate does not cut the residual; the warm start starts
 from P (2 b^n - b^{n-1}); relaxation: auto and gamma: fastest pick what the linearized operator
-predicts is faster, within the FNE bounds; bad values are one-line config errors.
+predicts is faster, within the FNE bounds; the Anderson memory keeps its differences across
+macro-steps and the extrapolated b^* is exact on an affine map one query earlier (both bit-identical
+in the kernel); bad values are one-line config errors.
 """
 import dataclasses
 

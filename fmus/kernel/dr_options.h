@@ -1,6 +1,7 @@
-/* The named options of the DR master in C: relaxation, safeguarded Anderson acceleration and the
- * warm start, the Anderson memory and extrapolated b^*, each the mirror of wavecosim/masters/dr_options.py operation by operation (sums from
- * 0.0, left to right, history oldest first), so the kernel stays bit-identical to the reference.
+/* The named options of the DR master in C: relaxation, safeguarded Anderson acceleration (with its
+ * memory across macro-steps and the extrapolated b^*) and the warm start, each the mirror of
+ * wavecosim/masters/dr_options.py operation by operation (sums from 0.0, left to right, history
+ * oldest first), so the kernel stays bit-identical to the reference.
  * Included once, by drkernel.c (the build makes one library per .c file). */
 #ifndef WAVECOSIM_DR_OPTIONS_H
 #define WAVECOSIM_DR_OPTIONS_H
