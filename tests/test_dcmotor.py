@@ -9,6 +9,8 @@ import pytest
 
 import wavecosim as wc
 from wavecosim.cli import main
+from wavecosim.config import load_raw, parse_scenario
+from wavecosim.overrides import apply_overrides
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -62,3 +64,23 @@ def test_compare_runs_every_master(tmp_path, capsys):
               "--out", str(tmp_path)])
     assert info.value.code == 0, capsys.readouterr().err
     assert (tmp_path / "compare.json").exists()
+
+
+def test_a_noisy_machine_is_probed_past_its_noise_floor():
+    """At R = 1.0 and J = 0.004 the machine's one-step map jumps by about 1.1e-5 N.m between nearby
+    speeds (its own solver), so the orientation probe's first step of 1e-4 reads dM/dw = +0.107; the
+    probe grows the step until two agree (-0.0062 at 0.1, -0.0063 at 1) and keeps the machine
+    power-out. gamma: auto then finds a positive bound (about 6.3e-3) and DR meets the reference."""
+    sets = [("subsystems.machine.parameters.resistor.R", 1.0), ("subsystems.inertia.parameters.inertia.J", 0.004)]
+    scenario = parse_scenario(apply_overrides(load_raw(CONFIG), sets), str(CONFIG), CONFIG.parent)
+    result = wc.simulate(scenario.with_changes(T=0.02), warn=quiet)
+    s = result.summary
+    machine, inertia = s["port_signs"]["machine"], s["port_signs"]["inertia"]
+    assert machine["sign"] == [-1.0] and inertia["sign"] == [1.0]
+    (probe,) = machine["probe"]
+    assert probe["steps_tried"] > 2 and probe["step"] >= 1e-2 and probe["slope"] < 0 and probe["check_slope"] < 0
+    assert inertia["probe"][0]["steps_tried"] == 2
+    assert s["gamma_mode"] == "auto" and 5e-3 < s["gamma_fne_bounds"]["machine"] < 8e-3
+    assert s["gamma_initial"]["machine"] <= 0.9 * (1 + 1e-12) * s["gamma_fne_bounds"]["machine"]
+    assert all(p["agreed"] for p in s["gamma_probe"].values())
+    assert s["status"] == "finished" and s["max_error"] <= 1e-5 and s["fne_watch_ok"]

@@ -16,7 +16,7 @@ import yaml
 from wavecosim.config import ROOT, parse_scenario
 from wavecosim.errors import ConfigError
 from wavecosim.observers import energy_ledger
-from wavecosim import runner
+from wavecosim import fast_path, runner
 from wavecosim.runner import run
 
 ROUNDOFF = 1e-12
@@ -174,8 +174,8 @@ def same_run(ref, fast, blocks=True):
 @pytest.mark.parametrize("blocks", [True, False])
 def test_the_kernels_redo_is_the_reference_in_every_action(monkeypatch, blocks):
     """A stiff Duffing spring (knl = 8e7) at K = 4 on the star: kept, scaled and fallen-back-to-zero
-    steps, redone by the kernel in blocks or step by step (dr_ledger_redo), byte for byte the Python
-    reference's."""
+    steps, redone by the kernel in blocks or step by step (one dr_run_steps call per step), byte for
+    byte the Python reference's."""
     if not blocks:
         monkeypatch.setattr(runner, "BLOCK_STEPS", 1)
     base = scenario(STAR, "ledger", 4, T=5.0, parameters={("A", "knl"): 8e7})
@@ -183,6 +183,34 @@ def test_the_kernels_redo_is_the_reference_in_every_action(monkeypatch, blocks):
     same_run(ref, fast, blocks)
     assert set(column(fast, "ledger_action")) == {0, 1, 2} and fast.summary["energy_guard_fallbacks"] > 0
     assert max(fast.energy) <= fast.energy[0] * (1 + ROUNDOFF)
+
+
+def test_step_by_step_with_certificates_under_a_deadline_is_block_mode_bit_for_bit(monkeypatch):
+    """Certificates on make the runner go step by step; the kernel then makes each step and its guard
+    in one call (never macro_step + redo from Python), and rows, outputs, FMU calls and ledger figures
+    equal the blocks' (no certificates), bit for bit, in every action. The 10 s deadline is never
+    reached, so only the step times may differ."""
+    calls = {"macro_step": 0, "redo": 0}
+    for name in calls:
+        def counted(self, *args, _name=name, _real=getattr(fast_path.Kernel, name)):
+            calls[_name] += 1
+            return _real(self, *args)
+        monkeypatch.setattr(fast_path.Kernel, name, counted)
+    base = scenario(STAR, "ledger", 4, T=5.0, parameters={("A", "knl"): 8e7}).with_master(deadline_us=1e7)
+    blocks, steps = run(base, certificates=False), run(base, certificates=True)
+    assert blocks.summary["block_steps"] == blocks.summary["steps"] and steps.summary["block_steps"] == 0
+    assert calls == {"macro_step": 0, "redo": 0}
+    shared = blocks.steps_table.columns
+    assert set(shared) < set(steps.steps_table.columns)           # the certificates add their own columns
+    picked = steps.steps_table.array()[:, [steps.steps_table.columns.index(c) for c in shared]]
+    assert blocks.steps_table.array().tobytes() == picked.tobytes()
+    assert blocks.outputs.tobytes() == steps.outputs.tobytes()
+    keys = ("fmu_calls", "energy_guard_steps", "energy_guard_extra_doSteps", "energy_guard_fallbacks", "max_ledger",
+            "ledger_final")
+    assert [blocks.summary[k] for k in keys] == [steps.summary[k] for k in keys]
+    assert set(column(steps, "ledger_action")) == {0, 1, 2}
+    for s in (blocks.summary, steps.summary):
+        assert s["step_time_us"]["count"] == s["steps"] and s["deadline_bound"]["deadline_us"] == 1e7
 
 
 def test_past_the_deadline_the_kernel_commits_s_zero_at_once_and_keeps_the_ledger():

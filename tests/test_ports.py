@@ -29,6 +29,11 @@ def dr_run(pair):
     return run(pair, reference="lockstep", warn=lambda msg: None)
 
 
+def signs_of(summary):
+    """The summary's port signs without the probe figures."""
+    return {k: {"sign": v["sign"], "probed": v["probed"]} for k, v in summary["port_signs"].items()}
+
+
 def without_signs(scenario, flip=()):
     """A copy with the port signs removed (probed at set-up), or with the named subsystems' flipped."""
     copied = copy.deepcopy(scenario)
@@ -78,8 +83,12 @@ def test_missing_signs_are_found_by_probing(pair, dr_run):
     warns once per channel, and the run is the one with the signs given, to the last bit."""
     notes = []
     probed = run(without_signs(pair), reference="lockstep", warn=notes.append)
-    assert probed.summary["port_signs"] == {"A": {"sign": [1.0], "probed": True}, "B": {"sign": [-1.0], "probed": True}}
+    assert signs_of(probed.summary) == {"A": {"sign": [1.0], "probed": True}, "B": {"sign": [-1.0], "probed": True}}
     assert len(notes) == 2 and "dv/dF = 0.001" in notes[0] and "dF/dv = -0.6" in notes[1]
+    for sub in probed.summary["port_signs"].values():
+        (probe,) = sub["probe"]           # exact FMUs: the first step, confirmed by the next one
+        assert probe["steps_tried"] == 2 and probe["check_step"] == pytest.approx(10 * probe["step"], rel=1e-9)
+        assert probe["step"] == ports.PROBE_REL and abs(probe["check_slope"] - probe["slope"]) <= 1e-9 * abs(probe["slope"])
     assert probed.trajectory.tobytes() == dr_run.trajectory.tobytes()
 
 
@@ -99,7 +108,7 @@ def test_a_flipped_sign_makes_an_active_port_that_the_probe_corrects(pair, flipp
 def test_signs_are_probed_for_physical_masters_too(pair):
     scenario = without_signs(pair).with_master(algorithm="gauss-seidel-iter", K=20)
     result = run(scenario, reference="lockstep", warn=lambda msg: None)
-    assert result.summary["port_signs"]["B"] == {"sign": [-1.0], "probed": True}
+    assert signs_of(result.summary)["B"] == {"sign": [-1.0], "probed": True}
     assert result.summary["max_error"] <= 1e-9
 
 
@@ -189,7 +198,7 @@ def test_a_real_third_party_pair_through_the_adapter():
            "outputs": {"w": "inertia.wA", "M": "machine.M"}, "error": ["w", "M"]}
     result = run(parse_scenario(raw, "dcmotor.yaml", DCMOTOR), reference="lockstep", warn=lambda msg: None)
     s = result.summary
-    assert s["port_signs"] == {"machine": {"sign": [-1.0], "probed": True}, "inertia": {"sign": [1.0], "probed": True}}
+    assert signs_of(s) == {"machine": {"sign": [-1.0], "probed": True}, "inertia": {"sign": [1.0], "probed": True}}
     assert s["status"] == "finished" and s["max_error"] <= 1e-6
     assert s["wave_adapter"]["machine"]["worst_stalled_residual"] <= ports.ACCEPT
     ledger = s["port_energy_by_subsystem"]
@@ -213,3 +222,11 @@ def test_an_fmu_that_cannot_restore_needs_its_sign_given():
     with pytest.raises(ConfigError, match="subsystems.A.port.sign: missing, and DualMassOscillator.System1.fmu "
                                           "cannot restore its state for the orientation probe; give the sign"):
         build_scene(parse_scenario(raw, "dual.yaml", DUAL_MASS), wave=False, needs_rollback=False)
+
+
+def test_the_gamma_probe_is_confirmed_at_once_on_exact_fmus(dr_run):
+    """gamma: auto checks each frozen map's probe against a ten times larger step: exact FMUs agree at
+    once (to roundoff), so gamma is chosen from the first probe, as without the check."""
+    for name, probe in dr_run.summary["gamma_probe"].items():
+        assert probe["agreed"] and probe["steps_tried"] == 2 and probe["jacobian_difference"] <= 1e-6, (name, probe)
+        assert probe["check_step"] == pytest.approx(10 * probe["step"], rel=1e-12)

@@ -72,7 +72,8 @@ class DRStep(ctypes.Structure):
                 ("reason", ctypes.c_int), ("residual", ctypes.c_double), ("failed_subsystem", ctypes.c_int),
                 ("failed_function", ctypes.c_int), ("failed_status", ctypes.c_int), ("stopped", ctypes.c_int),
                 ("ledger_on", ctypes.c_int), ("ledger", ctypes.c_double), ("traffic", ctypes.c_double),
-                ("ledger_rtol", ctypes.c_double), ("step_deadline_s", ctypes.c_double), ("round_s", ctypes.c_double)]
+                ("ledger_rtol", ctypes.c_double), ("step_deadline_s", ctypes.c_double), ("round_s", ctypes.c_double),
+                ("tail_s", ctypes.c_double)]
 
 
 _lib = None
@@ -294,7 +295,7 @@ class Kernel:
     def recorded(self, iterations):
         """[(u^k, S(u^k))] of the last macro-step, as the reference DRMaster.S records them."""
         count = min(iterations, self.trace_capacity)
-        copy = self._trace_type()
+        copy = (ctypes.c_double * (2 * self.n * count))()          # not the whole capacity (K may be huge)
         ctypes.memmove(copy, self.trace, 16 * self.n * count)
         return Trace(copy, self.n, count)
 

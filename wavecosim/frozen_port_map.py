@@ -124,7 +124,7 @@ class Subsystem:
         """One doStep from the current state with the inputs already set: a subsystem without a port
         (signals only), stepped once per macro-step and never frozen or rolled back."""
         self.begin(step_index, t)
-        self._call(self._do_step, "fmi2DoStep", self._comp, self._t, self._h, 1)
+        self._call(self._do_step, "fmi2DoStep", self._comp, self._t, self._h, 1)     # never rolled back
         self.calls["doStep"] += 1
 
     def freeze(self, step_index, t):
@@ -139,7 +139,9 @@ class Subsystem:
         for j in range(self.m):
             self._in_val[j] = a[j]
         self._call(self._set_real, "fmi2SetReal", self._comp, self._in_vr, self._m, self._in_val)
-        self._call(self._do_step, "fmi2DoStep", self._comp, self._t, self._h, 1)
+        # noSetFMUStatePriorToCurrentPoint = false: a later query, or the energy guard's undo after the
+        # commit, restores x_i^n at t, a point before the t + dt this doStep reaches (FMI 2.0.x, 4.2.2)
+        self._call(self._do_step, "fmi2DoStep", self._comp, self._t, self._h, 0)
         self.calls["doStep"] += 1
         self._call(self._get_real, "fmi2GetReal", self._comp, self._out_vr, self._m, self._out_val)
         return self._out_val[:]

@@ -11,6 +11,8 @@ Z_d is measured, not assumed: each frozen subsystem is queried at the operating 
 m perturbed incident waves, and the stage outputs e, f give dE = Z_d dF directly, which does not
 depend on gamma (the closure e + gamma f = sqrt(2 gamma / dt) a only selects the point). So one
 probe predicts J_S at every gamma: J_S(gamma) = (dE - gamma dF)(dE + gamma dF)^-1.
+The probe gamma is chosen from is checked against a step PROBE_GROWTH times larger and taken
+from larger steps when the two disagree (an FMU smooth only to its solver's tolerance).
 
 Modes (YAML `gamma:` or `--gamma`; they override per-subsystem `gamma:` keys):
 - a number: fixed;
@@ -39,6 +41,9 @@ PROBE_GAMMA = 0.4       # the gamma FMUs start at (when the scenario gives no nu
 SAFETY = 0.9            # auto stays this far inside the FNE bound (Z_d drifts along the trajectory)
 RETUNE_ABOVE = 0.95     # auto-retune lowers gamma when it exceeds this fraction of the bound
 PROBE_REL = 1e-6        # size of the incident-wave perturbation, relative to the operating point
+PROBE_GROWTH = 10.0     # a checked probe: each further incident-wave step is this many times the last
+PROBE_STEPS = 6         # a checked probe: steps at most (PROBE_REL to 1e5 PROBE_REL)
+AGREE = 1e-3            # two probes agree when their J_S at the probe's gamma differ by at most this
 FASTEST_SAFETY = 0.99   # fastest stays this far inside the FNE bound
 GRID_POINTS = 25        # fastest: log-spaced gammas per subsystem in each coordinate sweep
 RELAX_GRID = tuple(0.05 * i for i in range(1, 40))      # relaxation: auto tries lambda = 0.05 .. 1.95
@@ -76,6 +81,8 @@ class PortProbe:
     dE: np.ndarray
     dF: np.ndarray
     gamma: float
+    step: float = math.nan          # the incident-wave step h
+    checked: dict = None            # with probe_port(check=True): how a larger step confirmed it
 
     def impedance(self):
         """Z_d = dE dF^-1 (inf where the port does not move, e.g. a clamped channel)."""
@@ -114,13 +121,9 @@ class PortProbe:
         return float(np.linalg.eigvalsh(0.5 * (J + J.T) - J.T @ J).min())
 
 
-def probe_port(sub, centre, rel=PROBE_REL) -> PortProbe:
-    """Probe one frozen subsystem at incident wave `centre` (m + 1 queries); its state is unchanged."""
+def _columns(sub, centre, ef0, h):
+    """dE, dF of one forward-difference probe: incident channel j moved by h from `centre`."""
     m = sub.m
-    centre = np.asarray(centre, float)
-    b0 = np.asarray(sub.query(list(centre)))
-    ef0 = np.asarray(sub.stage())
-    h = rel * (float(np.abs(centre).max()) + float(np.abs(b0).max())) or rel * math.sqrt(sub.dt)
     dE, dF = np.zeros((m, m)), np.zeros((m, m))
     for j in range(m):
         a = centre.copy()
@@ -128,18 +131,53 @@ def probe_port(sub, centre, rel=PROBE_REL) -> PortProbe:
         sub.query(list(a))
         d = (np.asarray(sub.stage()) - ef0) / h
         dE[:, j], dF[:, j] = d[:m], d[m:]
+    return dE, dF
+
+
+def _checked(sub, centre, ef0, h, first):
+    """The first probe if a PROBE_GROWTH times larger step confirms it (the two predict J_S at the probe's
+    gamma within AGREE), with the port map's memory put back, so an exact FMU ends as if unchecked; else
+    larger steps until two successive ones agree (an FMU smooth only to its solver's tolerance reads
+    noise at a small step), or the largest. Records step, check step and their difference in `checked`."""
+    memory = sub.map.memory()
+    probes = [first]
+    for k in range(1, PROBE_STEPS):
+        step = h * PROBE_GROWTH ** k
+        probes.append(PortProbe(sub.name, *_columns(sub, centre, ef0, step), sub.gamma, step))
+        diff = float(np.abs(probes[-2].jacobian(sub.gamma) - probes[-1].jacobian(sub.gamma)).max())
+        if diff <= AGREE:
+            break
+    agreed = diff <= AGREE
+    chosen = probes[-2] if agreed else probes[-1]
+    chosen.checked = {"step": chosen.step, "check_step": probes[-1].step, "jacobian_difference": diff,
+                      "agreed": agreed, "steps_tried": len(probes)}
+    if agreed and len(probes) == 2:
+        sub.map.recall(memory)
+    return chosen
+
+
+def probe_port(sub, centre, rel=PROBE_REL, check=False) -> PortProbe:
+    """Probe one frozen subsystem at incident wave `centre` (m + 1 queries); its state is unchanged.
+    With `check`, the probe is confirmed against larger steps (_checked)."""
+    centre = np.asarray(centre, float)
+    b0 = np.asarray(sub.query(list(centre)))
+    ef0 = np.asarray(sub.stage())
+    h = rel * (float(np.abs(centre).max()) + float(np.abs(b0).max())) or rel * math.sqrt(sub.dt)
+    probe = PortProbe(sub.name, *_columns(sub, centre, ef0, h), sub.gamma, h)
+    if check:
+        probe = _checked(sub, centre, ef0, h, probe)
     sub.thaw()
-    return PortProbe(sub.name, dE, dF, sub.gamma)
+    return probe
 
 
-def probe_scene(scene, b, n, t, P=None):
+def probe_scene(scene, b, n, t, P=None, check=False):
     """Freeze every subsystem at x^n, probe it around u^0 = P b^n, and put it back at x^n."""
     P = scene.wave_map().P if P is None else P
     centre = scene.split(list(np.asarray(P, float) @ np.asarray(b, float)))
     probes = []
     for s, c in zip(scene.subsystems, centre):
         s.freeze(n, t)
-        probes.append(probe_port(s, c))
+        probes.append(probe_port(s, c, check=check))
     return probes
 
 
@@ -317,6 +355,7 @@ class GammaTuner:
         self.choices = []          # (step, GammaChoice) whenever gamma was (re)chosen
         self.retune = mode == "auto-retune"
         self.secant = {}           # {subsystem: smallest secant impedance of the last inner loop}
+        self.probed = {}           # {subsystem: PortProbe.checked of the probe gamma was chosen from}
 
     def observe(self, secant):
         """The secant impedances the last macro-step's inner loop met (fne_watch.trace_impedances):
@@ -328,10 +367,11 @@ class GammaTuner:
         conditioned), set the FMUs' gammas and return the choice."""
         choice = None
         for _ in range(2):
-            probes = probe_scene(self.scene, b0, 0, 0.0)
+            probes = probe_scene(self.scene, b0, 0, 0.0, check=True)
             choice = choose_gamma(self.scene, probes, self.mode, self.where)
             self.scene.set_gammas(choice.gammas)
         self.choices.append((0, choice))
+        self.probed = {p.name: p.checked for p in probes}
         for name, (g, bound) in choice.violations.items():
             self.warn(f"gamma: fast-unsafe chose gamma = {g:.4g} for subsystem {name}, above its FNE bound "
                       f"{bound:.4g}: Condition 1 and Theorem 1 no longer hold; the augmented residual is reported "
@@ -376,6 +416,7 @@ class GammaTuner:
             "gamma_min": gamma_min or first.gammas,
             "gamma_changes": len(self.choices) - 1,
             "gamma_fne_bounds": first.bounds,
+            "gamma_probe": self.probed,
             "gamma_rate_estimate": first.rate,
             "gamma_guaranteed": all(c.guaranteed for _, c in self.choices),
         }

@@ -11,8 +11,10 @@
   so an affine step map costs one doStep per query.
 
 Port variables are oriented: e is the effort variable, f = sign * (the flow variable), so that
-e f is the power into the FMU; `probe_signs` finds the sign where the scenario gives none.
+e f is the power into the FMU; `probe_signs` finds the sign where the scenario gives none, from a
+slope that a larger step confirms (an FMU smooth only to its solver's tolerance reads noise at a small one).
 """
+import copy
 import math
 
 import numpy as np
@@ -26,7 +28,10 @@ ACCEPT = 1e-4        # a stalled Newton (an FMU smooth only to its solver's tole
 MAX_ITER = 30        # Newton iterations per query
 STALL = 3            # iterations in a row without halving the residual make a stall
 SLOPE_REL = 1e-5     # input perturbation for the slope estimate, relative to the input's scale
-PROBE_REL = 1e-4     # input perturbation of the orientation probe
+PROBE_REL = 1e-4     # first input perturbation of the orientation probe, relative to 1 + |u|
+PROBE_GROWTH = 10.0  # each further probe step is this many times the last
+PROBE_STEPS = 6      # probe steps at most (PROBE_REL to 1e5 PROBE_REL), for an FMU noisier than that
+AGREE = 0.1          # two slope estimates agree within this fraction of the larger (and in sign)
 
 
 class DirectPort:
@@ -54,6 +59,13 @@ class DirectPort:
     def info(self):
         """No adapter figures."""
         return None
+
+    def memory(self):
+        """Nothing is kept across queries."""
+        return None
+
+    def recall(self, memory):
+        """Nothing to put back."""
 
 
 class AdapterPort:
@@ -140,6 +152,17 @@ class WaveAdapter(AdapterPort):
     def new_step(self):
         """x_i^n changed: the cached output and slope no longer hold."""
         self.y = self.D = None
+
+    MEMORY = ("u", "y", "D", "J_inv", "h2", "u_scale", "evaluations", "doSteps", "accepted", "worst_accepted")
+
+    def memory(self):
+        """Warm start, slope and figures, to put back after queries that must leave no trace (a probe's check)."""
+        return {k: copy.deepcopy(getattr(self, k)) for k in self.MEMORY}
+
+    def recall(self, memory):
+        """Back to what memory() saved."""
+        for k, v in memory.items():
+            setattr(self, k, v)
 
     def _eval(self, u):
         self.doSteps += 1
@@ -234,24 +257,49 @@ class WaveAdapter(AdapterPort):
         return self.stage(self.u, self.y)
 
 
+def agree(p, q):
+    """Two finite-difference estimates tell the same: one sign, and within AGREE of the larger."""
+    return p * q > 0 and abs(p - q) <= AGREE * max(abs(p), abs(q))
+
+
+def _probe_slope(sub, u0, y0, j):
+    """dy_j/du_j by forward differences at steps h, PROBE_GROWTH h, ...: the first estimate the next
+    step confirms (agree). An exact FMU is confirmed at once; one smooth only to its solver's tolerance
+    reads noise at a small step and is retried with larger ones. Returns (slope, {step, check}) or
+    (None, the slopes read at each step)."""
+    h = PROBE_REL * (1.0 + abs(u0[j]))
+    steps, slopes = [], []
+    for k in range(PROBE_STEPS):
+        steps.append(h * PROBE_GROWTH ** k)
+        u = u0.copy()
+        u[j] += steps[-1]
+        slopes.append((sub.raw_query(list(u))[j] - y0[j]) / steps[-1])
+        if not math.isfinite(slopes[-1]):
+            break
+        if k and agree(slopes[-2], slopes[-1]):
+            return slopes[-2], {"step": steps[-2], "slope": slopes[-2], "check_step": steps[-1],
+                                "check_slope": slopes[-1], "steps_tried": k + 1}
+    return None, list(zip(steps, slopes))
+
+
 def probe_signs(sub, where):
     """The sign of dy/du over one doStep from the restored initial state, per channel: the sign that
-    makes the port passive (FACTS.md, port orientation). Returns (signs, slopes)."""
+    makes the port passive (FACTS.md, port orientation). Returns (signs, slopes, what was probed)."""
     u0 = np.asarray(sub.read(sub.port.physical_in), float)
     sub.freeze(0, 0.0)
     y0 = np.asarray(sub.raw_query(list(u0)))
-    signs, slopes = [], []
+    signs, slopes, probed = [], [], []
     for j in range(sub.m):
-        h = PROBE_REL * (1.0 + abs(u0[j]))
-        u = u0.copy()
-        u[j] += h
-        slope = (sub.raw_query(list(u))[j] - y0[j]) / h
-        if not (math.isfinite(slope) and slope != 0.0):
+        slope, info = _probe_slope(sub, u0, y0, j)
+        if slope is None:
             sub.thaw()
-            slope_name = f"d{sub.port.physical_out[j]}/d{sub.port.physical_in[j]}"
+            name = f"d{sub.port.physical_out[j]}/d{sub.port.physical_in[j]}"
+            read = ", ".join(f"{d:.3g} at step {h:.3g}" for h, d in info)
             raise ConfigError(f"{where}.sign: cannot find the orientation of channel {j} by probing (one doStep "
-                              f"gives {slope_name} = {slope:.3g}); give the sign")
+                              f"gives {name} = {read}: no two successive steps agree in sign and within "
+                              f"{AGREE:g}); give the sign")
         signs.append(1.0 if slope > 0 else -1.0)
         slopes.append(slope)
+        probed.append(info)
     sub.thaw()
-    return signs, slopes
+    return signs, slopes, probed

@@ -275,6 +275,8 @@ class LiveRun:
         if before is not None:                       # observers' own FMU calls are not the master's
             for k, v in self._totals().items():
                 self.excluded[k] += v - before[k]
+        if self.kernel_guard:                        # the kernel makes the step and the ledger's redo in one call
+            self.master.keep_ledger(*self.guard.kernel_state())
         t0 = time.perf_counter()
         log = self.master.step(n, t)
         self.master_time += time.perf_counter() - t0
@@ -302,6 +304,7 @@ class LiveRun:
         guard = self.guard
         self.cap = guard.cap if isinstance(guard, EnergyGuard) else math.inf
         self.ledger = isinstance(guard, EnergyLedger)
+        self.kernel_guard = self.ledger and hasattr(self.master, "guards_steps") and self.master.guards_steps()
         self.blocks = (getattr(self.master, "fast", False) and hasattr(self.master, "run_steps")
                        and not self.bracket and all(o.blocks for o, _ in self.after)
                        and (guard is None or isinstance(guard, EnergyGuard) or self.ledger)

@@ -283,14 +283,16 @@ def _orient(scenario, subsystem, notes):
     if probed and not subsystem.fmu.can_save_state:
         raise ConfigError(f"{scenario.source}: subsystems.{subsystem.name}.port.sign: missing, and "
                           f"{subsystem.fmu.path.name} cannot restore its state for the orientation probe; give the sign")
-    if probed:
-        signs, slopes = probe_signs(subsystem, f"{scenario.source}: subsystems.{subsystem.name}.port")
-        subsystem.orient(signs)
-        for j, (sign, slope) in enumerate(zip(signs, slopes)):
-            notes.append(f"{scenario.source}: subsystems.{subsystem.name}.port.sign not given: one doStep from the "
-                         f"initial state gives d{port.physical_out[j]}/d{port.physical_in[j]} = {slope:.3g}, so "
-                         f"channel {j} takes sign {sign:+g} (power into the FMU = {sign:+g} e f)")
-    return {"sign": list(port.sign), "probed": probed}
+    if not probed:
+        return {"sign": list(port.sign), "probed": probed}
+    signs, slopes, steps = probe_signs(subsystem, f"{scenario.source}: subsystems.{subsystem.name}.port")
+    subsystem.orient(signs)
+    for j, (sign, slope, step) in enumerate(zip(signs, slopes, steps)):
+        notes.append(f"{scenario.source}: subsystems.{subsystem.name}.port.sign not given: one doStep from the "
+                     f"initial state gives d{port.physical_out[j]}/d{port.physical_in[j]} = {slope:.3g} (input step "
+                     f"{step['step']:.3g}, confirmed by {step['check_slope']:.3g} at {step['check_step']:.3g}), so "
+                     f"channel {j} takes sign {sign:+g} (power into the FMU = {sign:+g} e f)")
+    return {"sign": list(port.sign), "probed": probed, "probe": steps}
 
 
 def _subsystem(scenario, sub, gamma, wave, needs_rollback, pool=None):

@@ -182,9 +182,9 @@ static int evaluate(Sub *s, const double *in, double *out, double t, double h, i
     }
     s->dirty = !commit;
     if (failed(s, DR_FN_SET_REAL, s->fn.setReal(s->comp, s->in_vr, s->m, in + s->offset))) return 1;
-    /* noSetFMUStatePriorToCurrentPoint = true, as in the reference: a rollback goes back to x_i^n
-     * at t itself, never before t. */
-    if (failed(s, DR_FN_DO_STEP, s->fn.doStep(s->comp, t, h, fmi2True))) return 1;
+    /* noSetFMUStatePriorToCurrentPoint = false, as in the reference: the next query, or an undo of
+     * the commit, restores x_i^n at t, before the point t + h this doStep reaches. */
+    if (failed(s, DR_FN_DO_STEP, s->fn.doStep(s->comp, t, h, fmi2False))) return 1;
     s->n_do_step++;
     if (failed(s, DR_FN_GET_REAL, s->fn.getReal(s->comp, s->out_vr, s->m, out + s->offset))) return 1;
     if (measure && s->n_samples < MAX_SAMPLES) s->sample_ns[s->n_samples++] = now_ns() - t0;
@@ -547,10 +547,12 @@ static int restore_all(DRKernel *k) {
 /* The running time of one evaluation round (every subsystem once), as EnergyLedger._time_round: a
  * sample is taken at most at twice the estimate, so that a step the machine descheduled does not
  * shorten the next steps' inner loops (a real rise is followed within a few steps). */
-static void track_round(DRStep *io, double seconds) {
-    if (io->round_s > 0.0 && seconds > 2.0 * io->round_s) seconds = 2.0 * io->round_s;
-    io->round_s = io->round_s > 0.0 ? (1.0 - LEDGER_SMOOTH) * io->round_s + LEDGER_SMOOTH * seconds : seconds;
+static void track(double *estimate, double seconds) {
+    if (*estimate > 0.0 && seconds > 2.0 * *estimate) seconds = 2.0 * *estimate;
+    *estimate = *estimate > 0.0 ? (1.0 - LEDGER_SMOOTH) * *estimate + LEDGER_SMOOTH * seconds : seconds;
 }
+
+static void track_round(DRStep *io, double seconds) { track(&io->round_s, seconds); }
 
 /* The probe at s = 0 and the commit at the fitted s (EnergyLedger._scaled); out as in ledger_redo. */
 static int scaled_redo(DRKernel *k, DRStep *io, double supplied_1, double budget, double *out) {
@@ -608,6 +610,8 @@ static int ledger_step(DRKernel *k, DRStep *io, double t0, double c0, double *ro
     if (io->ledger_on) {
         double now = now_ns(), tol;
         track_round(io, 1e-9 * (now - t0) / (io->iterations + 1));
+        if (io->reason == DR_DEADLINE && io->step_deadline_s > 0.0)      /* past the inner deadline */
+            track(&io->tail_s, 1e-9 * (now - t0) - io->deadline_s);
         supply_of(k->a_hat, k->b, k->n, &out[1], &out[2]);
         tol = io->ledger_rtol * (io->traffic + out[2]);
         if (io->ledger + out[1] > tol) {
@@ -634,17 +638,19 @@ int dr_ledger_redo(DRKernel *k, DRStep *io, double supplied, double budget, int 
     return f >= 0 ? report_failure(k, io, f) : 0;
 }
 
-/* dr_macro_step; under a step deadline with the ledger, its inner loop stops two rounds before it
- * (it may overrun by one, the commit takes one), so that an s = 0 redo ends within a round of it. */
+/* dr_macro_step; under a step deadline with the ledger, its inner loop stops early enough for its
+ * last iteration's overrun and the commit to end by the deadline, so that an s = 0 redo ends within
+ * a round of it: two rounds before it at first, then the running time steps took past the inner
+ * deadline (io->tail_s, from ledger_step: on average half a round of overrun and the commit, whose
+ * code may be cold when the caller ran between steps) plus a round for the spread of the overrun.
+ * The inner deadline stays in io->deadline_s for ledger_step; dr_run_steps restores the caller's. */
 static int guarded_macro_step(DRKernel *k, DRStep *io) {
-    double caller = io->deadline_s;
     if (io->ledger_on && io->step_deadline_s > 0.0) {
-        double inner = io->step_deadline_s - 2.0 * io->round_s;
+        double reserve = io->tail_s > 0.0 ? io->tail_s + io->round_s : 2.0 * io->round_s;
+        double inner = io->step_deadline_s - reserve;
         io->deadline_s = inner > LEDGER_MIN_INNER_S ? inner : LEDGER_MIN_INNER_S;
     }
-    int failure = dr_macro_step(k, io);
-    io->deadline_s = caller;
-    return failure;
+    return dr_macro_step(k, io);
 }
 
 int dr_run_steps(DRKernel *k, DRStep *io, int n0, int count, double *rows, double H_cap) {
@@ -653,8 +659,11 @@ int dr_run_steps(DRKernel *k, DRStep *io, int n0, int count, double *rows, doubl
     for (int s = 0; s < count; s++) {
         io->t = (double)(n0 + s) * io->dt;
         double c0 = io->ledger_on && io->step_deadline_s > 0.0 ? cpu_ns() : 0.0, t0 = now_ns();
-        if (guarded_macro_step(k, io)) return s;
-        int f = ledger_step(k, io, t0, c0, rows, m, (size_t)s);
+        double caller = io->deadline_s;
+        int failure = guarded_macro_step(k, io);
+        int f = failure ? -1 : ledger_step(k, io, t0, c0, rows, m, (size_t)s);
+        io->deadline_s = caller;
+        if (failure) return s;
         if (f < 0) f = log_step(k, io, rows, m, (size_t)s);
         if (f >= 0) {
             report_failure(k, io, f);

@@ -63,6 +63,7 @@ typedef struct {
     double ledger_rtol;  /* in: a step with L + I^n > rtol (traffic + its own) is redone with its inputs scaled */
     double step_deadline_s; /* in (dr_run_steps, ledger): wall-clock budget of a step, redo included; <= 0 = none */
     double round_s;      /* in/out (dr_run_steps, ledger): running time of one evaluation round (all subsystems) */
+    double tail_s;       /* in/out (dr_run_steps, ledger): running time a step takes past its inner loop's deadline */
 } DRStep;
 
 typedef struct DRKernel DRKernel;
@@ -121,12 +122,14 @@ size_t dr_log_width(const DRKernel *k);
  * subsystem order, then the ledger's DR_LEDGER_COLUMNS. With io->ledger_on it keeps the interface
  * energy ledger of wavecosim/observers/energy_ledger.py, bit for bit: a step that would lift L above
  * tol is undone and committed again with its inputs scaled (a, b and the observed values logged are
- * the redo's, its reason DR_ENERGY_GUARD); with io->step_deadline_s the inner loop stops two rounds
- * before it and the fitted scale is tried only when two rounds are left (else s = 0), so a step ends
- * within about one round of the deadline. It stops right after a step whose observed values are not all finite or whose
- * stored energy may exceed H_cap (pass INFINITY for none; the caller decides exactly), setting
- * io->stopped (also when that step was the last of the call). Returns the
- * number of steps done and logged; when an FMU call failed, io->failed_* name it and the step it
+ * the redo's, its reason DR_ENERGY_GUARD); with io->step_deadline_s the inner loop stops early enough
+ * for its overrun and the commit to end by the deadline (two rounds at first, then the time steps
+ * took past the inner deadline, io->tail_s, plus a round) and the fitted scale is tried only when
+ * two rounds are left (else s = 0), so a step ends within about one round of the deadline. A call of
+ * one step is the guarded step of a step-by-step run (wavecosim/masters/dr_fast.py). It stops right
+ * after a step whose observed values are not all finite or whose stored energy may exceed H_cap
+ * (pass INFINITY for none; the caller decides exactly), setting io->stopped (also when that step was
+ * the last of the call). Returns the number of steps done and logged; when an FMU call failed, io->failed_* name it and the step it
  * failed in (the one after those done) has no entries. */
 int dr_run_steps(DRKernel *k, DRStep *io, int n0, int count, double *rows, double H_cap);
 

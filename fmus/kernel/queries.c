@@ -21,7 +21,7 @@ int fq_queries(const DRFunctions *fn, fmi2Component comp, fmi2FMUstate *state, c
             failed[0] = DR_FN_SET_REAL, failed[1] = status;
             return q;
         }
-        if ((status = fn->doStep(comp, t, dt, fmi2True)) > fmi2Warning) {
+        if ((status = fn->doStep(comp, t, dt, fmi2False)) > fmi2Warning) {
             failed[0] = DR_FN_DO_STEP, failed[1] = status;
             return q;
         }

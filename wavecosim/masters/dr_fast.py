@@ -37,6 +37,8 @@ class FastDRMaster(DRMaster):
     def __init__(self, scene, settings):
         super().__init__(scene, settings)
         self.kernel, self.fast, self.threads = None, False, 1
+        self.guarded = None       # the kernel's BlockLog of the last step when step() made the ledger's guard too
+        self._guarding = False    # keep_ledger was called: step() makes iteration, commit and redo in one call
         # blocks of steps (run_steps) read the observed values in C; a physical port's b is computed
         # from them in Python (readings.py), so scenes with wave adapters run one step per call
         self._blocks = not any(s.adapter for s in scene.subsystems)
@@ -105,11 +107,11 @@ class FastDRMaster(DRMaster):
         measure = n == self._choose_after
         timing = self._choose_after >= 0 and n - self._choose_after in (0, 1)
         started = time.perf_counter() if timing else 0.0
-        io = kernel.macro_step(n, t, measure)
+        io, redone = self._kernel_step(n, t, measure)
         k = io.iterations
         if timing:
-            per_round = (time.perf_counter() - started) / (k + 1)      # K queries and the commit
-        self._note_kernel_steps(n, t, k)          # frozen at x^n (saved by the kernel), calls counted
+            per_round = (time.perf_counter() - started) / (k + 1 + redone)   # K queries, the commit, the redo
+        self._note_kernel_steps(n, t, k, 1, redone)   # frozen at x^n (saved by the kernel), calls counted
         n_ch = kernel.n
         out = kernel.results[:]                  # b^{n+1}, a, u^0, u^K
         self._b_step_start, self._b = self._b, out[:n_ch]
@@ -119,8 +121,21 @@ class FastDRMaster(DRMaster):
             self.choose_threads(kernel.costs(), per_round)
         elif timing and self._on_trial:
             self.confirm_threads(per_round)
+        u0, uK = (None, None) if redone else (out[2 * n_ch:3 * n_ch], out[3 * n_ch:])   # a redo's log has none
         return StepLog(iterations=k, residual=io.residual, reason=REASONS[io.reason], a_hat=out[n_ch:2 * n_ch],
-                       u0=out[2 * n_ch:3 * n_ch], uK=out[3 * n_ch:])
+                       u0=u0, uK=uK)
+
+    def _kernel_step(self, n, t, measure):
+        """Macro-step n in one kernel call: (its DRStep, the ledger's redo rounds). With the ledger kept
+        (keep_ledger) the call is dr_run_steps of one step: iteration, commit, ledger check and redo,
+        within master.deadline_us as in blocks, and its BlockLog goes to self.guarded."""
+        if not self._guarding:
+            self.guarded = None
+            return self.kernel.macro_step(n, t, measure), 0
+        _, self.guarded, error = self.kernel.run_steps(n, 1, math.inf, measure)
+        if error is not None:
+            raise error
+        return self.kernel.io, int(self.guarded.ledger["rounds"][0])
 
     def redo_in_kernel(self, supplied, budget, fitted):
         """The energy ledger's redo of the step just made, by the kernel (fast_path.Kernel.redo); its
@@ -143,10 +158,16 @@ class FastDRMaster(DRMaster):
         if self._blocks:
             self.kernel.observe(names)
 
+    def guards_steps(self):
+        """Whether step() can keep the energy ledger in the kernel (keep_ledger): the kernel runs and no
+        wave adapter's accuracy (the ledger's tol) moves within a step."""
+        return self.kernel is not None and self._blocks
+
     def keep_ledger(self, ledger, traffic, rtol):
-        """The energy ledger's state for the kernel's next blocks, which it keeps within master.deadline_us
-        (see fast_path.Kernel.keep_ledger)."""
+        """The energy ledger's state for the kernel's next steps and blocks, which it keeps within
+        master.deadline_us (see fast_path.Kernel.keep_ledger)."""
         self.kernel.keep_ledger(ledger, traffic, rtol, self.deadline_s)
+        self._guarding = True
 
     def run_steps(self, n0, count, H_cap=math.inf):
         """Macro-steps n0 .. n0 + count - 1 in one kernel call, stopping early after a step whose H
