@@ -1,6 +1,8 @@
 """The certificates under each DR option (README, "Faster DR"): a table, about a minute.
 
-    .venv/bin/python scripts/dr_options_certificates.py
+    .venv/bin/python scripts/dr_options_certificates.py [OPTION,OPTION K,K,K]
+
+(the second form: only those options of DR_OPTIONS, at those budgets on both scenes)
 
 Runs DR on Table I and the stiff scene with certificates on (8 sampled FNE pairs and Theorem 1's
 augmented residual per step, the Condition 1 watch) for a few budgets, plain and with each named
@@ -27,7 +29,8 @@ def row(name, option, K, s):
             f"| {s.get('min_fne_margin', float('nan')):.2e} | {s['energy_guard_steps']} | {s['H_growth']:.6g} |")
 
 
-def main():
+def main(names=None, budgets=None):
+    options = {"": (None, {}, None), **DR_OPTIONS} if names is None else {n: DR_OPTIONS[n] for n in names}
     print("| scene | option | K | max error | max augmented⁺ (Thm. 1) | min FNE margin | ledger steps | max H/H(0) |")
     print("|---|---|---|---|---|---|---|---|")
     for name, (config, Ks) in SCENES.items():
@@ -35,12 +38,13 @@ def main():
         if name == "stiff":
             base = base.with_changes(gamma="auto")        # gamma = 0.4 barely contracts there (README)
         reference = reference_run(base)
-        for option, (gamma, changes, _) in {"": (None, {}, None), **DR_OPTIONS}.items():
+        for option, (gamma, changes, _) in options.items():
             sc = base if gamma is None else base.with_changes(gamma=gamma)
-            for K in Ks:
+            for K in Ks if budgets is None else budgets:
                 result = run(sc.with_master(K=K, **changes), reference=reference, warn=lambda m: None)
                 print(row(name, option, K, result.summary), flush=True)
 
 
 if __name__ == "__main__":
-    main()
+    main(sys.argv[1].split(",") if len(sys.argv) > 1 else None,
+         [int(k) for k in sys.argv[2].split(",")] if len(sys.argv) > 2 else None)

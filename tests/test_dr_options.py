@@ -5,7 +5,9 @@ reference, over whole runs (blocks of macro-steps included) on Table I and the s
 DR keeps the inner iterates Fejer monotone (eq. 28) for lambda in (0, 2); the Anderson safeguard
 takes the plain step when an accelerated iterate does not cut the residual; the warm start starts
 from P (2 b^n - b^{n-1}); relaxation: auto and gamma: fastest pick what the linearized operator
-predicts is faster, within the FNE bounds; bad values are one-line config errors.
+predicts is faster, within the FNE bounds; the Anderson memory keeps its differences across
+macro-steps and the extrapolated b^* is exact on an affine map one query earlier (both bit-identical
+in the kernel); bad values are one-line config errors.
 """
 import dataclasses
 
@@ -217,3 +219,51 @@ def test_options_through_the_cli(tmp_path, capsys, built_fmus):
         main(["compare", config, "--out", str(tmp_path / "c"), "--options", "relaxed,nope", "--quiet"])
     err = capsys.readouterr().err.strip()
     assert exc.value.code == 2 and "nope" in err and len(err.splitlines()) == 1
+
+
+MODES = [dict(anderson=2, anderson_memory=True), dict(anderson=2, anderson_extrapolate=True),
+         dict(anderson=3, relaxation=1.7, anderson_memory=True, anderson_extrapolate=True)]
+
+
+@pytest.mark.parametrize("options", MODES, ids=lambda o: ",".join(f"{k}={v}" for k, v in o.items()))
+def test_anderson_modes_bit_identical_to_reference(table_i, stiff, options):
+    """The Anderson memory and the extrapolated b^* in the kernel and the reference, both scenes,
+    the second with a tolerance exit; and each mode changes the numbers of plain Anderson."""
+    ref = same_run(table_i, K=3, **options)
+    same_run(stiff.with_changes(gamma="auto"), K=6, eps=1e-9, **options)
+    plain = run(table_i.with_master(K=3, anderson=options["anderson"], relaxation=options.get("relaxation", 1.0)),
+                certificates=False)
+    assert not np.array_equal(ref.outputs, plain.outputs)
+    assert ref.summary["anderson_memory"] == options.get("anderson_memory", False)
+
+
+def test_extrapolated_b_star_is_exact_on_a_linear_map_one_query_earlier():
+    """On an affine map of 2 channels: the Anderson combination of the responses gives the exact b^*
+    after 3 queries, where the last response (plain Anderson) needs 4."""
+    rho, c = [0.6, 0.3], [1.0, -2.0]
+    S = (lambda u: [r * x + ci for r, x, ci in zip(rho, u, c)])
+    swap = [[0.0, 1.0], [1.0, 0.0]]
+    J = np.linalg.inv(2 * np.eye(2) - np.array(swap)).tolist()
+    exact = np.array(swap) @ np.linalg.solve(np.array([[1.0, -rho[0]], [-rho[1], 1.0]]), c)
+    err = {x: np.abs(np.array(algorithm1(S, swap, J, [0.0, 0.0], K=3, anderson=Anderson(2, extrapolate=x)).a_hat)
+                     - exact).max() for x in (False, True)}
+    assert err[True] < 1e-10 < 1e-4 < err[False]     # roundoff of the regularized least squares
+
+
+def test_anderson_memory_keeps_the_differences_across_steps():
+    """With memory a new macro-step keeps dF, dG, dB (and accelerates its first query); without, forgets them."""
+    for memory in (False, True):
+        acc = Anderson(2, memory=memory)
+        acc.next([0.0, 0.0], [1.0, 1.0], [0.0, 0.0])
+        acc.next([1.0, 1.0], [1.5, 1.25], [1.0, 0.0])
+        acc.reset()
+        assert (len(acc.dG), acc.g_acc) == ((1, None) if memory else (0, None))
+        first, _ = acc.next([0.0, 0.0], [1.0, 1.0], [0.0, 0.0])
+        assert (first != [1.0, 1.0]) == memory
+
+
+def test_anderson_modes_need_a_window():
+    raw = load_raw(ROOT / "configs" / "two_oscillators.yaml")
+    for key in ("anderson_memory", "anderson_extrapolate"):
+        with pytest.raises(ConfigError, match=f"master.{key}.*Anderson window"):
+            parse_scenario(apply_overrides(raw, [(f"master.{key}", True)]))

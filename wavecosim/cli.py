@@ -278,7 +278,9 @@ def _sweep_progress(total, skipped):
 @click.option("--plots", is_flag=True, help="Also write pareto.png and energy_by_master.png.")
 @click.option("--options", "dr_options", default="", metavar="NAMES",
               help="Also DR with each of these named options (comma-separated, or all): relaxed, anderson, "
-                   "warm, gamma-auto, gamma-fastest, fastest-relaxed, fastest-relaxed-anderson.")
+                   "warm, gamma-auto, gamma-fastest, fastest-relaxed, fastest-relaxed-anderson, "
+                   "fastest-relaxed-extrapolated, fastest-relaxed-memory, fastest-memory, "
+                   "fastest-memory-eps3, fastest-memory-eps5.")
 def compare_cmd(config, K, eps, gamma, dt, T, quiet, ports, parameter_set, masters, ks, out, no_certificates, plots,
                 dr_options):
     """Every master over a grid of budgets against the monolithic reference: error, energy, cost."""

@@ -25,6 +25,8 @@ DIVERGED_GROWTH = 1e3      # max H(t) / H(0) above this: the interface pumped en
 # The DR options compare can add: name -> (scenario gamma or None to keep the scenario's, master options,
 # marker in the plots). Energy-safe all: the ledger guard (the DR default) holds every one; Theorem 1's
 # per-step certificate holds for all but those with Anderson acceleration (masters/dr_options.py).
+# fastest-memory's lambda = 1.9 was found by a grid over lambda on Table I and the stiff scene (README);
+# -eps3 / -eps5 add the inner tolerance eps = 1e-3 / 1e-5 (the exit lowers the doSteps actually made).
 DR_OPTIONS = {
     "relaxed": (None, {"relaxation": "auto"}, ("tab:cyan", "v")),
     "anderson": (None, {"anderson": 2}, ("navy", "^")),
@@ -33,6 +35,16 @@ DR_OPTIONS = {
     "gamma-fastest": ("fastest", {}, ("teal", "d")),
     "fastest-relaxed": ("fastest", {"relaxation": "auto"}, ("tab:green", "*")),
     "fastest-relaxed-anderson": ("fastest", {"relaxation": "auto", "anderson": 2}, ("darkgreen", "h")),
+    "fastest-relaxed-extrapolated": ("fastest", {"relaxation": "auto", "anderson": 2, "anderson_extrapolate": True},
+                                     ("tab:brown", "8")),
+    "fastest-relaxed-memory": ("fastest", {"relaxation": "auto", "anderson": 4, "anderson_memory": True,
+                                           "anderson_extrapolate": True}, ("maroon", "p")),
+    "fastest-memory": ("fastest", {"relaxation": 1.9, "anderson": 4, "anderson_memory": True,
+                                   "anderson_extrapolate": True}, ("olive", "P")),
+    "fastest-memory-eps3": ("fastest", {"relaxation": 1.9, "anderson": 4, "anderson_memory": True,
+                                        "anderson_extrapolate": True, "eps": 1e-3}, ("yellowgreen", "P")),
+    "fastest-memory-eps5": ("fastest", {"relaxation": 1.9, "anderson": 4, "anderson_memory": True,
+                                        "anderson_extrapolate": True, "eps": 1e-5}, ("darkolivegreen", "P")),
 }
 CERTIFIED = ("", "relaxed", "warm", "gamma-auto", "gamma-fastest", "fastest-relaxed")   # Theorem 1 applies
 TARGETS = (1e-3, 1e-6, 1e-10)      # max errors the cheapest budget is sought for

@@ -77,6 +77,8 @@ class MasterConfig:
     energy_guard: str = None           # ledger | monolithic | off (true/false of old files); None: the master's default
     relaxation: object = 1.0           # DR: lambda in (0, 2) of line 12, or "auto" (masters/dr_options.py)
     anderson: int = 0                  # DR: Anderson window m (0: off)
+    anderson_memory: bool = False      # DR: keep the Anderson differences across macro-steps
+    anderson_extrapolate: bool = False  # DR: b^* the Anderson combination of the responses
     warm_start: bool = False           # DR: u^{n,0} = P (2 b^n - b^{n-1}) instead of P b^n
 
 
@@ -382,7 +384,8 @@ def load_raw(path) -> dict:
 
 def _master(ck, m) -> MasterConfig:
     ck.mapping(m, "master", ("algorithm", "K", "eps", "deadline_us", "fast", "threads", "energy_guard",
-                             "relaxation", "anderson", "warm_start"))
+                             "relaxation", "anderson", "anderson_memory",
+                             "anderson_extrapolate", "warm_start"))
     master = MasterConfig()
     if "algorithm" in m:
         master.algorithm = ck.string(m["algorithm"], "master.algorithm", ALGORITHMS)
@@ -413,8 +416,15 @@ def _dr_options(ck, m, master):
         master.anderson = ck.integer(m["anderson"], "master.anderson", minimum=0)
         if master.anderson > ANDERSON_MAX:
             ck.fail("master.anderson", f"must be at most {ANDERSON_MAX}, got {master.anderson}")
+    if "anderson_memory" in m:
+        master.anderson_memory = ck.boolean(m["anderson_memory"], "master.anderson_memory")
+    if "anderson_extrapolate" in m:
+        master.anderson_extrapolate = ck.boolean(m["anderson_extrapolate"], "master.anderson_extrapolate")
     if "warm_start" in m:
         master.warm_start = ck.boolean(m["warm_start"], "master.warm_start")
+    for key in ("anderson_memory", "anderson_extrapolate"):
+        if getattr(master, key) and not master.anderson:
+            ck.fail(f"master.{key}", "needs an Anderson window (master.anderson >= 1)")
 
 
 def _certificates(ck, c) -> CertificateConfig:

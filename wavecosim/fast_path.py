@@ -106,6 +106,7 @@ def load_library():
         lib.dr_log_width.restype = ctypes.c_size_t
         lib.dr_run_steps.argtypes = [p, ctypes.POINTER(DRStep), i, i, d, ctypes.c_double]
         lib.dr_set_options.argtypes = [p, ctypes.c_double, i, i]
+        lib.dr_set_anderson_modes.argtypes = [p, i, i]
         lib.dr_ledger_redo.argtypes = [p, ctypes.POINTER(DRStep), ctypes.c_double, ctypes.c_double, i, d]
         _lib = lib
     return _lib
@@ -276,9 +277,11 @@ class Kernel:
         columns = self.log[:count * self.width].reshape(self.width, count)[:, :done]
         return done, BlockLog(columns, self.n, bool(self.io.stopped)), error
 
-    def set_options(self, relaxation, anderson, warm_start):
-        """The DR master's named options (wavecosim/masters/dr_options.py); forgets b^{n-1}."""
-        if self.lib.dr_set_options(self._handle, float(relaxation), int(anderson), int(bool(warm_start))):
+    def set_options(self, relaxation, anderson, warm_start, memory=False, extrapolate=False):
+        """The DR master's named options (wavecosim/masters/dr_options.py); forgets b^{n-1} and the
+        Anderson differences."""
+        if (self.lib.dr_set_options(self._handle, float(relaxation), int(anderson), int(bool(warm_start)))
+                or self.lib.dr_set_anderson_modes(self._handle, int(bool(memory)), int(bool(extrapolate)))):
             raise FmuError(f"the DR kernel refused its options (relaxation {relaxation}, anderson {anderson})")
 
     def set_maps(self, P, J_L):

@@ -1,6 +1,7 @@
-/* The named options of the DR master in C: relaxation, safeguarded Anderson acceleration and the
- * warm start, each the mirror of wavecosim/masters/dr_options.py operation by operation (sums from
- * 0.0, left to right, history oldest first), so the kernel stays bit-identical to the reference.
+/* The named options of the DR master in C: relaxation, safeguarded Anderson acceleration (with its
+ * memory across macro-steps and the extrapolated b^*) and the warm start, each the mirror of
+ * wavecosim/masters/dr_options.py operation by operation (sums from 0.0, left to right, history
+ * oldest first), so the kernel stays bit-identical to the reference.
  * Included once, by drkernel.c (the build makes one library per .c file). */
 #ifndef WAVECOSIM_DR_OPTIONS_H
 #define WAVECOSIM_DR_OPTIONS_H
@@ -20,10 +21,11 @@ typedef struct {
     int warm_start, have_prev;     /* u^{n,0} = P (2 b^n - b^{n-1}) once b^{n-1} is known */
     int m, count, start;           /* Anderson window (0: off), differences kept, oldest slot */
     int have_acc, candidate;       /* an accepted iterate exists / the last iterate was accelerated */
+    int memory, extrapolate;       /* keep the differences across steps / b^* the combined responses */
     size_t n;
     double *b_prev, *z;            /* b^{n-1}; scratch */
-    double *dF, *dG;               /* m columns of n: differences of steps f and residuals g */
-    double *f_acc, *g_acc, *b_acc, *g;
+    double *dF, *dG, *dB;          /* m columns of n: differences of steps f, residuals g, responses b */
+    double *f_acc, *g_acc, *b_acc, *g, *b_ext;
     double A[DR_ANDERSON_MAX * DR_ANDERSON_MAX], r[DR_ANDERSON_MAX];
 } DROptions;
 
@@ -41,7 +43,7 @@ static DROptions *options_create(double lambda, int m, int warm_start, size_t n)
     o->m = m;
     o->warm_start = warm_start;
     o->n = n;
-    o->b_prev = calloc((6 + 2 * (size_t)m) * n, sizeof(double));
+    o->b_prev = calloc((7 + 3 * (size_t)m) * n, sizeof(double));
     if (!o->b_prev) {
         free(o);
         return NULL;
@@ -51,8 +53,10 @@ static DROptions *options_create(double lambda, int m, int warm_start, size_t n)
     o->g_acc = o->b_prev + 3 * n;
     o->b_acc = o->b_prev + 4 * n;
     o->g = o->b_prev + 5 * n;
-    o->dF = o->b_prev + 6 * n;
+    o->b_ext = o->b_prev + 6 * n;
+    o->dF = o->b_prev + 7 * n;
     o->dG = o->dF + (size_t)m * n;
+    o->dB = o->dG + (size_t)m * n;
     return o;
 }
 
@@ -108,14 +112,25 @@ static int options_least_squares(DROptions *o) {
     return 0;
 }
 
-/* Append g - g_acc and f - f_acc to the history (dropping the oldest when full). */
-static void options_push(DROptions *o, const double *f) {
+/* Append g - g_acc, f - f_acc and b_hat - b_acc to the history (dropping the oldest when full). */
+static void options_push(DROptions *o, const double *f, const double *b_hat) {
     if (o->count == o->m) o->start = (o->start + 1) % o->m;
     else o->count++;
     double *dg = options_col(o, o->dG, o->count - 1), *df = options_col(o, o->dF, o->count - 1);
+    double *db = options_col(o, o->dB, o->count - 1);
     for (size_t j = 0; j < o->n; j++) {
         dg[j] = o->g[j] - o->g_acc[j];
         df[j] = f[j] - o->f_acc[j];
+        db[j] = b_hat[j] - o->b_acc[j];
+    }
+}
+
+/* out[j] = x[j] - sum_i r_i cols_i[j] over the history (dr_options._combine), in place allowed. */
+static void options_combine(const DROptions *o, double *base, const double *x, double *out) {
+    for (size_t j = 0; j < o->n; j++) {
+        double acc = 0.0;
+        for (int i = 0; i < o->count; i++) acc += o->r[i] * options_col(o, base, i)[j];
+        out[j] = x[j] - acc;
     }
 }
 
@@ -132,7 +147,7 @@ static void options_anderson(DROptions *o, const double *u, double *f, const dou
         *b_star = gg < acc ? b_hat : o->b_acc;                   /* b^* the response of smaller residual */
         return;
     }
-    if (o->have_acc) options_push(o, f);
+    if (o->have_acc) options_push(o, f, b_hat);
     memcpy(o->f_acc, f, n * sizeof *f);
     memcpy(o->g_acc, o->g, n * sizeof *f);
     memcpy(o->b_acc, b_hat, n * sizeof *f);
@@ -140,11 +155,11 @@ static void options_anderson(DROptions *o, const double *u, double *f, const dou
     *b_star = o->b_acc;
     o->candidate = o->count > 0 && options_least_squares(o) == 0;
     if (!o->candidate) return;
-    for (size_t j = 0; j < n; j++) {
-        double acc = 0.0;
-        for (int i = 0; i < o->count; i++) acc += o->r[i] * options_col(o, o->dF, i)[j];
-        f[j] = f[j] - acc;
+    if (o->extrapolate) {
+        options_combine(o, o->dB, b_hat, o->b_ext);
+        *b_star = o->b_ext;
     }
+    options_combine(o, o->dF, f, f);
 }
 
 #endif

@@ -319,11 +319,12 @@ static void begin_macro_step(DRKernel *k, DRStep *io) {
 
 /* ---- the DR master's named options (dr_options.h; wavecosim/masters/dr_options.py) ---- */
 
-/* Start of a macro-step: forget the Anderson history; with the warm start, u^0 = P (2 b^n - b^{n-1})
+/* Start of a macro-step: forget the Anderson history (kept with its memory); with the warm start, u^0 = P (2 b^n - b^{n-1})
  * once b^{n-1} is known (dr_options.warm_start), and b^n is remembered for the next step. */
 static void options_begin(DRKernel *k, double *u) {
     DROptions *o = k->opt;
-    o->count = o->start = o->have_acc = o->candidate = 0;
+    if (!o->memory) o->count = o->start = 0;                     /* the Anderson memory keeps its differences */
+    o->have_acc = o->candidate = 0;
     if (!o->warm_start) return;
     if (o->have_prev) {
         for (size_t j = 0; j < k->n; j++) o->z[j] = 2.0 * k->b[j] - o->b_prev[j];
@@ -348,6 +349,15 @@ int dr_set_options(DRKernel *k, double relaxation, int anderson, int warm_start)
     if (!(relaxation > 0.0 && relaxation < 2.0) || anderson < 0 || anderson > DR_ANDERSON_MAX) return -1;
     k->opt = options_create(relaxation, anderson, warm_start, k->n);
     return k->opt ? 0 : -1;
+}
+
+/* The Anderson memory across macro-steps and the extrapolated b^* (after dr_set_options); -1 without Anderson. */
+int dr_set_anderson_modes(DRKernel *k, int memory, int extrapolate) {
+    if (!memory && !extrapolate) return 0;
+    if (!k->opt || k->opt->m == 0) return -1;
+    k->opt->memory = memory;
+    k->opt->extrapolate = extrapolate;
+    return 0;
 }
 
 /* ---- the public API ---- */

@@ -101,6 +101,9 @@ int dr_set_threads(DRKernel *k, int n_threads, const int *thread_of);
  * line 12, Anderson window (0: off, at most 16), warm start of u^0 from b^n and b^{n-1}. Each call
  * forgets b^{n-1}; (1, 0, 0) is the paper's Algorithm 1. Returns 0, or -1 on bad values or no memory. */
 int dr_set_options(DRKernel *k, double relaxation, int anderson, int warm_start);
+/* After dr_set_options with an Anderson window: keep its differences across macro-steps (memory) and
+ * commit the Anderson combination of the responses (extrapolate). Returns -1 without a window. */
+int dr_set_anderson_modes(DRKernel *k, int memory, int extrapolate);
 
 /* Algorithm 1, lines 3-22, for one macro-step. Returns 0, or -1 when an FMU call failed
  * (see io->failed_*); the instances are then left where the failure happened. */

@@ -48,7 +48,7 @@ class DRMaster(WaveMaster):
         self.K, self.eps = settings.K, settings.eps
         self._trace = None                                             # [] while recording (u, S(u)) pairs
         self.relaxation = self._relaxation(settings.relaxation)       # lambda of line 12
-        self.anderson = Anderson(settings.anderson) if settings.anderson else None
+        self.anderson = self._anderson()
         self.warm_start = settings.warm_start
         self._b_before = None                                          # b^{n-1} for the warm start
 
@@ -60,13 +60,21 @@ class DRMaster(WaveMaster):
         self.relaxation_choice = choose_relaxation(self.scene, self.b, self.P)
         return self.relaxation_choice["relaxation"]
 
+    def _anderson(self):
+        """A fresh Anderson accelerator (None when off): the window, its memory, the extrapolated b^*."""
+        s = self.settings
+        return Anderson(s.anderson, s.anderson_memory, s.anderson_extrapolate) if s.anderson else None
+
     def retune(self, b):
         super().retune(b)
         self._b_before = None                                          # b^{n-1} was at the old gammas
+        self.anderson = self._anderson()                               # so were the Anderson differences
 
     def run_info(self):
         """The DR options in force (relaxation as used; with auto, the predicted rates)."""
-        info = {"relaxation": self.relaxation, "anderson": self.settings.anderson, "warm_start": self.warm_start}
+        info = {"relaxation": self.relaxation, "anderson": self.settings.anderson,
+                "anderson_memory": self.settings.anderson_memory,
+                "anderson_extrapolate": self.settings.anderson_extrapolate, "warm_start": self.warm_start}
         if self.relaxation_choice is not None:
             info["relaxation_rates"] = {k: v for k, v in self.relaxation_choice.items() if k != "relaxation"}
         return info

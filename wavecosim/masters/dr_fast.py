@@ -47,13 +47,18 @@ class FastDRMaster(DRMaster):
             return
         self.kernel = Kernel(scene, self.P, self.J_L)
         self.kernel.configure(self.dt, self.K, self.eps, self.deadline_s)
-        self.kernel.set_options(self.relaxation, settings.anderson, self.warm_start)
+        self._send_options()
         self.fast, self.fast_note = True, "C kernel"
         self.thread_mode = str(settings.threads)
         # the first macro-step this master makes picks the thread plan (None: not made yet)
         self._choose_after = None if self.thread_mode != "1" and len(self.subsystems) > 1 else -1
         self._on_trial = False
         self._step_s = 0.0        # seconds per macro-step of the last run_steps call
+
+    def _send_options(self):
+        """The named options to the kernel (it forgets b^{n-1} and the Anderson differences)."""
+        s = self.settings
+        self.kernel.set_options(self.relaxation, s.anderson, self.warm_start, s.anderson_memory, s.anderson_extrapolate)
 
     @staticmethod
     def _kernel_refusal(scene, mode):
@@ -73,7 +78,7 @@ class FastDRMaster(DRMaster):
     def retune(self, b):
         super().retune(b)
         if self.kernel is not None:
-            self.kernel.set_options(self.relaxation, self.settings.anderson, self.warm_start)   # b^{n-1} forgotten
+            self._send_options()                                   # b^{n-1} and the Anderson memory forgotten
 
     def reserve_time(self, seconds):
         super().reserve_time(seconds)

@@ -1,5 +1,6 @@
-"""The named options of the DR master (`master.relaxation`, `master.anderson`, `master.warm_start`),
-written once in plain Python in the operation order that fmus/kernel/dr_accel.c mirrors, so the
+"""The named options of the DR master (`master.relaxation`, `master.anderson`, `master.anderson_memory`,
+`master.anderson_extrapolate`, `master.warm_start`),
+written once in plain Python in the operation order that fmus/kernel/dr_options.h mirrors, so the
 reference and the C kernel stay bit-identical.
 
 - relaxation lambda in (0, 2): line 12 becomes u + lambda (w - b_hat); lambda = 1 is the paper's
@@ -10,6 +11,12 @@ reference and the C kernel stay bit-identical.
   ANDERSON_SAFEGUARD times that of the last accepted iterate, otherwise the plain step from the
   last accepted iterate follows (b^* is the response of the smaller residual of the two). Its iterates are not Fejer monotone, so Theorem 1's per-step
   certificate does not apply; the energy ledger guard keeps the run energy-safe.
+- anderson memory: the Anderson differences outlive the macro-step, so each step's first query is
+  already accelerated with the secant information of the steps before; a rejection forgets them.
+- anderson extrapolate: b^* is the Anderson combination of the responses, b_hat - sum theta_i dB_i,
+  with the weights of the accelerated iterate (exact on an affine map once the differences span it,
+  one query before that iterate is queried), as the classical masters commit their last update; it
+  is no response of the frozen maps, so like Anderson itself it rests on the ledger guard.
 - warm start: u^{n,0} = P (2 b^n - b^{n-1}) (the committed wave extrapolated linearly) instead
   of the paper's P b^n (eq. 19).
 """
@@ -74,13 +81,15 @@ def least_squares(dG, g):
 class Anderson:
     """Safeguarded Anderson acceleration of one macro-step's DR iteration (see the module docstring)."""
 
-    def __init__(self, m):
-        self.m = m
+    def __init__(self, m, memory=False, extrapolate=False):
+        self.m, self.memory, self.extrapolate = m, memory, extrapolate
+        self.dF, self.dG, self.dB = [], [], []
         self.reset()
 
     def reset(self):
-        """A new macro-step: forget the differences."""
-        self.dF, self.dG = [], []
+        """A new macro-step: forget the last accepted iterate and, without memory, the differences."""
+        if not self.memory:
+            self.dF, self.dG, self.dB = [], [], []
         self.f_acc = self.g_acc = self.b_acc = None
         self.candidate = False
 
@@ -91,19 +100,22 @@ class Anderson:
         g = [fi - ui for fi, ui in zip(f, u)]
         gg, acc = dot(g, g), dot(self.g_acc, self.g_acc) if self.g_acc is not None else 0.0
         if self.candidate and gg > ANDERSON_SAFEGUARD * ANDERSON_SAFEGUARD * acc:
-            self.dF, self.dG, self.candidate = [], [], False       # rejected: the plain step instead,
+            self.dF, self.dG, self.dB, self.candidate = [], [], [], False   # rejected: the plain step instead,
             return self.f_acc, (b_hat if gg < acc else self.b_acc)  # b^* the response of smaller residual
         if self.g_acc is not None:
             if len(self.dG) == self.m:
-                del self.dF[0], self.dG[0]
+                del self.dF[0], self.dG[0], self.dB[:1]
             self.dG.append([a - b for a, b in zip(g, self.g_acc)])
             self.dF.append([a - b for a, b in zip(f, self.f_acc)])
+            if self.extrapolate:
+                self.dB.append([a - b for a, b in zip(b_hat, self.b_acc)])
         self.f_acc, self.g_acc, self.b_acc = f, g, b_hat
         theta = least_squares(self.dG, g) if self.dG else None
         self.candidate = theta is not None
         if theta is None:
             return f, b_hat
-        return [fj - _combine(theta, self.dF, j) for j, fj in enumerate(f)], b_hat
+        b_star = [bj - _combine(theta, self.dB, j) for j, bj in enumerate(b_hat)] if self.extrapolate else b_hat
+        return [fj - _combine(theta, self.dF, j) for j, fj in enumerate(f)], b_star
 
 
 def _combine(theta, cols, j):
