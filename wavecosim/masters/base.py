@@ -162,3 +162,17 @@ def require_wave_tuning(master, mode, source):
     if mode == "auto-retune" and not isinstance(master, WaveMaster):
         raise ConfigError(f"{source}: gamma: auto-retune needs a wave master that can change gamma between "
                           f"macro-steps (dr, newton)")
+
+
+class KernelOwner:
+    """Mixin of a master that may run its macro-steps in a C kernel (self.kernel, or None on the
+    Python reference): what it reports of the route, and the kernel closed with the master."""
+
+    def run_info(self):
+        return {"fast_path": self.kernel is not None, "fast_note": self.fast_note}
+
+    def close(self):
+        if self.kernel is not None:
+            self.kernel.close()
+            self.kernel = None
+        super().close()

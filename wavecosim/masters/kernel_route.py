@@ -7,11 +7,11 @@ import time
 
 from ..classical_path import ClassicalKernel, refusal
 from ..fast_path import REASONS
-from .base import StepLog
+from .base import KernelOwner, StepLog
 from .dr_fast import BLOCK_SECONDS
 
 
-class KernelRoute:
+class KernelRoute(KernelOwner):
     """What a classical master with a kernel route adds: `kernel` (a ClassicalKernel, or None and
     the Python reference runs), `fast_note` (why), blocks of macro-steps in one kernel call (the
     runner's run_steps seam, as FastDRMaster's), and their summary and release. The master sets
@@ -58,12 +58,3 @@ class KernelRoute:
         """The StepLog of row j of a BlockLog."""
         return StepLog(iterations=int(log.iterations[j]), residual=float(log.residual[j]),
                        reason=REASONS[int(log.reason[j])])
-
-    def run_info(self):
-        return {"fast_path": self.kernel is not None, "fast_note": self.fast_note}
-
-    def close(self):
-        if self.kernel is not None:
-            self.kernel.close()
-            self.kernel = None
-        super().close()

@@ -9,10 +9,10 @@ from ..fast_path import kernel_refusal
 from ..linalg import matvec
 from ..monolithic import solve_interface
 from ..newton_path import NewtonKernel, book_kernel_step
-from .base import StepLog, WaveMaster
+from .base import KernelOwner, StepLog, WaveMaster
 
 
-class NewtonMaster(WaveMaster):
+class NewtonMaster(KernelOwner, WaveMaster):
     """Monolithic macro-step: solve b* = S^n(P b*) to roundoff, then advance with a = P b*."""
     style = ("black", "*")
 
@@ -44,12 +44,3 @@ class NewtonMaster(WaveMaster):
         book_kernel_step(self.subsystems, n, t, evals)
         self._b_step_start, self._b = self._b, b_next
         return StepLog(iterations=io.iterations, residual=io.residual, reason="converged", a_hat=a_hat)
-
-    def run_info(self):
-        return {"fast_path": self.kernel is not None, "fast_note": self.fast_note}
-
-    def close(self):
-        if self.kernel is not None:
-            self.kernel.close()
-            self.kernel = None
-        super().close()
