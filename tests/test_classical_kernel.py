@@ -13,6 +13,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from conftest import python_and_kernel_masters
 from wavecosim.config import ROOT, load_scenario
 from wavecosim.errors import ConfigError
 from wavecosim.masters import MASTERS
@@ -111,11 +112,7 @@ def test_ledger_guard_redoes_the_same_steps_on_the_kernel_route(master, built_fm
 
 def test_subsystems_hold_x_n_and_y_after_a_kernel_step(built_fmus):
     sc = scenario("two_oscillators", algorithm="gauss-seidel-iter", K=3)
-    masters, scenes = [], []
-    for fast in ("false", "true"):
-        scenes.append(build_scene(sc, wave=False))
-        masters.append(MASTERS["gauss-seidel-iter"](scenes[-1], dataclasses.replace(sc.master, fast=fast)))
-    try:
+    with python_and_kernel_masters(sc, wave=False) as (masters, scenes):
         for n in range(5):
             for m in masters:
                 m.step(n, n * sc.dt)
@@ -124,10 +121,6 @@ def test_subsystems_hold_x_n_and_y_after_a_kernel_step(built_fmus):
             m.recommit(m.u)
         assert bits(masters[0].y) == bits(masters[1].y) and bits(masters[0].u) == bits(masters[1].u)
         assert [s.calls for s in scenes[0].subsystems] == [s.calls for s in scenes[1].subsystems]
-    finally:
-        for m, s in zip(masters, scenes):
-            m.close()
-            s.close()
 
 
 def test_fmu_error_through_the_classical_kernel(built_fmus):

@@ -14,12 +14,11 @@ import numpy as np
 import pytest
 import yaml
 
+from conftest import python_and_kernel_masters
 from wavecosim.config import DEFAULT_CONFIG, ROOT, load_scenario, parse_scenario
 from wavecosim.gamma_tuning import rescatter
 from wavecosim.linalg import solve
-from wavecosim.masters import MASTERS
 from wavecosim.runner import RunFailed, run
-from wavecosim.scene import build_scene
 
 SCENES = {"two_oscillators": 1.0, "two_oscillators_stiff": 1.0, "chain": 0.5, "star": 0.5, "planar": 0.5,
           "rlc_motor": 0.5, "pendulum_cart": 0.5, "heavy_chain": 0.2,
@@ -73,11 +72,7 @@ def test_subsystems_hold_x_n_and_b_after_kernel_steps_and_a_retune(built_fmus):
     """Direct steps of both masters: after a change of gamma (P recompiled, b^n re-scattered, as
     auto-retune does it) and an undo and recommit they hold the same b and made the same FMU calls."""
     sc = load_scenario(ROOT / "configs" / "two_oscillators_stiff.yaml").with_master(algorithm="newton")
-    masters, scenes = [], []
-    for fast in ("false", "true"):
-        scenes.append(build_scene(sc))
-        masters.append(MASTERS["newton"](scenes[-1], dataclasses.replace(sc.master, fast=fast)))
-    try:
+    with python_and_kernel_masters(sc) as (masters, scenes):
         logs = []
         for m, scene in zip(masters, scenes):
             logs.append([m.step(n, n * sc.dt) for n in range(3)])
@@ -91,10 +86,6 @@ def test_subsystems_hold_x_n_and_b_after_kernel_steps_and_a_retune(built_fmus):
             m.recommit(logs[0][-1].a_hat)
         assert bits(masters[0].b) == bits(masters[1].b)
         assert [s.calls for s in scenes[0].subsystems] == [s.calls for s in scenes[1].subsystems]
-    finally:
-        for m, s in zip(masters, scenes):
-            m.close()
-            s.close()
 
 
 def failures(sc):
