@@ -124,6 +124,7 @@ class BlockLog:
         self.iterations, self.reason, self.residual = columns[0], columns[1], columns[2]
         end = len(columns) - len(LEDGER_LOG)
         self.a_hat, self.b, self.observed = columns[3:3 + n].T, columns[3 + n:3 + 2 * n].T, columns[3 + 2 * n:end]
+        self.a_rows, self.observed_at = range(3, 3 + n), 3 + 2 * n       # where a_hat and observed start
         self.ledger = dict(zip(LEDGER_LOG, columns[end:]))
 
     def __len__(self):

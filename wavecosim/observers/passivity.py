@@ -4,13 +4,14 @@
 A subsystem whose FMU has no stored-energy output (H) gets no r_i: its columns are the energy
 supplied through its port in the step and cumulated (port_energy_<name>, port_energy_cum_<name>),
 and the summary lists what could not be computed (certificates_unavailable)."""
+import ctypes
 import math
 
-import numpy as np
-
-from ..readings import GroupSums, row_sums
+from ..builtin import helper_library
 from ..waves import physical_port_energy, port_energy
 from . import Observer
+
+_lib = None
 
 
 def grow_max_pos(current, x):
@@ -21,9 +22,18 @@ def grow_max_pos(current, x):
     return current if current >= x else x
 
 
-def running_sum(start, x):
-    """start + x[0] + x[1] + ..., added in that order (cumsum is sequential, unlike np.sum)."""
-    return float(np.cumsum(np.concatenate([[start], x]))[-1])
+def library():
+    """fmus/kernel/passivity.c (passivity_block), built on first use; None when it cannot be built."""
+    global _lib
+    if _lib is None:
+        lib = helper_library("passivity")
+        if lib is None:
+            return None
+        i, p, d, long = ctypes.c_int, ctypes.c_void_p, ctypes.c_double, ctypes.c_long
+        lib.passivity_block.argtypes = [i, i, p, i, d, p, long, p, p, p, p, p, p, p, long, p]
+        lib.passivity_block.restype = None
+        _lib = lib
+    return _lib
 
 
 class Passivity(Observer):
@@ -33,12 +43,11 @@ class Passivity(Observer):
 
     def __init__(self, scene, unavailable=()):
         self.scene, self.wave, self.dt = scene, scene.wave, scene.scenario.dt
-        self.blocks = scene.wave or all(s.port.energy is not None for s in scene.subsystems)
-        self.port_sums = GroupSums([*[slice(off, off + s.m) for s, off in zip(scene.subsystems, scene.offsets)],
-                                    slice(0, scene.n_channels)])
         self.names = [s.name for s in scene.subsystems]
         self.has_H = [s.port.energy is not None for s in scene.subsystems]
         self.complete = all(self.has_H)
+        self.blocks = self.complete and library() is not None
+        self.rows_of = None               # the C pass's fixed arguments, from the first block's layout
         missing = [n for n, h in zip(self.names, self.has_H) if not h]
         self.unavailable = [*(f"r_{n}" for n in missing), *([] if any(self.has_H) else ["max_passivity_pos"]),
                             *([] if self.complete else ["H_total", "H_growth"]), *unavailable]
@@ -86,27 +95,30 @@ class Passivity(Observer):
         self.H, self.H_final = list(reading.H), total
         self.H_max = max(self.H_max, total) if total == total else total
 
-    def _block_supplied(self, logs, readings):
-        """_supplied of every step of a block: one row per step, each port, then all of them."""
-        if self.wave:
-            a2, b2 = logs.a_hat * logs.a_hat, readings.B * readings.B
-            return 0.5 * (self.port_sums(a2) - self.port_sums(b2))
-        supplied = self.dt * self.port_sums(readings.E * readings.F)[:, :-1]
-        return np.column_stack([supplied, row_sums(supplied)])
+    def _block_rows(self, logs, readings):
+        """The kernel log's rows the C pass reads (fmus/kernel/passivity.c): the channels' a_hat, b, e,
+        f, the subsystems' H; and the ports' first channels."""
+        at = logs.observed_at
+        observed = {key: (ctypes.c_int * max(1, len(rows)))(*[at + r for r in rows])
+                    for key in ("B", "E", "F", "H") for rows in [readings.rows(key)]}
+        a = (ctypes.c_int * max(1, logs.n))(*logs.a_rows)
+        port = (ctypes.c_int * (len(self.names) + 1))(*self.scene.offsets, self.scene.n_channels)
+        return port, a, observed["B"], observed["E"], observed["F"], observed["H"]
 
     def after_block(self, n0, logs, readings, rows):
-        H, k = readings.H, len(self.names)
-        supplied = self._block_supplied(logs, readings)
-        dH = np.empty_like(H)
-        dH[0], dH[1:] = H[0] - self.H, H[1:] - H[:-1]
-        rows[:, :k], rows[:, k], rows[:, k + 1] = dH - supplied[:, :k], supplied[:, k], row_sums(H)
-        worst = np.fmax.reduce(rows[:, :k + 1], axis=0).tolist()
-        self.max_r = [grow_max_pos(m, x) for m, x in zip(self.max_r, worst)]
-        self.max_supply = grow_max_pos(self.max_supply, worst[k])
-        self.drift = running_sum(self.drift, rows[:, k])
-        total = rows[:, k + 1]
-        self.H, self.H_final = H[-1].tolist(), float(total[-1])
-        self.H_max = max(self.H_max, float(total.max()))   # a block holds no NaN H (the kernel stops)
+        """Every step's columns and the running figures in one C pass over the block's log, in
+        after_step's operation order (fmus/kernel/passivity.c)."""
+        k, log = len(self.names), logs.columns
+        if log.strides[1] != 8 or rows.strides[0] != 8:
+            raise ValueError("passivity: the log's and the rows' values of one step apart must be contiguous")
+        self.rows_of = self.rows_of or self._block_rows(logs, readings)
+        port, a, b, e, f, h = self.rows_of
+        prev = (ctypes.c_double * k)(*self.H)
+        fig = (ctypes.c_double * (k + 4))(*self.max_r, self.max_supply, self.drift, self.H_max, self.H_final)
+        _lib.passivity_block(len(logs), k, port, int(self.wave), self.dt, log.ctypes.data, log.strides[0] // 8,
+                             a, b, e, f, h, prev, rows.ctypes.data, rows.strides[1] // 8, fig)
+        self.H, self.max_r = prev[:], fig[:k]
+        self.max_supply, self.drift, self.H_max, self.H_final = fig[k:]
 
     def summary(self):
         worst = [r for r, h in zip(self.max_r, self.has_H) if h and r == r]
