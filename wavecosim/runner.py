@@ -313,6 +313,8 @@ class LiveRun:
                        and sys.version_info < (3, 12))
         if self.blocks:
             self.master.observe(self.sampler.observed)
+            self.block_observers = [(o, self.spans[id(o)]) for o in ([guard] if self.ledger else [])
+                                    + [o for o, _ in self.after]]
 
     def block_size(self, n):
         """How many macro-steps advance(n, ...) may make in one call of the master."""
@@ -357,12 +359,13 @@ class LiveRun:
         """The observers and the rows of a block of steps (all finite: the kernel stops at a non-finite
         value); with an output interval the rows kept are picked afterwards."""
         count, readings = len(log), self.sampler.block(log.observed)
-        times = self.time_of(np.arange(n0 + 1, n0 + count + 1, dtype=float))
         rows = self.steps.reserve(count) if self.every == 1 else np.empty((count, len(self.steps.columns)), order="F")
-        rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3] = times, log.iterations, log.residual, log.reason
+        times = rows[:, 0]
+        times[:] = self.time_of(np.arange(n0 + 1, n0 + count + 1, dtype=float))
+        rows[:, 1], rows[:, 2], rows[:, 3] = log.iterations, log.residual, log.reason
         with np.errstate(over="ignore", invalid="ignore"):     # as Python floats overflow: inf, nan, silently
-            for o in ([self.guard] if self.ledger else []) + [o for o, _ in self.after]:
-                o.after_block(n0, log, readings, rows[:, self.spans[id(o)]])
+            for o, span in self.block_observers:
+                o.after_block(n0, log, readings, rows[:, span])
         self.steps_done = n0 + count
         self.iterations[0] += int(log.iterations.sum())
         self.iterations[1] = max(self.iterations[1], int(log.iterations.max()))

@@ -3,34 +3,36 @@
  * into all of them, r_i = (H_i - H_i before) - supplied_i (eq. 27) and H_total, and the running
  * figures, each with the operation order of the step-by-step Python (Passivity.after_step; builtin
  * sum() from 0, left to right), so that every number is the same to the last bit. */
+#include <math.h>
 #include <stddef.h>
 
-/* Python's grow_max_pos: the running max(0, x), NaN ignored (NaN until a number arrives). */
+/* Python's grow_max_pos: the running max(0, x), NaN ignored (NaN until a number arrives). Over a
+ * block it is applied once, to the largest number of the block: max(0, x) is never -0, so the
+ * running maximum does not depend on the order of the numbers. */
 static double grow_max_pos(double current, double x) {
     if (x != x) return current;
     x = x > 0.0 ? x : 0.0;
     return current >= x ? current : x;
 }
 
-/* Energy into port i over step s: 1/2 (|a|^2 - |b|^2) (wave) or dt e.f; `all` gathers the sums of
- * squares over every channel so far (wave). v(r) is the value of log row r at step s. */
-#define V(r) log[(size_t)(r) * ld + s]
-
-static double port_supply(const double *log, size_t ld, size_t s, int first, int last, const int *a,
-                          const int *b, const int *e, const int *f, int wave, double dt, double all[2]) {
+/* Energy into port i over step s: 1/2 (|a|^2 - |b|^2) (wave) or dt e.f, channel j's values at
+ * x[j][s] (x: a, b, e, f); `all` gathers the sums of squares over every channel so far (wave). */
+static double port_supply(const double *const *x[4], size_t s, int first, int last, int wave, double dt,
+                          double all[2]) {
     double in = 0.0, out = 0.0;
-    for (int j = first; j < last; j++) {
-        if (wave) {
-            in += V(a[j]) * V(a[j]);
-            all[0] += V(a[j]) * V(a[j]);
-        } else {
-            in += V(e[j]) * V(f[j]);
-        }
+    if (!wave) {
+        for (int j = first; j < last; j++) in += x[2][j][s] * x[3][j][s];
+        return dt * in;
     }
-    if (!wave) return dt * in;
     for (int j = first; j < last; j++) {
-        out += V(b[j]) * V(b[j]);
-        all[1] += V(b[j]) * V(b[j]);
+        double v = x[0][j][s] * x[0][j][s];
+        in += v;
+        all[0] += v;
+    }
+    for (int j = first; j < last; j++) {
+        double v = x[1][j][s] * x[1][j][s];
+        out += v;
+        all[1] += v;
     }
     return 0.5 * (in - out);
 }
@@ -39,28 +41,55 @@ static double port_supply(const double *log, size_t ld, size_t s, int first, int
  * b, e, f (channel j: row a[j] ...; port i holds channels port[i] .. port[i + 1] - 1) and the k
  * subsystems' H_i (rows h[i]). Writes the columns r_0 .. r_{k-1}, supply, H_total of `out` (ldo
  * doubles apart). prev[k]: the H_i before the block, left at the last step's. fig[k + 4]: the running
- * max_r_i, max_supply, drift, H_max, carried on; H_final goes to fig[k + 4]. */
-void passivity_block(int count, int k, const int *port, int wave, double dt, const double *log, long ld_,
+ * max_r_i, max_supply, drift, H_max, carried on; H_final goes to fig[k + 3]. */
+void passivity_block(int count, int k, const int *port, int wave, double dt, const double *log, long ld,
                      const int *a, const int *b, const int *e, const int *f, const int *h, double *prev,
-                     double *out, long ldo_, double *fig) {
-    size_t ld = (size_t)ld_, ldo = (size_t)ldo_;
+                     double *out, long ldo, double *fig) {
+    int n = port[k];
+    const double *rows[4][n > 0 ? n : 1], *H[k], *const *x[4] = {rows[0], rows[1], rows[2], rows[3]};
+    double *r[k + 2], last[k], worst[k + 1], drift = fig[k + 1], H_max = fig[k + 2], total = fig[k + 3];
+    int seen[k + 1];
+    for (int j = 0; j < n; j++) {
+        rows[0][j] = log + (size_t)a[j] * (size_t)ld;
+        rows[1][j] = wave ? log + (size_t)b[j] * (size_t)ld : NULL;
+        rows[2][j] = wave ? NULL : log + (size_t)e[j] * (size_t)ld;
+        rows[3][j] = wave ? NULL : log + (size_t)f[j] * (size_t)ld;
+    }
+    for (int i = 0; i < k; i++) {
+        H[i] = log + (size_t)h[i] * (size_t)ld;
+        last[i] = prev[i];
+    }
+    for (int i = 0; i <= k; i++) {
+        r[i] = out + (size_t)i * (size_t)ldo;
+        worst[i] = -INFINITY;
+        seen[i] = 0;
+    }
+    r[k + 1] = out + (size_t)(k + 1) * (size_t)ldo;
     for (size_t s = 0; s < (size_t)count; s++) {
-        double all[2] = {0.0, 0.0}, physical = 0.0, total = 0.0;
+        double all[2] = {0.0, 0.0}, physical = 0.0;
+        total = 0.0;
         for (int i = 0; i < k; i++) {
-            double supplied = port_supply(log, ld, s, port[i], port[i + 1], a, b, e, f, wave, dt, all);
-            double H = V(h[i]), r = (H - prev[i]) - supplied;
+            double supplied = port_supply(x, s, port[i], port[i + 1], wave, dt, all);
+            double Hi = H[i][s], ri = (Hi - last[i]) - supplied;
             physical += supplied;
-            total += H;
-            prev[i] = H;
-            out[(size_t)i * ldo + s] = r;
-            fig[i] = grow_max_pos(fig[i], r);
+            total += Hi;
+            last[i] = Hi;
+            r[i][s] = ri;
+            worst[i] = ri > worst[i] ? ri : worst[i];          /* branch-free (maxsd), NaN skipped */
+            seen[i] += ri == ri;
         }
         double supply = wave ? 0.5 * (all[0] - all[1]) : physical;
-        out[(size_t)k * ldo + s] = supply;
-        out[(size_t)(k + 1) * ldo + s] = total;
-        fig[k] = grow_max_pos(fig[k], supply);
-        fig[k + 1] += supply;
-        fig[k + 2] = total == total ? (total > fig[k + 2] ? total : fig[k + 2]) : total;
-        fig[k + 3] = total;
+        r[k][s] = supply;
+        r[k + 1][s] = total;
+        worst[k] = supply > worst[k] ? supply : worst[k];
+        seen[k] += supply == supply;
+        drift += supply;
+        H_max = total == total ? (total > H_max ? total : H_max) : total;
     }
+    for (int i = 0; i < k; i++) prev[i] = last[i];
+    for (int i = 0; i <= k; i++)
+        if (seen[i]) fig[i] = grow_max_pos(fig[i], worst[i]);
+    fig[k + 1] = drift;
+    fig[k + 2] = H_max;
+    fig[k + 3] = total;
 }
