@@ -38,7 +38,7 @@ class BlockReading:
     def rows(self, key):
         """Which rows of the observed values hold `key` (H, E, F, B or outputs), in order."""
         index = self._columns[key]
-        return list(range(len(self._observed))[index]) if isinstance(index, slice) else list(index)
+        return list(range(len(self._observed))[index]) if isinstance(index, slice) else [int(i) for i in index]
 
 
 def row_sums(X):
@@ -60,12 +60,12 @@ def row_dots(A, B):
 
 
 def as_index(indices):
-    """A list of indices as a slice when evenly spaced (a view, not a copy), else the list."""
+    """A list of indices as a slice when evenly spaced (a view, not a copy), else as an index array."""
     if not indices:
         return slice(0, 0)
     steps = {b - a for a, b in zip(indices, indices[1:])}
     if len(steps) > 1 or min(steps, default=1) < 1:
-        return indices
+        return np.array(indices, dtype=np.intp)
     return slice(indices[0], indices[-1] + 1, steps.pop() if steps else 1)
 
 

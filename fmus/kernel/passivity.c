@@ -37,34 +37,48 @@ static double port_supply(const double *const *x[4], size_t s, int first, int la
     return 0.5 * (in - out);
 }
 
-/* Steps 0 .. count - 1. The values are rows of `log`, ld doubles apart, one value per step: a_hat,
- * b, e, f (channel j: row a[j] ...; port i holds channels port[i] .. port[i + 1] - 1) and the k
- * subsystems' H_i (rows h[i]). Writes the columns r_0 .. r_{k-1}, supply, H_total of `out` (ldo
- * doubles apart). prev[k]: the H_i before the block, left at the last step's. fig[k + 4]: the running
- * max_r_i, max_supply, drift, H_max, carried on; H_final goes to fig[k + 3]. */
-void passivity_block(int count, int k, const int *port, int wave, double dt, const double *log, long ld,
-                     const int *a, const int *b, const int *e, const int *f, const int *h, double *prev,
-                     double *out, long ldo, double *fig) {
+/* One block (passivity.py, PassBlock): steps 0 .. count - 1. The values are rows of `log`, ld
+ * doubles apart, one value per step: a_hat, b, e, f (channel j: row a[j] ...; port i holds channels
+ * port[i] .. port[i + 1] - 1) and the k subsystems' H_i (rows h[i]). The columns r_0 .. r_{k-1},
+ * supply, H_total go to `out` (ldo doubles apart). prev[k]: the H_i before the block, left at the
+ * last step's. fig[k + 4]: the running max_r_i, max_supply, drift, H_max, carried on, and H_final. */
+typedef struct {
+    int count, k, wave;
+    double dt;
+    const double *log;
+    long ld;
+    double *out;
+    long ldo;
+    const int *port, *a, *b, *e, *f, *h;
+    double *prev, *fig;
+} PassBlock;
+
+void passivity_block(const PassBlock *p) {
+    int count = p->count, k = p->k, wave = p->wave;
+    double dt = p->dt, *prev = p->prev, *fig = p->fig;
+    const double *log = p->log;
+    const int *port = p->port, *a = p->a, *b = p->b, *e = p->e, *f = p->f, *h = p->h;
+    size_t ld = (size_t)p->ld;
     int n = port[k];
     const double *rows[4][n > 0 ? n : 1], *H[k], *const *x[4] = {rows[0], rows[1], rows[2], rows[3]};
     double *r[k + 2], last[k], worst[k + 1], drift = fig[k + 1], H_max = fig[k + 2], total = fig[k + 3];
     int seen[k + 1];
     for (int j = 0; j < n; j++) {
-        rows[0][j] = log + (size_t)a[j] * (size_t)ld;
-        rows[1][j] = wave ? log + (size_t)b[j] * (size_t)ld : NULL;
-        rows[2][j] = wave ? NULL : log + (size_t)e[j] * (size_t)ld;
-        rows[3][j] = wave ? NULL : log + (size_t)f[j] * (size_t)ld;
+        rows[0][j] = log + (size_t)a[j] * ld;
+        rows[1][j] = wave ? log + (size_t)b[j] * ld : NULL;
+        rows[2][j] = wave ? NULL : log + (size_t)e[j] * ld;
+        rows[3][j] = wave ? NULL : log + (size_t)f[j] * ld;
     }
     for (int i = 0; i < k; i++) {
-        H[i] = log + (size_t)h[i] * (size_t)ld;
+        H[i] = log + (size_t)h[i] * ld;
         last[i] = prev[i];
     }
     for (int i = 0; i <= k; i++) {
-        r[i] = out + (size_t)i * (size_t)ldo;
+        r[i] = p->out + (size_t)i * (size_t)p->ldo;
         worst[i] = -INFINITY;
         seen[i] = 0;
     }
-    r[k + 1] = out + (size_t)(k + 1) * (size_t)ldo;
+    r[k + 1] = p->out + (size_t)(k + 1) * (size_t)p->ldo;
     for (size_t s = 0; s < (size_t)count; s++) {
         double all[2] = {0.0, 0.0}, physical = 0.0;
         total = 0.0;

@@ -22,6 +22,14 @@ def grow_max_pos(current, x):
     return current if current >= x else x
 
 
+class PassBlock(ctypes.Structure):
+    """fmus/kernel/passivity.c: one block's arguments (the log's rows read, the columns written)."""
+    _fields_ = [("count", ctypes.c_int), ("k", ctypes.c_int), ("wave", ctypes.c_int), ("dt", ctypes.c_double),
+                ("log", ctypes.c_void_p), ("ld", ctypes.c_long), ("out", ctypes.c_void_p), ("ldo", ctypes.c_long),
+                *[(name, ctypes.POINTER(ctypes.c_int)) for name in ("port", "a", "b", "e", "f", "h")],
+                ("prev", ctypes.POINTER(ctypes.c_double)), ("fig", ctypes.POINTER(ctypes.c_double))]
+
+
 def library():
     """fmus/kernel/passivity.c (passivity_block), built on first use; None when it cannot be built."""
     global _lib
@@ -29,11 +37,15 @@ def library():
         lib = helper_library("passivity")
         if lib is None:
             return None
-        i, p, d, long = ctypes.c_int, ctypes.c_void_p, ctypes.c_double, ctypes.c_long
-        lib.passivity_block.argtypes = [i, i, p, i, d, p, long, p, p, p, p, p, p, p, long, p]
+        lib.passivity_block.argtypes = [ctypes.POINTER(PassBlock)]
         lib.passivity_block.restype = None
         _lib = lib
     return _lib
+
+
+def ints(values):
+    """A C int array of these values (at least one element)."""
+    return (ctypes.c_int * max(1, len(values)))(*values)
 
 
 class Passivity(Observer):
@@ -47,7 +59,7 @@ class Passivity(Observer):
         self.has_H = [s.port.energy is not None for s in scene.subsystems]
         self.complete = all(self.has_H)
         self.blocks = self.complete and library() is not None
-        self.rows_of = None               # the C pass's fixed arguments, from the first block's layout
+        self.call = None                  # the C pass's arguments, from the first block's layout
         missing = [n for n, h in zip(self.names, self.has_H) if not h]
         self.unavailable = [*(f"r_{n}" for n in missing), *([] if any(self.has_H) else ["max_passivity_pos"]),
                             *([] if self.complete else ["H_total", "H_growth"]), *unavailable]
@@ -95,15 +107,15 @@ class Passivity(Observer):
         self.H, self.H_final = list(reading.H), total
         self.H_max = max(self.H_max, total) if total == total else total
 
-    def _block_rows(self, logs, readings):
-        """The kernel log's rows the C pass reads (fmus/kernel/passivity.c): the channels' a_hat, b, e,
-        f, the subsystems' H; and the ports' first channels."""
-        at = logs.observed_at
-        observed = {key: (ctypes.c_int * max(1, len(rows)))(*[at + r for r in rows])
-                    for key in ("B", "E", "F", "H") for rows in [readings.rows(key)]}
-        a = (ctypes.c_int * max(1, logs.n))(*logs.a_rows)
-        port = (ctypes.c_int * (len(self.names) + 1))(*self.scene.offsets, self.scene.n_channels)
-        return port, a, observed["B"], observed["E"], observed["F"], observed["H"]
+    def _block_call(self, logs, readings):
+        """The C pass's fixed arguments (fmus/kernel/passivity.c): the kernel log's rows it reads (the
+        channels' a_hat, b, e, f, the subsystems' H), the ports' first channels, the running figures."""
+        at, k = logs.observed_at, len(self.names)
+        rows = {key: ints([at + r for r in readings.rows(key)]) for key in ("B", "E", "F", "H")}
+        prev, fig = (ctypes.c_double * k)(), (ctypes.c_double * (k + 4))()
+        call = PassBlock(k=k, wave=int(self.wave), dt=self.dt, port=ints([*self.scene.offsets, self.scene.n_channels]),
+                         a=ints(logs.a_rows), b=rows["B"], e=rows["E"], f=rows["F"], h=rows["H"], prev=prev, fig=fig)
+        return call, ctypes.byref(call), prev, fig
 
     def after_block(self, n0, logs, readings, rows):
         """Every step's columns and the running figures in one C pass over the block's log, in
@@ -111,12 +123,13 @@ class Passivity(Observer):
         k, log = len(self.names), logs.columns
         if log.strides[1] != 8 or rows.strides[0] != 8:
             raise ValueError("passivity: the log's and the rows' values of one step apart must be contiguous")
-        self.rows_of = self.rows_of or self._block_rows(logs, readings)
-        port, a, b, e, f, h = self.rows_of
-        prev = (ctypes.c_double * k)(*self.H)
-        fig = (ctypes.c_double * (k + 4))(*self.max_r, self.max_supply, self.drift, self.H_max, self.H_final)
-        _lib.passivity_block(len(logs), k, port, int(self.wave), self.dt, log.ctypes.data, log.strides[0] // 8,
-                             a, b, e, f, h, prev, rows.ctypes.data, rows.strides[1] // 8, fig)
+        if self.call is None:
+            self.call = self._block_call(logs, readings)
+        call, ref, prev, fig = self.call
+        prev[:], fig[:] = self.H, [*self.max_r, self.max_supply, self.drift, self.H_max, self.H_final]
+        call.count, call.log, call.ld, call.out, call.ldo = len(logs), log.ctypes.data, log.strides[0] // 8, \
+            rows.ctypes.data, rows.strides[1] // 8
+        _lib.passivity_block(ref)
         self.H, self.max_r = prev[:], fig[:k]
         self.max_supply, self.drift, self.H_max, self.H_final = fig[k:]
 
