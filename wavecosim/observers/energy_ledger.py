@@ -78,11 +78,11 @@ class EnergyLedger(Observer):
         for bit (drkernel.c, ledger_step), and logged each step's I^n, L^n, s, action and redo rounds."""
         led, logged = logs.ledger, logs.ledger_rows
         rows[:, :2], rows[:, 2:] = logged[0:2].T, logged[3:5].T      # supplied, ledger; scale, action
-        rounds = led["rounds"]
-        redone = int(rounds.sum())
-        self.acted += np.count_nonzero(led["action"])                 # actions: 0 kept, 1 scaled, 2 zero
-        self.extra += len(self.master.subsystems) * redone
-        self.fallbacks += int(np.count_nonzero(rounds == 3)) if redone else 0
+        acted, rounds = np.count_nonzero(led["action"]), led["rounds"]     # actions: 0 kept, 1 scaled, 2 zero
+        if acted:                                                          # only a redone step has rounds
+            self.acted += acted
+            self.extra += len(self.master.subsystems) * int(rounds.sum())
+            self.fallbacks += int(np.count_nonzero(rounds == 3))
         self.L, self.traffic = float(led["ledger"][-1]), float(led["traffic"][-1])
         self.max_L = max(self.max_L, float(led["ledger"].max()))
         if self.master.deadline_s is not None:
