@@ -7,11 +7,9 @@ and the summary lists what could not be computed (certificates_unavailable)."""
 import ctypes
 import math
 
-from ..builtin import helper_library
+from .. import blocks
 from ..waves import physical_port_energy, port_energy
 from . import Observer
-
-_lib = None
 
 
 def grow_max_pos(current, x):
@@ -20,32 +18,6 @@ def grow_max_pos(current, x):
         return current
     x = x if x > 0.0 else 0.0
     return current if current >= x else x
-
-
-class PassBlock(ctypes.Structure):
-    """fmus/kernel/passivity.c: one block's arguments (the log's rows read, the columns written)."""
-    _fields_ = [("count", ctypes.c_int), ("k", ctypes.c_int), ("wave", ctypes.c_int), ("dt", ctypes.c_double),
-                ("log", ctypes.c_void_p), ("ld", ctypes.c_long), ("out", ctypes.c_void_p), ("ldo", ctypes.c_long),
-                *[(name, ctypes.POINTER(ctypes.c_int)) for name in ("port", "a", "b", "e", "f", "h")],
-                ("prev", ctypes.POINTER(ctypes.c_double)), ("fig", ctypes.POINTER(ctypes.c_double))]
-
-
-def library():
-    """fmus/kernel/passivity.c (passivity_block), built on first use; None when it cannot be built."""
-    global _lib
-    if _lib is None:
-        lib = helper_library("passivity")
-        if lib is None:
-            return None
-        lib.passivity_block.argtypes = [ctypes.POINTER(PassBlock)]
-        lib.passivity_block.restype = None
-        _lib = lib
-    return _lib
-
-
-def ints(values):
-    """A C int array of these values (at least one element)."""
-    return (ctypes.c_int * max(1, len(values)))(*values)
 
 
 class Passivity(Observer):
@@ -58,7 +30,7 @@ class Passivity(Observer):
         self.names = [s.name for s in scene.subsystems]
         self.has_H = [s.port.energy is not None for s in scene.subsystems]
         self.complete = all(self.has_H)
-        self.blocks = self.complete and library() is not None
+        self.blocks = self.complete and blocks.library() is not None
         self.call = None                  # the C pass's arguments, from the first block's layout
         missing = [n for n, h in zip(self.names, self.has_H) if not h]
         self.unavailable = [*(f"r_{n}" for n in missing), *([] if any(self.has_H) else ["max_passivity_pos"]),
@@ -108,28 +80,27 @@ class Passivity(Observer):
         self.H_max = max(self.H_max, total) if total == total else total
 
     def _block_call(self, logs, readings):
-        """The C pass's fixed arguments (fmus/kernel/passivity.c): the kernel log's rows it reads (the
+        """The C pass's fixed arguments (fmus/kernel/blocks.c): the kernel log's rows it reads (the
         channels' a_hat, b, e, f, the subsystems' H), the ports' first channels, the running figures."""
-        at, k = logs.observed_at, len(self.names)
+        at, k, ints = logs.observed_at, len(self.names), blocks.ints
         rows = {key: ints([at + r for r in readings.rows(key)]) for key in ("B", "E", "F", "H")}
         prev, fig = (ctypes.c_double * k)(), (ctypes.c_double * (k + 4))()
-        call = PassBlock(k=k, wave=int(self.wave), dt=self.dt, port=ints([*self.scene.offsets, self.scene.n_channels]),
-                         a=ints(logs.a_rows), b=rows["B"], e=rows["E"], f=rows["F"], h=rows["H"], prev=prev, fig=fig)
+        call = blocks.PassBlock(k=k, wave=int(self.wave), dt=self.dt, a=ints(logs.a_rows), b=rows["B"], e=rows["E"],
+                                f=rows["F"], h=rows["H"], prev=prev, fig=fig,
+                                port=ints([*self.scene.offsets, self.scene.n_channels]))
         return call, ctypes.byref(call), prev, fig
 
     def after_block(self, n0, logs, readings, rows):
         """Every step's columns and the running figures in one C pass over the block's log, in
-        after_step's operation order (fmus/kernel/passivity.c)."""
-        k, log = len(self.names), logs.columns
-        if log.strides[1] != 8 or rows.strides[0] != 8:
-            raise ValueError("passivity: the log's and the rows' values of one step apart must be contiguous")
+        after_step's operation order (fmus/kernel/blocks.c)."""
+        k = len(self.names)
         if self.call is None:
             self.call = self._block_call(logs, readings)
         call, ref, prev, fig = self.call
         prev[:], fig[:] = self.H, [*self.max_r, self.max_supply, self.drift, self.H_max, self.H_final]
-        call.count, call.log, call.ld, call.out, call.ldo = len(logs), log.ctypes.data, log.strides[0] // 8, \
-            rows.ctypes.data, rows.strides[1] // 8
-        _lib.passivity_block(ref)
+        call.count = len(logs)
+        (call.log, call.ld), (call.out, call.ldo) = blocks.rows(logs.columns), blocks.columns(rows)
+        blocks.library().passivity_block(ref)
         self.H, self.max_r = prev[:], fig[:k]
         self.max_supply, self.drift, self.H_max, self.H_final = fig[k:]
 

@@ -1,8 +1,11 @@
-/* Condition 2 over a block of macro-steps made in one kernel call (wavecosim/observers/passivity.py,
- * Passivity.after_block), in one pass over the kernel's log: per step the energy into each port and
- * into all of them, r_i = (H_i - H_i before) - supplied_i (eq. 27) and H_total, and the running
- * figures, each with the operation order of the step-by-step Python (Passivity.after_step; builtin
- * sum() from 0, left to right), so that every number is the same to the last bit. */
+/* What the runner does with a block of macro-steps made in one kernel call (wavecosim/blocks.py), in
+ * one pass over the kernel's log each, with the operation order of the step-by-step Python, so that
+ * every number is the same to the last bit:
+ * - block_rows: the rows' grid time, iterations, residual and reason, and the trajectory's rows
+ *   (wavecosim/runner.py, LiveRun._after_block);
+ * - passivity_block: Condition 2, per step the energy into each port and into all of them,
+ *   r_i = (H_i - H_i before) - supplied_i (eq. 27) and H_total, and the running figures
+ *   (wavecosim/observers/passivity.py, Passivity.after_block; builtin sum() from 0, left to right). */
 #include <math.h>
 #include <stddef.h>
 
@@ -37,7 +40,7 @@ static double port_supply(const double *const *x[4], size_t s, int first, int la
     return 0.5 * (in - out);
 }
 
-/* One block (passivity.py, PassBlock): steps 0 .. count - 1. The values are rows of `log`, ld
+/* One block (blocks.py, PassBlock): steps 0 .. count - 1. The values are rows of `log`, ld
  * doubles apart, one value per step: a_hat, b, e, f (channel j: row a[j] ...; port i holds channels
  * port[i] .. port[i + 1] - 1) and the k subsystems' H_i (rows h[i]). The columns r_0 .. r_{k-1},
  * supply, H_total go to `out` (ldo doubles apart). prev[k]: the H_i before the block, left at the
@@ -106,4 +109,45 @@ void passivity_block(const PassBlock *p) {
     fig[k + 1] = drift;
     fig[k + 2] = H_max;
     fig[k + 3] = total;
+}
+
+/* One block (blocks.py, BlockRows): steps n0 + 1 .. n0 + count are the grid points (n0 + 1 + s) /
+ * inverse (inverse > 0: 1/dt a whole number) or (n0 + 1 + s) dt, as runner.grid_clock. The kernel
+ * log holds iterations, reason and residual at rows 0, 1, 2 and the outputs at rows outputs[j]. The
+ * steps' columns time, iterations, inner_residual, reason go to `steps` (lds doubles apart), the
+ * trajectory's time and outputs to `trajectory` (ldt apart). Sum and max of the iterations out. */
+typedef struct {
+    int count, n_out;
+    double n0, inverse, dt;
+    const double *log;
+    long ld;
+    const int *outputs;
+    double *steps;
+    long lds;
+    double *trajectory;
+    long ldt;
+    double iterations_sum, iterations_max;
+} BlockRows;
+
+void block_rows(BlockRows *p) {
+    size_t ld = (size_t)p->ld, lds = (size_t)p->lds, ldt = (size_t)p->ldt, count = (size_t)p->count;
+    const double *iterations = p->log, *reason = p->log + ld, *residual = p->log + 2 * ld;
+    double sum = 0.0, most = -INFINITY;
+    for (size_t s = 0; s < count; s++) {
+        double k = p->n0 + 1.0 + (double)s, t = p->inverse > 0.0 ? k / p->inverse : k * p->dt;
+        p->steps[s] = t;
+        p->steps[lds + s] = iterations[s];
+        p->steps[2 * lds + s] = residual[s];
+        p->steps[3 * lds + s] = reason[s];
+        p->trajectory[s] = t;
+        sum += iterations[s];
+        most = iterations[s] > most ? iterations[s] : most;
+    }
+    for (int j = 0; j < p->n_out; j++) {
+        const double *from = p->log + (size_t)p->outputs[j] * ld;
+        double *to = p->trajectory + (size_t)(j + 1) * ldt;
+        for (size_t s = 0; s < count; s++) to[s] = from[s];
+    }
+    p->iterations_sum = sum;
+    p->iterations_max = most;
 }
