@@ -205,3 +205,12 @@ def test_blocks_cut_to_the_time_budget(tmp_path, monkeypatch):
     one, blocks = step_by_step(monkeypatch, load_scenario().with_master(K=50).with_changes(T=3.0), tmp_path)
     same_files_and_figures(one, blocks, tmp_path)
     assert len(made) > 3 and max(made) < 300 and sum(made) == blocks.summary["block_steps"] >= 299
+
+
+def test_blocks_on_a_grid_of_k_dt(tmp_path, monkeypatch):
+    """1/dt not a whole number: the grid is k * dt, in blocks (fmus/kernel/blocks.c) as step by step."""
+    scenario = load_scenario().with_changes(dt=0.003, T=0.9)
+    one, blocks = step_by_step(monkeypatch, scenario, tmp_path)
+    same_files_and_figures(one, blocks, tmp_path)
+    assert runner.grid_inverse(0.003) == 0 and blocks.summary["block_steps"] == 300
+    assert blocks.trajectory["time"].tolist() == [k * 0.003 for k in range(301)]
