@@ -124,13 +124,17 @@ class BlockLog:
         self.iterations, self.reason, self.residual = columns[0], columns[1], columns[2]
         end = len(columns) - len(LEDGER_LOG)
         self.a_hat, self.b, self.observed = columns[3:3 + n].T, columns[3 + n:3 + 2 * n].T, columns[3 + 2 * n:end]
-        self.ledger = dict(zip(LEDGER_LOG, columns[end:]))
+        self.a_rows, self.observed_at = range(3, 3 + n), 3 + 2 * n       # where a_hat and observed start
+        self.ledger_rows = columns[end:]                                 # LEDGER_LOG x steps
+        self.ledger = dict(zip(LEDGER_LOG, self.ledger_rows))
 
     def __len__(self):
         return self.columns.shape[1]
 
     def first(self, k):
-        """The first k steps (not stopped)."""
+        """The first k steps (not stopped): this log when that is all of it."""
+        if k == len(self) and not self.stopped:
+            return self
         return BlockLog(self.columns[:, :k], self.n)
 
     def then(self, more):

@@ -21,7 +21,8 @@ class Reading:
 class BlockReading:
     """The Readings of many macro-steps as 2-D arrays, one row per step: H (steps x subsystems),
     E, F, B (steps x channels) and outputs (steps x output columns), each taken when first read
-    from the observed values (Sampler.observed concatenated, one row per value, one column per step)."""
+    from the observed values (Sampler.observed concatenated, one row per value, one column per step):
+    a view where its values are evenly spaced (readings.as_index), else a copy."""
     KEYS = ("H", "E", "F", "B", "outputs")
 
     def __init__(self, observed, columns):
@@ -33,6 +34,11 @@ class BlockReading:
         value = self._observed[self._columns[key]].T
         setattr(self, key, value)
         return value
+
+    def rows(self, key):
+        """Which rows of the observed values hold `key` (H, E, F, B or outputs), in order."""
+        index = self._columns[key]
+        return list(range(len(self._observed))[index]) if isinstance(index, slice) else [int(i) for i in index]
 
 
 def row_sums(X):
@@ -54,27 +60,13 @@ def row_dots(A, B):
 
 
 def as_index(indices):
-    """A list of indices as a slice when evenly spaced (a view, not a copy), else the list."""
+    """A list of indices as a slice when evenly spaced (a view, not a copy), else as an index array."""
+    if not indices:
+        return slice(0, 0)
     steps = {b - a for a, b in zip(indices, indices[1:])}
     if len(steps) > 1 or min(steps, default=1) < 1:
-        return indices
+        return np.array(indices, dtype=np.intp)
     return slice(indices[0], indices[-1] + 1, steps.pop() if steps else 1)
-
-
-class GroupSums:
-    """row_sums over groups of columns (slices), all groups at once: one column per group."""
-
-    def __init__(self, parts):
-        width = max(p.stop - p.start for p in parts)
-        self.first = as_index([p.start for p in parts])
-        self.steps = [(as_index([i for i, p in enumerate(parts) if p.start + j < p.stop]),
-                       as_index([p.start + j for p in parts if p.start + j < p.stop])) for j in range(1, width)]
-
-    def __call__(self, X):
-        acc = 0.0 + X[:, self.first]                     # each group's first column, from 0 as sum() starts
-        for groups, cols in self.steps:                  # then the j-th column of every group that has one
-            acc[:, groups] = acc[:, groups] + X[:, cols]
-        return acc
 
 
 class Sampler:
@@ -100,7 +92,7 @@ class Sampler:
                  for i, s in enumerate(everyone) if s.name == o]
         self._order = order
         whole = len(self.observed) == len(self.parts) and not self.alone   # else no kernel blocks
-        self._columns = self._block_columns(order) if whole else None
+        self._columns = {key: as_index(cols) for key, cols in self._block_columns(order).items()} if whole else None
         by_name = {s.name: s for s in everyone}
         self.units = {col: by_name[ref.split(".", 1)[0]].fmu.variable(ref.split(".", 1)[1]).unit or ""
                       for col, ref in outputs.items()}

@@ -12,6 +12,7 @@ same numbers as step by step, to the last bit, without crossing into Python at e
 A monolithic reference runs in lockstep (its own LiveRun) when asked, so errors are computed as
 both runs stream and memory does not grow with the number of steps.
 """
+import ctypes
 import math
 import sys
 import time
@@ -20,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import blocks
 from .errors import ConfigError, Interrupted, NumericalError, RunFailed, WavecosimError
 from .fast_path import REASONS as KERNEL_REASONS
 from .gamma_tuning import GammaTuner
@@ -44,11 +46,17 @@ BLOCK_STEPS = BLOCK                    # macro-steps per call of the master, at 
 assert REASONS[:len(KERNEL_REASONS)] == KERNEL_REASONS     # the kernel's reason codes are the runner's
 
 
+def grid_inverse(dt):
+    """1/dt when it is a whole number (the grid is then k / (1/dt)), else 0 (the grid is k * dt)."""
+    inverse = round(1.0 / dt)
+    return inverse if inverse > 0 and abs(inverse * dt - 1.0) < 1e-12 else 0
+
+
 def grid_clock(dt):
     """k -> the grid value k dt: k / (1/dt) when 1/dt is a whole number (so t = 0.3 is 0.3, not
     0.30000000000000004), else k * dt."""
-    inverse = round(1.0 / dt)
-    if inverse > 0 and abs(inverse * dt - 1.0) < 1e-12:
+    inverse = grid_inverse(dt)
+    if inverse:
         return lambda k: k / inverse
     return lambda k: k * dt
 
@@ -309,10 +317,13 @@ class LiveRun:
                        and not self.bracket and all(o.blocks for o, _ in self.after)
                        and (guard is None or isinstance(guard, EnergyGuard)
                             or (self.ledger and hasattr(self.master, "keep_ledger")))   # classical: step by step
-                       and self.scene.signals is None
+                       and self.scene.signals is None and blocks.library() is not None
                        and sys.version_info < (3, 12))
+        self.rows_call = None                    # block_rows' arguments, from the first block's layout
         if self.blocks:
             self.master.observe(self.sampler.observed)
+            self.block_observers = [(o, self.spans[id(o)]) for o in ([guard] if self.ledger else [])
+                                    + [o for o, _ in self.after]]
 
     def block_size(self, n):
         """How many macro-steps advance(n, ...) may make in one call of the master."""
@@ -356,26 +367,38 @@ class LiveRun:
     def _after_block(self, n0, log):
         """The observers and the rows of a block of steps (all finite: the kernel stops at a non-finite
         value); with an output interval the rows kept are picked afterwards."""
-        count, readings = len(log), self.sampler.block(log.observed)
-        times = self.time_of(np.arange(n0 + 1, n0 + count + 1, dtype=float))
-        rows = self.steps.reserve(count) if self.every == 1 else np.empty((count, len(self.steps.columns)), order="F")
-        rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3] = times, log.iterations, log.residual, log.reason
+        count, readings, every = len(log), self.sampler.block(log.observed), self.every == 1
+        rows = self.steps.reserve(count) if every else np.empty((count, len(self.steps.columns)), order="F")
+        trajectory = self.trajectory.reserve(count) if every else np.empty((count, 1 + len(self.columns)), order="F")
+        iterations = self._block_rows(n0, log, readings, rows, trajectory)
         with np.errstate(over="ignore", invalid="ignore"):     # as Python floats overflow: inf, nan, silently
-            for o in ([self.guard] if self.ledger else []) + [o for o, _ in self.after]:
-                o.after_block(n0, log, readings, rows[:, self.spans[id(o)]])
+            for o, span in self.block_observers:
+                o.after_block(n0, log, readings, rows[:, span])
         self.steps_done = n0 + count
-        self.iterations[0] += int(log.iterations.sum())
-        self.iterations[1] = max(self.iterations[1], int(log.iterations.max()))
-        if self.every == 1:
+        self.iterations[0] += int(iterations[0])
+        self.iterations[1] = max(self.iterations[1], int(iterations[1]))
+        if every:
             self.steps.commit_rows(count)
-            trajectory = self.trajectory.reserve(count)
-            trajectory[:, 0], trajectory[:, 1:] = times, readings.outputs
             self.trajectory.commit_rows(count)
             return
         ks = np.arange(n0 + 1, n0 + count + 1)
         keep = (ks % self.every == 0) | (ks == self.n_steps)
         self.steps.append_block(rows[keep])
-        self.trajectory.append_block(np.column_stack([times[keep], readings.outputs[keep]]))
+        self.trajectory.append_block(trajectory[keep])
+
+    def _block_rows(self, n0, log, readings, rows, trajectory):
+        """The steps' grid time, iterations, residual and reason, and the trajectory's rows, in one C
+        pass over the kernel's log (fmus/kernel/blocks.c, block_rows); (sum, max) of the iterations."""
+        if self.rows_call is None:
+            outputs = blocks.ints([log.observed_at + r for r in readings.rows("outputs")])
+            call = blocks.BlockRows(n_out=len(self.columns), inverse=grid_inverse(self.dt), dt=self.dt, outputs=outputs)
+            self.rows_call = call, ctypes.byref(call)
+        call, ref = self.rows_call
+        call.count, call.n0 = len(log), n0
+        (call.log, call.ld), (call.steps, call.lds) = blocks.rows(log.columns), blocks.columns(rows)
+        call.trajectory, call.ldt = blocks.columns(trajectory)
+        blocks.library().block_rows(ref)
+        return call.iterations_sum, call.iterations_max
 
     def lead(self, n, end):
         """As the lockstep reference of a run at step n: make the steps up to end - 1 not made yet,

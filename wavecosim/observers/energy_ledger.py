@@ -18,6 +18,8 @@ I(s) = TARGET * budget in [0, 1); the redo at that s is checked, and replaced by
 import math
 import time
 
+import numpy as np
+
 from ..masters.base import StepLog
 from .recorder import Labels
 from . import Observer
@@ -74,18 +76,19 @@ class EnergyLedger(Observer):
     def after_block(self, n0, logs, readings, rows):
         """Book a block the kernel made: it kept the ledger itself, redoing steps as _redo does, bit
         for bit (drkernel.c, ledger_step), and logged each step's I^n, L^n, s, action and redo rounds."""
-        led = logs.ledger
-        rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3] = led["supplied"], led["ledger"], led["scale"], led["action"]
-        acted, rounds = led["action"] > 0, led["rounds"]
-        self.acted += int(acted.sum())
-        self.extra += len(self.master.subsystems) * int(rounds.sum())
-        self.fallbacks += int((rounds == 3).sum())
+        led, logged = logs.ledger, logs.ledger_rows
+        rows[:, :2], rows[:, 2:] = logged[0:2].T, logged[3:5].T      # supplied, ledger; scale, action
+        acted, rounds = np.count_nonzero(led["action"]), led["rounds"]     # actions: 0 kept, 1 scaled, 2 zero
+        if acted:                                                          # only a redone step has rounds
+            self.acted += acted
+            self.extra += len(self.master.subsystems) * int(rounds.sum())
+            self.fallbacks += int(np.count_nonzero(rounds == 3))
         self.L, self.traffic = float(led["ledger"][-1]), float(led["traffic"][-1])
         self.max_L = max(self.max_L, float(led["ledger"].max()))
         if self.master.deadline_s is not None:
             self.round_s = self.redo_round_s = float(led["round_s"][-1])
-            self.step_times.extend(zip(led["step_s"].tolist(), acted.tolist(), led["round_s"].tolist(),
-                                       led["cpu_s"].tolist()))
+            self.step_times.extend(zip(led["step_s"].tolist(), (led["action"] > 0).tolist(),
+                                       led["round_s"].tolist(), led["cpu_s"].tolist()))
 
     def after_step(self, n, t, log, reading, row):
         """Book I^n; redo the commit when the ledger would exceed tol (unless the master's kernel made

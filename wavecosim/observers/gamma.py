@@ -25,9 +25,9 @@ class GammaLog(Observer):
             self.gamma_min[name] = min(self.gamma_min.get(name, g), g)
 
     def after_block(self, n0, logs, readings, rows):
-        for i, name in enumerate(self.names):
-            g = self.scene.gammas[name]
-            rows[:, i] = g
+        gammas = [self.scene.gammas[name] for name in self.names]
+        rows[:] = gammas                                        # one row, broadcast down the block
+        for name, g in zip(self.names, gammas):
             self.gamma_min[name] = min(self.gamma_min.get(name, g), g)
 
     def summary(self):

@@ -4,11 +4,10 @@
 A subsystem whose FMU has no stored-energy output (H) gets no r_i: its columns are the energy
 supplied through its port in the step and cumulated (port_energy_<name>, port_energy_cum_<name>),
 and the summary lists what could not be computed (certificates_unavailable)."""
+import ctypes
 import math
 
-import numpy as np
-
-from ..readings import GroupSums, row_sums
+from .. import blocks
 from ..waves import physical_port_energy, port_energy
 from . import Observer
 
@@ -21,11 +20,6 @@ def grow_max_pos(current, x):
     return current if current >= x else x
 
 
-def running_sum(start, x):
-    """start + x[0] + x[1] + ..., added in that order (cumsum is sequential, unlike np.sum)."""
-    return float(np.cumsum(np.concatenate([[start], x]))[-1])
-
-
 class Passivity(Observer):
     """Per step: r_<subsystem> (Condition 2) or the port ledger without H, interface_supply and
     H_total (when every H is known); running maxima for the summary. `unavailable` names further
@@ -33,12 +27,11 @@ class Passivity(Observer):
 
     def __init__(self, scene, unavailable=()):
         self.scene, self.wave, self.dt = scene, scene.wave, scene.scenario.dt
-        self.blocks = scene.wave or all(s.port.energy is not None for s in scene.subsystems)
-        self.port_sums = GroupSums([*[slice(off, off + s.m) for s, off in zip(scene.subsystems, scene.offsets)],
-                                    slice(0, scene.n_channels)])
         self.names = [s.name for s in scene.subsystems]
         self.has_H = [s.port.energy is not None for s in scene.subsystems]
         self.complete = all(self.has_H)
+        self.blocks = self.complete and blocks.library() is not None
+        self.call = None                  # the C pass's arguments, from the first block's layout
         missing = [n for n, h in zip(self.names, self.has_H) if not h]
         self.unavailable = [*(f"r_{n}" for n in missing), *([] if any(self.has_H) else ["max_passivity_pos"]),
                             *([] if self.complete else ["H_total", "H_growth"]), *unavailable]
@@ -86,27 +79,30 @@ class Passivity(Observer):
         self.H, self.H_final = list(reading.H), total
         self.H_max = max(self.H_max, total) if total == total else total
 
-    def _block_supplied(self, logs, readings):
-        """_supplied of every step of a block: one row per step, each port, then all of them."""
-        if self.wave:
-            a2, b2 = logs.a_hat * logs.a_hat, readings.B * readings.B
-            return 0.5 * (self.port_sums(a2) - self.port_sums(b2))
-        supplied = self.dt * self.port_sums(readings.E * readings.F)[:, :-1]
-        return np.column_stack([supplied, row_sums(supplied)])
+    def _block_call(self, logs, readings):
+        """The C pass's fixed arguments (fmus/kernel/blocks.c): the kernel log's rows it reads (the
+        channels' a_hat, b, e, f, the subsystems' H), the ports' first channels, the running figures."""
+        at, k, ints = logs.observed_at, len(self.names), blocks.ints
+        rows = {key: ints([at + r for r in readings.rows(key)]) for key in ("B", "E", "F", "H")}
+        prev, fig = (ctypes.c_double * k)(), (ctypes.c_double * (k + 4))()
+        call = blocks.PassBlock(k=k, wave=int(self.wave), dt=self.dt, a=ints(logs.a_rows), b=rows["B"], e=rows["E"],
+                                f=rows["F"], h=rows["H"], prev=prev, fig=fig,
+                                port=ints([*self.scene.offsets, self.scene.n_channels]))
+        return call, ctypes.byref(call), prev, fig
 
     def after_block(self, n0, logs, readings, rows):
-        H, k = readings.H, len(self.names)
-        supplied = self._block_supplied(logs, readings)
-        dH = np.empty_like(H)
-        dH[0], dH[1:] = H[0] - self.H, H[1:] - H[:-1]
-        rows[:, :k], rows[:, k], rows[:, k + 1] = dH - supplied[:, :k], supplied[:, k], row_sums(H)
-        worst = np.fmax.reduce(rows[:, :k + 1], axis=0).tolist()
-        self.max_r = [grow_max_pos(m, x) for m, x in zip(self.max_r, worst)]
-        self.max_supply = grow_max_pos(self.max_supply, worst[k])
-        self.drift = running_sum(self.drift, rows[:, k])
-        total = rows[:, k + 1]
-        self.H, self.H_final = H[-1].tolist(), float(total[-1])
-        self.H_max = max(self.H_max, float(total.max()))   # a block holds no NaN H (the kernel stops)
+        """Every step's columns and the running figures in one C pass over the block's log, in
+        after_step's operation order (fmus/kernel/blocks.c)."""
+        k = len(self.names)
+        if self.call is None:
+            self.call = self._block_call(logs, readings)
+        call, ref, prev, fig = self.call
+        prev[:], fig[:] = self.H, [*self.max_r, self.max_supply, self.drift, self.H_max, self.H_final]
+        call.count = len(logs)
+        (call.log, call.ld), (call.out, call.ldo) = blocks.rows(logs.columns), blocks.columns(rows)
+        blocks.library().passivity_block(ref)
+        self.H, self.max_r = prev[:], fig[:k]
+        self.max_supply, self.drift, self.H_max, self.H_final = fig[k:]
 
     def summary(self):
         worst = [r for r, h in zip(self.max_r, self.has_H) if h and r == r]
