@@ -477,8 +477,8 @@ static int repr_by(double v, char *out, int exact)
         memcpy(o, "inf", 3);
         return (int)(o - out) + 3;
     }
-    if (neg)
-        *o++ = '-';
+    *o = '-';                        /* without a branch: signs of data are as good as random */
+    o += neg;
     if (be == 0 && frac == 0) {
         memcpy(o, "0.0", 3);
         return (int)(o - out) + 3;
