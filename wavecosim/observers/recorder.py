@@ -54,20 +54,25 @@ class Table:
     def __init__(self, columns, path=None, formats=None, expected_rows=0):
         self.columns, self.path = list(columns), path
         self._fmt = [(formats or {}).get(c, _floats) for c in self.columns]
-        self._blocks = [np.empty((BLOCK, len(self.columns)), order="F") for _ in range(2)]   # columns contiguous
-        self._pending = [None, None]                  # each block's hand-over still being written
+        self._slots = [self._new_slot(), None]        # (block, its formatter); the second made when first needed
+        self._pending = [None, None]                  # each block's last hand-over (writer pieces)
         self._at, self._fill = 0, 0
-        self._block = self._blocks[0]
+        self._block = self._slots[0][0]
         self._kept = [] if path is None or expected_rows * len(self.columns) <= KEEP_VALUES else None
         self.rows = 0
-        self._file, self._writer, self._texts = None, None, None
+        self._file, self._writer = None, None
         if path is not None:
             path.parent.mkdir(parents=True, exist_ok=True)
             self._file = open(path, "wb")
             self._file.write((",".join(self.columns) + "\r\n").encode())
             self._writer = Writer(self._file)
-            kinds = [_kind(f) for f in self._fmt]
-            self._texts = [block_writer(b, kinds) or self._python_text(b) for b in self._blocks]
+
+    def _new_slot(self):
+        """A block of BLOCK rows (columns contiguous) and what formats its rows for the file."""
+        block = np.empty((BLOCK, len(self.columns)), order="F")
+        if self.path is None:
+            return block, None
+        return block, block_writer(block, [_kind(f) for f in self._fmt]) or self._python_text(block)
 
     def next_row(self):
         """A row to fill in place (the block's next slot); it is booked by `commit_row`."""
@@ -107,13 +112,15 @@ class Table:
         if not self._fill:
             return
         if self._writer is not None:
-            self._pending[self._at] = self._writer.hand_over(self._texts[self._at], self._fill)
+            self._pending[self._at] = self._writer.hand_over(self._slots[self._at][1], self._fill)
         if self._kept is not None:
             self._kept.append(self._block[:self._fill].copy())
         self._at, self._fill = 1 - self._at, 0
-        self._block = self._blocks[self._at]
+        self._slots[self._at] = self._slots[self._at] or self._new_slot()
+        self._block = self._slots[self._at][0]
         if self._pending[self._at] is not None:
-            self._pending[self._at].result()
+            self._writer.settle(self._pending[self._at])
+            self._writer.check()
 
     def _python_text(self, block):
         """Rows start .. stop - 1 of `block` as CSV lines, formatted in Python."""
