@@ -99,17 +99,24 @@ def written_table(path, rows, **kw):
     return path.read_bytes()
 
 
+class NoThreadFree:
+    """A pool whose threads never come to the work: the thread waiting for the rows formats them."""
+
+    def submit(self, fn):
+        pass
+
+
 def test_file_is_the_same_whatever_the_writer_threads(tmp_path, monkeypatch):
-    """Rows handed over block after block, formatted in pieces on two threads or on one, land in order."""
+    """Blocks handed over one after the other, formatted by the writer threads or by the thread that
+    waits for them, in C or in Python, land in order."""
     monkeypatch.setattr(recorder, "BLOCK", 100)
     rows = awkward_rows(2_000, np.random.default_rng(4))
-    split = written_table(tmp_path / "split.csv", rows)
-    monkeypatch.setattr(writer, "SPLIT_ROWS", 10 ** 9)
-    monkeypatch.setattr(writer, "threads", lambda: 1)
-    whole = written_table(tmp_path / "whole.csv", rows)
+    threads = written_table(tmp_path / "threads.csv", rows)
+    monkeypatch.setattr(writer, "pool", lambda: NoThreadFree())
+    waiter = written_table(tmp_path / "waiter.csv", rows)
     monkeypatch.setattr(recorder, "block_writer", lambda block, kinds: None)     # formatted in Python
     python = written_table(tmp_path / "python.csv", rows)
-    assert split == whole == python and split.count(b"\r\n") == 2_001
+    assert threads == waiter == python and threads.count(b"\r\n") == 2_001
 
 
 def test_a_writer_error_is_raised_at_the_next_flush_and_at_close(monkeypatch):

@@ -55,7 +55,7 @@ class Table:
         self.columns, self.path = list(columns), path
         self._fmt = [(formats or {}).get(c, _floats) for c in self.columns]
         self._slots = [self._new_slot(), None]        # (block, its formatter); the second made when first needed
-        self._pending = [None, None]                  # each block's last hand-over (writer pieces)
+        self._pending = [None, None]                  # each block's last hand-over (a writer Piece)
         self._at, self._fill = 0, 0
         self._block = self._slots[0][0]
         self._kept = [] if path is None or expected_rows * len(self.columns) <= KEEP_VALUES else None
@@ -123,9 +123,9 @@ class Table:
             self._writer.check()
 
     def _python_text(self, block):
-        """Rows start .. stop - 1 of `block` as CSV lines, formatted in Python."""
-        def text(start, stop):
-            cells = [fmt(block[start:stop, j]) for j, fmt in enumerate(self._fmt)]
+        """The first rows of `block` as CSV lines, formatted in Python."""
+        def text(rows):
+            cells = [fmt(block[:rows, j]) for j, fmt in enumerate(self._fmt)]
             return "".join(",".join(r) + "\r\n" for r in zip(*cells)).encode()
         return text
 

@@ -1,45 +1,37 @@
 """CSV rows written off the runner's thread: a table hands over a block of rows and goes on filling
 its other block, while a shared pool of threads formats the rows (the C formatter lets go of the
-GIL) in pieces at once and appends the pieces to the file in the order they were handed over. A
-thread that waits for the rows (the table's flush and close) formats pieces nobody has taken yet,
-so a busy machine costs no more than formatting on the runner's thread. The first error of a
-writer (disk full, out of memory) is raised again, the same exception, by the table's next
+GIL; two tables' blocks at once) and appends them to the file in the order they were handed over.
+A thread that waits for the rows (the table's flush and close) formats a block nobody has taken
+yet, so a busy machine costs little more than formatting on the runner's thread. The first error
+of a writer (disk full, out of memory) is raised again, the same exception, by the table's next
 hand-over or wait, and nothing after it is written."""
-import functools
 import threading
 from collections import deque
 from concurrent.futures import ThreadPoolExecutor
 
 from ..fast_path import available_cpus
 
-SPLIT_ROWS = 128                 # rows handed over at once from which they are formatted in two pieces
-
 _pool = None
 _pool_lock = threading.Lock()
 
 
-@functools.cache
-def threads():
-    """How many writer threads: as many as CPUs, at most 2."""
-    return max(1, min(2, available_cpus()))
-
-
 def pool():
-    """The writer threads of the process, made on first use."""
+    """The writer threads of the process (as many as CPUs, at most 2: a run has two tables), made on
+    first use."""
     global _pool
     with _pool_lock:
         if _pool is None:
-            _pool = ThreadPoolExecutor(threads(), thread_name_prefix="csv-writer")
+            _pool = ThreadPoolExecutor(max(1, min(2, available_cpus())), thread_name_prefix="csv-writer")
         return _pool
 
 
 class Piece:
-    """Rows start .. stop - 1 to format with text(start, stop); data: their bytes (or the exception
-    formatting raised) once formatted, None before."""
-    __slots__ = ("text", "start", "stop", "data")
+    """The first `rows` rows of a block, to format with text(rows); data: their bytes (or the
+    exception formatting raised) once formatted, None before."""
+    __slots__ = ("text", "rows", "data")
 
-    def __init__(self, text, start, stop):
-        self.text, self.start, self.stop, self.data = text, start, stop, None
+    def __init__(self, text, rows):
+        self.text, self.rows, self.data = text, rows, None
 
 
 class Writer:
@@ -53,18 +45,15 @@ class Writer:
         self.writing = threading.Lock()                   # one thread at a time appends to the file
 
     def hand_over(self, text, rows):
-        """Write text(start, stop) of rows 0 .. rows - 1 (in two pieces formatted at once when there are
-        many and two threads); returns the pieces (see settle)."""
+        """Write text(rows), the first `rows` rows of a block, after what was handed over before;
+        returns the Piece (see settle)."""
         self.check()
-        count = 2 if rows >= SPLIT_ROWS and threads() > 1 else 1
-        bounds = [rows * k // count for k in range(count + 1)]
-        pieces = [Piece(text, start, stop) for start, stop in zip(bounds, bounds[1:])]
+        piece = Piece(text, rows)
         with self.lock:
-            self.todo.extend(pieces)
-            self.unwritten.extend(pieces)
-        for _ in pieces:
-            pool().submit(self.work)
-        return pieces
+            self.todo.append(piece)
+            self.unwritten.append(piece)
+        pool().submit(self.work)
+        return piece
 
     def work(self):
         """Format the first piece nobody has taken (False: there is none), then write what is ready."""
@@ -73,7 +62,7 @@ class Writer:
                 return False
             piece = self.todo.popleft()
         try:
-            data = piece.text(piece.start, piece.stop)
+            data = piece.text(piece.rows)
         except BaseException as exc:             # raised again by the table's next flush or close
             data = exc
         with self.lock:
@@ -103,12 +92,12 @@ class Writer:
                     piece.data = b""
                     self.changed.notify_all()
 
-    def settle(self, pieces):
-        """Until `pieces` are formatted (their block may then be filled again), helping meanwhile."""
-        while any(p.data is None for p in pieces):
+    def settle(self, piece):
+        """Until `piece` is formatted (its block may then be filled again), helping meanwhile."""
+        while piece.data is None:
             if not self.work():
                 with self.lock:
-                    self.changed.wait_for(lambda: all(p.data is not None for p in pieces))
+                    self.changed.wait_for(lambda: piece.data is not None)
 
     def check(self):
         """Raise the writer's error, if any."""
