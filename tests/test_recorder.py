@@ -149,3 +149,21 @@ def test_ctrl_c_while_closing_is_held_until_every_row_is_written(tmp_path):
     with pytest.raises(KeyboardInterrupt):
         table.close()
     assert len((tmp_path / "a.csv").read_text().splitlines()) == 1 + 501
+
+
+def test_a_forked_child_writes_with_threads_of_its_own(tmp_path):
+    """The writer threads are made again in a forked child (a process pool's worker): the parent's
+    do not exist there."""
+    written_table(tmp_path / "parent.csv", awkward_rows(10, np.random.default_rng(6)))    # the parent's pool
+    pid = os.fork()
+    if pid == 0:
+        status = 1
+        try:
+            status = 0 if writer.pool().submit(lambda: 7).result(timeout=10) == 7 else 1
+            table = Table(["a"], tmp_path / "child.csv")
+            fill(table, [[0.5]] * 3)
+            table.close()
+        finally:
+            os._exit(status)
+    assert os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1]) == 0
+    assert (tmp_path / "child.csv").read_text().splitlines() == ["a", "0.5", "0.5", "0.5"]

@@ -5,6 +5,7 @@ A thread that waits for the rows (the table's flush and close) formats a block n
 yet, so a busy machine costs little more than formatting on the runner's thread. The first error
 of a writer (disk full, out of memory) is raised again, the same exception, by the table's next
 hand-over or wait, and nothing after it is written."""
+import os
 import threading
 from collections import deque
 from concurrent.futures import ThreadPoolExecutor
@@ -13,6 +14,15 @@ from ..fast_path import available_cpus
 
 _pool = None
 _pool_lock = threading.Lock()
+
+
+def _forget_pool():
+    """In a forked child (a process pool's worker) the parent's threads do not exist: start afresh."""
+    global _pool, _pool_lock
+    _pool, _pool_lock = None, threading.Lock()
+
+
+os.register_at_fork(after_in_child=_forget_pool)
 
 
 def pool():
