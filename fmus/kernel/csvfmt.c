@@ -253,6 +253,22 @@ static uint64_t round_exact(uint64_t vr, uint64_t vp, uint64_t vm, int even, int
     return vr + ((vr == vm && (!even || !vm_zeros)) || last >= 5);
 }
 
+/* The digits when no dropped part is exactly zero (the common case): two digits at a time first. */
+static inline uint64_t round_common(uint64_t vr, uint64_t vp, uint64_t vm, int *removed)
+{
+    int up = 0, n = 0;
+    if (vp / 100 > vm / 100) {
+        up = vr % 100 >= 50;
+        vr /= 100, vp /= 100, vm /= 100, n = 2;
+    }
+    while (vp / 10 > vm / 10) {
+        up = vr % 10 >= 5;
+        vr /= 10, vp /= 10, vm /= 10, n++;
+    }
+    *removed = n;
+    return vr + (vr == vm || up);
+}
+
 /* Shortest round-trip digits of a positive finite v (m2, e2 as in the comment above) as an integer
  * and the decimal exponent of its last digit. */
 static uint64_t shortest_fast(uint64_t m2, int e2, int asym, int *dexp)
@@ -289,21 +305,8 @@ static uint64_t shortest_fast(uint64_t m2, int e2, int asym, int *dexp)
         }
     }
     int removed = 0;
-    uint64_t out;
-    if (vm_zeros || vr_zeros) {
-        out = round_exact(vr, vp, vm, even, vm_zeros, vr_zeros, &removed);
-    } else {
-        int up = 0;
-        if (vp / 100 > vm / 100) {
-            up = vr % 100 >= 50;
-            vr /= 100, vp /= 100, vm /= 100, removed = 2;
-        }
-        while (vp / 10 > vm / 10) {
-            up = vr % 10 >= 5;
-            vr /= 10, vp /= 10, vm /= 10, removed++;
-        }
-        out = vr + (vr == vm || up);
-    }
+    uint64_t out = vm_zeros || vr_zeros ? round_exact(vr, vp, vm, even, vm_zeros, vr_zeros, &removed)
+                                        : round_common(vr, vp, vm, &removed);
     *dexp = e10 + removed;
     return out;
 }
