@@ -48,8 +48,8 @@ class Table:
     """One table of float rows (`columns`), streamed to `path` (CSV) when given.
 
     `formats` maps a column to a formatter (default repr of floats); see `ints` and `Labels`.
-    Rows fill one of two blocks; a full block is handed to a writer thread (observers/writer.py)
-    while the other fills, and is filled again only once written."""
+    Rows fill one of two blocks; a full block is handed to the writer threads (observers/writer.py)
+    while the other fills, and is filled again only once its rows are formatted."""
 
     def __init__(self, columns, path=None, formats=None, expected_rows=0):
         self.columns, self.path = list(columns), path
@@ -106,7 +106,7 @@ class Table:
 
     def flush(self):
         """Hand the filled part of the block to the writer (and keep it when the table stays in
-        memory), then go on in the other block once its rows are written; raises a writer's error."""
+        memory), then go on in the other block once its rows are formatted; raises a writer's error."""
         if self._writer is not None:
             self._writer.check()
         if not self._fill:
