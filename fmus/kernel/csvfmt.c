@@ -408,10 +408,10 @@ static int write_digits(uint64_t d, char *out)
  * slack; what lies past the text is overwritten by what follows it). */
 static inline int put_digits(uint64_t d, int n, int point, char *o)
 {
-    uint64_t d17 = d * POW10[17 - n], rest = d17 % UINT64_C(10000000000000000);
-    uint64_t w2 = digits8((uint32_t)(rest % 100000000)), c = w2 >> 56;
-    u128 t = (u128)('0' + d17 / UINT64_C(10000000000000000)) | (u128)digits8((uint32_t)(rest / 100000000)) << 8
-             | (u128)w2 << 72;
+    uint64_t d17 = d * POW10[17 - n];
+    uint32_t high = (uint32_t)(d17 / 100000000), top = high / 100000000;   /* high < 10^9, top < 10 */
+    uint64_t w2 = digits8((uint32_t)(d17 - (uint64_t)high * 100000000)), c = w2 >> 56;
+    u128 t = (u128)('0' + top) | (u128)digits8(high - top * 100000000) << 8 | (u128)w2 << 72;
     if (point <= 0 || point >= n) {
         memcpy(o, &t, 16);
         memcpy(o + 16, &c, 8);
