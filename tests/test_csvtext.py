@@ -30,10 +30,34 @@ def test_special_values_read_as_repr():
     assert [csvtext.c_repr(v) for v in SPECIAL] == [repr(v) for v in SPECIAL]
 
 
+def edge_doubles(rng, n):
+    """Where a shortest-digits routine goes wrong: subnormals, the ends of the range, integers up to 2^53
+    and beyond, dyadic fractions k / 2^j (finite decimals: exact ties and trailing zeros), short digit
+    strings times powers of ten, and the neighbours of all of them."""
+    subnormal = rng.integers(1, 2 ** 52, n, dtype=np.uint64).view(np.float64)
+    ends = np.array([5e-324, 1e-323, 2.2250738585072014e-308, 2.225073858507201e-308, 1.7976931348623157e308,
+                     1.7976931348623155e308, 2.0 ** 53, 2.0 ** 53 + 2, 2.0 ** 64, 2.0 ** 54 - 2])
+    big_ints = rng.integers(0, 2 ** 63, n, dtype=np.int64).astype(float) * 2.0 ** rng.integers(0, 40, n)
+    dyadic = rng.integers(1, 2 ** 30, n) / 2.0 ** rng.integers(1, 70, n)
+    short = rng.integers(1, 10 ** 6, n).astype(float) * 10.0 ** rng.integers(-30, 30, n)
+    decimals = np.array([float(f"{m}e{x}") for m, x in zip(rng.integers(1, 10 ** 15, n // 4).tolist(),
+                                                             rng.integers(-320, 300, n // 4).tolist())])
+    values = np.concatenate([subnormal, ends, big_ints, dyadic, short, decimals])
+    with np.errstate(over="ignore"):                   # the largest double's upper neighbour is inf
+        return np.concatenate([values, np.nextafter(values, 0.0), np.nextafter(values, np.inf), -values])
+
+
 def test_random_bit_patterns_read_as_repr():
     values = odd_doubles(np.random.default_rng(11), 200_000)
-    mismatches = [repr(v) for v in values.tolist() if csvtext.c_repr(v) != repr(v)]
-    assert mismatches == []
+    fast = csvtext.c_reprs(values)
+    assert [(v, t) for v, t in zip(values.tolist(), fast) if t != repr(v)] == []
+
+
+def test_fast_route_agrees_with_the_exact_route_and_repr_on_edge_cases():
+    values = edge_doubles(np.random.default_rng(5), 20_000)
+    expected = list(map(repr, values.tolist()))
+    assert csvtext.c_reprs(values, exact=True) == expected
+    assert [(v, t) for v, t in zip(values.tolist(), csvtext.c_reprs(values)) if t != repr(v)] == []
 
 
 def rows_of_every_kind(n, rng):

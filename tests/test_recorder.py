@@ -1,14 +1,17 @@
 """master/observers/recorder.py: tables stream to CSV in blocks and read back bit for bit, JSON and
 MAT files, and Ctrl-C held until a step is booked."""
+import errno
 import json
 import os
 import signal
+import time
+from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.io import loadmat
 
-from wavecosim.observers import recorder
+from wavecosim.observers import recorder, writer
 from wavecosim.observers.recorder import Interrupts, Labels, Table, ints, write_json, write_mat
 
 
@@ -52,10 +55,12 @@ def test_table_without_file_keeps_everything(monkeypatch):
 
 
 def test_rows_reach_the_file_block_by_block(tmp_path, monkeypatch):
-    """A failure after a block loses nothing of that block: it is on disk before the run ends."""
+    """A failure after a block loses nothing of that block: it is on disk before the run ends (once
+    its writer thread is done: wait() is what close() does first)."""
     monkeypatch.setattr(recorder, "BLOCK", 4)
     table = Table(["a"], tmp_path / "a.csv")
     fill(table, [[1.0]] * 9)
+    table.wait()
     assert len((tmp_path / "a.csv").read_text().splitlines()) == 1 + 8
 
 
@@ -85,3 +90,80 @@ def test_ctrl_c_is_held_until_checked_and_a_second_one_goes_through():
         with pytest.raises(KeyboardInterrupt):
             stop.check()
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def written_table(path, rows, **kw):
+    table = Table(["time", "n", "x", "why", "y"], path, formats={"n": ints, "why": Labels(["a", "b", "c"])}, **kw)
+    table.append_block(rows)
+    table.close()
+    return path.read_bytes()
+
+
+class NoThreadFree:
+    """A pool whose threads never come to the work: the thread waiting for the rows formats them."""
+
+    def submit(self, fn):
+        pass
+
+
+def test_file_is_the_same_whatever_the_writer_threads(tmp_path, monkeypatch):
+    """Blocks handed over one after the other, formatted by the writer threads or by the thread that
+    waits for them, in C or in Python, land in order."""
+    monkeypatch.setattr(recorder, "BLOCK", 100)
+    rows = awkward_rows(2_000, np.random.default_rng(4))
+    threads = written_table(tmp_path / "threads.csv", rows)
+    monkeypatch.setattr(writer, "pool", lambda: NoThreadFree())
+    waiter = written_table(tmp_path / "waiter.csv", rows)
+    monkeypatch.setattr(recorder, "block_writer", lambda block, kinds: None)     # formatted in Python
+    python = written_table(tmp_path / "python.csv", rows)
+    assert threads == waiter == python and threads.count(b"\r\n") == 2_001
+
+
+def test_a_writer_error_is_raised_at_the_next_flush_and_at_close(monkeypatch):
+    """/dev/full: every write fails with ENOSPC (disk full), in the writer thread."""
+    monkeypatch.setattr(recorder, "BLOCK", 10)
+    table = Table(["a"], Path("/dev/full"))
+    fill(table, [[1.0]] * 10)                      # the block is full; the next row hands it over
+    table.next_row()
+    with pytest.raises(OSError) as first:
+        table.wait()
+    table.commit_row()
+    with pytest.raises(OSError) as again:
+        table.flush()
+    with pytest.raises(OSError) as at_close:
+        table.close()
+    assert first.value is again.value is at_close.value and first.value.errno == errno.ENOSPC
+
+
+def test_ctrl_c_while_closing_is_held_until_every_row_is_written(tmp_path):
+    """A Ctrl-C that comes while the last rows are being written (here: from the writer thread itself)
+    is raised by close() once they are all in the file."""
+    def slow_floats(col):
+        if col[-1] == -1.0:
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.05)
+        return list(map(repr, col.tolist()))
+
+    table = Table(["a"], tmp_path / "a.csv", formats={"a": slow_floats})
+    fill(table, [[float(k)] for k in range(500)] + [[-1.0]])
+    with pytest.raises(KeyboardInterrupt):
+        table.close()
+    assert len((tmp_path / "a.csv").read_text().splitlines()) == 1 + 501
+
+
+def test_a_forked_child_writes_with_threads_of_its_own(tmp_path):
+    """The writer threads are made again in a forked child (a process pool's worker): the parent's
+    do not exist there."""
+    written_table(tmp_path / "parent.csv", awkward_rows(10, np.random.default_rng(6)))    # the parent's pool
+    pid = os.fork()
+    if pid == 0:
+        status = 1
+        try:
+            status = 0 if writer.pool().submit(lambda: 7).result(timeout=10) == 7 else 1
+            table = Table(["a"], tmp_path / "child.csv")
+            fill(table, [[0.5]] * 3)
+            table.close()
+        finally:
+            os._exit(status)
+    assert os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1]) == 0
+    assert (tmp_path / "child.csv").read_text().splitlines() == ["a", "0.5", "0.5", "0.5"]

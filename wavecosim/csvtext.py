@@ -6,11 +6,14 @@ formats in Python)."""
 import ctypes
 import threading
 
+import numpy as np
+
 from .builtin import helper_library
 
 _lib = None
 _loading = threading.Lock()                # csv_init fills tables that no formatting may read half-filled
 WIDTH = 26                    # at most 25 characters of repr (e.g. -2.2250738585072014e-308) and a comma
+SLACK = 64                    # the C formatter stores digits in whole words, up to this far past the text
 
 
 def library():
@@ -27,6 +30,8 @@ def _load():
         lib.csv_init.restype = None
         lib.csv_init()
         lib.csv_repr.argtypes = [ctypes.c_double, ctypes.c_char_p]
+        lib.csv_lines.restype = ctypes.c_long
+        lib.csv_lines.argtypes = [ctypes.c_void_p, ctypes.c_long, ctypes.c_int, ctypes.c_char_p]
         lib.csv_rows.restype = ctypes.c_long
         lib.csv_rows.argtypes = [ctypes.c_void_p, ctypes.c_long, ctypes.c_int, ctypes.c_int, ctypes.c_void_p,
                                  ctypes.c_void_p, ctypes.c_void_p, ctypes.c_char_p]
@@ -39,6 +44,15 @@ def c_repr(value):
     out = ctypes.create_string_buffer(32)
     n = library().csv_repr(value, out)
     return out.raw[:n].decode()
+
+
+def c_reprs(values, exact=False):
+    """repr of every float of a 1-D array, by the C formatter's fast route or its exact reference
+    route (for the checks of one against the other and against repr)."""
+    values = np.ascontiguousarray(values, dtype=float)
+    out = ctypes.create_string_buffer(len(values) * WIDTH + SLACK)
+    n = library().csv_lines(values.ctypes.data, len(values), int(exact), out)
+    return out.raw[:n].decode().split("\n")[:-1]
 
 
 class BlockWriter:
@@ -58,10 +72,11 @@ class BlockWriter:
         self.starts = (ctypes.c_int * cols)(*starts)
         self.names = (ctypes.c_char_p * max(1, len(names)))(*names)
         longest = sum(max(len(name.encode()) for name in k) for k in labels)     # label columns beyond WIDTH at most
-        self.out = ctypes.create_string_buffer(block.shape[0] * (cols * WIDTH + 2 + longest))
+        self.out = ctypes.create_string_buffer(block.shape[0] * (cols * WIDTH + 2 + longest) + SLACK)
 
     def __call__(self, rows):
-        """The first `rows` rows of the block as bytes."""
+        """The first `rows` rows of the block as bytes (ctypes lets go of the GIL meanwhile: a writer
+        thread formats while the runner goes on)."""
         n = self.lib.csv_rows(self.block.ctypes.data, self.block.shape[0], rows, self.block.shape[1], self.kinds,
                               self.names, self.starts, self.out)
         if n < 0:

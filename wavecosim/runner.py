@@ -467,9 +467,11 @@ class LiveRun:
         """Close the tables and parts, write summary.json (and metadata.json, MAT files); the RunResult.
         The rows still to write count in the run's own time (loop_time_s)."""
         started = time.perf_counter()
-        for table in (getattr(self, "trajectory", None), getattr(self, "steps", None)):
-            if table is not None:
-                table.close()
+        tables = [t for t in (getattr(self, "trajectory", None), getattr(self, "steps", None)) if t is not None]
+        for table in tables:           # both tables' last rows handed to the writer threads at once
+            table.flush()
+        for table in tables:
+            table.close()
         self.loop_time += time.perf_counter() - started
         summary = self.summary(status, message)
         self.close()

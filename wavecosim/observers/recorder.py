@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ..csvtext import block_writer
+from .writer import Writer
 
 BLOCK = 1024
 KEEP_VALUES = 262_144             # 2 MB of rows per table at most stays in memory
@@ -46,13 +47,17 @@ class Labels:
 class Table:
     """One table of float rows (`columns`), streamed to `path` (CSV) when given.
 
-    `formats` maps a column to a formatter (default repr of floats); see `ints` and `Labels`."""
+    `formats` maps a column to a formatter (default repr of floats); see `ints` and `Labels`.
+    Rows fill one of two blocks; a full block is handed to the writer threads (observers/writer.py)
+    while the other fills, and is filled again only once its rows are formatted."""
 
     def __init__(self, columns, path=None, formats=None, expected_rows=0):
         self.columns, self.path = list(columns), path
         self._fmt = [(formats or {}).get(c, _floats) for c in self.columns]
-        self._block = np.empty((BLOCK, len(self.columns)), order="F")     # columns contiguous
-        self._fill = 0
+        self._slots = [self._new_slot(), None]        # (block, its formatter); the second made when first needed
+        self._pending = [None, None]                  # each block's last hand-over (a writer Piece)
+        self._at, self._fill = 0, 0
+        self._block = self._slots[0][0]
         self._kept = [] if path is None or expected_rows * len(self.columns) <= KEEP_VALUES else None
         self.rows = 0
         self._file, self._writer = None, None
@@ -60,7 +65,14 @@ class Table:
             path.parent.mkdir(parents=True, exist_ok=True)
             self._file = open(path, "wb")
             self._file.write((",".join(self.columns) + "\r\n").encode())
-            self._writer = block_writer(self._block, [_kind(f) for f in self._fmt])
+            self._writer = Writer(self._file)
+
+    def _new_slot(self):
+        """A block of BLOCK rows (columns contiguous) and what formats its rows for the file."""
+        block = np.empty((BLOCK, len(self.columns)), order="F")
+        if self.path is None:
+            return block, None
+        return block, block_writer(block, [_kind(f) for f in self._fmt]) or self._python_text(block)
 
     def next_row(self):
         """A row to fill in place (the block's next slot); it is booked by `commit_row`."""
@@ -93,24 +105,56 @@ class Table:
             self._fill, self.rows, at = self._fill + k, self.rows + k, at + k
 
     def flush(self):
-        """Write the filled part of the block (and keep it when the table stays in memory)."""
-        block = self._block[:self._fill]
-        if self._fill and self._file is not None:
-            self._file.write(self._writer(self._fill) if self._writer else self._text(block))
-            self._file.flush()
-        if self._fill and self._kept is not None:
-            self._kept.append(block.copy())
-        self._fill = 0
+        """Hand the filled part of the block to the writer (and keep it when the table stays in
+        memory), then go on in the other block once its rows are formatted; raises a writer's error."""
+        if self._writer is not None:
+            self._writer.check()
+        if not self._fill:
+            return
+        if self._writer is not None:
+            self._pending[self._at] = self._writer.hand_over(self._slots[self._at][1], self._fill)
+        if self._kept is not None:
+            self._kept.append(self._block[:self._fill].copy())
+        self._at, self._fill = 1 - self._at, 0
+        self._slots[self._at] = self._slots[self._at] or self._new_slot()
+        self._block = self._slots[self._at][0]
+        if self._pending[self._at] is not None:
+            self._writer.settle(self._pending[self._at])
+            self._writer.check()
 
-    def _text(self, block):
-        """The rows of `block` as CSV lines, formatted in Python."""
-        cells = [fmt(block[:, j]) for j, fmt in enumerate(self._fmt)]
-        return "".join(",".join(r) + "\r\n" for r in zip(*cells)).encode()
+    def _python_text(self, block):
+        """The first rows of `block` as CSV lines, formatted in Python."""
+        def text(rows):
+            cells = [fmt(block[:rows, j]) for j, fmt in enumerate(self._fmt)]
+            return "".join(",".join(r) + "\r\n" for r in zip(*cells)).encode()
+        return text
+
+    def wait(self):
+        """Until every row handed over is in the file; raises a writer's error."""
+        if self._writer is not None:
+            self._writer.wait()
 
     def close(self):
-        self.flush()
-        if self._file is not None and not self._file.closed:
+        """Write every row and close the file; a Ctrl-C meanwhile is held until all is written."""
+        with Interrupts() as held:
+            try:
+                self.flush()
+                self.wait()
+            finally:
+                self._close_file()
+        held.check()
+
+    def _close_file(self):
+        """Close the file once no writer thread uses it; after a writer's error (the one raised) the
+        file's own complaint about its unwritten buffer is left out."""
+        if self._file is None or self._file.closed:
+            return
+        failed = self._writer.wait_quietly()
+        try:
             self._file.close()
+        except OSError:
+            if not failed:
+                raise
 
     def array(self):
         """All rows as a 2-D float array (read back from the file when not kept in memory)."""
@@ -118,6 +162,7 @@ class Table:
             rows = self._kept + ([self._block[:self._fill].copy()] if self._fill else [])
             return np.concatenate(rows) if rows else np.empty((0, len(self.columns)))
         self.flush()
+        self.wait()
         return _read_csv(self.path, self._fmt)
 
 
