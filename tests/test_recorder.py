@@ -119,6 +119,33 @@ def test_file_is_the_same_whatever_the_writer_threads(tmp_path, monkeypatch):
     assert threads == waiter == python and threads.count(b"\r\n") == 2_001
 
 
+def pieces_table(path, rows, sizes):
+    """The rows committed in pieces of `sizes` (cycled), each handed to the writer as it is filled."""
+    table = Table(["time", "n", "x", "why", "y"], path, formats={"n": ints, "why": Labels(["a", "b", "c"])})
+    at, k = 0, 0
+    while at < len(rows):
+        count = min(sizes[k % len(sizes)], len(rows) - at)
+        table.reserve(count)[:] = rows[at:at + count]
+        table.commit_rows(count)
+        table.hand_over()
+        at, k = at + count, k + 1
+    table.close()
+    return path.read_bytes()
+
+
+@pytest.mark.parametrize("formatter", ["C", "Python"])
+def test_pieces_handed_over_as_they_are_filled_give_the_same_file(tmp_path, monkeypatch, formatter):
+    """Rows handed to the writer threads piece by piece (a block of macro-steps at a time, several
+    pieces per table block, formatted by two threads at once) land as one whole-block write would."""
+    monkeypatch.setattr(recorder, "BLOCK", 100)
+    if formatter == "Python":
+        monkeypatch.setattr(recorder, "block_writer", lambda block, kinds: None)
+    rows = awkward_rows(2_000, np.random.default_rng(5))
+    whole = written_table(tmp_path / "whole.csv", rows)
+    assert pieces_table(tmp_path / "pieces.csv", rows, [1, 7, 30, 13, 49]) == whole
+    assert pieces_table(tmp_path / "one.csv", rows, [1]) == whole
+
+
 def test_a_writer_error_is_raised_at_the_next_flush_and_at_close(monkeypatch):
     """/dev/full: every write fails with ENOSPC (disk full), in the writer thread."""
     monkeypatch.setattr(recorder, "BLOCK", 10)

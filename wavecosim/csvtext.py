@@ -34,7 +34,7 @@ def _load():
         lib.csv_lines.argtypes = [ctypes.c_void_p, ctypes.c_long, ctypes.c_int, ctypes.c_char_p]
         lib.csv_rows.restype = ctypes.c_long
         lib.csv_rows.argtypes = [ctypes.c_void_p, ctypes.c_long, ctypes.c_int, ctypes.c_int, ctypes.c_void_p,
-                                 ctypes.c_void_p, ctypes.c_void_p, ctypes.c_char_p]
+                                 ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p]
         _lib = lib
     return _lib
 
@@ -72,16 +72,19 @@ class BlockWriter:
         self.starts = (ctypes.c_int * cols)(*starts)
         self.names = (ctypes.c_char_p * max(1, len(names)))(*names)
         longest = sum(max(len(name.encode()) for name in k) for k in labels)     # label columns beyond WIDTH at most
-        self.out = ctypes.create_string_buffer(block.shape[0] * (cols * WIDTH + 2 + longest) + SLACK)
+        self.stride = cols * WIDTH + 2 + longest + SLACK      # text room per row: rows from `start` write from start * stride
+        self.out = ctypes.create_string_buffer(block.shape[0] * self.stride)
 
-    def __call__(self, rows):
-        """The first `rows` rows of the block as bytes (ctypes lets go of the GIL meanwhile: a writer
-        thread formats while the runner goes on)."""
-        n = self.lib.csv_rows(self.block.ctypes.data, self.block.shape[0], rows, self.block.shape[1], self.kinds,
-                              self.names, self.starts, self.out)
+    def __call__(self, rows, start=0):
+        """Rows start .. start + rows - 1 of the block as bytes (ctypes lets go of the GIL meanwhile: a
+        writer thread formats while the runner goes on; pieces of one block at different `start` use
+        disjoint parts of the text buffer, so two threads may format them at once)."""
+        out = ctypes.addressof(self.out) + start * self.stride
+        n = self.lib.csv_rows(self.block.ctypes.data + 8 * start, self.block.shape[0], rows, self.block.shape[1],
+                              self.kinds, self.names, self.starts, out)
         if n < 0:
             raise MemoryError("out of memory while formatting CSV rows")
-        return ctypes.string_at(self.out, n)
+        return ctypes.string_at(out, n)
 
 
 def block_writer(block, kinds):

@@ -43,6 +43,7 @@ from .scene import build_scene
 FORMATS = ("csv", "mat")
 STEP_COLUMNS = ("time", "iterations", "inner_residual", "reason")
 BLOCK_STEPS = BLOCK                    # macro-steps per call of the master, at most a table block
+PIECE_STEPS = 256                      # ... when rows go to CSV files: each block's rows are formatted while the next runs
 assert REASONS[:len(KERNEL_REASONS)] == KERNEL_REASONS     # the kernel's reason codes are the runner's
 
 
@@ -328,7 +329,7 @@ class LiveRun:
     def block_size(self, n):
         """How many macro-steps advance(n, ...) may make in one call of the master."""
         if self.blocks and self.master.can_run_steps(n):
-            return min(BLOCK_STEPS, self.n_steps - n)
+            return min(BLOCK_STEPS if self.out_dir is None else min(BLOCK_STEPS, PIECE_STEPS), self.n_steps - n)
         return 1
 
     def advance(self, n, count):
@@ -380,11 +381,13 @@ class LiveRun:
         if every:
             self.steps.commit_rows(count)
             self.trajectory.commit_rows(count)
-            return
-        ks = np.arange(n0 + 1, n0 + count + 1)
-        keep = (ks % self.every == 0) | (ks == self.n_steps)
-        self.steps.append_block(rows[keep])
-        self.trajectory.append_block(trajectory[keep])
+        else:
+            ks = np.arange(n0 + 1, n0 + count + 1)
+            keep = (ks % self.every == 0) | (ks == self.n_steps)
+            self.steps.append_block(rows[keep])
+            self.trajectory.append_block(trajectory[keep])
+        self.steps.hand_over()
+        self.trajectory.hand_over()
 
     def _block_rows(self, n0, log, readings, rows, trajectory):
         """The steps' grid time, iterations, residual and reason, and the trajectory's rows, in one C

@@ -12,6 +12,7 @@ import math
 import re
 import signal
 import threading
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -55,8 +56,8 @@ class Table:
         self.columns, self.path = list(columns), path
         self._fmt = [(formats or {}).get(c, _floats) for c in self.columns]
         self._slots = [self._new_slot(), None]        # (block, its formatter); the second made when first needed
-        self._pending = [None, None]                  # each block's last hand-over (a writer Piece)
-        self._at, self._fill = 0, 0
+        self._pending = [[], []]                      # each block's hand-overs not yet settled (writer Pieces)
+        self._at, self._fill, self._handed = 0, 0, 0  # block in use, rows filled, rows of it handed over
         self._block = self._slots[0][0]
         self._kept = [] if path is None or expected_rows * len(self.columns) <= KEEP_VALUES else None
         self.rows = 0
@@ -104,28 +105,39 @@ class Table:
             self._block[self._fill:self._fill + k] = rows[at:at + k]
             self._fill, self.rows, at = self._fill + k, self.rows + k, at + k
 
+    def hand_over(self):
+        """Hand the rows filled since the last hand-over to the writer threads now (the runner does after
+        each block of macro-steps, so they are formatted while the master makes the next block)."""
+        if self._writer is None or self._fill == self._handed:
+            return
+        self._writer.check()
+        text = partial(self._slots[self._at][1], start=self._handed)
+        self._pending[self._at].append(self._writer.hand_over(text, self._fill - self._handed))
+        self._handed = self._fill
+
     def flush(self):
-        """Hand the filled part of the block to the writer (and keep it when the table stays in
-        memory), then go on in the other block once its rows are formatted; raises a writer's error."""
+        """Hand the rest of the block to the writer (and keep it when the table stays in memory), then
+        go on in the other block once its rows are formatted; raises a writer's error."""
         if self._writer is not None:
             self._writer.check()
         if not self._fill:
             return
-        if self._writer is not None:
-            self._pending[self._at] = self._writer.hand_over(self._slots[self._at][1], self._fill)
+        self.hand_over()
         if self._kept is not None:
             self._kept.append(self._block[:self._fill].copy())
-        self._at, self._fill = 1 - self._at, 0
+        self._at, self._fill, self._handed = 1 - self._at, 0, 0
         self._slots[self._at] = self._slots[self._at] or self._new_slot()
         self._block = self._slots[self._at][0]
-        if self._pending[self._at] is not None:
-            self._writer.settle(self._pending[self._at])
+        for piece in self._pending[self._at]:
+            self._writer.settle(piece)
+        self._pending[self._at] = []
+        if self._writer is not None:
             self._writer.check()
 
     def _python_text(self, block):
-        """The first rows of `block` as CSV lines, formatted in Python."""
-        def text(rows):
-            cells = [fmt(block[:rows, j]) for j, fmt in enumerate(self._fmt)]
+        """Rows start .. start + rows - 1 of `block` as CSV lines, formatted in Python."""
+        def text(rows, start=0):
+            cells = [fmt(block[start:start + rows, j]) for j, fmt in enumerate(self._fmt)]
             return "".join(",".join(r) + "\r\n" for r in zip(*cells)).encode()
         return text
 
