@@ -5,12 +5,44 @@
 - Theorem 1: dH + 1/2|u^K - u*|^2 - 1/2|u^0 - u*|^2 - 1/2(|a|^2 - |b|^2) <= 0 (eq. 32), u* = P b* (eq. 18).
 - Condition 1: FNE margin <S(x)-S(y), x-y> - |S(x)-S(y)|^2 (eq. 22), reported divided by |x-y|^2
   so it is scale-free (a linear map b = rho a gives rho - rho^2).
+Sampled certificates are paced (`sampling`): they never cost more FMU evaluations than the master.
 """
+import math
+from dataclasses import dataclass
+
 import numpy as np
 
 from .linalg import distance
 from .readings import row_dots
 from .waves import port_energy
+
+
+@dataclass(frozen=True)
+class Sampling:
+    """The steps n % every == 0 at which the sampled certificates (FNE pairs, u* and the augmented
+    residual, the watch's probe) are computed, and how `every` was chosen."""
+    every: int
+    chosen: str
+
+    def sampled(self, n):
+        return n % self.every == 0
+
+    def info(self):
+        return {"certificates_every": self.every, "certificates_every_chosen": self.chosen}
+
+
+def sampling(config, evaluations):
+    """The one place that paces the certificates: certificates.every, or with `auto` the smallest
+    every at which a sampled step's C = 2 fne_pairs + 4 FMU evaluations per subsystem (the pairs and
+    u*'s Newton) do not exceed the master's `evaluations` per subsystem of `every` steps (DR: K + 1);
+    every step when the master's evaluations per step are not fixed."""
+    if config.every != "auto":
+        return Sampling(config.every, "certificates.every")
+    if evaluations is None:
+        return Sampling(1, "auto: every step (the master's FMU evaluations per step are not fixed)")
+    cost = 2 * config.fne_pairs + 4
+    return Sampling(max(1, math.ceil(cost / evaluations)),
+                    f"auto: ceil((2 fne_pairs + 4) / evaluations per step) = ceil({cost} / {evaluations})")
 
 
 def augmented_residual(dH_total, u0, uK, u_star, a_hat, b_next):

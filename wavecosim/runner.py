@@ -27,7 +27,8 @@ from .masters import MASTERS
 from .masters.base import REASONS, WaveMaster, require_wave_tuning
 from .metadata import run_metadata
 from .observers import Observer
-from .observers.certificates import CertificateSampler
+from .certificates import sampling
+from .observers.certificates import CertificatePace, CertificateSampler
 from .observers.energy_guard import EnergyGuard
 from .observers.energy_ledger import EnergyLedger
 from .observers.errors import ErrorTracker, stored_reference, stored_rows
@@ -186,14 +187,17 @@ def make_observers(scenario, scene, master, tuner, certificates, warn):
             unavailable.append("energy_guard (monolithic: needs every subsystem's stored energy H)")
     if isinstance(master, WaveMaster):
         obs.append(TunedGammaLog(scene, master, tuner) if tuner and tuner.retune else GammaLog(scene, master, tuner))
-    if master.iterates and scenario.fne_watch and certificates:
-        obs.append(FneWatch(scene, master, warn))
     certs = scenario.certificates
+    pace = sampling(certs, master.evaluations)
+    if master.iterates and scenario.fne_watch and certificates:
+        obs.append(FneWatch(scene, master, pace, warn))
     augmented = master.iterates and has_H
     if certificates and master.iterates and certs.augmented and not has_H:
         unavailable.append("max_augmented_pos (Theorem 1 needs every subsystem's stored energy H)")
     if certificates and scene.wave and (certs.fne_pairs or (certs.augmented and augmented)):
-        obs.append(CertificateSampler(scene, master, certs, augmented=augmented))
+        obs.append(CertificateSampler(scene, master, certs, augmented=augmented, pace=pace))
+    if any(isinstance(o, (FneWatch, CertificateSampler)) for o in obs):
+        obs.append(CertificatePace(pace))
     obs.append(Passivity(scene, unavailable))
     return obs
 

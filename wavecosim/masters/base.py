@@ -10,6 +10,8 @@ StepLog. Class attributes say what it needs and how it is shown:
                   watch and the monolithic energy guard apply
   default_guard   the energy guard it runs with when the scenario names none (DR: ledger; the
                   classical masters: off, as other tools run them)
+  evaluations     FMU evaluations per subsystem of one macro-step when fixed (DR: K + 1), else None;
+                  it paces the sampled certificates (certificates.sampling)
   guardable       its commit can supply energy, and it can undo the commit and redo it with other
                   inputs (undo_step, recommit, probe, supply): the energy guards apply
 Wave masters (WaveMaster) own the compiled wave map P, J_L and the committed wave b^n: nothing
@@ -48,6 +50,7 @@ class Master:
     iterates = False          # gives the DR iterates u^0, u^K (Theorem 1, Condition 1 watch, energy guard)
     guardable = False         # an energy guard applies (undo_step, recommit, probe, supply)
     default_guard = "off"     # master.energy_guard when the scenario does not say
+    evaluations = None        # FMU evaluations per subsystem of a macro-step, when fixed
 
     def __init__(self, scene, settings):
         self.scene, self.settings = scene, settings

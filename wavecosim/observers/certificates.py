@@ -1,5 +1,6 @@
-"""Sampled certificates before each macro-step: Condition 1 margins of every frozen map S_i^n on
-random pairs, and a DR fixed point u* = P b* (eq. 18) for the Theorem 1 residual after the step."""
+"""Sampled certificates before the sampled macro-steps (certificates.Sampling: n % every == 0):
+Condition 1 margins of every frozen map S_i^n on random pairs, and a DR fixed point u* = P b*
+(eq. 18) for the Theorem 1 residual after the step; NaN in their columns at the other steps."""
 import math
 
 import numpy as np
@@ -14,8 +15,8 @@ from . import Observer
 class CertificateSampler(Observer):
     """Columns fne_<subsystem> (when fne_pairs > 0) and augmented (when the master gives its DR iterates)."""
 
-    def __init__(self, scene, master, settings, augmented):
-        self.scene, self.master, self.settings = scene, master, settings
+    def __init__(self, scene, master, settings, augmented, pace):
+        self.scene, self.master, self.settings, self.pace = scene, master, settings, pace
         self.names = [s.name for s in scene.subsystems]
         self.augmented = augmented and settings.augmented
         self.columns = (*([f"fne_{n}" for n in self.names] if settings.fne_pairs else []),
@@ -26,7 +27,11 @@ class CertificateSampler(Observer):
         self.max_aug = math.nan
 
     def before_step(self, n, t):
-        """At x^n: u* by the interface Newton, then the sampled margins; the FMUs are left at x^n."""
+        """At x^n of a sampled step: u* by the interface Newton, then the sampled margins; the FMUs are
+        left at x^n."""
+        self.fne, self.u_star = None, None
+        if not self.pace.sampled(n):
+            return
         self.scene.freeze(n, t)
         master = self.master
         if self.augmented:
@@ -39,14 +44,14 @@ class CertificateSampler(Observer):
         self.scene.thaw()
 
     def after_step(self, n, t, log, reading, row):
-        k = 0
+        k = len(self.names) if self.settings.fne_pairs else 0
+        row[:k] = math.nan
         if self.fne is not None:
-            row[:len(self.fne)] = self.fne
+            row[:k] = self.fne
             self.min_fne = [min(a, b) for a, b in zip(self.min_fne, self.fne)]
-            k = len(self.fne)
         if self.augmented:
             aug = augmented_residual(sum(reading.H) - self.H_prev, log.u0, log.uK, self.u_star, log.a_hat,
-                                     reading.B) if log.u0 is not None else math.nan
+                                     reading.B) if log.u0 is not None and self.u_star is not None else math.nan
             row[k] = aug
             self.max_aug = grow_max_pos(self.max_aug, aug)
         self.H_prev = sum(reading.H)
@@ -59,3 +64,17 @@ class CertificateSampler(Observer):
         known = [v for v in finite.values() if v == v]
         return {"max_augmented_pos": self.max_aug, "min_fne_margin": min(known) if known else math.nan,
                 "min_fne_margin_by_subsystem": finite}
+
+
+class CertificatePace(Observer):
+    """Reports in summary.json how the sampled certificates were paced (certificates_every)."""
+    blocks = True
+
+    def __init__(self, pace):
+        self.pace = pace
+
+    def after_block(self, n0, logs, readings, rows):
+        """Nothing per step."""
+
+    def summary(self):
+        return self.pace.info()

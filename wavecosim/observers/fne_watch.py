@@ -8,7 +8,7 @@ is FNE; rho - rho^2 for b = rho a) comes from:
   its fixed point) gets no estimate (NaN);
 - otherwise (K < 2, or a master that does not expose its queries) one finite-difference probe of
   the frozen map (m + 1 queries, gamma_tuning.probe_port), giving the tangent margin
-  lambda_min(sym J_S - J_S^T J_S).
+  lambda_min(sym J_S - J_S^T J_S), at the sampled steps only (certificates.Sampling).
 The first failure (margin < -TOL) is reported once, naming the step, the time and the subsystem.
 """
 import math
@@ -99,8 +99,8 @@ class FneWatch(Observer):
     columns = ("fne_watch",)
     needs_trace = True
 
-    def __init__(self, scene, master, warn=None, tol=TOL):
-        self.scene, self.master, self.tol = scene, master, tol
+    def __init__(self, scene, master, pace, warn=None, tol=TOL):
+        self.scene, self.master, self.pace, self.tol = scene, master, pace, tol
         self.warn = warn or (lambda msg: None)
         self.names = [s.name for s in scene.subsystems]
         self.min_margin = {n: math.inf for n in self.names}
@@ -110,16 +110,20 @@ class FneWatch(Observer):
         self.probed = None
 
     def before_step(self, n, t):
-        """With fewer than two inner iterations there are no iterate pairs: probe the frozen maps."""
+        """With fewer than two inner iterations there are no iterate pairs: probe the frozen maps
+        (at a sampled step; NaN at the others)."""
         self.probed = None
-        if self.master.K < 2:
+        if self.master.K < 2 and self.pace.sampled(n):
             self.probed_steps += 1
             g = self.scene.gammas
             self.probed = {p.name: p.fne_margin(g[p.name])
                            for p in gt.probe_scene(self.scene, self.master.b, n, t, self.master.P)}
 
     def after_step(self, n, t, log, reading, row):
-        margins = self.probed if self.probed is not None else trace_margins(self.scene, self.master.trace or [])
+        if self.probed is not None:
+            margins = self.probed
+        else:
+            margins = trace_margins(self.scene, self.master.trace or []) if self.master.K >= 2 else None
         row[0] = self.record(n, t, margins)
 
     def record(self, n, t, margins):
