@@ -3,6 +3,7 @@ files but not the figures, the lockstep reference gives the same errors as a sto
 metadata names the FMUs by checksum, and every failure keeps its class (and exit code). Runs made in
 blocks of macro-steps (one kernel call each) write the same bytes and figures as step by step."""
 import csv
+import dataclasses
 import hashlib
 import json
 
@@ -210,3 +211,24 @@ def test_blocks_cut_to_the_time_budget(tmp_path, monkeypatch):
     one, blocks = step_by_step(monkeypatch, load_scenario().with_master(K=50).with_changes(T=3.0), tmp_path)
     same_files_and_figures(one, blocks, tmp_path)
     assert len(made) > 3 and max(made) < 300 and sum(made) == blocks.summary["block_steps"] >= 299
+
+
+@pytest.mark.parametrize("K, every, blocked", [(0, "auto", 950), (1, 3, 666), (3, "auto", 0)])
+def test_blocks_between_sampled_certificates(tmp_path, monkeypatch, K, every, blocked):
+    """Certificates on, sampled every `every` steps: blocks run between the sampled steps (K < 2, where
+    the watch needs no trace) with the step-by-step files and figures; at K >= 2 the watch reads the
+    trace of every step and the run stays step by step."""
+    sc = load_scenario().with_master(K=K)
+    sc = dataclasses.replace(sc, certificates=dataclasses.replace(sc.certificates, every=every))
+    results = []
+    for size, kind in ((1, "steps"), (runner.BLOCK_STEPS, "blocks")):
+        with monkeypatch.context() as m:
+            m.setattr(runner, "BLOCK_STEPS", size)
+            results.append(run(sc, tmp_path / kind, file_suffix=False))
+    one, blocks = results
+    for name in ("trajectory.csv", "steps.csv"):
+        assert (tmp_path / "steps" / name).read_bytes() == (tmp_path / "blocks" / name).read_bytes(), name
+    a, b = ({k: v for k, v in r.summary.items() if k not in TIMING} for r in results)
+    assert json.dumps(a, default=str) == json.dumps(b, default=str)
+    assert blocks.summary["block_steps"] == blocked and one.summary["block_steps"] == 0
+    assert np.isfinite(blocks.steps["fne_A"]).sum() == -(-1000 // blocks.summary["certificates_every"])

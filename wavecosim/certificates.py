@@ -27,6 +27,10 @@ class Sampling:
     def sampled(self, n):
         return n % self.every == 0
 
+    def next_sampled(self, n):
+        """The first sampled step >= n."""
+        return n + (-n) % self.every
+
     def info(self):
         return {"certificates_every": self.every, "certificates_every_chosen": self.chosen}
 

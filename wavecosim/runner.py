@@ -304,24 +304,27 @@ class LiveRun:
 
     def _plan_blocks(self):
         """Blocks when the master can make them, every observer takes them, nothing acts before a
-        step, and builtin sum() adds left to right (Python < 3.12: the blocks' sums are written so)."""
+        step (a paced observer: before the steps it names; blocks stop before them), and builtin sum()
+        adds left to right (Python < 3.12: the blocks' sums are written so)."""
         guard = self.guard
         self.cap = guard.cap if isinstance(guard, EnergyGuard) else math.inf
         self.ledger = isinstance(guard, EnergyLedger)
         self.kernel_guard = self.ledger and hasattr(self.master, "guards_steps") and self.master.guards_steps()
         self.blocks = (getattr(self.master, "fast", False) and hasattr(self.master, "run_steps")
-                       and not self.bracket and all(o.blocks for o, _ in self.after)
+                       and all(o.paced or type(o).before_step is Observer.before_step for o in self.observers)
+                       and all(o.blocks for o, _ in self.after)
                        and (guard is None or isinstance(guard, EnergyGuard)
                             or (self.ledger and hasattr(self.master, "keep_ledger")))   # classical: step by step
                        and self.scene.signals is None
                        and sys.version_info < (3, 12))
+        self.paced = [o for o in self.observers if o.paced]          # blocks stop before their steps
         if self.blocks:
             self.master.observe(self.sampler.observed)
 
     def block_size(self, n):
         """How many macro-steps advance(n, ...) may make in one call of the master."""
         if self.blocks and self.master.can_run_steps(n):
-            return min(BLOCK_STEPS, self.n_steps - n)
+            return max(1, min([BLOCK_STEPS, self.n_steps - n] + [o.next_before(n) - n for o in self.paced]))
         return 1
 
     def advance(self, n, count):

@@ -14,6 +14,7 @@ from . import Observer
 
 class CertificateSampler(Observer):
     """Columns fne_<subsystem> (when fne_pairs > 0) and augmented (when the master gives its DR iterates)."""
+    blocks = paced = True
 
     def __init__(self, scene, master, settings, augmented, pace):
         self.scene, self.master, self.settings, self.pace = scene, master, settings, pace
@@ -55,6 +56,15 @@ class CertificateSampler(Observer):
             row[k] = aug
             self.max_aug = grow_max_pos(self.max_aug, aug)
         self.H_prev = sum(reading.H)
+        self.fne, self.u_star = None, None
+
+    def next_before(self, n):
+        return self.pace.next_sampled(n)
+
+    def after_block(self, n0, logs, readings, rows):
+        """Steps between sampled ones: NaN in every column."""
+        rows[:] = math.nan
+        self.H_prev = sum(readings.H[-1].tolist())
 
     def start(self, first):
         self.H_prev = sum(first.H)

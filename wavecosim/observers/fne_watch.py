@@ -97,7 +97,6 @@ class FneWatch(Observer):
     """Online Condition 1 monitor of one run; `warn` gets one line, the first time it fails.
     Column fne_watch: the smallest margin estimated at each step (NaN when none could be)."""
     columns = ("fne_watch",)
-    needs_trace = True
 
     def __init__(self, scene, master, pace, warn=None, tol=TOL):
         self.scene, self.master, self.pace, self.tol = scene, master, pace, tol
@@ -108,6 +107,15 @@ class FneWatch(Observer):
         self.failed_steps = 0
         self.probed_steps = 0
         self.probed = None
+        self.needs_trace = master.K >= 2                   # the secant margins, every step
+        self.blocks = self.paced = not self.needs_trace    # the probe, at the sampled steps
+
+    def next_before(self, n):
+        return self.pace.next_sampled(n) if self.paced else math.inf
+
+    def after_block(self, n0, logs, readings, rows):
+        """K < 2, steps between sampled ones: no estimate (NaN)."""
+        rows[:] = math.nan
 
     def before_step(self, n, t):
         """With fewer than two inner iterations there are no iterate pairs: probe the frozen maps
@@ -123,8 +131,9 @@ class FneWatch(Observer):
         if self.probed is not None:
             margins = self.probed
         else:
-            margins = trace_margins(self.scene, self.master.trace or []) if self.master.K >= 2 else None
+            margins = trace_margins(self.scene, self.master.trace or []) if self.needs_trace else None
         row[0] = self.record(n, t, margins)
+        self.probed = None
 
     def record(self, n, t, margins):
         """Book this step's margins; returns the smallest (NaN when nothing could be estimated)."""
