@@ -1,11 +1,13 @@
 """master/certificates.py and the observers that use it, on the real Table I FMUs."""
 import dataclasses
+import json
 
 import numpy as np
 import pytest
 
 from wavecosim.certificates import Sampling, augmented_residual, fne_margins, sampling
-from wavecosim.config import CertificateConfig, load_scenario
+from wavecosim.config import ROOT, CertificateConfig, load_scenario
+from wavecosim.newton_path import NewtonKernel
 from wavecosim.runner import run
 from wavecosim.scene import build_scene
 from wavecosim.waves import port_energy
@@ -79,3 +81,33 @@ def test_every_3_samples_steps_0_3_6_and_nan_elsewhere(K):
         assert np.isfinite(steps["fne_watch"][~sampled]).any()
     for c in ("r_A", "r_B", "H_total", "iterations"):           # the run itself does not change
         assert steps[c].tolist() == dense[c].tolist(), c
+
+
+@pytest.mark.parametrize("config, K, every", [("two_oscillators.yaml", 0, 1), ("two_oscillators.yaml", 3, "auto"),
+                                              ("two_oscillators.yaml", 50, 1), ("two_oscillators_stiff.yaml", 8, 1),
+                                              ("star.yaml", 3, "auto"), ("foreign_pair.yaml", 3, 1)])
+def test_certificates_on_the_kernel_route_are_the_reference(tmp_path, monkeypatch, config, K, every):
+    """With the C kernel (u* by newton.c's nt_solve, blocks between sampled steps) steps.csv and every
+    figure equal the Python reference's step by step, to the last byte (foreign_pair: u* in Python,
+    its wave adapters' maps keep figures of their own)."""
+    path = ROOT / "configs" / config
+    if config == "foreign_pair.yaml" and not (ROOT.parent / "shared" / "third_party").is_dir():
+        pytest.skip("the third-party FMUs (../shared/third_party) are absent")
+    solved = []
+    solve = NewtonKernel.solve
+    monkeypatch.setattr(NewtonKernel, "solve", lambda self, *a: solved.append(a[0]) or solve(self, *a))
+    sc = load_scenario(path)
+    sc = dataclasses.replace(sc.with_master(K=K), T=min(sc.T, 100 * sc.dt),
+                             certificates=dataclasses.replace(sc.certificates, every=every))
+    summaries = []
+    for fast in ("false", "true"):
+        out = tmp_path / fast
+        result = run(sc.with_master(fast=fast), out, file_suffix=False, reference=None)
+        summaries.append({k: v for k, v in result.summary.items()
+                          if not k.endswith("_s") and k not in ("real_time_factor", "block_steps", "fast_path",
+                                                                 "fast_note", "threads", "thread_note")})
+    assert (tmp_path / "false" / "steps.csv").read_bytes() == (tmp_path / "true" / "steps.csv").read_bytes()
+    assert (tmp_path / "false" / "trajectory.csv").read_bytes() == (tmp_path / "true" / "trajectory.csv").read_bytes()
+    assert json.dumps(summaries[0], default=str) == json.dumps(summaries[1], default=str)
+    every = summaries[1]["certificates_every"]
+    assert solved == ([] if config == "foreign_pair.yaml" else list(range(0, summaries[1]["steps"], every)))

@@ -864,6 +864,15 @@ int dr_evaluate(DRKernel *k, int i, const double *in, double *out, double t, dou
     return evaluate(&k->sub[i], in, out, t, h, commit, 0);
 }
 
+int dr_thaw(DRKernel *k, int i) {
+    Sub *s = &k->sub[i];
+    if (!s->frozen || !s->dirty) return 0;
+    if (failed(s, DR_FN_SET_STATE, s->fn.setFMUstate(s->comp, *s->state))) return 1;
+    s->n_restore++;
+    s->dirty = 0;
+    return 0;
+}
+
 int dr_advance(DRKernel *k, int i, const double *in, double *out, double t, double h) {
     k->sub[i].frozen = 1;                                   /* nothing saved, nothing to restore */
     k->sub[i].dirty = 0;

@@ -32,6 +32,10 @@ void dr_begin(DRKernel *k, DRStep *io);
  * nonzero when an FMU call failed. */
 int dr_evaluate(DRKernel *k, int i, const double *in, double *out, double t, double h, int commit);
 
+/* Subsystem i back at x_i^n after queries made from it (FrozenPortMap.thaw); nonzero when
+ * setFMUstate failed. */
+int dr_thaw(DRKernel *k, int i);
+
 /* Subsystem i one step forward from its current state, nothing saved first (masters that never
  * roll back: frozen_port_map.py's begin + advance). */
 int dr_advance(DRKernel *k, int i, const double *in, double *out, double t, double h);

@@ -30,6 +30,10 @@ int nt_set_map(NTKernel *c, const int *P_start, const int *P_col, const double *
  * Returns 0, -1 (FMU failure) or NT_* (io->residual, out[1] then say why). */
 int nt_step(NTKernel *c, DRStep *io, const double *b_n, double *b_next, double *a_hat, double *out);
 
+/* The interface Newton alone (monolithic.solve_interface at x^n from b^n, e.g. u* = P b* of the
+ * certificates): b* into b_star, io and out as nt_step; every subsystem is left at x_i^n. */
+int nt_solve(NTKernel *c, DRStep *io, const double *b_n, double *b_star, double *out);
+
 void nt_destroy(NTKernel *c);
 
 #endif

@@ -131,6 +131,11 @@ class WaveMaster(Master):
         self.scene.restore_frozen()
         self._set_b(self._b_step_start)
 
+    def fixed_point(self, n, t):
+        """b* = S^n(P b*) at the frozen x^n (eq. 15), solved from b^n (u* = P b* of the certificates);
+        the FMUs are left at x^n."""
+        return solve_interface(self.scene, self.P, self._b, where=f" at step {n} (t = {t:.6g})")[0].tolist()
+
     def interface_solution(self, n, t, tag=""):
         """The monolithic incident waves at the frozen x^n: a = P b*, b* = S^n(P b*) (eqs. 14-15),
         solved from b^n; returns (a, iterations, residual)."""

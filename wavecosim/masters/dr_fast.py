@@ -19,6 +19,7 @@ import math
 import time
 
 from ..fast_path import PARALLEL_MIN_US, REASONS, BlockLog, Kernel, available_cpus, kernel_refusal, thread_plan
+from ..newton_path import NewtonKernel
 from .base import StepLog
 from .dr import DRMaster
 
@@ -38,6 +39,7 @@ class FastDRMaster(DRMaster):
         self.kernel, self.fast, self.threads = None, False, 1
         self.guarded = None       # the kernel's BlockLog of the last step when step() made the ledger's guard too
         self._guarding = False    # keep_ledger was called: step() makes iteration, commit and redo in one call
+        self._newton = None       # the certificates' interface Newton in C (newton_path.NewtonKernel), when asked
         # blocks of steps (run_steps) read the observed values in C; a physical port's b is computed
         # from them in Python (readings.py), so scenes with wave adapters run one step per call
         self._blocks = not any(s.adapter for s in scene.subsystems)
@@ -74,6 +76,17 @@ class FastDRMaster(DRMaster):
         super()._compile()
         if getattr(self, "kernel", None) is not None:
             self.kernel.set_maps(self.P, self.J_L)
+        if getattr(self, "_newton", None) is not None:
+            self._newton.set_map(self.P)
+
+    def fixed_point(self, n, t):
+        """b* in C (newton.c: nt_solve, the reference's Newton to the last bit) when the kernel runs a
+        scene without wave adapters (their Python maps keep figures the C route would not book)."""
+        if self.kernel is None or not self._blocks:
+            return super().fixed_point(n, t)
+        if self._newton is None:
+            self._newton = NewtonKernel(self.scene, self.P)
+        return self._newton.solve(n, t, self._b)
 
     def retune(self, b):
         super().retune(b)
@@ -264,7 +277,8 @@ class FastDRMaster(DRMaster):
                 "thread_note": self.thread_note}
 
     def close(self):
-        if self.kernel is not None:
-            self.kernel.close()
-            self.kernel = None
+        for part in (self.kernel, self._newton):
+            if part is not None:
+                part.close()
+        self.kernel = self._newton = None
         super().close()

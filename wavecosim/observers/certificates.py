@@ -7,7 +7,6 @@ import numpy as np
 
 from ..certificates import augmented_residual, fne_margins
 from ..linalg import matvec
-from ..monolithic import solve_interface
 from .passivity import grow_max_pos
 from . import Observer
 
@@ -36,8 +35,7 @@ class CertificateSampler(Observer):
         self.scene.freeze(n, t)
         master = self.master
         if self.augmented:
-            b_star = solve_interface(self.scene, master.P, master.b, where=f" at step {n} (t = {t:.6g})")[0]
-            self.u_star = matvec(master.P, b_star.tolist())
+            self.u_star = matvec(master.P, master.fixed_point(n, t))
         if self.settings.fne_pairs:
             centre = self.scene.split(list(np.asarray(master.P) @ np.asarray(master.b)))
             self.fne = [fne_margins(s, c, self.settings.fne_pairs, self.rng, self.settings.fne_scale,
