@@ -213,12 +213,15 @@ def test_blocks_cut_to_the_time_budget(tmp_path, monkeypatch):
     assert len(made) > 3 and max(made) < 300 and sum(made) == blocks.summary["block_steps"] >= 299
 
 
-@pytest.mark.parametrize("K, every, blocked", [(0, "auto", 950), (1, 3, 666), (3, "auto", 0)])
-def test_blocks_between_sampled_certificates(tmp_path, monkeypatch, K, every, blocked):
-    """Certificates on, sampled every `every` steps: blocks run between the sampled steps (K < 2, where
-    the watch needs no trace) with the step-by-step files and figures; at K >= 2 the watch reads the
-    trace of every step and the run stays step by step."""
-    sc = load_scenario().with_master(K=K)
+@pytest.mark.parametrize("K, every, guard, blocked", [(0, "auto", "ledger", 950), (1, 3, "ledger", 666),
+                                                     (3, "auto", "ledger", 1000), (50, 1, "ledger", 1000),
+                                                     (8, 1, "monolithic", 1000), (8, "auto", "off", 1000)])
+def test_blocks_with_certificates(tmp_path, monkeypatch, K, every, guard, blocked):
+    """Certificates on, sampled every `every` steps, with the step-by-step files and figures: at K < 2
+    blocks run between the sampled steps (the watch's probe needs the FMUs); at K >= 2 the kernel
+    computes the certificates inside the blocks (certs.c), also on steps the monolithic guard judges
+    after their block (K = 8: steps 0, 25 and 52 redone)."""
+    sc = load_scenario().with_master(K=K, energy_guard=guard)
     sc = dataclasses.replace(sc, certificates=dataclasses.replace(sc.certificates, every=every))
     results = []
     for size, kind in ((1, "steps"), (runner.BLOCK_STEPS, "blocks")):
@@ -232,3 +235,4 @@ def test_blocks_between_sampled_certificates(tmp_path, monkeypatch, K, every, bl
     assert json.dumps(a, default=str) == json.dumps(b, default=str)
     assert blocks.summary["block_steps"] == blocked and one.summary["block_steps"] == 0
     assert np.isfinite(blocks.steps["fne_A"]).sum() == -(-1000 // blocks.summary["certificates_every"])
+    assert blocks.summary.get("energy_guard_steps") == {"ledger": b.get("energy_guard_steps"), "monolithic": 3, "off": None}[guard]

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .linalg import distance
+from .linalg import distance, norm2
 from .readings import row_dots
 from .waves import port_energy
 
@@ -49,17 +49,23 @@ def sampling(config, evaluations):
                     f"auto: ceil((2 fne_pairs + 4) / evaluations per step) = ceil({cost} / {evaluations})")
 
 
-def augmented_residual(dH_total, u0, uK, u_star, a_hat, b_next):
-    """Theorem 1 residual (eq. 32) with u* a DR fixed point of this macro-step."""
-    fejer = 0.5 * distance(uK, u_star) ** 2 - 0.5 * distance(u0, u_star) ** 2
+def fejer_term(u0, uK, u_star):
+    """1/2 |u^K - u*|^2 - 1/2 |u^0 - u*|^2, Theorem 1's iterate part (fmus/kernel/certs.c alike)."""
+    return 0.5 * distance(uK, u_star) ** 2 - 0.5 * distance(u0, u_star) ** 2
+
+
+def augmented_residual(dH_total, u0, uK, u_star, a_hat, b_next, fejer=None):
+    """Theorem 1 residual (eq. 32) with u* a DR fixed point of this macro-step (or its Fejer term given)."""
+    fejer = fejer_term(u0, uK, u_star) if fejer is None else fejer
     return dH_total + fejer - port_energy(a_hat, b_next)
 
 
 def fne_margins(subsystem, centre, pairs, rng, scale, dt):
     """Smallest normalized FNE margin of S_i^n over `pairs` random pairs around `centre` (the pairs
-    drawn x, y, x, y, ... and queried in that order, all in one call)."""
+    drawn x, y, x, y, ... and queried in that order, all in one call); sums in a fixed order, as
+    fmus/kernel/certs.c makes them."""
     m = len(centre)
-    sigma = scale * (float(np.linalg.norm(centre)) + np.sqrt(dt))
+    sigma = scale * (norm2(centre) + math.sqrt(dt))
     X = np.asarray(centre) + sigma * rng.standard_normal((2 * pairs, m))
     S = subsystem.queries(X)
     dS, dx = S[0::2] - S[1::2], X[0::2] - X[1::2]

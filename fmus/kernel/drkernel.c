@@ -70,6 +70,8 @@ struct DRKernel {
     double task_t, task_h;
     int task_commit, task_measure;
     DROptions *opt;                /* the DR master's named options, or NULL (the paper's Algorithm 1) */
+    DRHookFn hook_before, hook_after; /* around each step of dr_run_steps_of (certs.c), or NULL */
+    void *hook_ctx;
 };
 
 static double now_ns(void) {
@@ -667,6 +669,7 @@ int dr_run_steps_of(DRKernel *k, DRStep *io, int n0, int count, double *rows, do
         io->t = (double)(n0 + s) * io->dt;
         double c0 = io->ledger_on && io->step_deadline_s > 0.0 ? cpu_ns() : 0.0, t0 = now_ns();
         double caller = io->deadline_s;
+        if (k->hook_before && k->hook_before(k->hook_ctx, io, n0 + s)) return s;
         int failure = step(ctx, io);
         int f = failure ? -1 : ledger_step(k, io, t0, c0, rows, m, (size_t)s);
         io->deadline_s = caller;
@@ -676,6 +679,7 @@ int dr_run_steps_of(DRKernel *k, DRStep *io, int n0, int count, double *rows, do
             report_failure(k, io, f);
             return s;
         }
+        if (k->hook_after) k->hook_after(k->hook_ctx, io, n0 + s);
         if (stop_after(k, rows + first_observed + s, m, H_cap)) {
             io->stopped = 1;
             return s + 1;
@@ -862,6 +866,14 @@ void dr_begin(DRKernel *k, DRStep *io) { begin_macro_step(k, io); }
 
 int dr_evaluate(DRKernel *k, int i, const double *in, double *out, double t, double h, int commit) {
     return evaluate(&k->sub[i], in, out, t, h, commit, 0);
+}
+
+void dr_set_hooks(DRKernel *k, DRHookFn before, DRHookFn after, void *ctx) {
+    k->hook_before = before, k->hook_after = after, k->hook_ctx = ctx;
+}
+
+void dr_iterates(DRKernel *k, double **u0, double **uK, double **trace, int *capacity) {
+    *u0 = k->u0, *uK = k->uK, *trace = k->trace, *capacity = k->trace_capacity;
 }
 
 int dr_thaw(DRKernel *k, int i) {

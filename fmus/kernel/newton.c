@@ -217,6 +217,8 @@ int nt_step(NTKernel *c, DRStep *io, const double *b_n, double *b_next, double *
     return 0;
 }
 
+void nt_apply_map(const NTKernel *c, const double *x, double *y) { dr_csr_rows(c->P, x, y, 0, c->n); }
+
 int nt_solve(NTKernel *c, DRStep *io, const double *b_n, double *b_star, double *out) {
     dr_begin(c->k, io);
     io->reason = DR_EXPLICIT;

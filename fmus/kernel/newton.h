@@ -34,6 +34,9 @@ int nt_step(NTKernel *c, DRStep *io, const double *b_n, double *b_next, double *
  * certificates): b* into b_star, io and out as nt_step; every subsystem is left at x_i^n. */
 int nt_solve(NTKernel *c, DRStep *io, const double *b_n, double *b_star, double *out);
 
+/* y = P x, rows summed left to right from 0.0 over their stored entries (linalg.matvec). */
+void nt_apply_map(const NTKernel *c, const double *x, double *y);
+
 void nt_destroy(NTKernel *c);
 
 #endif

@@ -77,6 +77,11 @@ class Master:
         rounds); None where there is no kernel (the ledger then redoes it through the methods above)."""
         return None
 
+    def kernel_certificates(self, floor):
+        """The sampled certificates computed inside this master's blocks of steps (certs_path), or
+        None: the observers then compute them step by step."""
+        return None
+
     def enable_trace(self, on=True):
         """Record the inner loop's queries (u, S(u)) of each macro-step; False if this master cannot."""
         return False

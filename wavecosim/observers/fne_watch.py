@@ -16,6 +16,7 @@ import math
 import numpy as np
 
 from .. import gamma_tuning as gt
+from ..readings import row_dots
 from . import Observer
 
 TOL = 1e-6      # margins above -TOL count as FNE (roundoff of the FMUs' inner solves)
@@ -62,7 +63,7 @@ def _pairs(scene, trace):
         cols = slice(off, off + s.m)
         da, ds = dU[:, cols], dB[:, cols]
         size = np.abs(U[:, cols]).max(axis=1) + np.abs(B[:, cols]).max(axis=1)
-        norm = np.sqrt(np.einsum("ij,ij->i", da, da))
+        norm = np.sqrt(row_dots(da, da))
         keep = (norm > 0.0) & (norm > pair_floor(s) * size)
         if keep.any():
             yield s, da[keep], ds[keep]
@@ -85,10 +86,11 @@ def trace_impedances(scene, trace, gammas):
 
 
 def trace_margins(scene, trace):
-    """{subsystem: smallest secant margin} over consecutive inner-loop queries (u, S(u))."""
+    """{subsystem: smallest secant margin} over consecutive inner-loop queries (u, S(u)); sums in a
+    fixed order, as fmus/kernel/certs.c makes them in blocks."""
     out = {}
     for s, da, ds in _pairs(scene, trace):
-        m = (np.einsum("ij,ij->i", ds, da) - np.einsum("ij,ij->i", ds, ds)) / np.einsum("ij,ij->i", da, da)
+        m = (row_dots(ds, da) - row_dots(ds, ds)) / row_dots(da, da)
         out[s.name] = float(m.min())
     return out
 
@@ -109,13 +111,25 @@ class FneWatch(Observer):
         self.probed = None
         self.needs_trace = master.K >= 2                   # the secant margins, every step
         self.blocks = self.paced = not self.needs_trace    # the probe, at the sampled steps
+        self.kernel = master.kernel_certificates(FLOOR) if self.needs_trace else None
+        if self.kernel is not None:                        # the secant margins in the blocks (certs_path)
+            self.kernel.watch()
+            self.blocks = self.paced = True
 
     def next_before(self, n):
-        return self.pace.next_sampled(n) if self.paced else math.inf
+        """K < 2: its sampled steps (the probe); K >= 2 acts before no step."""
+        return math.inf if self.needs_trace else self.pace.next_sampled(n)
 
     def after_block(self, n0, logs, readings, rows):
-        """K < 2, steps between sampled ones: no estimate (NaN)."""
-        rows[:] = math.nan
+        """The kernel's secant margins of each step; K < 2, steps between sampled ones: no estimate (NaN)."""
+        if self.kernel is None:
+            rows[:] = math.nan
+            return
+        k, dt = len(self.names), self.scene.scenario.dt
+        found = self.kernel.block_rows(n0, len(rows))
+        for s, (values, kept) in enumerate(zip(found[:, k + 1:2 * k + 1].tolist(), found[:, 2 * k + 1:].tolist())):
+            margins = {name: v for name, v, h in zip(self.names, values, kept) if h}
+            rows[s, 0] = self.record(n0 + s, (n0 + s) * dt, margins)
 
     def before_step(self, n, t):
         """With fewer than two inner iterations there are no iterate pairs: probe the frozen maps
