@@ -20,7 +20,8 @@ from .readings import DOT_EXACT
 class DCSettings(ctypes.Structure):
     """certs.h: DCSettings."""
     _fields_ = [("every", ctypes.c_int), ("pairs", ctypes.c_int), ("augmented", ctypes.c_int),
-                ("watch", ctypes.c_int), ("scale", ctypes.c_double), ("floor", ctypes.c_double)]
+                ("watch", ctypes.c_int), ("probe", ctypes.c_int), ("scale", ctypes.c_double),
+                ("floor", ctypes.c_double), ("probe_rel", ctypes.c_double)]
 
 
 def supports(scene):
@@ -35,9 +36,9 @@ def _lib():
     if not hasattr(lib, "_certs_ready"):
         p = ctypes.c_void_p
         lib.dc_create.restype = p
-        lib.dc_create.argtypes = [p, p, p, ctypes.POINTER(DCSettings)]
+        lib.dc_create.argtypes = [p, p, p, ctypes.POINTER(DCSettings), p]
         lib.dc_width.argtypes = [p]
-        lib.dc_arm.argtypes = [p, ctypes.c_int, p, p]
+        lib.dc_arm.argtypes = [p, ctypes.c_int, p, p, p]
         lib.dc_arm.restype = None
         lib.dc_status.argtypes = [p, p, p, ctypes.POINTER(ctypes.c_long)]
         lib.dc_destroy.argtypes = [p]
@@ -50,11 +51,13 @@ class KernelCertificates:
     """The certificates' part of the master's block calls; CertificateSampler (sample) and FneWatch
     (watch) switch their parts on before the first block, then read `rows` after each block."""
 
-    def __init__(self, kernel, newton: NewtonKernel, subsystems, floor):
-        self.lib, self.kernel, self.newton, self.subsystems = _lib(), kernel, newton, subsystems
-        self.settings = DCSettings(1, 0, 0, 0, 0.0, floor)
+    def __init__(self, kernel, newton: NewtonKernel, scene, floor):
+        self.lib, self.kernel, self.newton, self.scene = _lib(), kernel, newton, scene
+        self.subsystems = scene.subsystems
+        self.settings = DCSettings(1, 0, 0, 0, 0, 0.0, floor, 0.0)
+        self.stage_vr, self.gammas = None, np.empty(len(self.subsystems))
         self.rng, self.per_step, self.handle = None, 0, None
-        self.chunks, self.start, self.last = [], 0, np.empty((0, 3 * len(subsystems) + 1))
+        self.chunks, self.start, self.last = [], 0, np.empty((0, 3 * len(self.subsystems) + 1))
         self.made = (0, self.last)                 # the steps of the last call and their rows
 
     def sample(self, pace, pairs, scale, rng, augmented):
@@ -67,11 +70,24 @@ class KernelCertificates:
         """The secant margins of every step from the inner loop's trace."""
         self.settings.watch = 1
 
+    def probe(self, pace, rel):
+        """Instead, the watch's probe at the sampled steps (K < 2), where every port has one channel
+        (scalar solve and eigenvalue); False where one has more."""
+        if any(s.m != 1 or s.port.physical for s in self.subsystems):
+            return False
+        names = [v for s in self.subsystems for v in (*s.port.effort, *s.port.flow)]
+        if len(names) != 2 * len(self.subsystems):
+            return False
+        self.stage_vr = (ctypes.c_uint * len(names))(*[vr for s in self.subsystems
+                                                        for vr in s.fmu.real_vrs([*s.port.effort, *s.port.flow])])
+        self.settings.probe, self.settings.every, self.settings.probe_rel = 1, pace.every, rel
+        return True
+
     def arm(self, n0, count):
         """Before a kernel call of steps n0 .. n0 + count - 1: the normals of its sampled steps."""
         if self.handle is None:
             self.handle = self.lib.dc_create(self.kernel.handle, self.newton.handle, self.newton.base.handle,
-                                              ctypes.byref(self.settings))
+                                              ctypes.byref(self.settings), self.stage_vr)
             if not self.handle:
                 raise FmuError("the certificates' kernel could not be created (out of memory)")
         every = self.settings.every
@@ -80,12 +96,13 @@ class KernelCertificates:
         need = len(self.sampled) * self.per_step
         self.normals = self.rng.standard_normal(need) if need else np.zeros(1)
         self.rows = np.empty((count, 3 * len(self.subsystems) + 1))
-        self.lib.dc_arm(self.handle, n0, self.normals.ctypes.data, self.rows.ctypes.data)
+        self.gammas[:] = [self.scene.gammas[s.name] for s in self.subsystems]
+        self.lib.dc_arm(self.handle, n0, self.normals.ctypes.data, self.rows.ctypes.data, self.gammas.ctypes.data)
 
     def disarm(self, done):
         """After the call that made `done` steps: keep their rows; the Generator stands after the
         normals of those steps; returns the certificates' own failure (an exception) or None."""
-        self.lib.dc_arm(self.handle, 0, None, None)
+        self.lib.dc_arm(self.handle, 0, None, None, None)
         failed, out, used = (ctypes.c_int * 3)(), (ctypes.c_double * 2)(), ctypes.c_long()
         rc = self.lib.dc_status(self.handle, failed, out, ctypes.byref(used))
         kept = int(np.count_nonzero(self.sampled < done)) * self.per_step

@@ -17,21 +17,33 @@ struct DCCerts {
     size_t n;
     int n_sub, n0, rc, failed_sub;
     const double *normals;         /* armed: the sampled steps' normals, in order */
+    const double *gammas;          /* armed: each subsystem's gamma (the probe) */
+    fmi2ValueReference *stage_vr;  /* the probe: effort and flow of each subsystem */
     double *rows;                  /* armed: one row per step of the call */
     long used;                     /* normals used since dc_arm */
     double nt_out[2];
     double *b_star, *u_star, *centre, *xs, *ys, *X, *S;    /* n each; X and S: 2 pairs x max m */
 };
 
-DCCerts *dc_create(DRKernel *k, NTKernel *nt, DRKernel *q, const DCSettings *set) {
+DCCerts *dc_create(DRKernel *k, NTKernel *nt, DRKernel *q, const DCSettings *set, const fmi2ValueReference *stage_vr) {
     DCCerts *c = calloc(1, sizeof *c);
     if (!c) return NULL;
+    if (set->probe) {
+        size_t count = 2 * (size_t)dr_subsystems(k);
+        c->stage_vr = malloc(count * sizeof *c->stage_vr);
+        if (!c->stage_vr) {
+            free(c);
+            return NULL;
+        }
+        memcpy(c->stage_vr, stage_vr, count * sizeof *stage_vr);
+    }
     c->k = k, c->q = q, c->nt = nt, c->set = *set;
     c->n = dr_channels(k);
     c->n_sub = dr_subsystems(k);
     size_t pairs = set->pairs > 0 ? (size_t)set->pairs : 0;
     c->b_star = calloc(5 * c->n + 4 * pairs * c->n + 1, sizeof(double));
     if (!c->b_star) {
+        free(c->stage_vr);
         free(c);
         return NULL;
     }
@@ -92,14 +104,42 @@ static int fne_margin(DCCerts *c, int i, double t, double dt, double *worst_out)
     return 0;
 }
 
+/* The watch's probe of subsystem i (one channel) around centre: gamma_tuning.probe_port's dE, dF by
+ * a forward difference of the stage effort and flow, then PortProbe.fne_margin at its gamma:
+ * J = (dE - g dF) / (dE + g dF) and 0.5 (J + J) - J J. */
+static int probe_margin(DCCerts *c, int i, double t, double dt, double *margin) {
+    size_t off, m;
+    dr_span(c->q, i, &off, &m);
+    const fmi2ValueReference *vr = c->stage_vr + 2 * i;
+    double ef0[2], ef1[2];
+    c->xs[off] = c->centre[off];
+    if (dr_evaluate(c->q, i, c->xs, c->ys, t, dt, 0) || dr_read(c->q, i, vr, 2, ef0)) return fail_fmu(c, i);
+    double h = c->set.probe_rel * (fabs(c->centre[off]) + fabs(c->ys[off]));
+    if (h == 0.0) h = c->set.probe_rel * sqrt(dt);                  /* Python's `or` */
+    c->xs[off] = c->centre[off] + h;
+    if (dr_evaluate(c->q, i, c->xs, c->ys, t, dt, 0) || dr_read(c->q, i, vr, 2, ef1)) return fail_fmu(c, i);
+    double dE = (ef1[0] - ef0[0]) / h, dF = (ef1[1] - ef0[1]) / h, g = c->gammas[i];
+    double J = (dE - g * dF) / (dE + g * dF);
+    *margin = 0.5 * (J + J) - J * J;
+    return 0;
+}
+
 /* Before step n at x^n: u* and the FNE margins when n is sampled; the subsystems left at x^n. */
 static int before(void *ctx, DRStep *io, int n) {
     DCCerts *c = ctx;
     double *row = c->rows + (size_t)(n - c->n0) * (size_t)dc_width(c);
-    for (int j = 0; j < dc_width(c); j++) row[j] = NAN;
-    if (n % c->set.every || (!c->set.augmented && c->set.pairs <= 0)) return 0;
+    for (int j = 0; j < dc_width(c); j++) row[j] = j <= 2 * c->n_sub ? NAN : 0.0;    /* no pair kept yet */
+    if (n % c->set.every || (!c->set.augmented && c->set.pairs <= 0 && !c->set.probe)) return 0;
     c->qio.t = io->t, c->qio.dt = io->dt;
     const double *b_n = dr_outputs(c->k);
+    if (c->set.probe) {
+        dr_begin(c->q, &c->qio);
+        nt_apply_map(c->nt, b_n, c->centre);
+        for (int i = 0; i < c->n_sub; i++) {
+            if (probe_margin(c, i, io->t, io->dt, row + c->n_sub + 1 + i) || dr_thaw(c->q, i)) return fail_fmu(c, i);
+            row[2 * c->n_sub + 1 + i] = 1.0;
+        }
+    }
     if (c->set.augmented) {
         int rc = nt_solve(c->nt, &c->qio, b_n, c->b_star, c->nt_out);
         if (rc) {
@@ -183,8 +223,8 @@ static int after(void *ctx, DRStep *io, int n) {
     return 0;
 }
 
-void dc_arm(DCCerts *c, int n0, const double *normals, double *rows) {
-    c->n0 = n0, c->normals = normals, c->rows = rows, c->used = 0, c->rc = 0, c->failed_sub = -1;
+void dc_arm(DCCerts *c, int n0, const double *normals, double *rows, const double *gammas) {
+    c->n0 = n0, c->normals = normals, c->rows = rows, c->gammas = gammas, c->used = 0, c->rc = 0, c->failed_sub = -1;
     if (rows) dr_set_hooks(c->k, before, after, c);
     else dr_set_hooks(c->k, NULL, NULL, NULL);
 }
@@ -200,5 +240,6 @@ void dc_destroy(DCCerts *c) {
     if (!c) return;
     dr_set_hooks(c->k, NULL, NULL, NULL);
     free(c->b_star);
+    free(c->stage_vr);
     free(c);
 }

@@ -14,22 +14,26 @@
 typedef struct DCCerts DCCerts;
 
 /* Settings: sample every `every` steps; `pairs` FNE pairs per subsystem (0: none) at `scale`;
- * `augmented`: u* and the Fejer term; `watch`: the secant margins (pairs kept above `floor`). */
+ * `augmented`: u* and the Fejer term; `watch`: the secant margins (pairs kept above `floor`);
+ * `probe`: instead, at the sampled steps, the watch's finite-difference probe of every frozen map
+ * (gamma_tuning.probe_port, one channel each) with the relative step `probe_rel`. */
 typedef struct {
-    int every, pairs, augmented, watch;
-    double scale, floor;
+    int every, pairs, augmented, watch, probe;
+    double scale, floor, probe_rel;
 } DCSettings;
 
 /* On the master's kernel k, with u*'s Newton nt on the certificates' own kernel q (both must
- * outlive it). NULL on no memory. */
-DCCerts *dc_create(DRKernel *k, NTKernel *nt, DRKernel *q, const DCSettings *set);
+ * outlive it); with the probe, stage_vr[2 i .. 2 i + 1] are subsystem i's effort and flow (copied).
+ * NULL on no memory. */
+DCCerts *dc_create(DRKernel *k, NTKernel *nt, DRKernel *q, const DCSettings *set, const fmi2ValueReference *stage_vr);
 
 /* Doubles per step row: fne (n_sub), fejer, watch margins (n_sub), watch pairs kept (n_sub). */
 int dc_width(const DCCerts *c);
 
 /* Arm the hooks for the next dr_run_steps call from step n0: `normals` hold the sampled steps'
- * normals in order (per subsystem 2 pairs x m), `rows` one row per step; NULL rows disarms. */
-void dc_arm(DCCerts *c, int n0, const double *normals, double *rows);
+ * normals in order (per subsystem 2 pairs x m), `rows` one row per step, `gammas` each subsystem's
+ * (the probe's); NULL rows disarms. */
+void dc_arm(DCCerts *c, int n0, const double *normals, double *rows, const double *gammas);
 
 /* After a call: 0, -1 (an FMU call of the certificates failed: failed[0..2] = subsystem, DR_FN_*,
  * status), or newton.h's NT_* (out[0..1] = residual, wave scale); the normals used so far. */

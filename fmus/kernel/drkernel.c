@@ -876,6 +876,11 @@ void dr_iterates(DRKernel *k, double **u0, double **uK, double **trace, int *cap
     *u0 = k->u0, *uK = k->uK, *trace = k->trace, *capacity = k->trace_capacity;
 }
 
+int dr_read(DRKernel *k, int i, const fmi2ValueReference *vr, int count, double *out) {
+    Sub *s = &k->sub[i];
+    return failed(s, DR_FN_GET_REAL, s->fn.getReal(s->comp, vr, (size_t)count, out));
+}
+
 int dr_thaw(DRKernel *k, int i) {
     Sub *s = &k->sub[i];
     if (!s->frozen || !s->dirty) return 0;

@@ -40,6 +40,9 @@ void dr_set_hooks(DRKernel *k, DRHookFn before, DRHookFn after, void *ctx);
 /* The caller's u^0 and u^K buffers and the trace (NULL when not recording) with its capacity. */
 void dr_iterates(DRKernel *k, double **u0, double **uK, double **trace, int *capacity);
 
+/* count values of subsystem i's FMU (fmi2GetReal); nonzero when the call failed. */
+int dr_read(DRKernel *k, int i, const fmi2ValueReference *vr, int count, double *out);
+
 /* Subsystem i back at x_i^n after queries made from it (FrozenPortMap.thaw); nonzero when
  * setFMUstate failed. */
 int dr_thaw(DRKernel *k, int i);

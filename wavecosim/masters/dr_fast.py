@@ -97,7 +97,7 @@ class FastDRMaster(DRMaster):
         """The certificates inside this master's blocks (certs_path.KernelCertificates; the watch keeps
         pairs above `floor`), made on the first ask; None where the blocks cannot compute them."""
         if self._certs is None and self.kernel is not None and self._blocks and supports(self.scene):
-            self._certs = KernelCertificates(self.kernel, self._newton_kernel(), self.subsystems, floor)
+            self._certs = KernelCertificates(self.kernel, self._newton_kernel(), self.scene, floor)
         return self._certs
 
     def retune(self, b):

@@ -16,6 +16,7 @@ import math
 import numpy as np
 
 from .. import gamma_tuning as gt
+from ..linalg import matvec
 from ..readings import row_dots
 from . import Observer
 
@@ -111,25 +112,34 @@ class FneWatch(Observer):
         self.probed = None
         self.needs_trace = master.K >= 2                   # the secant margins, every step
         self.blocks = self.paced = not self.needs_trace    # the probe, at the sampled steps
-        self.kernel = master.kernel_certificates(FLOOR) if self.needs_trace else None
-        if self.kernel is not None:                        # the secant margins in the blocks (certs_path)
-            self.kernel.watch()
+        self.kernel = master.kernel_certificates(FLOOR)
+        if self.kernel is not None and not self.needs_trace and not self.kernel.probe(pace, gt.PROBE_REL):
+            self.kernel = None                             # a port of many channels: the probe in Python
+        if self.kernel is not None:                        # the margins in the blocks (certs_path)
+            if self.needs_trace:
+                self.kernel.watch()
             self.blocks = self.paced = True
 
     def next_before(self, n):
-        """K < 2: its sampled steps (the probe); K >= 2 acts before no step."""
-        return math.inf if self.needs_trace else self.pace.next_sampled(n)
+        """K < 2: its sampled steps (the probe, unless the kernel makes it); K >= 2 acts before no step."""
+        return math.inf if self.needs_trace or self.kernel is not None else self.pace.next_sampled(n)
 
     def after_block(self, n0, logs, readings, rows):
         """The kernel's secant margins of each step; K < 2, steps between sampled ones: no estimate (NaN)."""
         if self.kernel is None:
             rows[:] = math.nan
             return
-        k, dt = len(self.names), self.scene.scenario.dt
-        found = self.kernel.block_rows(n0, len(rows))
-        for s, (values, kept) in enumerate(zip(found[:, k + 1:2 * k + 1].tolist(), found[:, 2 * k + 1:].tolist())):
-            margins = {name: v for name, v, h in zip(self.names, values, kept) if h}
-            rows[s, 0] = self.record(n0 + s, (n0 + s) * dt, margins)
+        dt = self.scene.scenario.dt
+        for s, found in enumerate(self.kernel.block_rows(n0, len(rows))):
+            rows[s, 0] = self.record(n0 + s, (n0 + s) * dt, self._kernel_margins(n0 + s, found))
+
+    def _kernel_margins(self, n, found):
+        """{subsystem: margin} of step n from its row of the kernel's certificates (the probe's: counted)."""
+        k = len(self.names)
+        kept = found[2 * k + 1:].tolist()
+        if not self.needs_trace and any(kept):
+            self.probed_steps += 1
+        return {name: v for name, v, h in zip(self.names, found[k + 1:2 * k + 1].tolist(), kept) if h}
 
     def before_step(self, n, t):
         """With fewer than two inner iterations there are no iterate pairs: probe the frozen maps
@@ -138,11 +148,15 @@ class FneWatch(Observer):
         if self.master.K < 2 and self.pace.sampled(n):
             self.probed_steps += 1
             g = self.scene.gammas
+            u0 = matvec(self.master.P, self.master.b)            # summed in a fixed order, as certs.c
             self.probed = {p.name: p.fne_margin(g[p.name])
-                           for p in gt.probe_scene(self.scene, self.master.b, n, t, self.master.P)}
+                           for p in gt.probe_scene(self.scene, self.master.b, n, t, self.master.P, u0=u0)}
 
     def after_step(self, n, t, log, reading, row):
-        if self.probed is not None:
+        made = self.kernel.row_of(n) if self.kernel is not None and self.probed is None else None
+        if made is not None and not self.needs_trace:        # a block's step finished step by step
+            margins = self._kernel_margins(n, made)
+        elif self.probed is not None:
             margins = self.probed
         else:
             margins = trace_margins(self.scene, self.master.trace or []) if self.needs_trace else None
