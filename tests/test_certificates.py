@@ -87,7 +87,7 @@ def test_every_3_samples_steps_0_3_6_and_nan_elsewhere(K):
                                               ("two_oscillators.yaml", 50, 1), ("two_oscillators_stiff.yaml", 8, 1),
                                               ("two_oscillators_stiff.yaml", 1, "auto"), ("star.yaml", 3, "auto"),
                                               ("star.yaml", 0, 2), ("planar.yaml", 0, 3), ("planar.yaml", 4, "auto"),
-                                              ("foreign_pair.yaml", 3, 1)])
+                                              ("foreign_pair.yaml", 3, 1), ("unsafe", 8, 1), ("unsafe", 0, 1)])
 def test_certificates_on_the_kernel_route_are_the_reference(tmp_path, monkeypatch, config, K, every):
     """With the C kernel (the certificates in the blocks by certs.c; step by step, u* by newton.c's
     nt_solve) steps.csv and every figure equal the Python reference's step by step, to the last byte
@@ -98,13 +98,14 @@ def test_certificates_on_the_kernel_route_are_the_reference(tmp_path, monkeypatc
     solved = []
     solve = NewtonKernel.solve
     monkeypatch.setattr(NewtonKernel, "solve", lambda self, *a: solved.append(a[0]) or solve(self, *a))
-    sc = load_scenario(path)
+    sc = load_scenario(ROOT / "configs" / "two_oscillators_stiff.yaml").with_changes(gamma="fast-unsafe") \
+        if config == "unsafe" else load_scenario(path)                  # the watch fails: its warnings
     sc = dataclasses.replace(sc.with_master(K=K), T=min(sc.T, 100 * sc.dt),
                              certificates=dataclasses.replace(sc.certificates, every=every))
-    summaries, blocked = [], 0
+    summaries, blocked, warned = [], 0, []
     for fast in ("false", "true"):
         out = tmp_path / fast
-        result = run(sc.with_master(fast=fast), out, file_suffix=False, reference=None)
+        result = run(sc.with_master(fast=fast), out, file_suffix=False, reference=None, warn=warned.append)
         blocked = result.summary["block_steps"]
         summaries.append({k: v for k, v in result.summary.items()
                           if not k.endswith("_s") and k not in ("real_time_factor", "block_steps", "fast_path",
@@ -112,6 +113,7 @@ def test_certificates_on_the_kernel_route_are_the_reference(tmp_path, monkeypatc
     assert (tmp_path / "false" / "steps.csv").read_bytes() == (tmp_path / "true" / "steps.csv").read_bytes()
     assert (tmp_path / "false" / "trajectory.csv").read_bytes() == (tmp_path / "true" / "trajectory.csv").read_bytes()
     assert json.dumps(summaries[0], default=str) == json.dumps(summaries[1], default=str)
+    assert warned[:len(warned) // 2] == warned[len(warned) // 2:] and (config == "unsafe") == bool(warned)
     steps, foreign, planar = summaries[1]["steps"], config == "foreign_pair.yaml", config == "planar.yaml"
     # every step in blocks, the certificates in certs.c; planar at K < 2 (two channels a port): blocks
     # between the sampled steps, made step by step with the watch's probe in Python and u* by nt_solve

@@ -224,9 +224,12 @@ static int after(void *ctx, DRStep *io, int n) {
 }
 
 void dc_arm(DCCerts *c, int n0, const double *normals, double *rows, const double *gammas) {
+    if (!rows) {                                   /* disarm: the status of the call stays readable */
+        dr_set_hooks(c->k, NULL, NULL, NULL);
+        return;
+    }
     c->n0 = n0, c->normals = normals, c->rows = rows, c->gammas = gammas, c->used = 0, c->rc = 0, c->failed_sub = -1;
-    if (rows) dr_set_hooks(c->k, before, after, c);
-    else dr_set_hooks(c->k, NULL, NULL, NULL);
+    dr_set_hooks(c->k, before, after, c);
 }
 
 int dc_status(const DCCerts *c, int *failed, double *out, long *normals_used) {

@@ -667,9 +667,9 @@ int dr_run_steps_of(DRKernel *k, DRStep *io, int n0, int count, double *rows, do
     io->stopped = 0;
     for (int s = 0; s < count; s++) {
         io->t = (double)(n0 + s) * io->dt;
+        if (k->hook_before && k->hook_before(k->hook_ctx, io, n0 + s)) return s;    /* not the step's time */
         double c0 = io->ledger_on && io->step_deadline_s > 0.0 ? cpu_ns() : 0.0, t0 = now_ns();
         double caller = io->deadline_s;
-        if (k->hook_before && k->hook_before(k->hook_ctx, io, n0 + s)) return s;
         int failure = step(ctx, io);
         int f = failure ? -1 : ledger_step(k, io, t0, c0, rows, m, (size_t)s);
         io->deadline_s = caller;

@@ -129,9 +129,22 @@ class FneWatch(Observer):
         if self.kernel is None:
             rows[:] = math.nan
             return
-        dt = self.scene.scenario.dt
-        for s, found in enumerate(self.kernel.block_rows(n0, len(rows))):
-            rows[s, 0] = self.record(n0 + s, (n0 + s) * dt, self._kernel_margins(n0 + s, found))
+        found, dt, k = self.kernel.block_rows(n0, len(rows)), self.scene.scenario.dt, len(self.names)
+        margins, kept = found[:, k + 1:2 * k + 1], found[:, 2 * k + 1:] > 0.0
+        values = np.where(kept, margins, math.inf)
+        worst = values.min(axis=1)
+        odd = margins[kept]
+        if (worst < -self.tol).any() or np.isnan(odd).any() or (odd == 0.0).any():   # a failure, NaN, signed zero
+            for s, row in enumerate(found):
+                rows[s, 0] = self.record(n0 + s, (n0 + s) * dt, self._kernel_margins(n0 + s, row))
+            return
+        some = kept.any(axis=1)                                   # record() of every step, at once
+        rows[:, 0] = np.where(some, worst, math.nan)
+        if not self.needs_trace:
+            self.probed_steps += int(np.count_nonzero(some))
+        for name, column, seen in zip(self.names, values.T, kept.T):
+            if seen.any():
+                self.min_margin[name] = min(self.min_margin[name], float(column.min()))
 
     def _kernel_margins(self, n, found):
         """{subsystem: margin} of step n from its row of the kernel's certificates (the probe's: counted)."""
