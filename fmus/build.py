@@ -166,8 +166,8 @@ def build_all(force=False, log=print) -> dict:
 
 
 # C files compiled into another file's library: the routes built on the DR kernel's subsystem
-# evaluation (classical.c, newton.c) go into libdrkernel.so.
-PART_OF_LIBRARY = {"classical.c": "drkernel", "newton.c": "drkernel"}
+# evaluation (classical.c, newton.c, certs.c) go into libdrkernel.so.
+PART_OF_LIBRARY = {"classical.c": "drkernel", "newton.c": "drkernel", "certs.c": "drkernel"}
 
 
 def kernel_library(name: str, force=False, log=print) -> Path:

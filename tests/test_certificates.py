@@ -1,9 +1,14 @@
 """master/certificates.py and the observers that use it, on the real Table I FMUs."""
+import dataclasses
+import json
+
 import numpy as np
 import pytest
 
-from wavecosim.certificates import augmented_residual, fne_margins
-from wavecosim.config import load_scenario
+from wavecosim.certificates import Sampling, augmented_residual, fne_margins, sampling
+from wavecosim.config import ROOT, CertificateConfig, load_scenario
+from wavecosim.newton_path import NewtonKernel
+from wavecosim.runner import run
 from wavecosim.scene import build_scene
 from wavecosim.waves import port_energy
 
@@ -38,3 +43,80 @@ def test_port_energy_of_waves_is_the_power_integral():
     from wavecosim.waves import waves
     a, b = waves(2.0, -0.7, gamma=3.0, dt=0.01)
     assert port_energy([a], [b]) == pytest.approx(0.01 * 2.0 * -0.7, rel=1e-12)
+
+
+
+def _steps(K, every):
+    """Table I, 20 steps, with certificates.every = every: steps.csv as {column: array}, and the summary."""
+    sc = load_scenario()
+    sc = dataclasses.replace(sc.with_master(K=K), T=20 * sc.dt,
+                             certificates=dataclasses.replace(sc.certificates, every=every))
+    result = run(sc)
+    return {c: result.steps[c] for c in result.steps.dtype.names}, result.summary
+
+
+@pytest.mark.parametrize("K, fne_pairs, every", [(0, 8, 20), (3, 8, 5), (8, 8, 3), (18, 8, 2), (19, 8, 1),
+                                                 (50, 8, 1), (0, 0, 4), (1, 2, 4)])
+def test_auto_pacing_never_costs_more_evaluations_than_dr(K, fne_pairs, every):
+    """auto: every = max(1, ceil((2 fne_pairs + 4) / (K + 1))); a master without fixed evaluations: 1."""
+    config = CertificateConfig(fne_pairs=fne_pairs)
+    assert sampling(config, K + 1).every == every
+    assert sampling(config, None).every == 1
+    assert sampling(CertificateConfig(every=7), K + 1) == Sampling(7, "certificates.every")
+
+
+@pytest.mark.parametrize("K", [0, 3])
+def test_every_3_samples_steps_0_3_6_and_nan_elsewhere(K):
+    """The sampled columns (FNE pairs, augmented; at K < 2 the watch's probe) hold numbers at
+    n % 3 == 0 only; Condition 2 and the K >= 2 watch stay every step; step 0 equals every = 1's."""
+    steps, summary = _steps(K, 3)
+    dense, _ = _steps(K, 1)
+    sampled = np.arange(20) % 3 == 0
+    assert summary["certificates_every"] == 3
+    for c in ["fne_A", "fne_B", "augmented"] + (["fne_watch"] if K < 2 else []):
+        assert np.isfinite(steps[c][sampled]).all() and np.isnan(steps[c][~sampled]).all(), c
+        assert steps[c][0] == dense[c][0] and np.isfinite(dense[c]).all(), c
+    assert summary["min_fne_margin_by_subsystem"]["A"] == steps["fne_A"][sampled].min()
+    if K >= 2:
+        assert np.isfinite(steps["fne_watch"][~sampled]).any()
+    for c in ("r_A", "r_B", "H_total", "iterations"):           # the run itself does not change
+        assert steps[c].tolist() == dense[c].tolist(), c
+
+
+@pytest.mark.parametrize("config, K, every", [("two_oscillators.yaml", 0, 1), ("two_oscillators.yaml", 3, "auto"),
+                                              ("two_oscillators.yaml", 50, 1), ("two_oscillators_stiff.yaml", 8, 1),
+                                              ("two_oscillators_stiff.yaml", 1, "auto"), ("star.yaml", 3, "auto"),
+                                              ("star.yaml", 0, 2), ("planar.yaml", 0, 3), ("planar.yaml", 4, "auto"),
+                                              ("foreign_pair.yaml", 3, 1), ("unsafe", 8, 1), ("unsafe", 0, 1)])
+def test_certificates_on_the_kernel_route_are_the_reference(tmp_path, monkeypatch, config, K, every):
+    """With the C kernel (the certificates in the blocks by certs.c; step by step, u* by newton.c's
+    nt_solve) steps.csv and every figure equal the Python reference's step by step, to the last byte
+    (foreign_pair: its wave adapters' maps keep figures of their own, so u* and the rest in Python)."""
+    path = ROOT / "configs" / config
+    if config == "foreign_pair.yaml" and not (ROOT.parent / "shared" / "third_party").is_dir():
+        pytest.skip("the third-party FMUs (../shared/third_party) are absent")
+    solved = []
+    solve = NewtonKernel.solve
+    monkeypatch.setattr(NewtonKernel, "solve", lambda self, *a: solved.append(a[0]) or solve(self, *a))
+    sc = load_scenario(ROOT / "configs" / "two_oscillators_stiff.yaml").with_changes(gamma="fast-unsafe") \
+        if config == "unsafe" else load_scenario(path)                  # the watch fails: its warnings
+    sc = dataclasses.replace(sc.with_master(K=K), T=min(sc.T, 100 * sc.dt),
+                             certificates=dataclasses.replace(sc.certificates, every=every))
+    summaries, blocked, warned = [], 0, []
+    for fast in ("false", "true"):
+        out = tmp_path / fast
+        result = run(sc.with_master(fast=fast), out, file_suffix=False, reference=None, warn=warned.append)
+        blocked = result.summary["block_steps"]
+        summaries.append({k: v for k, v in result.summary.items()
+                          if not k.endswith("_s") and k not in ("real_time_factor", "block_steps", "fast_path",
+                                                                 "fast_note", "threads", "thread_note")})
+    assert (tmp_path / "false" / "steps.csv").read_bytes() == (tmp_path / "true" / "steps.csv").read_bytes()
+    assert (tmp_path / "false" / "trajectory.csv").read_bytes() == (tmp_path / "true" / "trajectory.csv").read_bytes()
+    assert json.dumps(summaries[0], default=str) == json.dumps(summaries[1], default=str)
+    assert warned[:len(warned) // 2] == warned[len(warned) // 2:] and (config == "unsafe") == bool(warned)
+    steps, foreign, planar = summaries[1]["steps"], config == "foreign_pair.yaml", config == "planar.yaml"
+    # every step in blocks, the certificates in certs.c; planar at K < 2 (two channels a port): blocks
+    # between the sampled steps, made step by step with the watch's probe in Python and u* by nt_solve
+    sampled = list(range(0, steps, summaries[1]["certificates_every"]))
+    assert blocked == (0 if foreign else steps - len(sampled) if planar and K < 2 else steps)
+    assert solved == (sampled if planar and K < 2 else [])

@@ -163,6 +163,10 @@ CASES = [
     ("error-column", _set(["error"], ["q3"]), ["error: must list output columns"]),
     ("certificates-augmented", _set(["certificates"], {"augmented": "yes"}),
      ["certificates.augmented: must be true or false"]),
+    ("certificates-every-zero", _set(["certificates"], {"every": 0}),
+     ["certificates.every (an integer >= 1 or auto): must be >= 1, got 0"]),
+    ("certificates-every-word", _set(["certificates"], {"every": "often"}),
+     ["certificates.every (an integer >= 1 or auto): must be an integer, got 'often'"]),
     ("fne-watch", _set(["fne_watch"], 1), ["fne_watch: must be true or false"]),
 ]
 

@@ -186,10 +186,10 @@ def test_the_kernels_redo_is_the_reference_in_every_action(monkeypatch, blocks):
 
 
 def test_step_by_step_with_certificates_under_a_deadline_is_block_mode_bit_for_bit(monkeypatch):
-    """Certificates on make the runner go step by step; the kernel then makes each step and its guard
-    in one call (never macro_step + redo from Python), and rows, outputs, FMU calls and ledger figures
-    equal the blocks' (no certificates), bit for bit, in every action. The 10 s deadline is never
-    reached, so only the step times may differ."""
+    """Step by step (blocks of one step; certificates on, which the blocks compute too) the kernel makes
+    each step and its guard in one call (never macro_step + redo from Python), and rows, outputs, FMU
+    calls and ledger figures equal the blocks' (no certificates), bit for bit, in every action. The
+    10 s deadline is never reached, so only the step times may differ."""
     calls = {"macro_step": 0, "redo": 0}
     for name in calls:
         def counted(self, *args, _name=name, _real=getattr(fast_path.Kernel, name)):
@@ -197,7 +197,10 @@ def test_step_by_step_with_certificates_under_a_deadline_is_block_mode_bit_for_b
             return _real(self, *args)
         monkeypatch.setattr(fast_path.Kernel, name, counted)
     base = scenario(STAR, "ledger", 4, T=5.0, parameters={("A", "knl"): 8e7}).with_master(deadline_us=1e7)
-    blocks, steps = run(base, certificates=False), run(base, certificates=True)
+    blocks = run(base, certificates=False)
+    with monkeypatch.context() as m:
+        m.setattr(runner, "BLOCK_STEPS", 1)
+        steps = run(base, certificates=True)
     assert blocks.summary["block_steps"] == blocks.summary["steps"] and steps.summary["block_steps"] == 0
     assert calls == {"macro_step": 0, "redo": 0}
     shared = blocks.steps_table.columns

@@ -27,14 +27,15 @@ from wavecosim.budget_sweep import reference_run
 BASE = yaml.safe_load(DEFAULT_CONFIG.read_text())
 
 
-def scenario(gamma, k12=120.0, dt=0.01, T=10.0, q1=0.4, m2=4.0, K=50, augmented=True, fne_pairs=0, fne_watch=True):
+def scenario(gamma, k12=120.0, dt=0.01, T=10.0, q1=0.4, m2=4.0, K=50, augmented=True, fne_pairs=0, fne_watch=True,
+             every="auto"):
     raw = copy.deepcopy(BASE)
     raw["subsystems"]["A"]["parameters"]["k12"] = k12
     raw["subsystems"]["A"]["start"].update(q1=q1, d=-q1)
     raw["subsystems"]["B"]["parameters"]["m2"] = m2
     raw.update(dt=dt, T=T, gamma=gamma, fne_watch=fne_watch)
     raw["master"]["K"] = K
-    raw["certificates"].update(augmented=augmented, fne_pairs=fne_pairs)
+    raw["certificates"].update(augmented=augmented, fne_pairs=fne_pairs, every=every)
     return parse_scenario(raw, f"k12={k12:g},dt={dt:g},gamma={gamma}", DEFAULT_CONFIG.parent)
 
 
@@ -258,9 +259,9 @@ def test_watch_warns_once_through_the_cli(tmp_path):
 
 
 def test_watch_probes_when_there_are_no_iterates():
-    """K = 0 has no inner iterates: the watch probes the frozen maps once per step instead."""
+    """K = 0 has no inner iterates: the watch probes the frozen maps at each sampled step instead."""
     warned = []
-    result = run(scenario(0.4, dt=1e-4, T=0.002, K=0), warn=warned.append)
+    result = run(scenario(0.4, dt=1e-4, T=0.002, K=0, every=1), warn=warned.append)
     s = result.summary
     assert s["fne_watch_probed_steps"] == 20 and s["fne_watch_ok"] is False
     rho = (0.056 - 0.4) / (0.056 + 0.4)

@@ -3,6 +3,7 @@ files but not the figures, the lockstep reference gives the same errors as a sto
 metadata names the FMUs by checksum, and every failure keeps its class (and exit code). Runs made in
 blocks of macro-steps (one kernel call each) write the same bytes and figures as step by step."""
 import csv
+import dataclasses
 import hashlib
 import json
 
@@ -214,3 +215,27 @@ def test_blocks_on_a_grid_of_k_dt(tmp_path, monkeypatch):
     same_files_and_figures(one, blocks, tmp_path)
     assert runner.grid_inverse(0.003) == 0 and blocks.summary["block_steps"] == 300
     assert blocks.trajectory["time"].tolist() == [k * 0.003 for k in range(301)]
+
+
+@pytest.mark.parametrize("K, every, guard, blocked", [(0, "auto", "ledger", 1000), (1, 3, "ledger", 1000),
+                                                     (3, "auto", "ledger", 1000), (50, 1, "ledger", 1000),
+                                                     (8, 1, "monolithic", 1000), (8, "auto", "off", 1000)])
+def test_blocks_with_certificates(tmp_path, monkeypatch, K, every, guard, blocked):
+    """Certificates on, sampled every `every` steps, with the step-by-step files and figures: the
+    kernel computes them inside the blocks (certs.c; at K < 2 the watch's probe of one-channel ports),
+    also on steps the monolithic guard judges after their block (K = 8: steps 0, 25 and 52 redone)."""
+    sc = load_scenario().with_master(K=K, energy_guard=guard)
+    sc = dataclasses.replace(sc, certificates=dataclasses.replace(sc.certificates, every=every))
+    results = []
+    for size, kind in ((1, "steps"), (runner.BLOCK_STEPS, "blocks")):
+        with monkeypatch.context() as m:
+            m.setattr(runner, "BLOCK_STEPS", size)
+            results.append(run(sc, tmp_path / kind, file_suffix=False))
+    one, blocks = results
+    for name in ("trajectory.csv", "steps.csv"):
+        assert (tmp_path / "steps" / name).read_bytes() == (tmp_path / "blocks" / name).read_bytes(), name
+    a, b = ({k: v for k, v in r.summary.items() if k not in TIMING} for r in results)
+    assert json.dumps(a, default=str) == json.dumps(b, default=str)
+    assert blocks.summary["block_steps"] == blocked and one.summary["block_steps"] == 0
+    assert np.isfinite(blocks.steps["fne_A"]).sum() == -(-1000 // blocks.summary["certificates_every"])
+    assert blocks.summary.get("energy_guard_steps") == {"ledger": b.get("energy_guard_steps"), "monolithic": 3, "off": None}[guard]

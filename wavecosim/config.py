@@ -88,6 +88,7 @@ class CertificateConfig:
     fne_pairs: int = 8
     fne_seed: int = 1
     fne_scale: float = 0.1
+    every: object = "auto"              # sample at steps n % every == 0: an integer >= 1, or "auto"
 
 
 @dataclass
@@ -428,7 +429,7 @@ def _dr_options(ck, m, master):
 
 
 def _certificates(ck, c) -> CertificateConfig:
-    ck.mapping(c, "certificates", ("augmented", "fne_pairs", "fne_seed", "fne_scale"))
+    ck.mapping(c, "certificates", ("augmented", "fne_pairs", "fne_seed", "fne_scale", "every"))
     certs = CertificateConfig()
     if "augmented" in c:
         certs.augmented = ck.boolean(c["augmented"], "certificates.augmented")
@@ -438,6 +439,8 @@ def _certificates(ck, c) -> CertificateConfig:
         certs.fne_seed = ck.integer(c["fne_seed"], "certificates.fne_seed")
     if "fne_scale" in c:
         certs.fne_scale = ck.number(c["fne_scale"], "certificates.fne_scale", positive=True)
+    if "every" in c and c["every"] != "auto":
+        certs.every = ck.integer(c["every"], "certificates.every (an integer >= 1 or auto)", minimum=1)
     return certs
 
 

@@ -170,10 +170,11 @@ def probe_port(sub, centre, rel=PROBE_REL, check=False) -> PortProbe:
     return probe
 
 
-def probe_scene(scene, b, n, t, P=None, check=False):
-    """Freeze every subsystem at x^n, probe it around u^0 = P b^n, and put it back at x^n."""
+def probe_scene(scene, b, n, t, P=None, check=False, u0=None):
+    """Freeze every subsystem at x^n, probe it around u^0 = P b^n (or the stacked u0 given), and put
+    it back at x^n."""
     P = scene.wave_map().P if P is None else P
-    centre = scene.split(list(np.asarray(P, float) @ np.asarray(b, float)))
+    centre = scene.split(list(np.asarray(P, float) @ np.asarray(b, float)) if u0 is None else u0)
     probes = []
     for s, c in zip(scene.subsystems, centre):
         s.freeze(n, t)

@@ -29,7 +29,8 @@ from .masters import MASTERS
 from .masters.base import REASONS, WaveMaster, require_wave_tuning
 from .metadata import run_metadata
 from .observers import Observer
-from .observers.certificates import CertificateSampler
+from .certificates import sampling
+from .observers.certificates import CertificatePace, CertificateSampler
 from .observers.energy_guard import EnergyGuard
 from .observers.energy_ledger import EnergyLedger
 from .observers.errors import ErrorTracker, stored_reference, stored_rows
@@ -195,14 +196,17 @@ def make_observers(scenario, scene, master, tuner, certificates, warn):
             unavailable.append("energy_guard (monolithic: needs every subsystem's stored energy H)")
     if isinstance(master, WaveMaster):
         obs.append(TunedGammaLog(scene, master, tuner) if tuner and tuner.retune else GammaLog(scene, master, tuner))
-    if master.iterates and scenario.fne_watch and certificates:
-        obs.append(FneWatch(scene, master, warn))
     certs = scenario.certificates
+    pace = sampling(certs, master.evaluations)
+    if master.iterates and scenario.fne_watch and certificates:
+        obs.append(FneWatch(scene, master, pace, warn))
     augmented = master.iterates and has_H
     if certificates and master.iterates and certs.augmented and not has_H:
         unavailable.append("max_augmented_pos (Theorem 1 needs every subsystem's stored energy H)")
     if certificates and scene.wave and (certs.fne_pairs or (certs.augmented and augmented)):
-        obs.append(CertificateSampler(scene, master, certs, augmented=augmented))
+        obs.append(CertificateSampler(scene, master, certs, augmented=augmented, pace=pace))
+    if any(isinstance(o, (FneWatch, CertificateSampler)) for o in obs):
+        obs.append(CertificatePace(pace))
     obs.append(Passivity(scene, unavailable))
     return obs
 
@@ -309,18 +313,21 @@ class LiveRun:
 
     def _plan_blocks(self):
         """Blocks when the master can make them, every observer takes them, nothing acts before a
-        step, and builtin sum() adds left to right (Python < 3.12: the blocks' sums are written so)."""
+        step (a paced observer: before the steps it names; blocks stop before them), and builtin sum()
+        adds left to right (Python < 3.12: the blocks' sums are written so)."""
         guard = self.guard
         self.cap = guard.cap if isinstance(guard, EnergyGuard) else math.inf
         self.ledger = isinstance(guard, EnergyLedger)
         self.kernel_guard = self.ledger and hasattr(self.master, "guards_steps") and self.master.guards_steps()
         self.blocks = (getattr(self.master, "fast", False) and hasattr(self.master, "run_steps")
-                       and not self.bracket and all(o.blocks for o, _ in self.after)
+                       and all(o.paced or type(o).before_step is Observer.before_step for o in self.observers)
+                       and all(o.blocks for o, _ in self.after)
                        and (guard is None or isinstance(guard, EnergyGuard)
                             or (self.ledger and hasattr(self.master, "keep_ledger")))   # classical: step by step
                        and self.scene.signals is None and blocks.library() is not None
                        and sys.version_info < (3, 12))
         self.rows_call = None                    # block_rows' arguments, from the first block's layout
+        self.paced = [o for o in self.observers if o.paced]          # blocks stop before their steps
         if self.blocks:
             self.master.observe(self.sampler.observed)
             self.block_observers = [(o, self.spans[id(o)]) for o in ([guard] if self.ledger else [])
@@ -329,7 +336,8 @@ class LiveRun:
     def block_size(self, n):
         """How many macro-steps advance(n, ...) may make in one call of the master."""
         if self.blocks and self.master.can_run_steps(n):
-            return min(BLOCK_STEPS if self.out_dir is None else min(BLOCK_STEPS, PIECE_STEPS), self.n_steps - n)
+            cap = BLOCK_STEPS if self.out_dir is None else min(BLOCK_STEPS, PIECE_STEPS)
+            return max(1, min([cap, self.n_steps - n] + [o.next_before(n) - n for o in self.paced]))
         return 1
 
     def advance(self, n, count):

@@ -70,6 +70,8 @@ struct DRKernel {
     double task_t, task_h;
     int task_commit, task_measure;
     DROptions *opt;                /* the DR master's named options, or NULL (the paper's Algorithm 1) */
+    DRHookFn hook_before, hook_after; /* around each step of dr_run_steps_of (certs.c), or NULL */
+    void *hook_ctx;
 };
 
 static double now_ns(void) {
@@ -665,6 +667,7 @@ int dr_run_steps_of(DRKernel *k, DRStep *io, int n0, int count, double *rows, do
     io->stopped = 0;
     for (int s = 0; s < count; s++) {
         io->t = (double)(n0 + s) * io->dt;
+        if (k->hook_before && k->hook_before(k->hook_ctx, io, n0 + s)) return s;    /* not the step's time */
         double c0 = io->ledger_on && io->step_deadline_s > 0.0 ? cpu_ns() : 0.0, t0 = now_ns();
         double caller = io->deadline_s;
         int failure = step(ctx, io);
@@ -676,6 +679,7 @@ int dr_run_steps_of(DRKernel *k, DRStep *io, int n0, int count, double *rows, do
             report_failure(k, io, f);
             return s;
         }
+        if (k->hook_after) k->hook_after(k->hook_ctx, io, n0 + s);
         if (stop_after(k, rows + first_observed + s, m, H_cap)) {
             io->stopped = 1;
             return s + 1;
@@ -862,6 +866,28 @@ void dr_begin(DRKernel *k, DRStep *io) { begin_macro_step(k, io); }
 
 int dr_evaluate(DRKernel *k, int i, const double *in, double *out, double t, double h, int commit) {
     return evaluate(&k->sub[i], in, out, t, h, commit, 0);
+}
+
+void dr_set_hooks(DRKernel *k, DRHookFn before, DRHookFn after, void *ctx) {
+    k->hook_before = before, k->hook_after = after, k->hook_ctx = ctx;
+}
+
+void dr_iterates(DRKernel *k, double **u0, double **uK, double **trace, int *capacity) {
+    *u0 = k->u0, *uK = k->uK, *trace = k->trace, *capacity = k->trace_capacity;
+}
+
+int dr_read(DRKernel *k, int i, const fmi2ValueReference *vr, int count, double *out) {
+    Sub *s = &k->sub[i];
+    return failed(s, DR_FN_GET_REAL, s->fn.getReal(s->comp, vr, (size_t)count, out));
+}
+
+int dr_thaw(DRKernel *k, int i) {
+    Sub *s = &k->sub[i];
+    if (!s->frozen || !s->dirty) return 0;
+    if (failed(s, DR_FN_SET_STATE, s->fn.setFMUstate(s->comp, *s->state))) return 1;
+    s->n_restore++;
+    s->dirty = 0;
+    return 0;
 }
 
 int dr_advance(DRKernel *k, int i, const double *in, double *out, double t, double h) {

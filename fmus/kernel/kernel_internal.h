@@ -32,6 +32,21 @@ void dr_begin(DRKernel *k, DRStep *io);
  * nonzero when an FMU call failed. */
 int dr_evaluate(DRKernel *k, int i, const double *in, double *out, double t, double h, int commit);
 
+/* Called before (at x^n) and after each step n of dr_run_steps_of (after the ledger's redo); a
+ * nonzero return of `before` ends the call before step n. */
+typedef int (*DRHookFn)(void *ctx, DRStep *io, int n);
+void dr_set_hooks(DRKernel *k, DRHookFn before, DRHookFn after, void *ctx);
+
+/* The caller's u^0 and u^K buffers and the trace (NULL when not recording) with its capacity. */
+void dr_iterates(DRKernel *k, double **u0, double **uK, double **trace, int *capacity);
+
+/* count values of subsystem i's FMU (fmi2GetReal); nonzero when the call failed. */
+int dr_read(DRKernel *k, int i, const fmi2ValueReference *vr, int count, double *out);
+
+/* Subsystem i back at x_i^n after queries made from it (FrozenPortMap.thaw); nonzero when
+ * setFMUstate failed. */
+int dr_thaw(DRKernel *k, int i);
+
 /* Subsystem i one step forward from its current state, nothing saved first (masters that never
  * roll back: frozen_port_map.py's begin + advance). */
 int dr_advance(DRKernel *k, int i, const double *in, double *out, double t, double h);

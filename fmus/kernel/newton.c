@@ -217,6 +217,19 @@ int nt_step(NTKernel *c, DRStep *io, const double *b_n, double *b_next, double *
     return 0;
 }
 
+void nt_apply_map(const NTKernel *c, const double *x, double *y) { dr_csr_rows(c->P, x, y, 0, c->n); }
+
+int nt_solve(NTKernel *c, DRStep *io, const double *b_n, double *b_star, double *out) {
+    dr_begin(c->k, io);
+    io->reason = DR_EXPLICIT;
+    memcpy(c->b, b_n, c->n * sizeof(double));
+    int rc = newton(c, io, out);
+    memcpy(b_star, c->b, c->n * sizeof(double));
+    for (int i = 0; i < dr_subsystems(c->k); i++)
+        if (dr_thaw(c->k, i)) return rc ? rc : dr_fail(c->k, io, i);
+    return rc;
+}
+
 void nt_destroy(NTKernel *c) {
     if (!c) return;
     free(c->P);

@@ -30,6 +30,13 @@ int nt_set_map(NTKernel *c, const int *P_start, const int *P_col, const double *
  * Returns 0, -1 (FMU failure) or NT_* (io->residual, out[1] then say why). */
 int nt_step(NTKernel *c, DRStep *io, const double *b_n, double *b_next, double *a_hat, double *out);
 
+/* The interface Newton alone (monolithic.solve_interface at x^n from b^n, e.g. u* = P b* of the
+ * certificates): b* into b_star, io and out as nt_step; every subsystem is left at x_i^n. */
+int nt_solve(NTKernel *c, DRStep *io, const double *b_n, double *b_star, double *out);
+
+/* y = P x, rows summed left to right from 0.0 over their stored entries (linalg.matvec). */
+void nt_apply_map(const NTKernel *c, const double *x, double *y);
+
 void nt_destroy(NTKernel *c);
 
 #endif

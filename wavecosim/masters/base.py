@@ -10,6 +10,8 @@ StepLog. Class attributes say what it needs and how it is shown:
                   watch and the monolithic energy guard apply
   default_guard   the energy guard it runs with when the scenario names none (DR: ledger; the
                   classical masters: off, as other tools run them)
+  evaluations     FMU evaluations per subsystem of one macro-step when fixed (DR: K + 1), else None;
+                  it paces the sampled certificates (certificates.sampling)
   guardable       its commit can supply energy, and it can undo the commit and redo it with other
                   inputs (undo_step, recommit, probe, supply): the energy guards apply
 Wave masters (WaveMaster) own the compiled wave map P, J_L and the committed wave b^n: nothing
@@ -48,6 +50,7 @@ class Master:
     iterates = False          # gives the DR iterates u^0, u^K (Theorem 1, Condition 1 watch, energy guard)
     guardable = False         # an energy guard applies (undo_step, recommit, probe, supply)
     default_guard = "off"     # master.energy_guard when the scenario does not say
+    evaluations = None        # FMU evaluations per subsystem of a macro-step, when fixed
 
     def __init__(self, scene, settings):
         self.scene, self.settings = scene, settings
@@ -72,6 +75,11 @@ class Master:
     def redo_in_kernel(self, supplied, budget, fitted):
         """The energy ledger's redo of the step just made, done in C: (s, supply, traffic, action,
         rounds); None where there is no kernel (the ledger then redoes it through the methods above)."""
+        return None
+
+    def kernel_certificates(self, floor):
+        """The sampled certificates computed inside this master's blocks of steps (certs_path), or
+        None: the observers then compute them step by step."""
         return None
 
     def enable_trace(self, on=True):
@@ -127,6 +135,11 @@ class WaveMaster(Master):
         """Put every subsystem back at x^n and b^n back, after the commit of macro-step n."""
         self.scene.restore_frozen()
         self._set_b(self._b_step_start)
+
+    def fixed_point(self, n, t):
+        """b* = S^n(P b*) at the frozen x^n (eq. 15), solved from b^n (u* = P b* of the certificates);
+        the FMUs are left at x^n."""
+        return solve_interface(self.scene, self.P, self._b, where=f" at step {n} (t = {t:.6g})")[0].tolist()
 
     def interface_solution(self, n, t, tag=""):
         """The monolithic incident waves at the frozen x^n: a = P b*, b* = S^n(P b*) (eqs. 14-15),

@@ -46,6 +46,7 @@ class DRMaster(WaveMaster):
     def __init__(self, scene, settings):
         super().__init__(scene, settings)
         self.K, self.eps = settings.K, settings.eps
+        self.evaluations = self.K + 1                                  # at most; paces the certificates
         self._trace = None                                             # [] while recording (u, S(u)) pairs
         self.relaxation = self._relaxation(settings.relaxation)       # lambda of line 12
         self.anderson = self._anderson()

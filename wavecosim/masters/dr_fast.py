@@ -19,6 +19,8 @@ import math
 import time
 
 from ..fast_path import PARALLEL_MIN_US, REASONS, BlockLog, Kernel, available_cpus, kernel_refusal, thread_plan
+from ..certs_path import KernelCertificates, supports
+from ..newton_path import NewtonKernel
 from .base import StepLog
 from .dr import DRMaster
 
@@ -38,6 +40,8 @@ class FastDRMaster(DRMaster):
         self.kernel, self.fast, self.threads = None, False, 1
         self.guarded = None       # the kernel's BlockLog of the last step when step() made the ledger's guard too
         self._guarding = False    # keep_ledger was called: step() makes iteration, commit and redo in one call
+        self._newton = None       # the certificates' interface Newton in C (newton_path.NewtonKernel), when asked
+        self._certs = None        # the certificates inside the blocks (certs_path.KernelCertificates), when asked
         # blocks of steps (run_steps) read the observed values in C; a physical port's b is computed
         # from them in Python (readings.py), so scenes with wave adapters run one step per call
         self._blocks = not any(s.adapter for s in scene.subsystems)
@@ -74,6 +78,27 @@ class FastDRMaster(DRMaster):
         super()._compile()
         if getattr(self, "kernel", None) is not None:
             self.kernel.set_maps(self.P, self.J_L)
+        if getattr(self, "_newton", None) is not None:
+            self._newton.set_map(self.P)
+
+    def fixed_point(self, n, t):
+        """b* in C (newton.c: nt_solve, the reference's Newton to the last bit) when the kernel runs a
+        scene without wave adapters (their Python maps keep figures the C route would not book)."""
+        if self.kernel is None or not self._blocks:
+            return super().fixed_point(n, t)
+        return self._newton_kernel().solve(n, t, self._b)
+
+    def _newton_kernel(self):
+        if self._newton is None:
+            self._newton = NewtonKernel(self.scene, self.P)
+        return self._newton
+
+    def kernel_certificates(self, floor):
+        """The certificates inside this master's blocks (certs_path.KernelCertificates; the watch keeps
+        pairs above `floor`), made on the first ask; None where the blocks cannot compute them."""
+        if self._certs is None and self.kernel is not None and self._blocks and supports(self.scene):
+            self._certs = KernelCertificates(self.kernel, self._newton_kernel(), self.scene, floor)
+        return self._certs
 
     def retune(self, b):
         super().retune(b)
@@ -192,7 +217,11 @@ class FastDRMaster(DRMaster):
         if self._step_s > 0.0:
             count = max(1, min(count, int(BLOCK_SECONDS / self._step_s)))
         started = time.perf_counter()
+        if self._certs is not None:
+            self._certs.arm(n0, count)
         done, log, error = self.kernel.run_steps(n0, count, H_cap, measure)
+        if self._certs is not None:
+            error = self._certs.disarm(done) or error
         if done:
             self._step_s = (time.perf_counter() - started) / done
         self._book(n0, done, log)
@@ -264,7 +293,8 @@ class FastDRMaster(DRMaster):
                 "thread_note": self.thread_note}
 
     def close(self):
-        if self.kernel is not None:
-            self.kernel.close()
-            self.kernel = None
+        for part in (self._certs, self.kernel, self._newton):
+            if part is not None:
+                part.close()
+        self.kernel = self._newton = self._certs = None
         super().close()

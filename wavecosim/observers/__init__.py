@@ -7,7 +7,7 @@ costs nothing. Per macro-step the runner calls `before_step`, then the master, t
 returning a new StepLog, after which the runner reads the FMUs again. When every observer has
 `blocks` set, the runner may run many macro-steps in one call of the master and give them to
 `after_block` at once; its figures must equal, to the last bit, those of `after_step` called step
-by step.
+by step. A `paced` observer acts before some steps only (`next_before`): blocks run between them.
 """
 
 
@@ -17,13 +17,18 @@ class Observer:
     formats = {}          # column -> formatter for steps.csv (default: floats), e.g. recorder.Labels
     needs_trace = False   # it reads the master's inner queries (u^k, S(u^k)) of each step
     redoes = False        # an energy guard: it acts first and may redo the step
-    blocks = False        # it has after_block (and nothing to do before a step)
+    blocks = False        # it has after_block (and nothing to do before a step, unless paced)
+    paced = False         # it acts before the steps next_before() names only, and blocks may run between
 
     def start(self, first):
         """Once, with the Reading of the FMUs at t = 0, before the first macro-step."""
 
     def before_step(self, n, t):
         """Before macro-step n (the FMUs are at x^n)."""
+
+    def next_before(self, n):
+        """A paced observer: the first macro-step >= n before which it acts (math.inf: none)."""
+        raise NotImplementedError
 
     def after_step(self, n, t, log, reading, row):
         """After macro-step n: `reading` holds the FMUs' values at x^{n+1}; write this observer's

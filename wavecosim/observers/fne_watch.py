@@ -8,7 +8,7 @@ is FNE; rho - rho^2 for b = rho a) comes from:
   its fixed point) gets no estimate (NaN);
 - otherwise (K < 2, or a master that does not expose its queries) one finite-difference probe of
   the frozen map (m + 1 queries, gamma_tuning.probe_port), giving the tangent margin
-  lambda_min(sym J_S - J_S^T J_S).
+  lambda_min(sym J_S - J_S^T J_S), at the sampled steps only (certificates.Sampling).
 The first failure (margin < -TOL) is reported once, naming the step, the time and the subsystem.
 """
 import math
@@ -16,6 +16,8 @@ import math
 import numpy as np
 
 from .. import gamma_tuning as gt
+from ..linalg import matvec
+from ..readings import row_dots
 from . import Observer
 
 TOL = 1e-6      # margins above -TOL count as FNE (roundoff of the FMUs' inner solves)
@@ -62,7 +64,7 @@ def _pairs(scene, trace):
         cols = slice(off, off + s.m)
         da, ds = dU[:, cols], dB[:, cols]
         size = np.abs(U[:, cols]).max(axis=1) + np.abs(B[:, cols]).max(axis=1)
-        norm = np.sqrt(np.einsum("ij,ij->i", da, da))
+        norm = np.sqrt(row_dots(da, da))
         keep = (norm > 0.0) & (norm > pair_floor(s) * size)
         if keep.any():
             yield s, da[keep], ds[keep]
@@ -85,10 +87,11 @@ def trace_impedances(scene, trace, gammas):
 
 
 def trace_margins(scene, trace):
-    """{subsystem: smallest secant margin} over consecutive inner-loop queries (u, S(u))."""
+    """{subsystem: smallest secant margin} over consecutive inner-loop queries (u, S(u)); sums in a
+    fixed order, as fmus/kernel/certs.c makes them in blocks."""
     out = {}
     for s, da, ds in _pairs(scene, trace):
-        m = (np.einsum("ij,ij->i", ds, da) - np.einsum("ij,ij->i", ds, ds)) / np.einsum("ij,ij->i", da, da)
+        m = (row_dots(ds, da) - row_dots(ds, ds)) / row_dots(da, da)
         out[s.name] = float(m.min())
     return out
 
@@ -97,10 +100,9 @@ class FneWatch(Observer):
     """Online Condition 1 monitor of one run; `warn` gets one line, the first time it fails.
     Column fne_watch: the smallest margin estimated at each step (NaN when none could be)."""
     columns = ("fne_watch",)
-    needs_trace = True
 
-    def __init__(self, scene, master, warn=None, tol=TOL):
-        self.scene, self.master, self.tol = scene, master, tol
+    def __init__(self, scene, master, pace, warn=None, tol=TOL):
+        self.scene, self.master, self.pace, self.tol = scene, master, pace, tol
         self.warn = warn or (lambda msg: None)
         self.names = [s.name for s in scene.subsystems]
         self.min_margin = {n: math.inf for n in self.names}
@@ -108,19 +110,71 @@ class FneWatch(Observer):
         self.failed_steps = 0
         self.probed_steps = 0
         self.probed = None
+        self.needs_trace = master.K >= 2                   # the secant margins, every step
+        self.blocks = self.paced = not self.needs_trace    # the probe, at the sampled steps
+        self.kernel = master.kernel_certificates(FLOOR)
+        if self.kernel is not None and not self.needs_trace and not self.kernel.probe(pace, gt.PROBE_REL):
+            self.kernel = None                             # a port of many channels: the probe in Python
+        if self.kernel is not None:                        # the margins in the blocks (certs_path)
+            if self.needs_trace:
+                self.kernel.watch()
+            self.blocks = self.paced = True
+
+    def next_before(self, n):
+        """K < 2: its sampled steps (the probe, unless the kernel makes it); K >= 2 acts before no step."""
+        return math.inf if self.needs_trace or self.kernel is not None else self.pace.next_sampled(n)
+
+    def after_block(self, n0, logs, readings, rows):
+        """The kernel's secant margins of each step; K < 2, steps between sampled ones: no estimate (NaN)."""
+        if self.kernel is None:
+            rows[:] = math.nan
+            return
+        found, dt, k = self.kernel.block_rows(n0, len(rows)), self.scene.scenario.dt, len(self.names)
+        margins, kept = found[:, k + 1:2 * k + 1], found[:, 2 * k + 1:] > 0.0
+        values = np.where(kept, margins, math.inf)
+        worst = values.min(axis=1)
+        odd = margins[kept]
+        if (worst < -self.tol).any() or np.isnan(odd).any() or (odd == 0.0).any():   # a failure, NaN, signed zero
+            for s, row in enumerate(found):
+                rows[s, 0] = self.record(n0 + s, (n0 + s) * dt, self._kernel_margins(n0 + s, row))
+            return
+        some = kept.any(axis=1)                                   # record() of every step, at once
+        rows[:, 0] = np.where(some, worst, math.nan)
+        if not self.needs_trace:
+            self.probed_steps += int(np.count_nonzero(some))
+        for name, column, seen in zip(self.names, values.T, kept.T):
+            if seen.any():
+                self.min_margin[name] = min(self.min_margin[name], float(column.min()))
+
+    def _kernel_margins(self, n, found):
+        """{subsystem: margin} of step n from its row of the kernel's certificates (the probe's: counted)."""
+        k = len(self.names)
+        kept = found[2 * k + 1:].tolist()
+        if not self.needs_trace and any(kept):
+            self.probed_steps += 1
+        return {name: v for name, v, h in zip(self.names, found[k + 1:2 * k + 1].tolist(), kept) if h}
 
     def before_step(self, n, t):
-        """With fewer than two inner iterations there are no iterate pairs: probe the frozen maps."""
+        """With fewer than two inner iterations there are no iterate pairs: probe the frozen maps
+        (at a sampled step; NaN at the others)."""
         self.probed = None
-        if self.master.K < 2:
+        if self.master.K < 2 and self.pace.sampled(n):
             self.probed_steps += 1
             g = self.scene.gammas
+            u0 = matvec(self.master.P, self.master.b)            # summed in a fixed order, as certs.c
             self.probed = {p.name: p.fne_margin(g[p.name])
-                           for p in gt.probe_scene(self.scene, self.master.b, n, t, self.master.P)}
+                           for p in gt.probe_scene(self.scene, self.master.b, n, t, self.master.P, u0=u0)}
 
     def after_step(self, n, t, log, reading, row):
-        margins = self.probed if self.probed is not None else trace_margins(self.scene, self.master.trace or [])
+        made = self.kernel.row_of(n) if self.kernel is not None and self.probed is None else None
+        if made is not None and not self.needs_trace:        # a block's step finished step by step
+            margins = self._kernel_margins(n, made)
+        elif self.probed is not None:
+            margins = self.probed
+        else:
+            margins = trace_margins(self.scene, self.master.trace or []) if self.needs_trace else None
         row[0] = self.record(n, t, margins)
+        self.probed = None
 
     def record(self, n, t, margins):
         """Book this step's margins; returns the smallest (NaN when nothing could be estimated)."""
