@@ -44,7 +44,6 @@ from .scene import build_scene
 FORMATS = ("csv", "mat")
 STEP_COLUMNS = ("time", "iterations", "inner_residual", "reason")
 BLOCK_STEPS = BLOCK                    # macro-steps per call of the master, at most a table block
-PIECE_STEPS = 256                      # ... when rows go to CSV files: each block's rows are formatted while the next runs
 assert REASONS[:len(KERNEL_REASONS)] == KERNEL_REASONS     # the kernel's reason codes are the runner's
 
 
@@ -336,8 +335,7 @@ class LiveRun:
     def block_size(self, n):
         """How many macro-steps advance(n, ...) may make in one call of the master."""
         if self.blocks and self.master.can_run_steps(n):
-            cap = BLOCK_STEPS if self.out_dir is None else min(BLOCK_STEPS, PIECE_STEPS)
-            return max(1, min([cap, self.n_steps - n] + [o.next_before(n) - n for o in self.paced]))
+            return max(1, min([BLOCK_STEPS, self.n_steps - n] + [o.next_before(n) - n for o in self.paced]))
         return 1
 
     def advance(self, n, count):

@@ -50,7 +50,8 @@ class Table:
 
     `formats` maps a column to a formatter (default repr of floats); see `ints` and `Labels`.
     Rows fill one of two blocks; a full block is handed to the writer threads (observers/writer.py)
-    while the other fills, and is filled again only once its rows are formatted."""
+    while the other fills, and is filled again only once its rows are formatted (a table that keeps
+    its rows in memory keeps its full blocks themselves and takes fresh ones)."""
 
     def __init__(self, columns, path=None, formats=None, expected_rows=0):
         self.columns, self.path = list(columns), path
@@ -79,6 +80,8 @@ class Table:
         """A row to fill in place (the block's next slot); it is booked by `commit_row`."""
         if self._fill == BLOCK:
             self.flush()
+        if self._block is None:
+            self._take_block()
         return self._block[self._fill]
 
     def commit_row(self):
@@ -89,6 +92,8 @@ class Table:
         """k rows (k <= BLOCK) of the block to fill in place, booked by commit_rows(k)."""
         if self._fill + k > BLOCK:
             self.flush()
+        if self._block is None:
+            self._take_block()
         return self._block[self._fill:self._fill + k]
 
     def commit_rows(self, k):
@@ -101,6 +106,8 @@ class Table:
         while at < len(rows):
             if self._fill == BLOCK:
                 self.flush()
+            if self._block is None:
+                self._take_block()
             k = min(BLOCK - self._fill, len(rows) - at)
             self._block[self._fill:self._fill + k] = rows[at:at + k]
             self._fill, self.rows, at = self._fill + k, self.rows + k, at + k
@@ -124,15 +131,19 @@ class Table:
             return
         self.hand_over()
         if self._kept is not None:
-            self._kept.append(self._block[:self._fill].copy())
-        self._at, self._fill, self._handed = 1 - self._at, 0, 0
-        self._slots[self._at] = self._slots[self._at] or self._new_slot()
-        self._block = self._slots[self._at][0]
+            self._kept.append(self._block[:self._fill])      # the block itself: it is not filled again
+            self._slots[self._at] = None
+        self._at, self._fill, self._handed, self._block = 1 - self._at, 0, 0, None
         for piece in self._pending[self._at]:
             self._writer.settle(piece)
         self._pending[self._at] = []
         if self._writer is not None:
             self._writer.check()
+
+    def _take_block(self):
+        """Rows go next into the current slot's block, made when first needed (after a flush)."""
+        self._slots[self._at] = self._slots[self._at] or self._new_slot()
+        self._block = self._slots[self._at][0]
 
     def _python_text(self, block):
         """Rows start .. start + rows - 1 of `block` as CSV lines, formatted in Python."""
