@@ -78,7 +78,7 @@ class EnergyLedger(Observer):
         for bit (drkernel.c, ledger_step), and logged each step's I^n, L^n, s, action and redo rounds."""
         led, logged = logs.ledger, logs.ledger_rows
         rows[:, :2], rows[:, 2:] = logged[0:2].T, logged[3:5].T      # supplied, ledger; scale, action
-        acted, rounds = np.count_nonzero(led["action"]), led["rounds"]     # actions: 0 kept, 1 scaled, 2 zero
+        acted, rounds = int(np.count_nonzero(led["action"])), led["rounds"]     # actions: 0 kept, 1 scaled, 2 zero
         if acted:                                                          # only a redone step has rounds
             self.acted += acted
             self.extra += len(self.master.subsystems) * int(rounds.sum())
