@@ -158,7 +158,11 @@ class Table:
             self._writer.wait()
 
     def close(self):
-        """Write every row and close the file; a Ctrl-C meanwhile is held until all is written."""
+        """Write every row and close the file; a Ctrl-C meanwhile is held until all is written (a table
+        without a file only keeps its last rows: nothing to hold Ctrl-C for)."""
+        if self._file is None:
+            self.flush()
+            return
         with Interrupts() as held:
             try:
                 self.flush()
