@@ -47,6 +47,8 @@ KS = (0, 8, 50)
 PATHS = ("naive_fmpy", "python", "fast_step", "fast", "floor")
 DEADLINE_RUNS = (("star", ROOT / "configs" / "star.yaml", 30.0, 20.0, {}),
                  ("heavy_chain", HEAVY, 1500.0, 4.0, {"gamma": 600.0}))   # name, file, deadline (µs), T (s), changes
+KINDS = (("plain", False, True), ("memory", False, False), ("certificates", True, True),
+         ("certificates_memory", True, False))        # whole-run rows: name, certificates, CSV files
 TARGETS = {"fast_over_floor_max": 1.5, "fast_over_floor_K0_max": 3.0, "naive_over_fast_min": 10.0, "sweep_master_s_max": 1.0,
            "parallel_speedup_min": 1.6, "run_over_master_max": 1.5, "run_over_master_certificates_max": 3.0}
 
@@ -252,28 +254,30 @@ def whole_run(scenario, K, certificates, out_dir):
     result = run(scenario.with_master(K=K), out_dir, certificates=certificates, file_suffix=False)
     s, n = result.summary, result.summary["steps"]
     return {"run_us_per_step": 1e6 * s["loop_time_s"] / n, "master_us_per_step": 1e6 * s["wall_time_s"] / n,
-            "set_up_s": s["total_time_s"] - s["loop_time_s"]}
+            "set_up_s": s["total_time_s"] - s["loop_time_s"], "steps": n}
 
 
-def run_overhead(scenario, repeats, progress=print):
+def run_overhead(scenario, repeats, long_steps, progress=print):
     """Whole run against the master's own time at K = 0 and 50: CSV files, rows in memory only (as
-    `run()` and `simulate()` keep them by default), and each with certificates on (best of `repeats`). The master's own time (`master_alone_us_per_step`) is the
-    fastest master time of the runs without certificates at that K: a run with certificates is
-    divided by the master as it runs without them."""
+    `run()` and `simulate()` keep them by default), and each with certificates on (best of `repeats`);
+    and at K = 0 the same scene over `long_steps` steps (CSV and in memory, best of 3), where the
+    writer threads format while the master runs. The master's own time (`master_alone_us_per_step`)
+    is the fastest master time of the runs without certificates at that K and length: a run with
+    certificates is divided by the master as it runs without them."""
+    long = scenario.with_changes(T=long_steps * scenario.dt)
+    cases = [(f"{kind}_K{K}", scenario, K, cert, files, repeats) for kind, cert, files in KINDS for K in (0, 50)]
+    cases += [(f"{kind}_K0_long", long, 0, False, files, 3) for kind, cert, files in KINDS[:2]]
     out = {}
     with tempfile.TemporaryDirectory() as tmp:
-        for kind, cert, where in (("plain", False, tmp), ("memory", False, None), ("certificates", True, tmp),
-                                  ("certificates_memory", True, None)):
-            for K in (0, 50):
-                progress(f"  whole run: K = {K}, {kind}")
-                runs = [whole_run(scenario, K, cert, where) for _ in range(repeats)]
-                out[f"{kind}_K{K}"] = min(runs, key=lambda r: r["run_us_per_step"])
-    for K in (0, 50):
-        alone = min(out[f"{kind}_K{K}"]["master_us_per_step"] for kind in ("plain", "memory"))
-        for kind in ("plain", "memory", "certificates", "certificates_memory"):
-            w = out[f"{kind}_K{K}"]
-            w["master_alone_us_per_step"] = alone
-            w["run_over_master"] = w["run_us_per_step"] / alone
+        for key, sc, K, cert, files, times in cases:
+            progress(f"  whole run: {key}, {sc.n_steps} steps")
+            runs = [whole_run(sc, K, cert, tmp if files else None) for _ in range(times)]
+            out[key] = min(runs, key=lambda r: r["run_us_per_step"])
+    for group in ("K0", "K50", "K0_long"):
+        keys = [k for k in out if k.endswith(f"_{group}") and not k.endswith(f"_{group}_long")]
+        alone = min(out[k]["master_us_per_step"] for k in keys if not k.startswith("certificates"))
+        for k in keys:
+            out[k].update(master_alone_us_per_step=alone, run_over_master=out[k]["run_us_per_step"] / alone)
     return out
 
 
@@ -328,7 +332,8 @@ def run_bench(quick=False, progress=print):
     progress("  Table I sweep K = 0..50 through the runner")
     sweep_s, sweep_alone_s = sweep_master_time(scenario)
     par = parallel(load_scenario(HEAVY), heavy_steps, heavy_repeats, progress)
-    whole = run_overhead(scenario.with_changes(T=n_steps * scenario.dt), repeats, progress)
+    whole = run_overhead(scenario.with_changes(T=n_steps * scenario.dt), 3 * repeats,   # runs of ~1-30 ms: more repeats
+                         10_000 if quick else 100_000, progress)
     over = {k: v["run_over_master"] for k, v in whole.items()}
     ratios = {"fast_over_floor": per_iter["fast"] / per_iter["floor"],
               "fast_over_floor_K0": per_step["fast"][0] / per_step["floor"][0],
@@ -348,11 +353,7 @@ def run_bench(quick=False, progress=print):
         "parallel": par,
         "parallel_speedup": par["speedup"],
         "whole_run": whole,
-        "run_over_master": {"K0": over["plain_K0"], "K50": over["plain_K50"]},
-        "run_over_master_certificates": {"K0": over["certificates_K0"], "K50": over["certificates_K50"]},
-        "run_over_master_in_memory": {"K0": over["memory_K0"], "K50": over["memory_K50"]},
-        "run_over_master_certificates_in_memory": {"K0": over["certificates_memory_K0"],
-                                                   "K50": over["certificates_memory_K50"]},
+        **run_ratios(whole),
         "wave_adapter": adapter_bench(quick, 1 if quick else repeats, progress),
         "deadline_bound": deadline_bound(quick, progress),
         "targets": {
@@ -364,6 +365,17 @@ def run_bench(quick=False, progress=print):
             **run_targets(over),
         },
     }, scenario, quick, progress)
+
+
+def run_ratios(whole):
+    """The whole-run rows as the JSON's ratio keys (run_over_master is the issue's: CSV files)."""
+    over = {k: v["run_over_master"] for k, v in whole.items()}
+    pair = (lambda kind: {"K0": over[f"{kind}_K0"], "K50": over[f"{kind}_K50"]})
+    return {"run_over_master": pair("plain"), "run_over_master_certificates": pair("certificates"),
+            "run_over_master_in_memory": pair("memory"),
+            "run_over_master_certificates_in_memory": pair("certificates_memory"),
+            "run_over_master_long_K0": {"csv": over["plain_K0_long"], "memory": over["memory_K0_long"],
+                                        "steps": whole["plain_K0_long"]["steps"]}}
 
 
 def run_targets(over):
