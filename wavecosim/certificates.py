@@ -31,6 +31,10 @@ class Sampling:
         """The first sampled step >= n."""
         return n + (-n) % self.every
 
+    def rows_of(self, n0, count):
+        """Indices (from 0) of the sampled steps among n0 .. n0 + count - 1."""
+        return np.arange((-n0) % self.every, count, self.every)
+
     def info(self):
         return {"certificates_every": self.every, "certificates_every_chosen": self.chosen}
 

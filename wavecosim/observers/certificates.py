@@ -84,16 +84,17 @@ class CertificateSampler(Observer):
 
     def _kernel_rows(self, n0, logs, readings, rows, H):
         found, k = self.kernel.block_rows(n0, len(rows)), len(self.names) if self.settings.fne_pairs else 0
-        sampled = np.flatnonzero(np.arange(n0, n0 + len(rows)) % self.pace.every == 0)
+        sampled = self.pace.rows_of(n0, len(rows))
         rows[:, :k] = found[:, :k]
         for fne in found[sampled, :k].tolist() if k else ():
             self.min_fne = [min(a, b) for a, b in zip(self.min_fne, fne)]
-        if self.augmented:
-            supplied = 0.5 * (row_sums(logs.a_hat * logs.a_hat) - row_sums(readings.B * readings.B))
-            aug = (H - np.concatenate(([self.H_prev], H[:-1]))) + found[:, len(self.names)] - supplied
-            aug[logs.ledger["rounds"] > 0] = math.nan       # a redo's log has no iterates
-            rows[:, k] = aug
-            for x in aug[sampled].tolist():
+        if self.augmented:                                 # at the sampled steps (the others have no u*)
+            a_hat, B = logs.a_hat[sampled], readings.B[sampled]
+            supplied = 0.5 * (row_sums(a_hat * a_hat) - row_sums(B * B))
+            aug = (H - np.concatenate(([self.H_prev], H[:-1])))[sampled] + found[sampled, len(self.names)] - supplied
+            aug[logs.ledger["rounds"][sampled] > 0] = math.nan      # a redo's log has no iterates
+            rows[sampled, k] = aug
+            for x in aug.tolist():
                 self.max_aug = grow_max_pos(self.max_aug, x)
 
     def start(self, first):

@@ -129,17 +129,20 @@ class FneWatch(Observer):
         if self.kernel is None:
             rows[:] = math.nan
             return
-        found, dt, k = self.kernel.block_rows(n0, len(rows)), self.scene.scenario.dt, len(self.names)
+        dt, k = self.scene.scenario.dt, len(self.names)
+        at = np.arange(len(rows)) if self.needs_trace else self.pace.rows_of(n0, len(rows))   # K < 2: probed steps
+        found = self.kernel.block_rows(n0, len(rows))[at]
         margins, kept = found[:, k + 1:2 * k + 1], found[:, 2 * k + 1:] > 0.0
         values = np.where(kept, margins, math.inf)
         worst = values.min(axis=1)
         odd = margins[kept]
+        rows[:] = math.nan
         if (worst < -self.tol).any() or np.isnan(odd).any() or (odd == 0.0).any():   # a failure, NaN, signed zero
-            for s, row in enumerate(found):
+            for s, row in zip(at.tolist(), found):
                 rows[s, 0] = self.record(n0 + s, (n0 + s) * dt, self._kernel_margins(n0 + s, row))
             return
         some = kept.any(axis=1)                                   # record() of every step, at once
-        rows[:, 0] = np.where(some, worst, math.nan)
+        rows[at, 0] = np.where(some, worst, math.nan)
         if not self.needs_trace:
             self.probed_steps += int(np.count_nonzero(some))
         for name, column, seen in zip(self.names, values.T, kept.T):
