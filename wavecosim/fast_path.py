@@ -254,12 +254,14 @@ class Kernel:
         self._run_steps = lib.dr_run_steps
 
     def observe(self, names):
-        """Read these variables of each subsystem (names[i], H_i first) after every commit of run_steps."""
+        """Read these variables of each subsystem (names[i], H_i first) after every commit of run_steps;
+        returns an empty BlockLog of the blocks' layout (what the runner prepares its passes with)."""
         for i, (s, vars_i) in enumerate(zip(self.subsystems, names)):
             vrs = (ctypes.c_uint * len(vars_i))(*s.fmu.real_vrs(vars_i))
             if self.lib.dr_set_observed(self._handle, i, vrs, len(vars_i)):
                 raise FmuError(f"subsystem {s.name}: the DR kernel could not keep {len(vars_i)} observed values")
         self.width = self.lib.dr_log_width(self._handle)
+        return BlockLog(np.empty((self.width, 0)), self.n)
 
     def keep_ledger(self, ledger, traffic, rtol, step_deadline_s=None):
         """From the next run_steps on, the kernel books the interface energy ledger from (L, traffic)

@@ -325,12 +325,22 @@ class LiveRun:
                             or (self.ledger and hasattr(self.master, "keep_ledger")))   # classical: step by step
                        and self.scene.signals is None and blocks.library() is not None
                        and sys.version_info < (3, 12))
-        self.rows_call = None                    # block_rows' arguments, from the first block's layout
+        self.rows_call = None                    # block_rows' arguments, from the blocks' layout
         self.paced = [o for o in self.observers if o.paced]          # blocks stop before their steps
         if self.blocks:
-            self.master.observe(self.sampler.observed)
+            layout = self.master.observe(self.sampler.observed)
             self.block_observers = [(o, self.spans[id(o)]) for o in ([guard] if self.ledger else [])
                                     + [o for o, _ in self.after]]
+            if layout is not None:
+                self._prepare_blocks(layout)
+
+    def _prepare_blocks(self, layout):
+        """The C passes' arguments built in set-up, from an empty log of the blocks' layout, so the first
+        block costs no more than the others."""
+        readings = self.sampler.block(layout.observed)
+        self.rows_call = self._rows_call(layout, readings)
+        for o, _ in self.block_observers:
+            o.prepare_block(layout, readings)
 
     def block_size(self, n):
         """How many macro-steps advance(n, ...) may make in one call of the master."""
@@ -399,15 +409,19 @@ class LiveRun:
         """The steps' grid time, iterations, residual and reason, and the trajectory's rows, in one C
         pass over the kernel's log (fmus/kernel/blocks.c, block_rows); (sum, max) of the iterations."""
         if self.rows_call is None:
-            outputs = blocks.ints([log.observed_at + r for r in readings.rows("outputs")])
-            call = blocks.BlockRows(n_out=len(self.columns), inverse=grid_inverse(self.dt), dt=self.dt, outputs=outputs)
-            self.rows_call = call, ctypes.byref(call)
+            self.rows_call = self._rows_call(log, readings)
         call, ref = self.rows_call
         call.count, call.n0 = len(log), n0
         (call.log, call.ld), (call.steps, call.lds) = blocks.rows(log.columns), blocks.columns(rows)
         call.trajectory, call.ldt = blocks.columns(trajectory)
         blocks.library().block_rows(ref)
         return call.iterations_sum, call.iterations_max
+
+    def _rows_call(self, log, readings):
+        """block_rows' fixed arguments: where the outputs are in the kernel's log, the grid."""
+        outputs = blocks.ints([log.observed_at + r for r in readings.rows("outputs")])
+        call = blocks.BlockRows(n_out=len(self.columns), inverse=grid_inverse(self.dt), dt=self.dt, outputs=outputs)
+        return call, ctypes.byref(call)
 
     def lead(self, n, end):
         """As the lockstep reference of a run at step n: make the steps up to end - 1 not made yet,

@@ -173,9 +173,9 @@ class FastDRMaster(DRMaster):
             and (self._choose_after is None or n > self._choose_after)
 
     def observe(self, names):
-        """The variables of each subsystem run_steps reads after every commit (names[i], H_i first)."""
-        if self._blocks:
-            self.kernel.observe(names)
+        """The variables of each subsystem run_steps reads after every commit (names[i], H_i first);
+        returns an empty BlockLog of the blocks' layout (None without blocks)."""
+        return self.kernel.observe(names) if self._blocks else None
 
     def guards_steps(self):
         """Whether step() can keep the energy ledger in the kernel (keep_ledger): the kernel runs and no

@@ -36,8 +36,9 @@ class KernelRoute(KernelOwner):
         return self.kernel is not None
 
     def observe(self, names):
-        """The variables of each subsystem run_steps reads after every commit (names[i], H_i first)."""
-        self.kernel.base.observe(names)
+        """The variables of each subsystem run_steps reads after every commit (names[i], H_i first);
+        returns an empty BlockLog of the blocks' layout."""
+        return self.kernel.base.observe(names)
 
     def run_steps(self, n0, count, H_cap=math.inf):
         """Macro-steps n0 .. n0 + count - 1 in one kernel call of at most about BLOCK_SECONDS of work,

@@ -35,6 +35,10 @@ class Observer:
         columns into `row` (its own slice of the step row, in the order of `columns`) and return a new
         StepLog only if the step was redone."""
 
+    def prepare_block(self, logs, readings):
+        """In set-up, before any block: `logs` and `readings` are empty (no step) but laid out as the
+        blocks' will be, so what after_block builds once can be built here, outside the run's time."""
+
     def after_block(self, n0, logs, readings, rows):
         """After macro-steps n0 .. n0 + len(rows) - 1 made in one call: `logs` (fast_path.BlockLog)
         and `readings` (readings.BlockReading) hold one row per step; write this observer's columns

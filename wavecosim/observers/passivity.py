@@ -90,6 +90,9 @@ class Passivity(Observer):
                                 port=ints([*self.scene.offsets, self.scene.n_channels]))
         return call, ctypes.byref(call), prev, fig
 
+    def prepare_block(self, logs, readings):
+        self.call = self._block_call(logs, readings)
+
     def after_block(self, n0, logs, readings, rows):
         """Every step's columns and the running figures in one C pass over the block's log, in
         after_step's operation order (fmus/kernel/blocks.c)."""
