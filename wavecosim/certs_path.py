@@ -83,15 +83,19 @@ class KernelCertificates:
         self.settings.probe, self.settings.every, self.settings.probe_rel = 1, pace.every, rel
         return True
 
-    def arm(self, n0, count):
-        """Before a kernel call of steps n0 .. n0 + count - 1: the normals of its sampled steps."""
+    def create(self):
+        """The C side, once configured (sample, watch, probe): in set-up, or at the first arm."""
         if self.handle is None:
             self.handle = self.lib.dc_create(self.kernel.handle, self.newton.handle, self.newton.base.handle,
                                               ctypes.byref(self.settings), self.stage_vr)
             if not self.handle:
                 raise FmuError("the certificates' kernel could not be created (out of memory)")
+
+    def arm(self, n0, count):
+        """Before a kernel call of steps n0 .. n0 + count - 1: the normals of its sampled steps."""
+        self.create()
         every = self.settings.every
-        self.n0, self.sampled = n0, np.flatnonzero(np.arange(n0, n0 + count) % every == 0)
+        self.n0, self.sampled = n0, np.arange((-n0) % every, count, every)      # its sampled steps, from 0
         self.state = self.rng.bit_generator.state if self.rng is not None else None
         need = len(self.sampled) * self.per_step
         self.normals = self.rng.standard_normal(need) if need else np.zeros(1)

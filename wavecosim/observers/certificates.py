@@ -74,6 +74,11 @@ class CertificateSampler(Observer):
         """Its sampled steps, unless the kernel computes the certificates inside the blocks."""
         return math.inf if self.kernel is not None else self.pace.next_sampled(n)
 
+    def prepare_block(self, logs, readings):
+        """The certificates' kernel made in set-up (not on the first block)."""
+        if self.kernel is not None:
+            self.kernel.create()
+
     def after_block(self, n0, logs, readings, rows):
         """The kernel's certificates of the block's steps (without it, no step is sampled: NaN)."""
         H = row_sums(readings.H)

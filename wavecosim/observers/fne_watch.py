@@ -124,6 +124,11 @@ class FneWatch(Observer):
         """K < 2: its sampled steps (the probe, unless the kernel makes it); K >= 2 acts before no step."""
         return math.inf if self.needs_trace or self.kernel is not None else self.pace.next_sampled(n)
 
+    def prepare_block(self, logs, readings):
+        """The certificates' kernel made in set-up (not on the first block)."""
+        if self.kernel is not None:
+            self.kernel.create()
+
     def after_block(self, n0, logs, readings, rows):
         """The kernel's secant margins of each step; K < 2, steps between sampled ones: no estimate (NaN)."""
         if self.kernel is None:
