@@ -217,17 +217,19 @@ def test_blocks_on_a_grid_of_k_dt(tmp_path, monkeypatch):
     assert blocks.trajectory["time"].tolist() == [k * 0.003 for k in range(301)]
 
 
-@pytest.mark.parametrize("K, every, guard, blocked", [(0, "auto", "ledger", 1000), (1, 3, "ledger", 1000),
-                                                     (3, "auto", "ledger", 1000), (50, 1, "ledger", 1000),
-                                                     (8, 1, "monolithic", 1000), (8, "auto", "off", 1000)])
-def test_blocks_with_certificates(tmp_path, monkeypatch, K, every, guard, blocked):
+@pytest.mark.parametrize("K, every, guard, blocked, block", [(0, "auto", "ledger", 1000, 1024), (1, 3, "ledger", 1000, 1024),
+                                                            (3, "auto", "ledger", 1000, 1024), (50, 1, "ledger", 1000, 1024),
+                                                            (8, 1, "monolithic", 1000, 1024), (8, "auto", "off", 1000, 1024),
+                                                            (1, 3, "ledger", 1000, 7), (0, "auto", "ledger", 1000, 7)])
+def test_blocks_with_certificates(tmp_path, monkeypatch, K, every, guard, blocked, block):
     """Certificates on, sampled every `every` steps, with the step-by-step files and figures: the
     kernel computes them inside the blocks (certs.c; at K < 2 the watch's probe of one-channel ports),
-    also on steps the monolithic guard judges after their block (K = 8: steps 0, 25 and 52 redone)."""
+    also on steps the monolithic guard judges after their block (K = 8: steps 0, 25 and 52 redone);
+    blocks of 7 steps start between sampled steps (n0 % every != 0)."""
     sc = load_scenario().with_master(K=K, energy_guard=guard)
     sc = dataclasses.replace(sc, certificates=dataclasses.replace(sc.certificates, every=every))
     results = []
-    for size, kind in ((1, "steps"), (runner.BLOCK_STEPS, "blocks")):
+    for size, kind in ((1, "steps"), (block, "blocks")):
         with monkeypatch.context() as m:
             m.setattr(runner, "BLOCK_STEPS", size)
             results.append(run(sc, tmp_path / kind, file_suffix=False))
