@@ -1,13 +1,16 @@
 """master/certificates.py and the observers that use it, on the real Table I FMUs."""
+import ctypes
 import dataclasses
 import json
 
 import numpy as np
 import pytest
 
+from wavecosim import blocks
 from wavecosim.certificates import Sampling, augmented_residual, fne_margins, sampling
 from wavecosim.config import ROOT, CertificateConfig, load_scenario
 from wavecosim.newton_path import NewtonKernel
+from wavecosim.observers.passivity import grow_max_pos
 from wavecosim.runner import run
 from wavecosim.scene import build_scene
 from wavecosim.waves import port_energy
@@ -120,3 +123,70 @@ def test_certificates_on_the_kernel_route_are_the_reference(tmp_path, monkeypatc
     sampled = list(range(0, steps, summaries[1]["certificates_every"]))
     assert blocked == (0 if foreign else steps - len(sampled) if planar and K < 2 else steps)
     assert solved == (sampled if planar and K < 2 else [])
+
+
+def _sampled_reference(certs, log, rows, k, first, every, fig):
+    """CertificateSampler's block columns and figures as after_step folds them, step after step."""
+    a, b, h, rounds = rows
+    min_fne, max_aug, H_prev = list(fig[:k]), fig[k], fig[k + 1]
+    out = np.full((len(certs), k + 1), np.nan)
+    for s, row in enumerate(certs):
+        H = sum(log[i, s] for i in h)
+        out[s, :k] = row[:k]
+        if s >= first and (s - first) % every == 0:
+            min_fne = [min(m, x) for m, x in zip(min_fne, row[:k].tolist())]
+            supplied = 0.5 * (sum(log[j, s] ** 2 for j in a) - sum(log[j, s] ** 2 for j in b))
+            r = ((H - H_prev) + row[k]) - supplied
+            out[s, k] = np.nan if log[rounds, s] > 0 else r
+            max_aug = grow_max_pos(max_aug, out[s, k])
+        H_prev = H
+    return out, [*min_fne, max_aug, H_prev]
+
+
+@pytest.mark.parametrize("first, every", [(0, 1), (2, 3), (7, 20)])
+def test_sampled_block_is_the_step_by_step_fold_to_the_bit(first, every):
+    """blocks.c sampled_block on values over 16 decades with NaN and signed zeros among the margins
+    (builtin min keeps the first of -0.0 and 0.0, and never takes a NaN)."""
+    rng, k, count = np.random.default_rng(first + every), 2, 60
+    certs = rng.standard_normal((count, 3 * k + 1)) * 10.0 ** rng.integers(-8, 8, (count, 3 * k + 1))
+    certs[rng.random((count, 3 * k + 1)) < 0.1] = np.nan
+    certs[:, :k] = np.abs(certs[:, :k])              # the zeros below are the smallest margins
+    one, two = range(first, count, every)[1:3]
+    certs[one, :k], certs[two, :k] = [-0.0, 0.0], [0.0, -0.0]
+    log = rng.standard_normal((12, count)) * 10.0 ** rng.integers(-8, 8, (12, count))
+    log[11] = (rng.random(count) < 0.2).astype(float)                 # the ledger's redo rounds
+    rows = ([0, 1], [2, 3], [4, 5], 11)
+    fig = [np.inf, 1.0, np.nan, 0.5]
+    want, figures = _sampled_reference(certs, log, rows, k, first, every, fig)
+    c_fig = (ctypes.c_double * (k + 2))(*fig)
+    place = (lambda i: ctypes.cast(ctypes.addressof(c_fig) + 8 * i, ctypes.POINTER(ctypes.c_double)))
+    out = np.empty((count, k + 1), order="F")
+    call = blocks.SampledBlock(count=count, k=k, n=2, nb=2, first=first, every=every, fne=1, augmented=1,
+                               rounds=rows[3], log=log.ctypes.data, ld=count, certs=certs.ctypes.data,
+                               ldc=3 * k + 1, out=out.ctypes.data, ldo=count, a=blocks.ints(rows[0]),
+                               b=blocks.ints(rows[1]), h=blocks.ints(rows[2]), min_fne=place(0), max_aug=place(k),
+                               H_prev=place(k + 1))
+    blocks.library().sampled_block(ctypes.byref(call))
+    assert out.tobytes() == want.tobytes()
+    assert np.array(c_fig[:]).tobytes() == np.array(figures).tobytes()
+
+
+@pytest.mark.parametrize("tail, plain", [(1.0, True), (-1.0, False), (np.nan, False), (0.0, False)])
+def test_watch_block_books_every_step_or_leaves_them_to_python(tail, plain):
+    """blocks.c watch_block: the smallest kept margin of each watched step (NaN without one), the
+    running minimum per subsystem and the steps estimated; a failing, NaN or zero margin: 1, nothing
+    written."""
+    k, count = 2, 9
+    certs = np.full((count, 3 * k + 1), np.nan)
+    certs[:, k + 1:2 * k + 1] = [[3.0, 2.0]] * count
+    certs[:, 2 * k + 1:] = [[1.0, 0.0], [0.0, 0.0], [1.0, 1.0]] * 3
+    certs[6, k + 1] = tail
+    out, margins = np.full(count, 7.0), (ctypes.c_double * k)(5.0, np.nan)
+    call = blocks.WatchBlock(count=count, k=k, first=0, every=3, tol=0.5, certs=certs.ctypes.data, ldc=3 * k + 1,
+                             out=out.ctypes.data, min_margin=margins)
+    assert blocks.library().watch_block(ctypes.byref(call)) == (not plain)
+    if plain:
+        assert out.tolist()[::3] == [3.0, 3.0, 1.0] and np.isnan(out[[1, 2, 4, 5, 7, 8]]).all()
+        assert margins[0] == 1.0 and np.isnan(margins[1]) and call.probed == 3
+    else:
+        assert (out == 7.0).all() and margins[0] == 5.0

@@ -1,6 +1,7 @@
 """The runner's per-block arithmetic over the C kernel's log (fmus/kernel/blocks.c, built into
 build/lib/libblocks.so): the rows of a block of macro-steps (block_rows) and Condition 2 over it
-(passivity_block), each in one pass and bit for bit the step-by-step Python's. Without a C compiler
+(passivity_block) and the certificates' columns (sampled_block, watch_block), each in one pass and
+bit for bit the step-by-step Python's. Without a C compiler
 the library is missing, `library()` is None and the runner goes step by step (as it must anyway:
 the kernel needs the compiler too)."""
 import ctypes
@@ -28,6 +29,22 @@ class BlockRows(ctypes.Structure):
                 ("iterations_sum", ctypes.c_double), ("iterations_max", ctypes.c_double)]
 
 
+class SampledBlock(ctypes.Structure):
+    """blocks.c: one block for sampled_block (CertificateSampler's columns and running figures)."""
+    _fields_ = [*[(name, ctypes.c_int) for name in ("count", "k", "n", "nb", "first", "every", "fne", "augmented",
+                                                    "rounds")],
+                ("log", ctypes.c_void_p), ("ld", ctypes.c_long), ("certs", ctypes.c_void_p), ("ldc", ctypes.c_long),
+                ("out", ctypes.c_void_p), ("ldo", ctypes.c_long), *[(name, _int_p) for name in ("a", "b", "h")],
+                *[(name, _double_p) for name in ("min_fne", "max_aug", "H_prev")]]
+
+
+class WatchBlock(ctypes.Structure):
+    """blocks.c: one block for watch_block (FneWatch's column and running figures)."""
+    _fields_ = [*[(name, ctypes.c_int) for name in ("count", "k", "first", "every")], ("tol", ctypes.c_double),
+                ("certs", ctypes.c_void_p), ("ldc", ctypes.c_long), ("out", ctypes.c_void_p),
+                ("min_margin", _double_p), ("probed", ctypes.c_long)]
+
+
 def library():
     """libblocks, built on first use; None when it cannot be built."""
     global _lib
@@ -37,7 +54,9 @@ def library():
             return None
         lib.passivity_block.argtypes = [ctypes.POINTER(PassBlock)]
         lib.block_rows.argtypes = [ctypes.POINTER(BlockRows)]
-        lib.passivity_block.restype = lib.block_rows.restype = None
+        lib.sampled_block.argtypes = [ctypes.POINTER(SampledBlock)]
+        lib.watch_block.argtypes = [ctypes.POINTER(WatchBlock)]
+        lib.passivity_block.restype = lib.block_rows.restype = lib.sampled_block.restype = None
         _lib = lib
     return _lib
 

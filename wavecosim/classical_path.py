@@ -26,8 +26,8 @@ def _library():
         lib.cl_create.argtypes = [p, ip, ip, _double_p]
         lib.cl_fixed_point_step.argtypes = [p, p, p, p, p, ctypes.c_int]      # arrays by address
         lib.cl_explicit_step.argtypes = [p, p, p, p, ctypes.c_int]
-        lib.cl_run_steps.argtypes = [p, p, ctypes.c_int, ctypes.c_int, _double_p, ctypes.c_double, ctypes.c_int,
-                                     ctypes.c_int]
+        lib.cl_run_steps.argtypes = [p, p, ctypes.c_int, ctypes.c_int, p, ctypes.c_long, ctypes.c_double,
+                                     ctypes.c_int, ctypes.c_int]
         lib.cl_destroy.argtypes = [p]
         lib.cl_destroy.restype = None
         lib._classical_ready = True
@@ -65,8 +65,8 @@ class ClassicalKernel:
         # the DR kernel's block call, log and observed values, with the classical step in it
         self.base._run_steps = functools.partial(self._blocks, int(explicit), int(sequential))
 
-    def _blocks(self, explicit, sequential, _, io, n0, count, rows, H_cap):
-        return self.lib.cl_run_steps(self._handle, io, n0, count, rows, H_cap, explicit, sequential)
+    def _blocks(self, explicit, sequential, _, io, n0, count, rows, ld, H_cap):
+        return self.lib.cl_run_steps(self._handle, io, n0, count, rows, ld, H_cap, explicit, sequential)
 
     def run_steps(self, n0, count, y, H_cap=math.inf):
         """Macro-steps n0 .. n0 + count - 1 from outputs y in one call (classical.h, cl_run_steps):

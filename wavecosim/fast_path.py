@@ -104,7 +104,7 @@ def load_library():
         lib.dr_set_observed.argtypes = [p, i, ctypes.POINTER(ctypes.c_uint), i]
         lib.dr_log_width.argtypes = [p]
         lib.dr_log_width.restype = ctypes.c_size_t
-        lib.dr_run_steps.argtypes = [p, ctypes.POINTER(DRStep), i, i, d, ctypes.c_double]
+        lib.dr_run_steps.argtypes = [p, ctypes.POINTER(DRStep), i, i, p, ctypes.c_long, ctypes.c_double]
         lib.dr_set_options.argtypes = [p, ctypes.c_double, i, i]
         lib.dr_set_anderson_modes.argtypes = [p, i, i]
         lib.dr_ledger_redo.argtypes = [p, ctypes.POINTER(DRStep), ctypes.c_double, ctypes.c_double, i, d]
@@ -125,7 +125,7 @@ class BlockLog:
         end = len(columns) - len(LEDGER_LOG)
         self.a_hat, self.b, self.observed = columns[3:3 + n].T, columns[3 + n:3 + 2 * n].T, columns[3 + 2 * n:end]
         self.a_rows, self.observed_at = range(3, 3 + n), 3 + 2 * n       # where a_hat and observed start
-        self.ledger_rows = columns[end:]                                 # LEDGER_LOG x steps
+        self.ledger_rows, self.ledger_at = columns[end:], end            # LEDGER_LOG x steps, from row end
         self.ledger = dict(zip(LEDGER_LOG, self.ledger_rows))
 
     def __len__(self):
@@ -136,10 +136,6 @@ class BlockLog:
         if k == len(self) and not self.stopped:
             return self
         return BlockLog(self.columns[:, :k], self.n)
-
-    def then(self, more):
-        """This log (copied) followed by `more`."""
-        return BlockLog(np.concatenate([self.columns, more.columns], axis=1), self.n, more.stopped)
 
 
 def unusable(scene):
@@ -250,18 +246,30 @@ class Kernel:
         self._macro_step = lib.dr_macro_step       # called with pre-converted arguments
         self.threads = 1
         self.trace, self.trace_capacity = None, 0
-        self.width, self.log, self._log_at = lib.dr_log_width(self._handle), np.empty(0), None
+        self.width, self.log = lib.dr_log_width(self._handle), np.empty((0, 0))
         self._run_steps = lib.dr_run_steps
 
-    def observe(self, names):
-        """Read these variables of each subsystem (names[i], H_i first) after every commit of run_steps;
-        returns an empty BlockLog of the blocks' layout (what the runner prepares its passes with)."""
+    def observe(self, names, steps=0):
+        """Read these variables of each subsystem (names[i], H_i first) after every commit of run_steps,
+        with a log of room for `steps` steps made now; returns an empty BlockLog of the blocks' layout
+        (what the runner prepares its passes with)."""
         for i, (s, vars_i) in enumerate(zip(self.subsystems, names)):
             vrs = (ctypes.c_uint * len(vars_i))(*s.fmu.real_vrs(vars_i))
             if self.lib.dr_set_observed(self._handle, i, vrs, len(vars_i)):
                 raise FmuError(f"subsystem {s.name}: the DR kernel could not keep {len(vars_i)} observed values")
         self.width = self.lib.dr_log_width(self._handle)
-        return BlockLog(np.empty((self.width, 0)), self.n)
+        self._log_room(0, steps)
+        return BlockLog(self.log[:, :0], self.n)
+
+    def _log_room(self, keep, steps):
+        """A log of room for `steps` steps per call (written through once, so no page of it is first
+        touched inside a block), its first `keep` columns kept."""
+        if self.log.shape[0] == self.width and self.log.shape[1] >= steps:
+            return
+        log = np.full((self.width, max(steps, 1)), math.nan)
+        if keep:
+            log[:, :keep] = self.log[:, :keep]
+        self.log = log
 
     def keep_ledger(self, ledger, traffic, rtol, step_deadline_s=None):
         """From the next run_steps on, the kernel books the interface energy ledger from (L, traffic)
@@ -270,18 +278,22 @@ class Kernel:
         io.ledger_on, io.ledger, io.traffic, io.ledger_rtol = 1, ledger, traffic, rtol
         io.step_deadline_s = step_deadline_s or 0.0
 
-    def run_steps(self, n0, count, H_cap=math.inf, measure=False):
+    def run_steps(self, n0, count, H_cap=math.inf, measure=False, at=0):
         """Macro-steps n0 .. n0 + count - 1 in one call (drkernel.h, dr_run_steps): (steps done, their
-        BlockLog, the FmuError of the step after them or None). The log is overwritten by the next call."""
-        if len(self.log) < count * self.width:
-            self.log = np.empty(count * self.width)
-            self._log_at = self.log.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+        BlockLog, the FmuError of the step after them or None). The call logs from column `at` on,
+        after the last call's first `at` steps (joined_log reads them as one, without a copy); the log
+        is overwritten by the next call from column 0."""
+        self._log_room(at, at + count)
         self.io.measure = measure
-        done = self._run_steps(self._handle, self._io, n0, count, self._log_at, H_cap)
+        log, ld = self.log, self.log.shape[1]
+        done = self._run_steps(self._handle, self._io, n0, count, log.ctypes.data + 8 * at, ld, H_cap)
         n = n0 + done
         error = self.failure(n, n * self.io.dt) if self.io.failed_subsystem >= 0 else None
-        columns = self.log[:count * self.width].reshape(self.width, count)[:, :done]
-        return done, BlockLog(columns, self.n, bool(self.io.stopped)), error
+        return done, BlockLog(log[:, at:at + done], self.n, bool(self.io.stopped)), error
+
+    def joined_log(self, steps, stopped):
+        """The log's first `steps` columns as one BlockLog (a call and the calls it went on after)."""
+        return BlockLog(self.log[:, :steps], self.n, stopped)
 
     def set_options(self, relaxation, anderson, warm_start, memory=False, extrapolate=False):
         """The DR master's named options (wavecosim/masters/dr_options.py); forgets b^{n-1} and the

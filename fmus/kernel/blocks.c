@@ -5,7 +5,10 @@
  *   (wavecosim/runner.py, LiveRun._after_block);
  * - passivity_block: Condition 2, per step the energy into each port and into all of them,
  *   r_i = (H_i - H_i before) - supplied_i (eq. 27) and H_total, and the running figures
- *   (wavecosim/observers/passivity.py, Passivity.after_block; builtin sum() from 0, left to right). */
+ *   (wavecosim/observers/passivity.py, Passivity.after_block; builtin sum() from 0, left to right);
+ * - sampled_block and watch_block: the certificates' columns of the steps from the rows the
+ *   certificates' kernel made (wavecosim/observers/certificates.py CertificateSampler and
+ *   observers/fne_watch.py FneWatch, after_block). */
 #include <math.h>
 #include <stddef.h>
 
@@ -150,4 +153,113 @@ void block_rows(BlockRows *p) {
     }
     p->iterations_sum = sum;
     p->iterations_max = most;
+}
+
+/* Whether step s of a block is sampled: s = first, first + every, ... */
+static int sampled(int s, int first, int every) { return s >= first && (s - first) % every == 0; }
+
+/* One block (blocks.py, SampledBlock) for CertificateSampler: steps 0 .. count - 1, the certificates'
+ * kernel's row of step s at certs + s ldc (fne_0 .. fne_{k-1}, the Fejer term, ...). Columns to `out`
+ * (ldo apart): fne_i of every step (fne), then augmented (NaN but at the sampled steps) = ((H - H
+ * before) + Fejer) - 1/2 (|a_hat|^2 - |B|^2), NaN after a ledger redo (log row `rounds` > 0); the
+ * kernel's log rows: a_hat (n: a), B (nb: b), H_i (k: h). min_fne[k] and max_aug[1] are folded as
+ * builtin min and grow_max_pos fold, step after step; H_prev[1]: the summed H before, left at the
+ * last step's. */
+typedef struct {
+    int count, k, n, nb, first, every, fne, augmented, rounds;
+    const double *log;
+    long ld;
+    const double *certs;
+    long ldc;
+    double *out;
+    long ldo;
+    const int *a, *b, *h;
+    double *min_fne, *max_aug, *H_prev;
+} SampledBlock;
+
+static double sum_squares(const double *log, size_t ld, const int *rows, int count, size_t s) {
+    double acc = 0.0;
+    for (int j = 0; j < count; j++) {
+        double v = log[(size_t)rows[j] * ld + s];
+        acc += v * v;
+    }
+    return acc;
+}
+
+void sampled_block(const SampledBlock *p) {
+    size_t ld = (size_t)p->ld, ldo = (size_t)p->ldo;
+    int k = p->k, fne = p->fne;
+    double *aug = p->out + (size_t)(fne ? k : 0) * ldo, H_prev = *p->H_prev;
+    for (int s = 0; s < p->count; s++) {
+        const double *row = p->certs + (size_t)s * (size_t)p->ldc;
+        double H = 0.0;
+        for (int i = 0; i < k; i++) H += p->log[(size_t)p->h[i] * ld + (size_t)s];
+        for (int j = 0; j < k && fne; j++) p->out[(size_t)j * ldo + (size_t)s] = row[j];
+        if (p->augmented) aug[s] = NAN;
+        if (sampled(s, p->first, p->every)) {
+            for (int j = 0; j < k && fne; j++)
+                if (row[j] < p->min_fne[j]) p->min_fne[j] = row[j];
+            if (p->augmented) {
+                double supplied = 0.5 * (sum_squares(p->log, ld, p->a, p->n, (size_t)s)
+                                         - sum_squares(p->log, ld, p->b, p->nb, (size_t)s));
+                double r = ((H - H_prev) + row[k]) - supplied;
+                aug[s] = p->log[(size_t)p->rounds * ld + (size_t)s] > 0.0 ? NAN : r;
+                *p->max_aug = grow_max_pos(*p->max_aug, aug[s]);
+            }
+        }
+        H_prev = H;
+    }
+    *p->H_prev = H_prev;
+}
+
+/* One block (blocks.py, WatchBlock) for FneWatch: the certificates' kernel's rows as above, with the
+ * secant margin of subsystem i at column k + 1 + i and whether it was estimated at 2 k + 1 + i (> 0),
+ * at every step (every = 1) or the probed ones (first, first + every, ...). Column fne_watch (`out`):
+ * the smallest estimated margin of each such step, NaN at the others; min_margin[k] folded with each
+ * column's smallest; *probed += the steps with an estimate. Returns 1, writing nothing, when a margin
+ * falls below -tol or one estimated is NaN or zero (the caller books those steps one by one). */
+typedef struct {
+    int count, k, first, every;
+    double tol;
+    const double *certs;
+    long ldc;
+    double *out, *min_margin;
+    long probed;
+} WatchBlock;
+
+static int watch_is_plain(const WatchBlock *p) {
+    int k = p->k;
+    for (int s = p->first; s < p->count; s += p->every) {
+        const double *row = p->certs + (size_t)s * (size_t)p->ldc;
+        double worst = INFINITY;
+        for (int i = 0; i < k; i++) {
+            double m = row[k + 1 + i];
+            if (!(row[2 * k + 1 + i] > 0.0)) continue;
+            if (m != m || m == 0.0) return 0;
+            worst = m < worst ? m : worst;
+        }
+        if (worst < -p->tol) return 0;
+    }
+    return 1;
+}
+
+int watch_block(WatchBlock *p) {
+    int k = p->k;
+    if (!watch_is_plain(p)) return 1;
+    for (int s = 0; s < p->count; s++) p->out[s] = NAN;
+    for (int s = p->first; s < p->count; s += p->every) {
+        const double *row = p->certs + (size_t)s * (size_t)p->ldc;
+        double worst = INFINITY;
+        int some = 0;
+        for (int i = 0; i < k; i++) {
+            if (!(row[2 * k + 1 + i] > 0.0)) continue;
+            double m = row[k + 1 + i];
+            worst = m < worst ? m : worst;
+            p->min_margin[i] = m < p->min_margin[i] ? m : p->min_margin[i];
+            some = 1;
+        }
+        p->out[s] = some ? worst : NAN;
+        p->probed += some;
+    }
+    return 0;
 }

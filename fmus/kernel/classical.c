@@ -113,11 +113,11 @@ static int block_step(void *ctx, DRStep *io) {
     return 0;
 }
 
-int cl_run_steps(CLKernel *c, DRStep *io, int n0, int count, double *rows, double H_cap, int explicit_,
+int cl_run_steps(CLKernel *c, DRStep *io, int n0, int count, double *rows, long ld, double H_cap, int explicit_,
                  int sequential) {
     c->explicit_ = explicit_;
     c->sequential = sequential;
-    return dr_run_steps_of(c->k, io, n0, count, rows, H_cap, block_step, c);
+    return dr_run_steps_of(c->k, io, n0, count, rows, ld, H_cap, block_step, c);
 }
 
 void cl_destroy(CLKernel *c) {

@@ -29,7 +29,7 @@ int cl_explicit_step(CLKernel *c, DRStep *io, const double *y_n, double *y_next,
  * function above at t = (double)n dt, logged as dr_run_steps logs (a: the inputs handed out, b: y^{n+1};
  * the ledger's columns as without it: io->ledger_on must be 0), with its stop after a non-finite
  * observed value or a stored energy that may exceed H_cap. Returns the steps done, as dr_run_steps. */
-int cl_run_steps(CLKernel *c, DRStep *io, int n0, int count, double *rows, double H_cap, int explicit_,
+int cl_run_steps(CLKernel *c, DRStep *io, int n0, int count, double *rows, long ld, double H_cap, int explicit_,
                  int sequential);
 
 void cl_destroy(CLKernel *c);

@@ -439,42 +439,41 @@ size_t dr_log_width(const DRKernel *k) {
     return width + DR_LEDGER_COLUMNS;
 }
 
-/* Log step s (of a call of `count` steps) after its commit, column-major: value c at
- * rows[c count + s]; the first failing subsystem's read, or -1. */
-static int log_step(DRKernel *k, const DRStep *io, double *rows, size_t count, size_t s) {
+/* Log step s after its commit, column-major: value c at rows[c ld + s]; the first failing subsystem's read, or -1. */
+static int log_step(DRKernel *k, const DRStep *io, double *rows, size_t ld, size_t s) {
     size_t n = k->n, c = 3 + 2 * n;
     rows[s] = (double)io->iterations;
-    rows[count + s] = (double)io->reason;
-    rows[2 * count + s] = io->residual;
+    rows[ld + s] = (double)io->reason;
+    rows[2 * ld + s] = io->residual;
     for (size_t j = 0; j < n; j++) {
-        rows[(3 + j) * count + s] = k->a_hat[j];
-        rows[(3 + n + j) * count + s] = k->b[j];
+        rows[(3 + j) * ld + s] = k->a_hat[j];
+        rows[(3 + n + j) * ld + s] = k->b[j];
     }
     for (int i = 0; i < k->n_sub; i++) {
         Sub *s_i = &k->sub[i];
         if (!s_i->n_obs) continue;
         if (failed(s_i, DR_FN_GET_REAL, s_i->fn.getReal(s_i->comp, s_i->obs_vr, s_i->n_obs, k->obs))) return i;
-        for (size_t j = 0; j < s_i->n_obs; j++) rows[(c + j) * count + s] = k->obs[j];
+        for (size_t j = 0; j < s_i->n_obs; j++) rows[(c + j) * ld + s] = k->obs[j];
         c += s_i->n_obs;
     }
     return -1;
 }
 
-/* Stop after this step? When an observed value (obs: the step's column of them, stride count) is
+/* Stop after this step? When an observed value (obs: the step's column of them, stride ld) is
  * not finite, or when the stored energy (the sum of every subsystem's first observed value) may
  * exceed H_cap: the bound 4 n_sub eps sum|H_i| covers any order of summation, so the caller's exact
  * test never sees a step above the cap go by. */
-static int stop_after(const DRKernel *k, const double *obs, size_t count, double H_cap) {
+static int stop_after(const DRKernel *k, const double *obs, size_t ld, double H_cap) {
     double sum = 0.0, magnitude = 0.0;
     for (int i = 0; i < k->n_sub; i++) {
         const Sub *s = &k->sub[i];
         for (size_t j = 0; j < s->n_obs; j++)
-            if (!isfinite(obs[j * count])) return 1;
+            if (!isfinite(obs[j * ld])) return 1;
         if (s->n_obs) {
             sum += obs[0];
             magnitude += fabs(obs[0]);
         }
-        obs += s->n_obs * count;
+        obs += s->n_obs * ld;
     }
     return isfinite(H_cap) && sum + 4.0 * k->n_sub * DBL_EPSILON * magnitude > H_cap;
 }
@@ -610,8 +609,8 @@ static int ledger_redo(DRKernel *k, DRStep *io, double supplied_1, double budget
  * ~30 ns, a tenth of a macro-step at K = 0). */
 static int clocked(const DRStep *io) { return io->step_deadline_s > 0.0 || io->deadline_s > 0.0; }
 
-static int ledger_step(DRKernel *k, DRStep *io, double t0, double c0, double *rows, size_t count, size_t s) {
-    double *row = rows + (dr_log_width(k) - DR_LEDGER_COLUMNS) * count + s;
+static int ledger_step(DRKernel *k, DRStep *io, double t0, double c0, double *rows, size_t ld, size_t s) {
+    double *row = rows + (dr_log_width(k) - DR_LEDGER_COLUMNS) * ld + s;
     double out[5] = {1.0, NAN, NAN, LEDGER_KEPT, 0.0};
     int timed = clocked(io);
     if (io->ledger_on) {
@@ -638,7 +637,7 @@ static int ledger_step(DRKernel *k, DRStep *io, double t0, double c0, double *ro
     double cpu = c0 > 0.0 ? 1e-9 * (cpu_ns() - c0) : NAN;
     double logged[DR_LEDGER_COLUMNS] = {out[1], io->ledger_on ? io->ledger : NAN, io->ledger_on ? io->traffic : NAN,
                                         out[0], out[3], out[4], wall, io->round_s, cpu};
-    for (int c = 0; c < DR_LEDGER_COLUMNS; c++) row[(size_t)c * count] = logged[c];
+    for (int c = 0; c < DR_LEDGER_COLUMNS; c++) row[(size_t)c * ld] = logged[c];
     return -1;
 }
 
@@ -664,13 +663,13 @@ static int guarded_macro_step(DRKernel *k, DRStep *io) {
 
 static int guarded_step_of(void *k, DRStep *io) { return guarded_macro_step(k, io); }
 
-int dr_run_steps(DRKernel *k, DRStep *io, int n0, int count, double *rows, double H_cap) {
-    return dr_run_steps_of(k, io, n0, count, rows, H_cap, guarded_step_of, k);
+int dr_run_steps(DRKernel *k, DRStep *io, int n0, int count, double *rows, long ld, double H_cap) {
+    return dr_run_steps_of(k, io, n0, count, rows, ld, H_cap, guarded_step_of, k);
 }
 
-int dr_run_steps_of(DRKernel *k, DRStep *io, int n0, int count, double *rows, double H_cap, DRStepFn step,
+int dr_run_steps_of(DRKernel *k, DRStep *io, int n0, int count, double *rows, long ld, double H_cap, DRStepFn step,
                     void *ctx) {
-    size_t m = (size_t)count, first_observed = (3 + 2 * k->n) * m;
+    size_t m = (size_t)ld, first_observed = (3 + 2 * k->n) * m;
     io->stopped = 0;
     for (int s = 0; s < count; s++) {
         io->t = (double)(n0 + s) * io->dt;

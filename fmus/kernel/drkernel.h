@@ -117,7 +117,8 @@ int dr_set_observed(DRKernel *k, int i, const fmi2ValueReference *vrs, int count
 size_t dr_log_width(const DRKernel *k);
 
 /* Macro-steps n0 .. n0 + count - 1, each exactly dr_macro_step at t = (double)n dt, logged
- * column-major (value c of step s at rows[c count + s], so each value is one contiguous column):
+ * column-major (value c of step s at rows[c ld + s], ld >= count, so each value is one contiguous
+ * column; a call may go on in the columns after an earlier call's):
  * iterations, reason, residual, a (n), b^{n+1} (n), then every subsystem's observed values in
  * subsystem order, then the ledger's DR_LEDGER_COLUMNS. With io->ledger_on it keeps the interface
  * energy ledger of wavecosim/observers/energy_ledger.py, bit for bit: a step that would lift L above
@@ -131,7 +132,7 @@ size_t dr_log_width(const DRKernel *k);
  * (pass INFINITY for none; the caller decides exactly), setting io->stopped (also when that step was
  * the last of the call). Returns the number of steps done and logged; when an FMU call failed, io->failed_* name it and the step it
  * failed in (the one after those done) has no entries. */
-int dr_run_steps(DRKernel *k, DRStep *io, int n0, int count, double *rows, double H_cap);
+int dr_run_steps(DRKernel *k, DRStep *io, int n0, int count, double *rows, long ld, double H_cap);
 
 /* The energy ledger's redo of the step dr_macro_step just committed (a_hat and b as it left them),
  * whose commit supplied `supplied` beyond the ledger's `budget` (wavecosim/observers/energy_ledger.py

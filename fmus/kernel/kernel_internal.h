@@ -64,7 +64,7 @@ double dr_now_ns(void);
 typedef int (*DRStepFn)(void *ctx, DRStep *io);
 
 /* dr_run_steps with step(ctx, io) making each macro-step: the same log, observed values and stop. */
-int dr_run_steps_of(DRKernel *k, DRStep *io, int n0, int count, double *rows, double H_cap, DRStepFn step,
+int dr_run_steps_of(DRKernel *k, DRStep *io, int n0, int count, double *rows, long ld, double H_cap, DRStepFn step,
                     void *ctx);
 
 /* The caller's buffers the log reads: b (outputs) and a_hat (inputs), n each. */

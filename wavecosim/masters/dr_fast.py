@@ -18,7 +18,7 @@ the thread plan never changes a number.
 import math
 import time
 
-from ..fast_path import PARALLEL_MIN_US, REASONS, BlockLog, Kernel, available_cpus, kernel_refusal, thread_plan
+from ..fast_path import PARALLEL_MIN_US, REASONS, Kernel, available_cpus, kernel_refusal, thread_plan
 from ..certs_path import KernelCertificates, supports
 from ..newton_path import NewtonKernel
 from .base import StepLog
@@ -172,10 +172,11 @@ class FastDRMaster(DRMaster):
         return self.kernel is not None and self._blocks and not self._on_trial \
             and (self._choose_after is None or n > self._choose_after)
 
-    def observe(self, names):
-        """The variables of each subsystem run_steps reads after every commit (names[i], H_i first);
-        returns an empty BlockLog of the blocks' layout (None without blocks)."""
-        return self.kernel.observe(names) if self._blocks else None
+    def observe(self, names, steps=0):
+        """The variables of each subsystem run_steps reads after every commit (names[i], H_i first),
+        with room for blocks of `steps` steps made now; returns an empty BlockLog of the blocks' layout
+        (None without blocks)."""
+        return self.kernel.observe(names, steps) if self._blocks else None
 
     def guards_steps(self):
         """Whether step() can keep the energy ledger in the kernel (keep_ledger): the kernel runs and no
@@ -208,18 +209,18 @@ class FastDRMaster(DRMaster):
         self.choose_threads(self.kernel.costs(), self._step_s / (first.iterations[0] + 1))
         if first.stopped or self._on_trial or count == 1:
             return 1, first, None
-        first = BlockLog(first.columns.copy(), first.n)              # the next call overwrites the log
-        done, rest, error = self._kernel_steps(n0 + 1, count - 1, H_cap)
-        return done + 1, first.then(rest), error
+        done, rest, error = self._kernel_steps(n0 + 1, count - 1, H_cap, at=1)    # logged after the first
+        return done + 1, self.kernel.joined_log(done + 1, rest.stopped), error
 
-    def _kernel_steps(self, n0, count, H_cap, measure=False):
-        """One call of the kernel, of at most about BLOCK_SECONDS at the last call's pace, booked."""
+    def _kernel_steps(self, n0, count, H_cap, measure=False, at=0):
+        """One call of the kernel, of at most about BLOCK_SECONDS at the last call's pace, booked; it
+        logs after the last call's first `at` steps (fast_path.Kernel.run_steps)."""
         if self._step_s > 0.0:
             count = max(1, min(count, int(BLOCK_SECONDS / self._step_s)))
         started = time.perf_counter()
         if self._certs is not None:
             self._certs.arm(n0, count)
-        done, log, error = self.kernel.run_steps(n0, count, H_cap, measure)
+        done, log, error = self.kernel.run_steps(n0, count, H_cap, measure, at)
         if self._certs is not None:
             error = self._certs.disarm(done) or error
         if done:

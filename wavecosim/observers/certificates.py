@@ -1,11 +1,14 @@
 """Sampled certificates before the sampled macro-steps (certificates.Sampling: n % every == 0):
 Condition 1 margins of every frozen map S_i^n on random pairs, and a DR fixed point u* = P b*
 (eq. 18) for the Theorem 1 residual after the step; NaN in their columns at the other steps."""
+import ctypes
 import math
 
 import numpy as np
 
+from .. import blocks
 from ..certificates import augmented_residual, fne_margins
+from ..fast_path import LEDGER_LOG
 from ..linalg import matvec
 from ..readings import row_sums
 from .fne_watch import FLOOR
@@ -24,7 +27,7 @@ class CertificateSampler(Observer):
         self.columns = (*([f"fne_{n}" for n in self.names] if settings.fne_pairs else []),
                         *(["augmented"] if self.augmented else []))
         self.rng = np.random.default_rng(settings.fne_seed)
-        self.fne, self.u_star = None, None
+        self.fne, self.u_star, self.call = None, None, None
         self.min_fne = [math.inf] * len(self.names)
         self.max_aug = math.nan
         self.kernel = master.kernel_certificates(FLOOR)           # in the blocks of steps, when it can
@@ -75,32 +78,43 @@ class CertificateSampler(Observer):
         return math.inf if self.kernel is not None else self.pace.next_sampled(n)
 
     def prepare_block(self, logs, readings):
-        """The certificates' kernel made in set-up (not on the first block)."""
+        """The certificates' kernel and its C pass's fixed arguments made in set-up (not on the first block)."""
         if self.kernel is not None:
             self.kernel.create()
+            self.call = self._block_call(logs, readings)
+
+    def _block_call(self, logs, readings):
+        """sampled_block's fixed arguments (fmus/kernel/blocks.c): the kernel log's rows it reads (a_hat,
+        B, H_i, the ledger's rounds) and the running figures (min_fne, max_aug, H_prev)."""
+        at, k, ints = logs.observed_at, len(self.names), blocks.ints
+        b = [at + r for r in readings.rows("B")]
+        fig = (ctypes.c_double * (k + 2))()
+        place = (lambda i: ctypes.cast(ctypes.addressof(fig) + 8 * i, ctypes.POINTER(ctypes.c_double)))
+        call = blocks.SampledBlock(k=k, n=len(logs.a_rows), nb=len(b), every=self.pace.every,
+                                   fne=int(bool(self.settings.fne_pairs)), augmented=int(self.augmented),
+                                   rounds=logs.ledger_at + LEDGER_LOG.index("rounds"), a=ints(logs.a_rows),
+                                   b=ints(b), h=ints([at + r for r in readings.rows("H")]),
+                                   min_fne=place(0), max_aug=place(k), H_prev=place(k + 1))
+        return call, ctypes.byref(call), fig
 
     def after_block(self, n0, logs, readings, rows):
-        """The kernel's certificates of the block's steps (without it, no step is sampled: NaN)."""
-        H = row_sums(readings.H)
-        rows[:] = math.nan
-        if self.kernel is not None:
-            self._kernel_rows(n0, logs, readings, rows, H)
-        self.H_prev = float(H[-1])
-
-    def _kernel_rows(self, n0, logs, readings, rows, H):
-        found, k = self.kernel.block_rows(n0, len(rows)), len(self.names) if self.settings.fne_pairs else 0
-        sampled = self.pace.rows_of(n0, len(rows))
-        rows[:, :k] = found[:, :k]
-        for fne in found[sampled, :k].tolist() if k else ():
-            self.min_fne = [min(a, b) for a, b in zip(self.min_fne, fne)]
-        if self.augmented:                                 # at the sampled steps (the others have no u*)
-            a_hat, B = logs.a_hat[sampled], readings.B[sampled]
-            supplied = 0.5 * (row_sums(a_hat * a_hat) - row_sums(B * B))
-            aug = (H - np.concatenate(([self.H_prev], H[:-1])))[sampled] + found[sampled, len(self.names)] - supplied
-            aug[logs.ledger["rounds"][sampled] > 0] = math.nan      # a redo's log has no iterates
-            rows[sampled, k] = aug
-            for x in aug.tolist():
-                self.max_aug = grow_max_pos(self.max_aug, x)
+        """The kernel's certificates of the block's steps, in one C pass (a redo's log has no iterates:
+        NaN); without the kernel no step is sampled: NaN."""
+        if self.kernel is None:
+            rows[:] = math.nan
+            self.H_prev = float(row_sums(readings.H)[-1])
+            return
+        if self.call is None:
+            self.call = self._block_call(logs, readings)
+        call, ref, fig = self.call
+        k = len(self.names)
+        fig[:k], fig[k], fig[k + 1] = self.min_fne, self.max_aug, self.H_prev
+        found = self.kernel.block_rows(n0, len(rows))
+        call.count, call.first = len(rows), (-n0) % self.pace.every
+        (call.log, call.ld), (call.out, call.ldo) = blocks.rows(logs.columns), blocks.columns(rows)
+        call.certs, call.ldc = found.ctypes.data, found.strides[0] // 8
+        blocks.library().sampled_block(ref)
+        self.min_fne, self.max_aug, self.H_prev = fig[:k], fig[k], fig[k + 1]
 
     def start(self, first):
         self.H_prev = sum(first.H)

@@ -11,10 +11,12 @@ is FNE; rho - rho^2 for b = rho a) comes from:
   lambda_min(sym J_S - J_S^T J_S), at the sampled steps only (certificates.Sampling).
 The first failure (margin < -TOL) is reported once, naming the step, the time and the subsystem.
 """
+import ctypes
 import math
 
 import numpy as np
 
+from .. import blocks
 from .. import gamma_tuning as gt
 from ..linalg import matvec
 from ..readings import row_dots
@@ -109,7 +111,7 @@ class FneWatch(Observer):
         self.first = None
         self.failed_steps = 0
         self.probed_steps = 0
-        self.probed = None
+        self.probed, self.call = None, None
         self.needs_trace = master.K >= 2                   # the secant margins, every step
         self.blocks = self.paced = not self.needs_trace    # the probe, at the sampled steps
         self.kernel = master.kernel_certificates(FLOOR)
@@ -125,34 +127,40 @@ class FneWatch(Observer):
         return math.inf if self.needs_trace or self.kernel is not None else self.pace.next_sampled(n)
 
     def prepare_block(self, logs, readings):
-        """The certificates' kernel made in set-up (not on the first block)."""
+        """The certificates' kernel and its C pass's fixed arguments made in set-up (not on the first block)."""
         if self.kernel is not None:
             self.kernel.create()
+            self.call = blocks.WatchBlock(k=len(self.names), tol=self.tol,
+                                          min_margin=(ctypes.c_double * len(self.names))())
 
     def after_block(self, n0, logs, readings, rows):
-        """The kernel's secant margins of each step; K < 2, steps between sampled ones: no estimate (NaN)."""
+        """The kernel's secant margins of each step, in one C pass (record() of every step at once),
+        unless one fails, is NaN or a signed zero: then step by step; K < 2, steps between sampled ones:
+        no estimate (NaN)."""
         if self.kernel is None:
             rows[:] = math.nan
             return
-        dt, k = self.scene.scenario.dt, len(self.names)
-        at = np.arange(len(rows)) if self.needs_trace else self.pace.rows_of(n0, len(rows))   # K < 2: probed steps
-        found = self.kernel.block_rows(n0, len(rows))[at]
-        margins, kept = found[:, k + 1:2 * k + 1], found[:, 2 * k + 1:] > 0.0
-        values = np.where(kept, margins, math.inf)
-        worst = values.min(axis=1)
-        odd = margins[kept]
-        rows[:] = math.nan
-        if (worst < -self.tol).any() or np.isnan(odd).any() or (odd == 0.0).any():   # a failure, NaN, signed zero
-            for s, row in zip(at.tolist(), found):
-                rows[s, 0] = self.record(n0 + s, (n0 + s) * dt, self._kernel_margins(n0 + s, row))
+        if self.call is None:
+            self.prepare_block(logs, readings)
+        found, call = self.kernel.block_rows(n0, len(rows)), self.call
+        call.count, call.probed = len(rows), 0
+        call.first, call.every = (0, 1) if self.needs_trace else ((-n0) % self.pace.every, self.pace.every)
+        call.certs, call.ldc, call.out = found.ctypes.data, found.strides[0] // 8, blocks.columns(rows)[0]
+        for i, name in enumerate(self.names):
+            call.min_margin[i] = self.min_margin[name]
+        if blocks.library().watch_block(ctypes.byref(call)):
+            self._step_by_step(n0, rows, found, range(call.first, len(rows), call.every))
             return
-        some = kept.any(axis=1)                                   # record() of every step, at once
-        rows[at, 0] = np.where(some, worst, math.nan)
+        self.min_margin = dict(zip(self.names, call.min_margin[:len(self.names)]))
         if not self.needs_trace:
-            self.probed_steps += int(np.count_nonzero(some))
-        for name, column, seen in zip(self.names, values.T, kept.T):
-            if seen.any():
-                self.min_margin[name] = min(self.min_margin[name], float(column.min()))
+            self.probed_steps += call.probed
+
+    def _step_by_step(self, n0, rows, found, steps):
+        """record() of the block's estimated steps one after the other (a failure warns at the first)."""
+        dt = self.scene.scenario.dt
+        rows[:] = math.nan
+        for s in steps:
+            rows[s, 0] = self.record(n0 + s, (n0 + s) * dt, self._kernel_margins(n0 + s, found[s]))
 
     def _kernel_margins(self, n, found):
         """{subsystem: margin} of step n from its row of the kernel's certificates (the probe's: counted)."""
