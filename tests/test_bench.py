@@ -13,7 +13,12 @@ def test_bench_quick_reports_every_path_and_the_run_over_master_ratio(tmp_path, 
     out = capsys.readouterr().out
     data = json.loads((tmp_path / "b.json").read_text())
     assert data["fast_bit_identical_to_python"] is True
-    assert set(data["run_over_master"]) == {"K0", "K50"} and all(v > 0 for v in data["run_over_master"].values())
+    for key in ("run_over_master", "run_over_master_certificates", "run_over_master_csv_files",
+                "run_over_master_certificates_csv_files"):
+        assert set(data[key]) == {"K0", "K50"} and all(v > 0 for v in data[key].values())
+    assert {k for k in data["targets"] if k.startswith("run / master")} == {
+        f"run / master <= {x}, {where}" for x in ("1.5", "3 with certificates")
+        for where in ("run() default: rows in memory", "CSV files")}
     assert set(data["us_per_step"]) == {"naive_fmpy", "python", "fast_step", "fast", "floor"}
     adapter = data["wave_adapter"]["foreign_pair"]
     assert adapter["bit_identical"] is True and "wave adapter" in out
