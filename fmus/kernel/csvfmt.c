@@ -132,33 +132,19 @@ static uint64_t shortest(uint64_t m, int e, int even, int asym, int *dexp)
     return vq + (uint64_t)up;
 }
 
-/* The fast route (Ryu's method): with v = m2 2^e2 (m2 of 53 bits, e2 for 4 v = (4 m2) 2^(e2-2)), the
- * interval's ends and centre times 10^-e10 are one 64 x 128-bit product each with a table entry:
- * 5^i cut to its top 125 bits (e2 < 0), or 2^j / 5^q rounded up to 125 bits (e2 >= 0). Whether a
- * dropped part is exactly zero is known from divisibility by 5^q or 2^q (the products alone lose
- * it); digits are then dropped two, then one at a time while the interval still holds a shorter
- * number, and the last kept one is rounded to the centre (ties even). */
-#define POW5_BITS 125
-#define POW5_COUNT 326               /* 5^i for e2 down to -1076 */
-#define POW5_INV_COUNT 342           /* 2^j / 5^q for e2 up to 969 (q <= 291) */
-#define POW5_LIMBS 14                /* 5^341 < 2^792 */
+/* The fast route (after Giulietti's Schubfach): with v = c 2^q and k = floor(log10 of the interval's
+ * width), the interval's ends and centre times 4 10^-k are each one 64 x 128-bit product with a table
+ * entry g, 10^-k normalized to 128 bits (exact for 10^0 .. 10^55, else rounded up: the product is then
+ * above the true value by less than 2^-6 of its fraction's top word, so a top word of 0 or 1 means an
+ * exact product). At most one multiple of 10^(k+1) lies in the interval; if none, the digits are
+ * floor(v 10^-k) or the next integer, whichever is inside, else the closer (ties to even). */
+#define POW10_MIN (-292)             /* 10^-k for k = floor(q log10 2), q from 971 down to -1074 */
+#define POW10_MAX 324
+#define POW5_LIMBS 14                /* 5^324 < 2^753 */
 
-static u128 pow5_split[POW5_COUNT];
-static u128 pow5_inv_split[POW5_INV_COUNT];
+static u128 pow10_split[POW10_MAX - POW10_MIN + 1];
 
-/* Bits of 5^e (1 for e = 0): ceil(e log2 5) for e > 0. */
-static int pow5bits(int e)
-{
-    return (int)(((uint32_t)e * 1217359u) >> 19) + 1;
-}
-
-/* floor(e log10 5). */
-static int log10_pow5(int e)
-{
-    return (int)(((uint32_t)e * 732923u) >> 20);
-}
-
-/* The 128 bits of x (limbs, least significant first) from bit `at` up (at may be negative: shifted left). */
+/* The 128 bits of x (limbs, least significant first) from bit `at` up. */
 static u128 bits_from(const uint64_t *x, int at)
 {
     u128 r = 0;
@@ -177,34 +163,48 @@ static int limbs_less(const uint64_t *a, const uint64_t *b)
     return 0;
 }
 
-/* Both tables from 5^i in limbs: its top 125 bits, and floor(2^(bits - 1 + 125) / 5^i) + 1 by binary
- * long division starting from the remainder 2^(bits - 1) < 5^i. */
+static int bit_length(const uint64_t *x)
+{
+    int i = POW5_LIMBS - 1;
+    while (!x[i])
+        i--;
+    return 64 * i + 64 - __builtin_clzll(x[i]);
+}
+
+/* floor(2^(bits + 127) / p) for p of `bits` bits, by binary long division from the remainder 2^(bits - 1). */
+static u128 reciprocal(const uint64_t *p, int bits)
+{
+    uint64_t r[POW5_LIMBS] = {0};
+    u128 q = 0;
+    r[(bits - 1) >> 6] = UINT64_C(1) << ((bits - 1) & 63);
+    for (int s = 0; s < 128; s++) {
+        for (int l = POW5_LIMBS - 1; l > 0; l--)
+            r[l] = (r[l] << 1) | (r[l - 1] >> 63);
+        r[0] <<= 1;
+        q <<= 1;
+        if (!limbs_less(r, p)) {
+            uint64_t borrow = 0;
+            for (int l = 0; l < POW5_LIMBS; l++) {
+                u128 d = (u128)r[l] - p[l] - borrow;
+                r[l] = (uint64_t)d;
+                borrow = (uint64_t)(d >> 64) & 1u;
+            }
+            q |= 1;
+        }
+    }
+    return q;
+}
+
+/* 10^i = 5^i 2^i: the top 128 bits of 5^i (plus 1 when bits are cut off); 10^-i: 2^(bits + 127) / 5^i,
+ * plus 1 (never exact for i > 0). */
 static void pow5_tables(void)
 {
-    uint64_t p[POW5_LIMBS] = {1}, r[POW5_LIMBS];
-    for (int i = 0; i < POW5_INV_COUNT; i++) {
-        int bits = pow5bits(i);
-        if (i < POW5_COUNT)
-            pow5_split[i] = bits_from(p, bits - POW5_BITS);
-        memset(r, 0, sizeof r);
-        r[(bits - 1) >> 6] = UINT64_C(1) << ((bits - 1) & 63);
-        u128 q = 0;
-        for (int s = 0; s < POW5_BITS && i > 0; s++) {
-            for (int l = POW5_LIMBS - 1; l > 0; l--)
-                r[l] = (r[l] << 1) | (r[l - 1] >> 63);
-            r[0] <<= 1;
-            q <<= 1;
-            if (!limbs_less(r, p)) {
-                uint64_t borrow = 0;
-                for (int l = 0; l < POW5_LIMBS; l++) {
-                    u128 d = (u128)r[l] - p[l] - borrow;
-                    r[l] = (uint64_t)d;
-                    borrow = (uint64_t)(d >> 64) & 1u;
-                }
-                q |= 1;
-            }
-        }
-        pow5_inv_split[i] = (i ? q : (u128)1 << POW5_BITS) + 1;
+    uint64_t p[POW5_LIMBS] = {1};
+    for (int i = 0; i <= POW10_MAX; i++) {
+        int bits = bit_length(p);
+        pow10_split[i - POW10_MIN] = bits_from(p, bits - 128) + (bits > 128);
+        if (i > 0 && -i >= POW10_MIN)
+            pow10_split[-i - POW10_MIN] = reciprocal(p, bits) + 1;
         uint64_t carry = 0;
         for (int l = 0; l < POW5_LIMBS; l++) {
             u128 t = (u128)p[l] * 5u + carry;
@@ -214,101 +214,66 @@ static void pow5_tables(void)
     }
 }
 
-/* (x * mul) >> j, for j - 64 in 54 .. 61 (every double's case), as two 64-bit shifts. */
-static inline uint64_t mul_shift(uint64_t x, u128 mul, int j)
+/* floor(g cp / 2^128), with the lowest bit set when the product is not an integer (round to odd; a
+ * fraction's top word of 0 or 1 counts as zero, see above). */
+static inline uint64_t round_to_odd(u128 g, uint64_t cp)
 {
-    u128 low = (u128)x * (uint64_t)mul, sum = (low >> 64) + (u128)x * (uint64_t)(mul >> 64);
-    int s = j - 64;
-    return ((uint64_t)sum >> s) | ((uint64_t)(sum >> 64) << (64 - s));
+    u128 top = ((u128)(uint64_t)g * cp >> 64) + (u128)(uint64_t)(g >> 64) * cp;
+    return (uint64_t)(top >> 64) | ((uint64_t)top > 1);
 }
 
-static inline int pow5_factor_at_least(uint64_t x, int p)
+/* d / 10^n into *d when 10^n divides it (n = 1, 2, 4, 8): d 5^-n mod 2^64 rotated right by n is then
+ * the quotient, at most (2^64 - 1) / 10^n, and otherwise larger. */
+static inline int divide_out(uint64_t *d, int n)
 {
-    int count = 0;
-    while (count < p && x % 5 == 0)
-        x /= 5, count++;
-    return count >= p;
+    static const uint64_t INV5[9] = {0, UINT64_C(0xcccccccccccccccd), UINT64_C(0x8f5c28f5c28f5c29), 0,
+                                     UINT64_C(0xd288ce703afb7e91), 0, 0, 0, UINT64_C(0xc767074b22e90e21)};
+    static const uint64_t LIMIT[9] = {0, UINT64_MAX / 10, UINT64_MAX / 100, 0, UINT64_MAX / 10000, 0, 0, 0,
+                                      UINT64_MAX / 100000000};
+    uint64_t r = *d * INV5[n];
+    r = r >> n | r << (64 - n);
+    if (r > LIMIT[n])
+        return 0;
+    *d = r;
+    return 1;
 }
 
-/* The digits when a dropped part may be exactly zero (about 1 number in 150): the lower end is
- * included when exact and the mantissa even, and a dropped exact half rounds to an even digit. */
-static uint64_t round_exact(uint64_t vr, uint64_t vp, uint64_t vm, int even, int vm_zeros, int vr_zeros,
-                            int *removed)
+/* d without its trailing zeros, *k counting them. */
+static inline uint64_t drop_zeros(uint64_t d, int *k)
 {
-    int last = 0, n = 0;
-    while (vp / 10 > vm / 10) {
-        vm_zeros &= vm % 10 == 0;
-        vr_zeros &= last == 0;
-        last = (int)(vr % 10);
-        vr /= 10, vp /= 10, vm /= 10, n++;
-    }
-    while (vm_zeros && vm % 10 == 0) {
-        vr_zeros &= last == 0;
-        last = (int)(vr % 10);
-        vr /= 10, vp /= 10, vm /= 10, n++;
-    }
-    if (vr_zeros && last == 5 && vr % 2 == 0)
-        last = 4;
-    *removed = n;
-    return vr + ((vr == vm && (!even || !vm_zeros)) || last >= 5);
+    if (!divide_out(&d, 1))
+        return d;
+    for (++*k; divide_out(&d, 8);)
+        *k += 8;
+    for (int n = 4; n; n >>= 1)
+        *k += n * divide_out(&d, n);
+    return d;
 }
 
-/* The digits when no dropped part is exactly zero (the common case): two digits at a time first. */
-static inline uint64_t round_common(uint64_t vr, uint64_t vp, uint64_t vm, int *removed)
+/* Shortest round-trip digits of a positive finite v = m2 2^(e2 + 2) (m2 < 2^53; below a power of two
+ * the lower neighbour is half as far: asym) as an integer and the decimal exponent of its last digit. */
+static inline uint64_t shortest_fast(uint64_t m2, int e2, int asym, int *dexp)
 {
-    int up = 0, n = 0;
-    if (vp / 100 > vm / 100) {
-        up = vr % 100 >= 50;
-        vr /= 100, vp /= 100, vm /= 100, n = 2;
+    int q = e2 + 2, k = asym ? (q * 1262611 - 524031) >> 22 : floor_log10_pow2(q);
+    int h = q + ((-k * 1741647) >> 19) + 1;                 /* 1 .. 4 */
+    u128 g = pow10_split[-k - POW10_MIN];
+    uint64_t out = m2 & 1, cb = m2 << 2;                   /* ends included for an even m2 */
+    uint64_t vb = round_to_odd(g, cb << h);
+    uint64_t vbl = round_to_odd(g, (cb - 2 + (uint64_t)asym) << h) + out;
+    uint64_t vbr = round_to_odd(g, (cb + 2) << h) - out;
+    uint64_t s = vb >> 2, sp10 = s / 10 * 10, tp10 = sp10 + 10;
+    int upin = vbl <= sp10 << 2, wpin = tp10 << 2 <= vbr;
+    if (upin != wpin) {
+        k++;
+        *dexp = k;
+        return drop_zeros((upin ? sp10 : tp10) / 10, dexp);
     }
-    while (vp / 10 > vm / 10) {
-        up = vr % 10 >= 5;
-        vr /= 10, vp /= 10, vm /= 10, n++;
-    }
-    *removed = n;
-    return vr + (vr == vm || up);
-}
-
-/* Shortest round-trip digits of a positive finite v (m2, e2 as in the comment above) as an integer
- * and the decimal exponent of its last digit. */
-static uint64_t shortest_fast(uint64_t m2, int e2, int asym, int *dexp)
-{
-    int even = !(m2 & 1), shift = 1 + !asym;          /* the lower end 4 m2 - 2, or - 1 below a power of two */
-    uint64_t mv = 4 * m2, vr, vp, vm;
-    int e10, vm_zeros = 0, vr_zeros = 0;
-    if (e2 >= 0) {
-        int q = floor_log10_pow2(e2) - (e2 > 3), j = -e2 + q + POW5_BITS + pow5bits(q) - 1;
-        u128 mul = pow5_inv_split[q];
-        e10 = q;
-        vr = mul_shift(mv, mul, j), vp = mul_shift(mv + 2, mul, j), vm = mul_shift(mv - shift, mul, j);
-        if (q <= 21) {
-            if (mv % 5 == 0)
-                vr_zeros = pow5_factor_at_least(mv, q);
-            else if (even)
-                vm_zeros = pow5_factor_at_least(mv - shift, q);
-            else
-                vp -= (uint64_t)pow5_factor_at_least(mv + 2, q);
-        }
-    } else {
-        int q = log10_pow5(-e2) - (-e2 > 1), i = -e2 - q, j = q - (pow5bits(i) - POW5_BITS);
-        u128 mul = pow5_split[i];
-        e10 = q + e2;
-        vr = mul_shift(mv, mul, j), vp = mul_shift(mv + 2, mul, j), vm = mul_shift(mv - shift, mul, j);
-        if (q <= 1) {
-            vr_zeros = 1;
-            if (even)
-                vm_zeros = shift == 2;
-            else
-                vp--;
-        } else if (q < 63) {
-            vr_zeros = (mv & ((UINT64_C(1) << q) - 1)) == 0;
-        }
-    }
-    int removed = 0;
-    uint64_t out = vm_zeros || vr_zeros ? round_exact(vr, vp, vm, even, vm_zeros, vr_zeros, &removed)
-                                        : round_common(vr, vp, vm, &removed);
-    *dexp = e10 + removed;
-    return out;
+    *dexp = k;
+    int uin = vbl <= s << 2, win = (s + 1) << 2 <= vbr;
+    if (uin != win)
+        return s + win;
+    int64_t cmp = (int64_t)(vb - (4 * s + 2));
+    return s + (cmp > 0 || (cmp == 0 && (s & 1)));
 }
 
 static int reads_back(const char *text, double v)
@@ -404,29 +369,23 @@ static int write_digits(uint64_t d, char *out)
 
 /* The n <= 17 digits of d at o, with a '.' after the first `point` of them when 0 < point < n;
  * returns the characters written. d is scaled to exactly 17 digits and the text put together in
- * registers and stored in words, so 24 bytes from o are written whatever its length (out has that
- * slack; what lies past the text is overwritten by what follows it). */
+ * registers and stored in words: the digits, then (with a point) the part after it again one byte
+ * further on, so 34 bytes from o may be written whatever its length (out has that slack; what lies
+ * past the text is overwritten by what follows it). */
 static inline int put_digits(uint64_t d, int n, int point, char *o)
 {
     uint64_t d17 = d * POW10[17 - n];
     uint32_t high = (uint32_t)(d17 / 100000000), top = high / 100000000;   /* high < 10^9, top < 10 */
     uint64_t w2 = digits8((uint32_t)(d17 - (uint64_t)high * 100000000)), c = w2 >> 56;
     u128 t = (u128)('0' + top) | (u128)digits8(high - top * 100000000) << 8 | (u128)w2 << 72;
-    if (point <= 0 || point >= n) {
-        memcpy(o, &t, 16);
-        memcpy(o + 16, &c, 8);
+    memcpy(o, &t, 16);
+    memcpy(o + 16, &c, 8);
+    if (point <= 0 || point >= n)
         return n;
-    }
-    if (point == 16) {
-        memcpy(o, &t, 16);
-        o[16] = '.';
-        o[17] = (char)c;
-        return n + 1;
-    }
-    u128 low = ((u128)1 << (8 * point)) - 1, r = (t & low) | (u128)'.' << (8 * point) | (t & ~low) << 8;
-    uint64_t tail = (uint64_t)(t >> 120) | c << 8;
-    memcpy(o, &r, 16);
-    memcpy(o + 16, &tail, 8);
+    u128 rest = t >> (8 * point);
+    memcpy(o + point + 1, &rest, 16);
+    o[point] = '.';
+    o[17] = (char)c;
     return n + 1;
 }
 
