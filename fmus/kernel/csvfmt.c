@@ -12,6 +12,7 @@
  * and the last kept digit is rounded to the centre. Values of 2^59 and above take a slower exact
  * route through printf and strtod (both correctly rounded in glibc).
  */
+#include <emmintrin.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -261,12 +262,11 @@ static inline uint64_t shortest_fast(uint64_t m2, int e2, int asym, int *dexp)
     uint64_t vb = round_to_odd(g, cb << h);
     uint64_t vbl = round_to_odd(g, (cb - 2 + (uint64_t)asym) << h) + out;
     uint64_t vbr = round_to_odd(g, (cb + 2) << h) - out;
-    uint64_t s = vb >> 2, sp10 = s / 10 * 10, tp10 = sp10 + 10;
-    int upin = vbl <= sp10 << 2, wpin = tp10 << 2 <= vbr;
+    uint64_t s = vb >> 2, s10 = s / 10;
+    int upin = vbl <= 40 * s10, wpin = 40 * s10 + 40 <= vbr;
     if (upin != wpin) {
-        k++;
-        *dexp = k;
-        return drop_zeros((upin ? sp10 : tp10) / 10, dexp);
+        *dexp = k + 1;
+        return drop_zeros(s10 + wpin, dexp);
     }
     *dexp = k;
     int uin = vbl <= s << 2, win = (s + 1) << 2 <= vbr;
@@ -367,25 +367,46 @@ static int write_digits(uint64_t d, char *out)
     return n;
 }
 
+/* x < 10^8 as 8 digits (values 0 .. 9, the first in lane 0) in 16-bit lanes: x = 10^4 a + b as lanes
+ * 4a 4a 4a 4a 4b 4b 4b 4b; two multiplies keeping the high half divide them by 1000, 100, 10, 1
+ * (constants checked on every 4-digit value), and each lane less 10 times its left neighbour is a digit. */
+static inline __m128i digit_lanes(uint32_t x)
+{
+    const __m128i div = _mm_setr_epi16(8389, 5243, 3277, -32768, 8389, 5243, 3277, -32768);
+    const __m128i shift = _mm_setr_epi16(128, 2048, -32768, -32768, 128, 2048, -32768, -32768);
+    uint32_t a = x / 10000, b = x - a * 10000;
+    __m128i v = _mm_cvtsi32_si128((int)(4 * a | 4 * b << 16));
+    v = _mm_unpacklo_epi16(v, v);
+    v = _mm_mulhi_epu16(_mm_mulhi_epu16(_mm_unpacklo_epi32(v, v), div), shift);
+    return _mm_sub_epi16(v, _mm_slli_epi64(_mm_mullo_epi16(v, _mm_set1_epi16(10)), 16));
+}
+
+/* x < 10^16 as 16 ASCII digits, the first in byte 0. */
+static inline __m128i digits16(uint64_t x)
+{
+    uint32_t high = (uint32_t)(x / 100000000);
+    __m128i lanes = _mm_packus_epi16(digit_lanes(high), digit_lanes((uint32_t)(x - (uint64_t)high * 100000000)));
+    return _mm_add_epi8(lanes, _mm_set1_epi8('0'));
+}
+
 /* The n <= 17 digits of d at o, with a '.' after the first `point` of them when 0 < point < n;
- * returns the characters written. d is scaled to exactly 17 digits and the text put together in
- * registers and stored in words: the digits, then (with a point) the part after it again one byte
- * further on, so 34 bytes from o may be written whatever its length (out has that slack; what lies
- * past the text is overwritten by what follows it). */
+ * returns the characters written. d is scaled to exactly 17 digits and stored in words: the first
+ * digit, the other 16, then (with a point) the part after it again one byte further on, so 33 bytes
+ * from o may be written whatever its length (out has that slack; what lies past the text is
+ * overwritten by what follows it). */
 static inline int put_digits(uint64_t d, int n, int point, char *o)
 {
-    uint64_t d17 = d * POW10[17 - n];
-    uint32_t high = (uint32_t)(d17 / 100000000), top = high / 100000000;   /* high < 10^9, top < 10 */
-    uint64_t w2 = digits8((uint32_t)(d17 - (uint64_t)high * 100000000)), c = w2 >> 56;
-    u128 t = (u128)('0' + top) | (u128)digits8(high - top * 100000000) << 8 | (u128)w2 << 72;
-    memcpy(o, &t, 16);
-    memcpy(o + 16, &c, 8);
+    const uint64_t e16 = UINT64_C(10000000000000000);
+    uint64_t d17 = d * POW10[17 - n], top = d17 / e16;
+    __m128i rest = digits16(d17 - top * e16);
+    o[0] = (char)('0' + top);
+    _mm_storeu_si128((__m128i *)(o + 1), rest);
     if (point <= 0 || point >= n)
         return n;
-    u128 rest = t >> (8 * point);
-    memcpy(o + point + 1, &rest, 16);
+    u128 t = (u128)(uint64_t)_mm_cvtsi128_si64(rest) | (u128)(uint64_t)_mm_cvtsi128_si64(_mm_unpackhi_epi64(rest, rest)) << 64;
+    t >>= 8 * (point - 1);
+    memcpy(o + point + 1, &t, 16);
     o[point] = '.';
-    o[17] = (char)c;
     return n + 1;
 }
 
