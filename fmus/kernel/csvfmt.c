@@ -253,7 +253,7 @@ static inline uint64_t drop_zeros(uint64_t d, int *k)
 
 /* Shortest round-trip digits of a positive finite v = m2 2^(e2 + 2) (m2 < 2^53; below a power of two
  * the lower neighbour is half as far: asym) as an integer and the decimal exponent of its last digit. */
-static inline uint64_t shortest_fast(uint64_t m2, int e2, int asym, int *dexp)
+static inline __attribute__((always_inline)) uint64_t shortest_fast(uint64_t m2, int e2, int asym, int *dexp)
 {
     int q = e2 + 2, k = asym ? (q * 1262611 - 524031) >> 22 : floor_log10_pow2(q);
     int h = q + ((-k * 1741647) >> 19) + 1;                 /* 1 .. 4 */
