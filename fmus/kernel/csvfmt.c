@@ -367,25 +367,28 @@ static int write_digits(uint64_t d, char *out)
     return n;
 }
 
-/* x < 10^8 as 8 digits (values 0 .. 9, the first in lane 0) in 16-bit lanes: x = 10^4 a + b as lanes
- * 4a 4a 4a 4a 4b 4b 4b 4b; two multiplies keeping the high half divide them by 1000, 100, 10, 1
- * (constants checked on every 4-digit value), and each lane less 10 times its left neighbour is a digit. */
-static inline __m128i digit_lanes(uint32_t x)
+/* 8 digits (values 0 .. 9, the first in lane 0) from 16-bit lanes 4a 4a 4a 4a 4b 4b 4b 4b, a and b < 10^4:
+ * two multiplies keeping the high half divide the lanes by 1000, 100, 10, 1 (constants checked on every
+ * 4-digit value), and each lane less 10 times its left neighbour is a digit. */
+static inline __m128i digit_lanes(__m128i v)
 {
     const __m128i div = _mm_setr_epi16(8389, 5243, 3277, -32768, 8389, 5243, 3277, -32768);
     const __m128i shift = _mm_setr_epi16(128, 2048, -32768, -32768, 128, 2048, -32768, -32768);
-    uint32_t a = x / 10000, b = x - a * 10000;
-    __m128i v = _mm_cvtsi32_si128((int)(4 * a | 4 * b << 16));
-    v = _mm_unpacklo_epi16(v, v);
-    v = _mm_mulhi_epu16(_mm_mulhi_epu16(_mm_unpacklo_epi32(v, v), div), shift);
+    v = _mm_mulhi_epu16(_mm_mulhi_epu16(v, div), shift);
     return _mm_sub_epi16(v, _mm_slli_epi64(_mm_mullo_epi16(v, _mm_set1_epi16(10)), 16));
 }
 
-/* x < 10^16 as 16 ASCII digits, the first in byte 0. */
+/* x < 10^16 as 16 ASCII digits, the first in byte 0: x = 10^8 u + w, and u, w = 10^4 a + b in two
+ * 64-bit lanes at once (a = x 0xd1b71759 >> 45, exact below 10^8), then a and b spread over 16-bit lanes. */
 static inline __m128i digits16(uint64_t x)
 {
-    uint32_t high = (uint32_t)(x / 100000000);
-    __m128i lanes = _mm_packus_epi16(digit_lanes(high), digit_lanes((uint32_t)(x - (uint64_t)high * 100000000)));
+    uint64_t u = x / 100000000;
+    __m128i v = _mm_set_epi64x((long long)(x - u * 100000000), (long long)u);
+    __m128i a = _mm_srli_epi64(_mm_mul_epu32(v, _mm_set1_epi32((int)0xd1b71759)), 45);
+    __m128i b = _mm_sub_epi32(v, _mm_mul_epu32(a, _mm_set1_epi32(10000)));
+    __m128i ab = _mm_slli_epi16(_mm_packs_epi32(_mm_or_si128(a, _mm_slli_epi64(b, 32)), a), 2);
+    ab = _mm_unpacklo_epi16(ab, ab);
+    __m128i lanes = _mm_packus_epi16(digit_lanes(_mm_unpacklo_epi32(ab, ab)), digit_lanes(_mm_unpackhi_epi32(ab, ab)));
     return _mm_add_epi8(lanes, _mm_set1_epi8('0'));
 }
 
