@@ -429,7 +429,7 @@ static int layout(uint64_t d, int n, int decpt, char *out)
         memcpy(o, DIGIT_PAIRS + 2 * (ax % 100), 2);
         o += 2;
     } else if (decpt <= 0) {
-        memcpy(o, "0.0000", 6);
+        memcpy(o, "0.000000", 8);
         o += 2 - decpt;
         o += put_digits(d, n, 0, o);
     } else if (decpt >= n) {
@@ -453,27 +453,21 @@ static int repr_by(double v, char *out, int exact)
     int neg = (int)(bits >> 63), be = (int)((bits >> 52) & 0x7ff);
     uint64_t frac = bits & ((UINT64_C(1) << 52) - 1);
     char *o = out;
-    if (be == 0x7ff) {
-        if (frac) {
-            memcpy(o, "nan", 3);
-            return 3;
-        }
-        if (neg)
-            *o++ = '-';
-        memcpy(o, "inf", 3);
-        return (int)(o - out) + 3;
-    }
     *o = '-';                        /* without a branch: signs of data are as good as random */
     o += neg;
-    if (be == 0 && frac == 0) {
-        memcpy(o, "0.0", 3);
+    if ((bits << 1) - 1 >= (UINT64_C(0x7ff) << 53) - 1) {     /* zero, inf or nan: one test for the three */
+        if (be == 0x7ff && frac) {
+            memcpy(out, "nan", 3);
+            return 3;
+        }
+        memcpy(o, be ? "inf" : "0.0", 3);
         return (int)(o - out) + 3;
     }
     uint64_t m = be ? frac | (UINT64_C(1) << 52) : frac;
     int e = (be ? be : 1) - 1075, asym = frac == 0 && be > 1, dexp = 0;
     uint64_t d = !exact ? shortest_fast(m, e - 2, asym, &dexp)
                : e < 7 ? shortest(m, e, !(m & 1), asym, &dexp) : shortest_printf(fabs(v), frac == 0, &dexp);
-    int n = digit_count(d);
+    int n = d >= UINT64_C(1000000000000000) ? 16 + (d >= UINT64_C(10000000000000000)) : digit_count(d);
     return (int)(o - out) + layout(d, n, n + dexp, o);
 }
 
