@@ -1,7 +1,7 @@
 /* CSV rows as Python writes them: every double as repr() does (the shortest decimal that reads
  * back to the same bits, the closest such one, ties to an even last digit, in repr's layout), whole
  * columns as integers or as labels. Used by wavecosim/observers/recorder.py through ctypes on a
- * block of rows at a time. Two routes give the same digits: the fast one (Ryu's method, below
+ * block of rows at a time. Two routes give the same digits: the fast one (Schubfach's method, below
  * `shortest_fast`) writes the files; the exact one, slower, is the reference it is checked against
  * (csv_lines; tests/test_csvtext.py, scripts/csvfmt_check.py).
  *
@@ -255,8 +255,8 @@ static inline uint64_t drop_zeros(uint64_t d, int *k)
  * the lower neighbour is half as far: asym) as an integer and the decimal exponent of its last digit. */
 static inline __attribute__((always_inline)) uint64_t shortest_fast(uint64_t m2, int e2, int asym, int *dexp)
 {
-    int q = e2 + 2, k = asym ? (q * 1262611 - 524031) >> 22 : floor_log10_pow2(q);
-    int h = q + ((-k * 1741647) >> 19) + 1;                 /* 1 .. 4 */
+    int q = e2 + 2, k = asym ? (q * 1262611 - 524031) >> 22 : floor_log10_pow2(q);   /* log10 of 3/4 2^q */
+    int h = q + ((-k * 1741647) >> 19) + 1;           /* floor(-k log2 10): 1 .. 4 (checked for every q) */
     u128 g = pow10_split[-k - POW10_MIN];
     uint64_t out = m2 & 1, cb = m2 << 2;                   /* ends included for an even m2 */
     uint64_t vb = round_to_odd(g, cb << h);
