@@ -42,9 +42,19 @@ def edge_doubles(rng, n):
     short = rng.integers(1, 10 ** 6, n).astype(float) * 10.0 ** rng.integers(-30, 30, n)
     decimals = np.array([float(f"{m}e{x}") for m, x in zip(rng.integers(1, 10 ** 15, n // 4).tolist(),
                                                              rng.integers(-320, 300, n // 4).tolist())])
-    values = np.concatenate([subnormal, ends, big_ints, dyadic, short, decimals])
+    values = np.concatenate([subnormal, ends, big_ints, dyadic, short, decimals, fives(rng, n)])
     with np.errstate(over="ignore"):                   # the largest double's upper neighbour is inf
         return np.concatenate([values, np.nextafter(values, 0.0), np.nextafter(values, np.inf), -values])
+
+
+def fives(rng, n):
+    """Significands that are multiples of 5^j (j = 1 .. 22) times 2^-195 .. 2^84, where the fast route's 10^-k
+    is exact or v 10^-k may be an integer (a rounded-up table entry must not make it look otherwise)."""
+    p = 5 ** rng.integers(1, 23, n)
+    low, high = -(-2 ** 52 // p), (2 ** 53 - 1) // p
+    m = (low + (rng.random(n) * (high - low + 1)).astype(np.int64)) * p
+    exponent = rng.integers(880, 1160, n)
+    return ((exponent << 52) | (m - 2 ** 52)).astype(np.uint64).view(np.float64)
 
 
 def test_random_bit_patterns_read_as_repr():

@@ -1,7 +1,7 @@
 /* CSV rows as Python writes them: every double as repr() does (the shortest decimal that reads
  * back to the same bits, the closest such one, ties to an even last digit, in repr's layout), whole
  * columns as integers or as labels. Used by wavecosim/observers/recorder.py through ctypes on a
- * block of rows at a time. Two routes give the same digits: the fast one (Ryu's method, below
+ * block of rows at a time. Two routes give the same digits: the fast one (Schubfach's method, below
  * `shortest_fast`) writes the files; the exact one, slower, is the reference it is checked against
  * (csv_lines; tests/test_csvtext.py, scripts/csvfmt_check.py).
  *
@@ -12,6 +12,7 @@
  * and the last kept digit is rounded to the centre. Values of 2^59 and above take a slower exact
  * route through printf and strtod (both correctly rounded in glibc).
  */
+#include <emmintrin.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -132,33 +133,19 @@ static uint64_t shortest(uint64_t m, int e, int even, int asym, int *dexp)
     return vq + (uint64_t)up;
 }
 
-/* The fast route (Ryu's method): with v = m2 2^e2 (m2 of 53 bits, e2 for 4 v = (4 m2) 2^(e2-2)), the
- * interval's ends and centre times 10^-e10 are one 64 x 128-bit product each with a table entry:
- * 5^i cut to its top 125 bits (e2 < 0), or 2^j / 5^q rounded up to 125 bits (e2 >= 0). Whether a
- * dropped part is exactly zero is known from divisibility by 5^q or 2^q (the products alone lose
- * it); digits are then dropped two, then one at a time while the interval still holds a shorter
- * number, and the last kept one is rounded to the centre (ties even). */
-#define POW5_BITS 125
-#define POW5_COUNT 326               /* 5^i for e2 down to -1076 */
-#define POW5_INV_COUNT 342           /* 2^j / 5^q for e2 up to 969 (q <= 291) */
-#define POW5_LIMBS 14                /* 5^341 < 2^792 */
+/* The fast route (after Giulietti's Schubfach): with v = c 2^q and k = floor(log10 of the interval's
+ * width), the interval's ends and centre times 4 10^-k are each one 64 x 128-bit product with a table
+ * entry g, 10^-k normalized to 128 bits (exact for 10^0 .. 10^55, else rounded up: the product is then
+ * above the true value by less than 2^-6 of its fraction's top word, so a top word of 0 or 1 means an
+ * exact product). At most one multiple of 10^(k+1) lies in the interval; if none, the digits are
+ * floor(v 10^-k) or the next integer, whichever is inside, else the closer (ties to even). */
+#define POW10_MIN (-292)             /* 10^-k for k = floor(q log10 2), q from 971 down to -1074 */
+#define POW10_MAX 324
+#define POW5_LIMBS 14                /* 5^324 < 2^753 */
 
-static u128 pow5_split[POW5_COUNT];
-static u128 pow5_inv_split[POW5_INV_COUNT];
+static u128 pow10_split[POW10_MAX - POW10_MIN + 1];
 
-/* Bits of 5^e (1 for e = 0): ceil(e log2 5) for e > 0. */
-static int pow5bits(int e)
-{
-    return (int)(((uint32_t)e * 1217359u) >> 19) + 1;
-}
-
-/* floor(e log10 5). */
-static int log10_pow5(int e)
-{
-    return (int)(((uint32_t)e * 732923u) >> 20);
-}
-
-/* The 128 bits of x (limbs, least significant first) from bit `at` up (at may be negative: shifted left). */
+/* The 128 bits of x (limbs, least significant first) from bit `at` up. */
 static u128 bits_from(const uint64_t *x, int at)
 {
     u128 r = 0;
@@ -177,34 +164,48 @@ static int limbs_less(const uint64_t *a, const uint64_t *b)
     return 0;
 }
 
-/* Both tables from 5^i in limbs: its top 125 bits, and floor(2^(bits - 1 + 125) / 5^i) + 1 by binary
- * long division starting from the remainder 2^(bits - 1) < 5^i. */
+static int bit_length(const uint64_t *x)
+{
+    int i = POW5_LIMBS - 1;
+    while (!x[i])
+        i--;
+    return 64 * i + 64 - __builtin_clzll(x[i]);
+}
+
+/* floor(2^(bits + 127) / p) for p of `bits` bits, by binary long division from the remainder 2^(bits - 1). */
+static u128 reciprocal(const uint64_t *p, int bits)
+{
+    uint64_t r[POW5_LIMBS] = {0};
+    u128 q = 0;
+    r[(bits - 1) >> 6] = UINT64_C(1) << ((bits - 1) & 63);
+    for (int s = 0; s < 128; s++) {
+        for (int l = POW5_LIMBS - 1; l > 0; l--)
+            r[l] = (r[l] << 1) | (r[l - 1] >> 63);
+        r[0] <<= 1;
+        q <<= 1;
+        if (!limbs_less(r, p)) {
+            uint64_t borrow = 0;
+            for (int l = 0; l < POW5_LIMBS; l++) {
+                u128 d = (u128)r[l] - p[l] - borrow;
+                r[l] = (uint64_t)d;
+                borrow = (uint64_t)(d >> 64) & 1u;
+            }
+            q |= 1;
+        }
+    }
+    return q;
+}
+
+/* 10^i = 5^i 2^i: the top 128 bits of 5^i (plus 1 when bits are cut off); 10^-i: 2^(bits + 127) / 5^i,
+ * plus 1 (never exact for i > 0). */
 static void pow5_tables(void)
 {
-    uint64_t p[POW5_LIMBS] = {1}, r[POW5_LIMBS];
-    for (int i = 0; i < POW5_INV_COUNT; i++) {
-        int bits = pow5bits(i);
-        if (i < POW5_COUNT)
-            pow5_split[i] = bits_from(p, bits - POW5_BITS);
-        memset(r, 0, sizeof r);
-        r[(bits - 1) >> 6] = UINT64_C(1) << ((bits - 1) & 63);
-        u128 q = 0;
-        for (int s = 0; s < POW5_BITS && i > 0; s++) {
-            for (int l = POW5_LIMBS - 1; l > 0; l--)
-                r[l] = (r[l] << 1) | (r[l - 1] >> 63);
-            r[0] <<= 1;
-            q <<= 1;
-            if (!limbs_less(r, p)) {
-                uint64_t borrow = 0;
-                for (int l = 0; l < POW5_LIMBS; l++) {
-                    u128 d = (u128)r[l] - p[l] - borrow;
-                    r[l] = (uint64_t)d;
-                    borrow = (uint64_t)(d >> 64) & 1u;
-                }
-                q |= 1;
-            }
-        }
-        pow5_inv_split[i] = (i ? q : (u128)1 << POW5_BITS) + 1;
+    uint64_t p[POW5_LIMBS] = {1};
+    for (int i = 0; i <= POW10_MAX; i++) {
+        int bits = bit_length(p);
+        pow10_split[i - POW10_MIN] = bits_from(p, bits - 128) + (bits > 128);
+        if (i > 0 && -i >= POW10_MIN)
+            pow10_split[-i - POW10_MIN] = reciprocal(p, bits) + 1;
         uint64_t carry = 0;
         for (int l = 0; l < POW5_LIMBS; l++) {
             u128 t = (u128)p[l] * 5u + carry;
@@ -214,101 +215,65 @@ static void pow5_tables(void)
     }
 }
 
-/* (x * mul) >> j, for j - 64 in 54 .. 61 (every double's case), as two 64-bit shifts. */
-static inline uint64_t mul_shift(uint64_t x, u128 mul, int j)
+/* floor(g cp / 2^128), with the lowest bit set when the product is not an integer (round to odd; a
+ * fraction's top word of 0 or 1 counts as zero, see above). */
+static inline uint64_t round_to_odd(u128 g, uint64_t cp)
 {
-    u128 low = (u128)x * (uint64_t)mul, sum = (low >> 64) + (u128)x * (uint64_t)(mul >> 64);
-    int s = j - 64;
-    return ((uint64_t)sum >> s) | ((uint64_t)(sum >> 64) << (64 - s));
+    u128 top = ((u128)(uint64_t)g * cp >> 64) + (u128)(uint64_t)(g >> 64) * cp;
+    return (uint64_t)(top >> 64) | ((uint64_t)top > 1);
 }
 
-static inline int pow5_factor_at_least(uint64_t x, int p)
+/* d / 10^n into *d when 10^n divides it (n = 1, 2, 4, 8): d 5^-n mod 2^64 rotated right by n is then
+ * the quotient, at most (2^64 - 1) / 10^n, and otherwise larger. */
+static inline int divide_out(uint64_t *d, int n)
 {
-    int count = 0;
-    while (count < p && x % 5 == 0)
-        x /= 5, count++;
-    return count >= p;
+    static const uint64_t INV5[9] = {0, UINT64_C(0xcccccccccccccccd), UINT64_C(0x8f5c28f5c28f5c29), 0,
+                                     UINT64_C(0xd288ce703afb7e91), 0, 0, 0, UINT64_C(0xc767074b22e90e21)};
+    static const uint64_t LIMIT[9] = {0, UINT64_MAX / 10, UINT64_MAX / 100, 0, UINT64_MAX / 10000, 0, 0, 0,
+                                      UINT64_MAX / 100000000};
+    uint64_t r = *d * INV5[n];
+    r = r >> n | r << (64 - n);
+    if (r > LIMIT[n])
+        return 0;
+    *d = r;
+    return 1;
 }
 
-/* The digits when a dropped part may be exactly zero (about 1 number in 150): the lower end is
- * included when exact and the mantissa even, and a dropped exact half rounds to an even digit. */
-static uint64_t round_exact(uint64_t vr, uint64_t vp, uint64_t vm, int even, int vm_zeros, int vr_zeros,
-                            int *removed)
+/* d without its trailing zeros, *k counting them. */
+static inline uint64_t drop_zeros(uint64_t d, int *k)
 {
-    int last = 0, n = 0;
-    while (vp / 10 > vm / 10) {
-        vm_zeros &= vm % 10 == 0;
-        vr_zeros &= last == 0;
-        last = (int)(vr % 10);
-        vr /= 10, vp /= 10, vm /= 10, n++;
-    }
-    while (vm_zeros && vm % 10 == 0) {
-        vr_zeros &= last == 0;
-        last = (int)(vr % 10);
-        vr /= 10, vp /= 10, vm /= 10, n++;
-    }
-    if (vr_zeros && last == 5 && vr % 2 == 0)
-        last = 4;
-    *removed = n;
-    return vr + ((vr == vm && (!even || !vm_zeros)) || last >= 5);
+    if (!divide_out(&d, 1))
+        return d;
+    for (++*k; divide_out(&d, 8);)
+        *k += 8;
+    for (int n = 4; n; n >>= 1)
+        *k += n * divide_out(&d, n);
+    return d;
 }
 
-/* The digits when no dropped part is exactly zero (the common case): two digits at a time first. */
-static inline uint64_t round_common(uint64_t vr, uint64_t vp, uint64_t vm, int *removed)
+/* Shortest round-trip digits of a positive finite v = m2 2^(e2 + 2) (m2 < 2^53; below a power of two
+ * the lower neighbour is half as far: asym) as an integer and the decimal exponent of its last digit. */
+static inline __attribute__((always_inline)) uint64_t shortest_fast(uint64_t m2, int e2, int asym, int *dexp)
 {
-    int up = 0, n = 0;
-    if (vp / 100 > vm / 100) {
-        up = vr % 100 >= 50;
-        vr /= 100, vp /= 100, vm /= 100, n = 2;
+    int q = e2 + 2, k = asym ? (q * 1262611 - 524031) >> 22 : floor_log10_pow2(q);   /* log10 of 3/4 2^q */
+    int h = q + ((-k * 1741647) >> 19) + 1;           /* floor(-k log2 10): 1 .. 4 (checked for every q) */
+    u128 g = pow10_split[-k - POW10_MIN];
+    uint64_t out = m2 & 1, cb = m2 << 2;                   /* ends included for an even m2 */
+    uint64_t vb = round_to_odd(g, cb << h);
+    uint64_t vbl = round_to_odd(g, (cb - 2 + (uint64_t)asym) << h) + out;
+    uint64_t vbr = round_to_odd(g, (cb + 2) << h) - out;
+    uint64_t s = vb >> 2, s10 = s / 10;
+    int upin = vbl <= 40 * s10, wpin = 40 * s10 + 40 <= vbr;
+    if (upin != wpin) {
+        *dexp = k + 1;
+        return drop_zeros(s10 + wpin, dexp);
     }
-    while (vp / 10 > vm / 10) {
-        up = vr % 10 >= 5;
-        vr /= 10, vp /= 10, vm /= 10, n++;
-    }
-    *removed = n;
-    return vr + (vr == vm || up);
-}
-
-/* Shortest round-trip digits of a positive finite v (m2, e2 as in the comment above) as an integer
- * and the decimal exponent of its last digit. */
-static uint64_t shortest_fast(uint64_t m2, int e2, int asym, int *dexp)
-{
-    int even = !(m2 & 1), shift = 1 + !asym;          /* the lower end 4 m2 - 2, or - 1 below a power of two */
-    uint64_t mv = 4 * m2, vr, vp, vm;
-    int e10, vm_zeros = 0, vr_zeros = 0;
-    if (e2 >= 0) {
-        int q = floor_log10_pow2(e2) - (e2 > 3), j = -e2 + q + POW5_BITS + pow5bits(q) - 1;
-        u128 mul = pow5_inv_split[q];
-        e10 = q;
-        vr = mul_shift(mv, mul, j), vp = mul_shift(mv + 2, mul, j), vm = mul_shift(mv - shift, mul, j);
-        if (q <= 21) {
-            if (mv % 5 == 0)
-                vr_zeros = pow5_factor_at_least(mv, q);
-            else if (even)
-                vm_zeros = pow5_factor_at_least(mv - shift, q);
-            else
-                vp -= (uint64_t)pow5_factor_at_least(mv + 2, q);
-        }
-    } else {
-        int q = log10_pow5(-e2) - (-e2 > 1), i = -e2 - q, j = q - (pow5bits(i) - POW5_BITS);
-        u128 mul = pow5_split[i];
-        e10 = q + e2;
-        vr = mul_shift(mv, mul, j), vp = mul_shift(mv + 2, mul, j), vm = mul_shift(mv - shift, mul, j);
-        if (q <= 1) {
-            vr_zeros = 1;
-            if (even)
-                vm_zeros = shift == 2;
-            else
-                vp--;
-        } else if (q < 63) {
-            vr_zeros = (mv & ((UINT64_C(1) << q) - 1)) == 0;
-        }
-    }
-    int removed = 0;
-    uint64_t out = vm_zeros || vr_zeros ? round_exact(vr, vp, vm, even, vm_zeros, vr_zeros, &removed)
-                                        : round_common(vr, vp, vm, &removed);
-    *dexp = e10 + removed;
-    return out;
+    *dexp = k;
+    int uin = vbl <= s << 2, win = (s + 1) << 2 <= vbr;
+    if (uin != win)
+        return s + win;
+    int64_t cmp = (int64_t)(vb - (4 * s + 2));
+    return s + (cmp > 0 || (cmp == 0 && (s & 1)));
 }
 
 static int reads_back(const char *text, double v)
@@ -402,31 +367,49 @@ static int write_digits(uint64_t d, char *out)
     return n;
 }
 
+/* 8 digits (values 0 .. 9, the first in lane 0) from 16-bit lanes 4a 4a 4a 4a 4b 4b 4b 4b, a and b < 10^4:
+ * two multiplies keeping the high half divide the lanes by 1000, 100, 10, 1 (constants checked on every
+ * 4-digit value), and each lane less 10 times its left neighbour is a digit. */
+static inline __m128i digit_lanes(__m128i v)
+{
+    const __m128i div = _mm_setr_epi16(8389, 5243, 3277, -32768, 8389, 5243, 3277, -32768);
+    const __m128i shift = _mm_setr_epi16(128, 2048, -32768, -32768, 128, 2048, -32768, -32768);
+    v = _mm_mulhi_epu16(_mm_mulhi_epu16(v, div), shift);
+    return _mm_sub_epi16(v, _mm_slli_epi64(_mm_mullo_epi16(v, _mm_set1_epi16(10)), 16));
+}
+
+/* x < 10^16 as 16 ASCII digits, the first in byte 0: x = 10^8 u + w, and u, w = 10^4 a + b in two
+ * 64-bit lanes at once (a = x 0xd1b71759 >> 45, exact below 10^8), then a and b spread over 16-bit lanes. */
+static inline __m128i digits16(uint64_t x)
+{
+    uint64_t u = x / 100000000;
+    __m128i v = _mm_set_epi64x((long long)(x - u * 100000000), (long long)u);
+    __m128i a = _mm_srli_epi64(_mm_mul_epu32(v, _mm_set1_epi32((int)0xd1b71759)), 45);
+    __m128i b = _mm_sub_epi32(v, _mm_mul_epu32(a, _mm_set1_epi32(10000)));
+    __m128i ab = _mm_slli_epi16(_mm_packs_epi32(_mm_or_si128(a, _mm_slli_epi64(b, 32)), a), 2);
+    ab = _mm_unpacklo_epi16(ab, ab);
+    __m128i lanes = _mm_packus_epi16(digit_lanes(_mm_unpacklo_epi32(ab, ab)), digit_lanes(_mm_unpackhi_epi32(ab, ab)));
+    return _mm_add_epi8(lanes, _mm_set1_epi8('0'));
+}
+
 /* The n <= 17 digits of d at o, with a '.' after the first `point` of them when 0 < point < n;
- * returns the characters written. d is scaled to exactly 17 digits and the text put together in
- * registers and stored in words, so 24 bytes from o are written whatever its length (out has that
- * slack; what lies past the text is overwritten by what follows it). */
+ * returns the characters written. d is scaled to exactly 17 digits and stored in words: the first
+ * digit, the other 16, then (with a point) the part after it again one byte further on, so 33 bytes
+ * from o may be written whatever its length (out has that slack; what lies past the text is
+ * overwritten by what follows it). */
 static inline int put_digits(uint64_t d, int n, int point, char *o)
 {
-    uint64_t d17 = d * POW10[17 - n];
-    uint32_t high = (uint32_t)(d17 / 100000000), top = high / 100000000;   /* high < 10^9, top < 10 */
-    uint64_t w2 = digits8((uint32_t)(d17 - (uint64_t)high * 100000000)), c = w2 >> 56;
-    u128 t = (u128)('0' + top) | (u128)digits8(high - top * 100000000) << 8 | (u128)w2 << 72;
-    if (point <= 0 || point >= n) {
-        memcpy(o, &t, 16);
-        memcpy(o + 16, &c, 8);
+    const uint64_t e16 = UINT64_C(10000000000000000);
+    uint64_t d17 = d * POW10[17 - n], top = d17 / e16;
+    __m128i rest = digits16(d17 - top * e16);
+    o[0] = (char)('0' + top);
+    _mm_storeu_si128((__m128i *)(o + 1), rest);
+    if (point <= 0 || point >= n)
         return n;
-    }
-    if (point == 16) {
-        memcpy(o, &t, 16);
-        o[16] = '.';
-        o[17] = (char)c;
-        return n + 1;
-    }
-    u128 low = ((u128)1 << (8 * point)) - 1, r = (t & low) | (u128)'.' << (8 * point) | (t & ~low) << 8;
-    uint64_t tail = (uint64_t)(t >> 120) | c << 8;
-    memcpy(o, &r, 16);
-    memcpy(o + 16, &tail, 8);
+    u128 t = (u128)(uint64_t)_mm_cvtsi128_si64(rest) | (u128)(uint64_t)_mm_cvtsi128_si64(_mm_unpackhi_epi64(rest, rest)) << 64;
+    t >>= 8 * (point - 1);
+    memcpy(o + point + 1, &t, 16);
+    o[point] = '.';
     return n + 1;
 }
 
@@ -446,7 +429,7 @@ static int layout(uint64_t d, int n, int decpt, char *out)
         memcpy(o, DIGIT_PAIRS + 2 * (ax % 100), 2);
         o += 2;
     } else if (decpt <= 0) {
-        memcpy(o, "0.0000", 6);
+        memcpy(o, "0.000000", 8);
         o += 2 - decpt;
         o += put_digits(d, n, 0, o);
     } else if (decpt >= n) {
@@ -470,27 +453,21 @@ static int repr_by(double v, char *out, int exact)
     int neg = (int)(bits >> 63), be = (int)((bits >> 52) & 0x7ff);
     uint64_t frac = bits & ((UINT64_C(1) << 52) - 1);
     char *o = out;
-    if (be == 0x7ff) {
-        if (frac) {
-            memcpy(o, "nan", 3);
-            return 3;
-        }
-        if (neg)
-            *o++ = '-';
-        memcpy(o, "inf", 3);
-        return (int)(o - out) + 3;
-    }
     *o = '-';                        /* without a branch: signs of data are as good as random */
     o += neg;
-    if (be == 0 && frac == 0) {
-        memcpy(o, "0.0", 3);
+    if ((bits << 1) - 1 >= (UINT64_C(0x7ff) << 53) - 1) {     /* zero, inf or nan: one test for the three */
+        if (be == 0x7ff && frac) {
+            memcpy(out, "nan", 3);
+            return 3;
+        }
+        memcpy(o, be ? "inf" : "0.0", 3);
         return (int)(o - out) + 3;
     }
     uint64_t m = be ? frac | (UINT64_C(1) << 52) : frac;
     int e = (be ? be : 1) - 1075, asym = frac == 0 && be > 1, dexp = 0;
     uint64_t d = !exact ? shortest_fast(m, e - 2, asym, &dexp)
                : e < 7 ? shortest(m, e, !(m & 1), asym, &dexp) : shortest_printf(fabs(v), frac == 0, &dexp);
-    int n = digit_count(d);
+    int n = d >= UINT64_C(1000000000000000) ? 16 + (d >= UINT64_C(10000000000000000)) : digit_count(d);
     return (int)(o - out) + layout(d, n, n + dexp, o);
 }
 
