@@ -12,7 +12,10 @@
  * and the last kept digit is rounded to the centre. Values of 2^59 and above take a slower exact
  * route through printf and strtod (both correctly rounded in glibc).
  */
+#if defined(__SSE2__) && !defined(CSVFMT_PORTABLE)
 #include <emmintrin.h>
+#define CSVFMT_SSE2 1
+#endif
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -367,6 +370,7 @@ static int write_digits(uint64_t d, char *out)
     return n;
 }
 
+#ifdef CSVFMT_SSE2
 /* 8 digits (values 0 .. 9, the first in lane 0) from 16-bit lanes 4a 4a 4a 4a 4b 4b 4b 4b, a and b < 10^4:
  * two multiplies keeping the high half divide the lanes by 1000, 100, 10, 1 (constants checked on every
  * 4-digit value), and each lane less 10 times its left neighbour is a digit. */
@@ -392,6 +396,21 @@ static inline __m128i digits16(uint64_t x)
     return _mm_add_epi8(lanes, _mm_set1_epi8('0'));
 }
 
+/* digits16 into two words (the first 8 digits in w[0]). */
+static inline void digits16_words(uint64_t x, uint64_t w[2])
+{
+    _mm_storeu_si128((__m128i *)w, digits16(x));
+}
+#else
+/* Without SSE2 (or with CSVFMT_PORTABLE): the two halves of x < 10^16 by digits8, the first in w[0]. */
+static inline void digits16_words(uint64_t x, uint64_t w[2])
+{
+    uint64_t u = x / 100000000;
+    w[0] = digits8((uint32_t)u);
+    w[1] = digits8((uint32_t)(x - u * 100000000));
+}
+#endif
+
 /* The n <= 17 digits of d at o, with a '.' after the first `point` of them when 0 < point < n;
  * returns the characters written. d is scaled to exactly 17 digits and stored in words: the first
  * digit, the other 16, then (with a point) the part after it again one byte further on, so 33 bytes
@@ -400,13 +419,13 @@ static inline __m128i digits16(uint64_t x)
 static inline int put_digits(uint64_t d, int n, int point, char *o)
 {
     const uint64_t e16 = UINT64_C(10000000000000000);
-    uint64_t d17 = d * POW10[17 - n], top = d17 / e16;
-    __m128i rest = digits16(d17 - top * e16);
+    uint64_t d17 = d * POW10[17 - n], top = d17 / e16, w[2];
+    digits16_words(d17 - top * e16, w);
     o[0] = (char)('0' + top);
-    _mm_storeu_si128((__m128i *)(o + 1), rest);
+    memcpy(o + 1, w, 16);
     if (point <= 0 || point >= n)
         return n;
-    u128 t = (u128)(uint64_t)_mm_cvtsi128_si64(rest) | (u128)(uint64_t)_mm_cvtsi128_si64(_mm_unpackhi_epi64(rest, rest)) << 64;
+    u128 t = (u128)w[0] | (u128)w[1] << 64;
     t >>= 8 * (point - 1);
     memcpy(o + point + 1, &t, 16);
     o[point] = '.';
