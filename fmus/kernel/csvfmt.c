@@ -27,7 +27,7 @@
 
 typedef unsigned __int128 u128;
 
-static void pow5_tables(void);
+static void pow10_table(void);
 static uint64_t pow10_limbs[MAX_K + 1][LIMBS];
 static int pow10_len[MAX_K + 1];
 static int ready = 0;
@@ -52,7 +52,7 @@ void csv_init(void)
             pow10_limbs[k][n++] = carry;
         pow10_len[k] = n;
     }
-    pow5_tables();
+    pow10_table();
     ready = 1;
 }
 
@@ -201,7 +201,7 @@ static u128 reciprocal(const uint64_t *p, int bits)
 
 /* 10^i = 5^i 2^i: the top 128 bits of 5^i (plus 1 when bits are cut off); 10^-i: 2^(bits + 127) / 5^i,
  * plus 1 (never exact for i > 0). */
-static void pow5_tables(void)
+static void pow10_table(void)
 {
     uint64_t p[POW5_LIMBS] = {1};
     for (int i = 0; i <= POW10_MAX; i++) {
