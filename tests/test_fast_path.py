@@ -282,13 +282,17 @@ def test_heavy_scene_threads_auto(built_fmus):
     assert note.startswith("2 threads") or note.startswith("serial: two threads were not faster"), note
 
 
-def test_run_steps_makes_the_steps_of_step(table_i):
+@pytest.mark.parametrize("threads", ["1", "auto"])
+def test_run_steps_makes_the_steps_of_step(table_i, threads):
     """run_steps(n0, count) equals count calls of step: a, b^n, calls booked, and it logs what the
-    Sampler reads; with a cap below H it stops after one step and undo_step goes back to x^n, b^n."""
+    Sampler reads; with a cap below H it stops after one step and undo_step goes back to x^n, b^n.
+    threads auto: the first step is timed alone and the rest goes on after it in the kernel's log,
+    which grows keeping that step (observe made no room)."""
     from wavecosim.readings import Sampler
     settings = dataclasses.replace(table_i.master, K=8, fast="true", threads="1")
     scenes = [build_scene(table_i), build_scene(table_i)]
-    one, block = FastDRMaster(scenes[0], settings), FastDRMaster(scenes[1], settings)
+    one = FastDRMaster(scenes[0], settings)
+    block = FastDRMaster(scenes[1], dataclasses.replace(settings, threads=threads))
     sampler = Sampler(scenes[0], table_i.outputs)
     block.observe(sampler.observed)
     try:
