@@ -1,5 +1,6 @@
-# Two entry points; both set up .venv themselves (scripts/setup-venv.sh) and build FMUs on demand.
-.PHONY: run test sweep figures bench setup
+# Two entry points; both set up .venv themselves (scripts/setup-venv.sh); the FMUs and the C kernel
+# are built on demand into the per-user cache.
+.PHONY: run test test-slow sweep bench setup
 
 setup:
 	./scripts/setup-venv.sh
@@ -10,6 +11,10 @@ run: setup
 test:
 	./scripts/setup-venv.sh test
 	.venv/bin/python -m pytest -q
+
+test-slow:
+	./scripts/setup-venv.sh test
+	.venv/bin/python -m pytest -q -m slow
 
 sweep: setup
 	.venv/bin/wavecosim sweep --plots --out out/sweep

@@ -7,7 +7,7 @@ import tempfile
 from pathlib import Path
 
 import wavecosim as wc
-from wavecosim.builtin import builtin_fmus
+from wavecosim.fmi.builtin import builtin_fmus
 
 SCENE = """
 name: my_oscillators

@@ -6,7 +6,7 @@ import sys
 
 import numpy as np
 
-from wavecosim import csvtext
+from wavecosim.kernel import csvfmt as csvtext
 from tests.test_csvtext import edge_doubles, odd_doubles
 
 

@@ -6,7 +6,7 @@
 
 Runs DR on Table I and the stiff scene with certificates on (8 sampled FNE pairs and Theorem 1's
 augmented residual per step, the Condition 1 watch) for a few budgets, plain and with each named
-option (wavecosim.comparison.DR_OPTIONS), and prints max error, the largest positive augmented
+option (wavecosim.sweeps.comparison.DR_OPTIONS), and prints max error, the largest positive augmented
 residual (Theorem 1: <= 0 up to roundoff), the smallest FNE margin, the steps the ledger guard
 redid and max H/H(0).
 """
@@ -16,10 +16,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from wavecosim.budget_sweep import reference_run  # noqa: E402
-from wavecosim.comparison import DR_OPTIONS  # noqa: E402
-from wavecosim.config import load_scenario  # noqa: E402
-from wavecosim.runner import run  # noqa: E402
+from wavecosim.sweeps.budget import reference_run  # noqa: E402
+from wavecosim.sweeps.comparison import DR_OPTIONS  # noqa: E402
+from wavecosim.scenario.config import load_scenario  # noqa: E402
+from wavecosim.run.runner import run  # noqa: E402
 
 SCENES = {"table1": ("two_oscillators.yaml", (3, 8, 20)), "stiff": ("two_oscillators_stiff.yaml", (4, 8, 20))}
 

@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from wavecosim.config import ROOT, parse_scenario
-from wavecosim.runner import run
+from wavecosim.scenario.config import parse_scenario
+from wavecosim.run.runner import run
 
 GUARDS = ("ledger", "monolithic", "off")
 DRIVEN = {("B", "c2"): -3.0}

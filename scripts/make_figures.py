@@ -13,9 +13,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from wavecosim.config import load_scenario  # noqa: E402
+from wavecosim.scenario.config import load_scenario  # noqa: E402
 from wavecosim.plots import sweep_plots  # noqa: E402
-from wavecosim.budget_sweep import sweep  # noqa: E402
+from wavecosim.sweeps.budget import sweep  # noqa: E402
 
 DATA, FIGURES = ROOT / "out" / "figures", ROOT / "docs" / "figures"
 

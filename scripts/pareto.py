@@ -3,7 +3,7 @@
     .venv/bin/python scripts/pareto.py
 
 Runs `compare` (every master over its default grid, and DR with every named option,
-wavecosim.comparison.DR_OPTIONS; certificates off) on Table I and on the stiff scene, copies
+wavecosim.sweeps.comparison.DR_OPTIONS; certificates off) on Table I and on the stiff scene, copies
 pareto.png and energy_by_master.png into docs/figures/<scene>_*.png, and prints, per scene and
 target max error, the cheapest budget of the best DR option with Theorem 1's certificate, of the
 best DR option of all (Anderson included: energy-safe through the ledger guard only), and of the
@@ -23,8 +23,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from wavecosim.comparison import CERTIFIED, DR_OPTIONS, TARGETS, compare, group_name  # noqa: E402
-from wavecosim.config import load_scenario  # noqa: E402
+from wavecosim.sweeps.comparison import CERTIFIED, DR_OPTIONS, TARGETS, compare, group_name  # noqa: E402
+from wavecosim.scenario.config import load_scenario  # noqa: E402
 from wavecosim.plots import compare_plots  # noqa: E402
 
 DATA, FIGURES = ROOT / "out" / "figures", ROOT / "docs" / "figures"

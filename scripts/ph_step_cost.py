@@ -13,7 +13,7 @@ from pathlib import Path
 
 from fmpy import read_model_description
 
-from wavecosim.builtin import build_module
+from wavecosim.fmi import build
 
 ROOT = Path(__file__).resolve().parent.parent
 PAIRS = [("LinearSidePH", "LinearSide"), ("ChainLinkPH", "ChainLink"), ("RLCCircuitPH", "RLCCircuit"),
@@ -22,7 +22,7 @@ EXTRA = ["Pendulum", "PendulumCart"]
 
 
 def load_build():
-    return build_module()
+    return build
 
 
 def compile_driver(build, tmp):

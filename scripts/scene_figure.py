@@ -18,9 +18,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from wavecosim.config import load_scenario  # noqa: E402
-from wavecosim.runner import run  # noqa: E402
-from wavecosim.budget_sweep import reference_run  # noqa: E402
+from wavecosim.scenario.config import load_scenario  # noqa: E402
+from wavecosim.run.runner import run  # noqa: E402
+from wavecosim.sweeps.budget import reference_run  # noqa: E402
 
 SCENES = ("chain", "star", "planar", "rlc_motor")
 KS = (0, 1, 2, 3, 5, 10, 20, 30, 50, 100)

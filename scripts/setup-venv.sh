@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
 # Create .venv at the repository root and install wavecosim into it (editable), once per change
-# of pyproject.toml; `setup-venv.sh test` also installs the test extra (pytest). The FMUs are built
-# on demand by the commands themselves.
+# of pyproject.toml; `setup-venv.sh test` also installs the test extra. The FMUs and the C kernel
+# are built on demand by the commands themselves.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PYTHON:-python3}
 if [ ! -x .venv/bin/python ]; then
+  echo "setting up .venv (first time: a minute or two)" >&2
   "$PY" -m venv .venv
 fi
 extras=${1:-}
@@ -13,6 +14,7 @@ target=.
 [ -n "$extras" ] && target=".[$extras]"
 stamp=.venv/.wavecosim-installed${extras:+-$extras}
 if [ ! -f "$stamp" ] || [ pyproject.toml -nt "$stamp" ]; then
+  echo "installing wavecosim${extras:+[$extras]} into .venv" >&2
   .venv/bin/python -m pip install --quiet --upgrade pip
   .venv/bin/python -m pip install --quiet -e "$target"
   touch "$stamp"

@@ -17,8 +17,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from wavecosim.config import ROOT  # noqa: E402
-from wavecosim.budget_sweep import plan, run_sweep  # noqa: E402
+from wavecosim.sweeps.budget import plan, run_sweep  # noqa: E402
 
 SETUPS = {"table1": (ROOT / "configs" / "two_oscillators.yaml", [("master.K", list(range(64)))], [("T", 10.0)]),
           "heavy": (ROOT / "configs" / "heavy_chain.yaml", [("master.K", list(range(1, 17)))], [("T", 1.0)])}

@@ -3,7 +3,6 @@ and the discrete-passivity and rollback checks every model family runs."""
 import contextlib
 import dataclasses
 import re
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,9 +10,9 @@ from fmpy import calloc, extract, free, read_model_description
 from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
                        fmi2CallbackFunctions, fmi2CallbackLoggerTYPE)
 
-from wavecosim.builtin import build_all
+from wavecosim.fmi.builtin import build_all
 
-ROOT = Path(__file__).resolve().parent.parent
+from paths import ROOT
 PASSIVITY_RTOL = 1e-12
 
 
@@ -197,7 +196,7 @@ def python_and_kernel_masters(sc, wave=True):
     """The scenario's master twice, on its Python reference and on the kernel route, each over a
     scene of its own; all closed afterwards."""
     from wavecosim.masters import MASTERS
-    from wavecosim.scene import build_scene
+    from wavecosim.core.scene import build_scene
     masters, scenes = [], []
     try:
         for fast in ("false", "true"):

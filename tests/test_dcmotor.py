@@ -2,17 +2,16 @@
 stimuli FMU's voltage and load torque as signals, the inertia's angle fed back to the machine, and
 the shaft a physical-port coupling with probed signs. Runs are shortened with T (the file's own
 horizon is 1 s). Skipped when ../shared/third_party is absent (a fresh clone)."""
-from pathlib import Path
 
 import numpy as np
 import pytest
 
+from paths import ROOT
 import wavecosim as wc
 from wavecosim.cli import main
-from wavecosim.config import load_raw, parse_scenario
-from wavecosim.overrides import apply_overrides
+from wavecosim.scenario.config import load_raw, parse_scenario
+from wavecosim.scenario.overrides import apply_overrides
 
-ROOT = Path(__file__).resolve().parent.parent
 
 DCMOTOR = ROOT.parent / "shared" / "third_party" / "dcmotor"
 CONFIG = ROOT / "configs" / "dcmotor.yaml"

@@ -1,9 +1,8 @@
 """The scripts in examples/ run as a user runs them (headless) and print what they promise."""
 import subprocess
 import sys
-from pathlib import Path
+from paths import ROOT
 
-ROOT = Path(__file__).resolve().parent.parent
 
 
 def run_example(name, *args, cwd=None):

@@ -1,0 +1,4 @@
+"""`python -m wavecosim`: the command line."""
+from .cli import main
+
+main()

@@ -1,0 +1,147 @@
+"""The public Python API (`import wavecosim`): load a scenario, simulate it, sweep K, compare masters.
+
+The CLI is a thin layer over these functions, so a number from Python and from the command line is
+the same to the last bit. Nothing is written to disk unless `out_dir` is given. Errors raise the
+classes of `wavecosim.errors` (ConfigError, FmuError, NumericalError, RunFailed, Interrupted) with
+the same one-line messages the CLI prints; RunFailed and Interrupted carry the partial `result`.
+"""
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Optional, Sequence, Union
+
+import numpy as np
+
+from .scenario.config import Scenario, load_scenario
+from .errors import ConfigError
+from .masters import ALGORITHMS
+from .core.gamma import parse_gamma
+from .run.runner import RunResult, run
+
+ScenarioLike = Union[str, Path, Scenario]
+
+
+def load(path: Union[str, Path, None] = None, *, master: Optional[str] = None, K: Optional[int] = None,
+         eps: Optional[float] = None, gamma=None, dt: Optional[float] = None, T: Optional[float] = None,
+         ports: Union[str, Path, None] = None, parameter_set: Optional[str] = None,
+         warn: Optional[Callable[[str], None]] = None) -> Scenario:
+    """Read and validate a scenario file (the built-in Table I scene when `path` is None), or an SSP
+    system (.ssd, .ssp, folder) with the overlay `ports` and the parameter sets named
+    `parameter_set`, with the given values in place of the file's (the CLI's options). Notes of
+    an SSP import go to `warn` (default: Python warnings)."""
+    from .scenario.ssp import is_ssp, load_ssp
+    if path is not None and is_ssp(path):
+        settings = {"dt": dt, "T": T, "gamma": parse_gamma(gamma, "gamma") if gamma is not None else None}
+        scenario, imported = load_ssp(path, ports, parameter_set, settings)
+        for note in imported.notes:
+            (warn or _python_warning)(note)
+    elif ports is not None or parameter_set is not None:
+        raise ConfigError("ports and parameter_set: only for an SSP input (.ssd, .ssp or a folder)")
+    else:
+        scenario = load_scenario(path)
+    return with_overrides(scenario, master=master, K=K, eps=eps, gamma=gamma, dt=dt, T=T)
+
+
+def _python_warning(message):
+    import warnings
+    warnings.warn(message, stacklevel=3)
+
+
+def with_overrides(scenario: Scenario, *, master=None, K=None, eps=None, gamma=None, dt=None, T=None,
+                   where="options") -> Scenario:
+    """The scenario with some values replaced, each checked as in a file (one-line ConfigError)."""
+    changes = {k: v for k, v in (("K", K), ("eps", eps), ("algorithm", master)) if v is not None}
+    if master is not None and master not in ALGORITHMS:
+        raise ConfigError(f"{where}: master: must be one of {', '.join(ALGORITHMS)}, got {master!r}")
+    if K is not None and (isinstance(K, bool) or not isinstance(K, int) or K < 0):
+        raise ConfigError(f"{where}: K: must be >= 0, got {K!r}")
+    if eps is not None and not eps > 0:
+        raise ConfigError(f"{where}: eps: must be > 0, got {eps!r}")
+    if changes:
+        scenario = scenario.with_master(**changes)
+    top = {k: v for k, v in (("dt", dt), ("T", T)) if v is not None}
+    if gamma is not None:
+        top["gamma"] = parse_gamma(gamma, f"{where}: gamma" if where != "options" else "gamma")
+    return scenario.with_changes(where, **top)
+
+
+def _scenario(scenario: ScenarioLike, **overrides) -> Scenario:
+    base = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+    return with_overrides(base, **overrides)
+
+
+def _progress_printer(enabled):
+    """progress=True prints a line every 10 % to stderr; a callable gets (step, total)."""
+    if callable(enabled) or not enabled:
+        return enabled or None
+    import sys
+
+    def report(n, total):
+        if n == total or (10 * n) // total != (10 * (n - 1)) // total:
+            print(f"  {n}/{total} steps", file=sys.stderr, flush=True)
+    return report
+
+
+def simulate(scenario: ScenarioLike = None, *, master: Optional[str] = None, K: Optional[int] = None,
+             eps: Optional[float] = None, gamma=None, dt: Optional[float] = None, T: Optional[float] = None,
+             out_dir: Union[str, Path, None] = None, reference: bool = True, certificates: bool = True,
+             progress: Union[bool, Callable[[int, int], None]] = False, output_interval: int = 1,
+             formats: Sequence[str] = ("csv",), warn: Optional[Callable[[str], None]] = None) -> RunResult:
+    """Run one scenario (a path, a Scenario, or None for Table I) and return its RunResult.
+
+    `result.trajectory` is a structured array whose first field is `time` (the grid n dt), so
+    `fmpy.util.plot_result(result.trajectory)` draws it; `result.steps` holds the per-step figures,
+    `result.summary` the figures of summary.json, `result.reference` the monolithic reference run
+    alongside (reference=True) or None. Files are written only into `out_dir`."""
+    sc = _scenario(scenario, master=master, K=K, eps=eps, gamma=gamma, dt=dt, T=T)
+    return run(sc, out_dir, label=sc.master.algorithm, reference="lockstep" if reference else None,
+               certificates=certificates, progress=_progress_printer(progress), warn=warn,
+               file_suffix=False, output_interval=output_interval, formats=tuple(formats))
+
+
+@dataclass
+class Table:
+    """Results of several runs: `rows` (one dict per run, as in the JSON files), `results` (the
+    RunResults) and `reference` (the monolithic run they were measured against)."""
+    rows: list
+    results: list
+    reference: RunResult
+
+    def array(self, fields: Sequence[str] = None) -> np.ndarray:
+        """The rows as a structured array of the given (default: every numeric) fields."""
+        fields = list(fields or [k for k, v in self.rows[0].items() if isinstance(v, (int, float))
+                                 and not isinstance(v, bool)])
+        out = np.empty(len(self.rows), dtype=[(f, "f8") for f in fields])
+        for f in fields:
+            out[f] = [r.get(f, np.nan) if isinstance(r.get(f), (int, float)) else np.nan for r in self.rows]
+        return out
+
+
+def sweep(scenario: ScenarioLike = None, Ks: Sequence[int] = (0, 3, 8, 20, 35, 50), *, out_dir=None,
+          certificates: bool = True, progress=False, **overrides) -> Table:
+    """The paper's experiment: DR at every budget K against the monolithic reference."""
+    from .sweeps.budget import sweep as run_sweep
+    sc = _scenario(scenario, **overrides)
+    reference, results, rows = run_sweep(sc, list(Ks), out_dir, progress=_labelled(progress),
+                                         certificates=certificates)
+    return Table(rows, results, reference)
+
+
+def compare(scenario: ScenarioLike = None, masters: Optional[Sequence[str]] = None,
+            Ks: Optional[Sequence[int]] = None, *, out_dir=None, certificates: bool = True, progress=False,
+            options: Sequence[str] = (), **overrides) -> Table:
+    """Every master (default: all) over its grid of budgets (or `Ks`) against the monolithic reference,
+    and DR with each named option in `options` (wavecosim.sweeps.comparison.DR_OPTIONS)."""
+    from .sweeps.comparison import compare as run_compare, parse_options
+    sc = _scenario(scenario, **overrides)
+    reference, results, rows = run_compare(sc, out_dir, masters, Ks, progress=_labelled(progress),
+                                           certificates=certificates, options=parse_options(options))
+    return Table(rows, results, reference)
+
+
+def _labelled(progress):
+    """sweep/compare take progress(label) -> a per-run callback: True prints, a one-argument callable
+    is used as that factory (the CLI's)."""
+    if callable(progress):
+        return progress
+    printer = _progress_printer(progress)
+    return (lambda label: printer) if printer else None

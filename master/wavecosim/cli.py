@@ -1,0 +1,408 @@
+"""The `wavecosim` command line: a thin shell over config, runner and sweep.
+
+Every WavecosimError becomes one line on stderr and its class's exit code (2 for bad input)."""
+import sys
+from pathlib import Path
+
+import click
+
+from .scenario.config import load_scenario
+from .errors import ConfigError, Interrupted, WavecosimError
+from . import api
+from .api import simulate, with_overrides
+from .core.gamma import parse_gamma
+from .masters import ALGORITHMS
+from .run.recorder import write_json
+
+
+def _progress(label, quiet):
+    """A progress callback printing about 20 updates per run to stderr."""
+    if quiet:
+        return None
+    state = {"last": -1}
+    tty = sys.stderr.isatty()
+
+    def report(n, total):
+        pct = (20 * n) // total
+        if n == total:
+            click.echo(f"\r  {label}: {n}/{total} steps done", err=True)
+        elif tty and pct != state["last"]:
+            state["last"] = pct
+            click.echo(f"\r  {label}: {n}/{total} steps ({100 * n // total}%)", err=True, nl=False)
+    return report
+
+
+def _apply_overrides(scenario, K=None, eps=None, gamma=None, dt=None, T=None, algorithm=None):
+    """The scenario with the command line's values in place of the file's."""
+    gamma = parse_gamma(gamma, "--gamma") if gamma is not None else None
+    return with_overrides(scenario, master=algorithm, K=K, eps=eps, gamma=gamma, dt=dt, T=T, where="--T/--dt")
+
+
+def parse_budgets(ks, option="--Ks"):
+    """--Ks "0,3,8" or "0..8" -> [0, 3, 8], each an integer >= 0."""
+    from .scenario.overrides import parse_set
+    try:
+        _, Ks = parse_set(f"master.K={ks}")
+    except ConfigError:
+        Ks = None
+    if not isinstance(Ks, list) or not all(isinstance(k, int) and not isinstance(k, bool) for k in Ks):
+        raise ConfigError(f"{option}: must be comma-separated integers or a range a..b, got {ks!r}")
+    if not Ks or min(Ks) < 0:
+        raise ConfigError(f"{option}: budgets must be integers >= 0, got {ks!r}")
+    return Ks
+
+
+def _fmt(x):
+    return f"{x:.3e}" if isinstance(x, float) else str(x)
+
+
+def print_table(rows, fields):
+    """A plain aligned text table of dicts."""
+    cells = [[_fmt(r.get(f, "")) for f in fields] for r in rows]
+    widths = [max(len(f), *(len(c[i]) for c in cells)) for i, f in enumerate(fields)]
+    click.echo("  ".join(f.rjust(w) for f, w in zip(fields, widths)))
+    for c in cells:
+        click.echo("  ".join(v.rjust(w) for v, w in zip(c, widths)))
+
+
+config_argument = click.argument("config", required=False, type=click.Path(dir_okay=False, path_type=Path))
+common = [
+    click.option("--K", "K", type=click.IntRange(min=0), help="Inner-iteration budget K per macro-step."),
+    click.option("--eps", type=click.FloatRange(min=0, min_open=True), help="Inner tolerance: stop when |u_new - u| <= eps."),
+    click.option("--gamma", help="Scattering impedance (> 0), or auto / auto-retune / fast-unsafe."),
+    click.option("--dt", type=click.FloatRange(min=0, min_open=True), help="Macro-step size (s)."),
+    click.option("--T", "T", type=click.FloatRange(min=0, min_open=True), help="End time (s)."),
+    click.option("--quiet", is_flag=True, help="No progress output."),
+]
+
+
+def options(opts):
+    """A decorator adding the click options `opts` in their order."""
+    def add(f):
+        for opt in reversed(opts):
+            f = opt(f)
+        return f
+    return add
+
+
+with_common = options(common)
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(package_name="wavecosim", message="%(prog)s %(version)s")
+def cli():
+    """wavecosim: early-terminable, energy-safe FMI co-simulation (wave variables + Douglas-Rachford).
+
+    Without CONFIG, commands use the built-in default scenario (the paper's benchmark,
+    configs/two_oscillators.yaml)."""
+
+
+output_options = [
+    click.option("--output-interval", type=click.IntRange(min=1), default=1, show_default=True,
+                 help="Record every N-th macro-step (and the last) in the CSV files; figures use every step."),
+    click.option("--format", "formats", type=click.Choice(["csv", "mat"]), multiple=True,
+                 help="Also write MATLAB files (trajectory.mat, steps.mat) with --format mat; CSV is always written."),
+]
+
+
+with_output = options(output_options)
+
+
+ssp_options = options([
+    click.option("--ports", type=click.Path(dir_okay=False, path_type=Path),
+                 help="SSP input: a YAML overlay with the power ports and the run's settings (README, \"SSP in\")."),
+    click.option("--parameter-set", help="SSP input: use only the parameter sets of this name."),
+])
+
+
+def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None):
+    """A scenario file, or an SSP system (.ssd, .ssp, folder) with its overlay; import notes are warnings."""
+    from .scenario.ssp import is_ssp
+    if ports or parameter_set or (config is not None and is_ssp(config)):
+        return api.load(config, ports=ports, parameter_set=parameter_set, dt=dt, T=T, gamma=gamma,
+                        warn=lambda note: click.echo(f"warning: {note}", err=True))
+    return load_scenario(config)
+
+
+@cli.command("run")
+@click.argument("config", required=False, type=click.Path(path_type=Path))
+@with_common
+@with_output
+@ssp_options
+@click.option("--master", "algorithm", type=click.Choice(ALGORITHMS), help="Master algorithm (default: from CONFIG).")
+@click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("out/run"), show_default=True,
+              help="Output folder for trajectory.csv, steps.csv, summary.json and metadata.json.")
+@click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and the Condition 1 watch (faster).")
+@click.option("--no-reference", is_flag=True, help="Skip the monolithic reference run (no error figures).")
+@click.option("--plots", is_flag=True, help="Also write PNG figures into the output folder.")
+def run_cmd(config, K, eps, gamma, dt, T, quiet, output_interval, formats, ports, parameter_set, algorithm, out,
+            no_certificates, no_reference, plots):
+    """Run one scenario (with the monolithic reference alongside) and write its trajectory, per-step
+    certificates, summary and metadata. CONFIG is a scenario file or an SSP system (.ssd, .ssp, folder)."""
+    scenario = _apply_overrides(_read_config(config, ports, parameter_set, dt, T, gamma), K, eps, gamma, dt, T,
+                                algorithm)
+    result = simulate(scenario, out_dir=out, progress=_progress("run", quiet) or False,
+                      certificates=not no_certificates, reference=not no_reference,
+                      output_interval=output_interval, formats=("csv", *formats))
+    _report_run(scenario, result, out)
+    if plots:
+        from .plots import run_plots
+        for p in run_plots(result, result.reference, out):
+            click.echo(f"wrote {p}")
+
+
+def _report_run(scenario, result, out):
+    s = result.summary
+    click.echo(f"{scenario.name}: {s['master']} K={s['K']} dt={scenario.dt} T={scenario.T} -> {out}")
+    if s.get("gamma_mode", "fixed") != "fixed":
+        each = lambda d: ", ".join(f"{k} {v:.6g}" for k, v in d.items())      # noqa: E731
+        click.echo(f"gamma: {s['gamma_mode']} -> {each(s['gamma_initial'])} (FNE bounds {each(s['gamma_fne_bounds'])}; "
+                   f"predicted inner rate {s['gamma_rate_estimate']:.3f}; final {each(s['gamma_final'])} after "
+                   f"{s['gamma_changes']} changes; "
+                   f"{'inside the FNE bounds' if s['gamma_guaranteed'] else 'OUTSIDE an FNE bound: Theorem 1 not guaranteed'}"
+                   f"{'' if s.get('fne_watch_ok', True) else '; the Condition 1 watch found a violation'})")
+    print_table([s], ["steps", "max_error", "rms_error", "final_error", "max_passivity_pos", "max_augmented_pos",
+                      "min_fne_margin", "iterations_mean", "wall_time_s", "total_time_s",
+                      *(["energy_guard_steps"] if "energy_guard_steps" in s else [])])
+    if "signal_note" in s:
+        click.echo(f"note: {s['signal_note']}")
+
+
+# sweep: the common options with --K a list, plus those of general sweeps
+sweep_options = options([
+    click.option("--K", "--Ks", "--K-list", "ks", help="Budgets K: a list like 0,3,8 or a range 0..63 "
+                 "(default for the paper's experiment: 0,3,8,20,35,50)."),
+    *[opt for opt in common if opt is not common[0]],
+    click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("out/sweep"),
+                 show_default=True),
+    click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and "
+                 "the Condition 1 watch."),
+    click.option("--plots", is_flag=True, help="Also write PNG figures (the paper's Figs. 4-6; with --set, "
+                 "each --plot-y figure against the first swept key)."),
+    click.option("--set", "sets", multiple=True, metavar="KEY=VALUES", help="Sweep a scenario key: "
+                 "KEY=0,3,8 | a..b | linspace(a,b,n) | geomspace(a,b,n) | uniform(lo,hi) | loguniform(lo,hi) | "
+                 "normal(mu,sigma) | randint(lo,hi) (see docs/sweeps.md). Repeat for a grid."),
+    click.option("--sample", type=click.IntRange(min=1), help="Monte Carlo: draw N values of each distribution."),
+    click.option("--seed", type=int, default=0, show_default=True, help="Seed of the Monte Carlo draws."),
+    click.option("--workers", type=click.IntRange(min=1), help="Processes (or LocalCluster workers); "
+                 "default: the number of CPUs; 1 runs in this process."),
+    click.option("--scheduler", help="Run on Dask: a scheduler address (tcp://host:8786) or 'local' for an "
+                 "embedded LocalCluster of --workers processes."),
+    click.option("--resume", is_flag=True, help="Skip runs whose folder already holds a finished run."),
+    click.option("--no-reference", is_flag=True, help="No monolithic reference per run (no error figures)."),
+    click.option("--plot-y", default="max_error", show_default=True,
+                 help="Comma-separated figures to plot against the first swept key (with --plots)."),
+])
+
+
+@cli.command("sweep")
+@config_argument
+@sweep_options
+def sweep_cmd(config, ks, eps, gamma, dt, T, quiet, out, no_certificates, plots, sets, sample, seed, workers,
+              scheduler, resume, no_reference, plot_y):
+    """Without --set: the paper's experiment, DR for each K against the monolithic reference
+    (summary.json). With --set (or --sample, --workers, --scheduler, --resume, --no-reference):
+    a general sweep over any scenario keys, one row per run in OUT/runs.csv and OUT/runs.json."""
+    if sets or sample or workers or scheduler or resume or no_reference:
+        options = dict(no_certificates=no_certificates, plots=plots, sample=sample, seed=seed, workers=workers,
+                       scheduler=scheduler, resume=resume, no_reference=no_reference, plot_y=plot_y, quiet=quiet)
+        return _general_sweep(config, ks, sets, (eps, gamma, dt, T), out, options)
+    from .sweeps.budget import SWEEP_FIELDS
+    Ks = parse_budgets(ks or "0,3,8,20,35,50")
+    scenario = _apply_overrides(load_scenario(config), None, eps, gamma, dt, T)
+    table = api.sweep(scenario, Ks, out_dir=out, progress=(lambda label: _progress(label, quiet)),
+                      certificates=not no_certificates)
+    reference, results, runs = table.reference, table.results, table.rows
+    click.echo(f"{scenario.name}: sweep over K = {Ks} -> {out / 'summary.json'}")
+    print_table(runs, list(SWEEP_FIELDS))
+    if plots:
+        from .plots import sweep_plots
+        for p in sweep_plots(results, reference, out):
+            click.echo(f"wrote {p}")
+
+
+def _general_sweep(config, ks, sets, changes, out, o):
+    """A sweep over --set keys on the chosen executor; prints the rows' main figures."""
+    import os
+
+    from .scenario.overrides import parse_set, scalar
+    from .sweeps.budget import plan, run_sweep
+    axes = [parse_set(s) for s in list(sets)]
+    if ks:
+        axes.insert(0, ("master.K", parse_budgets(ks, "--K")))
+    fixed = [(k, scalar(v) if k == "gamma" else v)
+             for k, v in zip(("master.eps", "gamma", "dt", "T"), changes) if v is not None]
+    tasks = plan(config, axes, out, fixed, o["sample"], o["seed"], not o["no_reference"], not o["no_certificates"])
+    workers = o["workers"] or os.cpu_count() or 1
+    meta = {"config": tasks[0].config, "axes": [[k, list(v)] for k, v in axes], "fixed": fixed,
+            "sample": o["sample"], "seed": o["seed"], "executor": o["scheduler"] or f"{workers} workers"}
+    rows = run_sweep(tasks, out, meta, workers, o["scheduler"], o["resume"],
+                     None if o["quiet"] else _sweep_progress)
+    keys = [k for k, _ in axes]
+    failed = [r for r in rows if r.get("status") != "finished"]
+    click.echo(f"{len(rows)} runs ({len(failed)} not finished) -> {out / 'runs.csv'}, {out / 'runs.json'}")
+    print_table(rows, ["index", *keys, "status", "max_error", "iterations_mean", "task_time_s"])
+    for r in failed:
+        click.echo(f"run {r['index']} ({r['label']}): {r.get('status')}: {r.get('message')}")
+    if o["plots"]:
+        from .plots import figure_plots
+        for p in figure_plots(rows, keys, [y.strip() for y in o["plot_y"].split(",") if y.strip()], out):
+            click.echo(f"wrote {p}")
+
+
+def _sweep_progress(total, skipped):
+    """A per-run progress line with failures and ETA on stderr."""
+    import time
+    state = {"done": 0, "failed": 0, "t0": time.perf_counter()}
+    todo = total - skipped
+
+    def report(row):
+        state["done"] += 1
+        state["failed"] += row.get("status") != "finished"
+        elapsed = time.perf_counter() - state["t0"]
+        eta = elapsed / state["done"] * (todo - state["done"])
+        click.echo(f"  sweep: {skipped + state['done']}/{total} runs ({skipped} resumed, {state['failed']} not "
+                   f"finished), {elapsed:.1f} s, ETA {eta:.1f} s", err=True)
+    return report
+
+
+@cli.command("compare")
+@config_argument
+@with_common
+@ssp_options
+@click.option("--masters", default=",".join(ALGORITHMS), show_default=True,
+              help="Comma-separated masters to compare.")
+@click.option("--Ks", "--K-list", "ks", default=None,
+              help="Comma-separated budgets K for the iterative masters (default: a grid per master).")
+@click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("out/compare"), show_default=True)
+@click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and the Condition 1 watch.")
+@click.option("--plots", is_flag=True, help="Also write pareto.png and energy_by_master.png.")
+@click.option("--options", "dr_options", default="", metavar="NAMES",
+              help="Also DR with each of these named options (comma-separated, or all): relaxed, anderson, "
+                   "warm, gamma-auto, gamma-fastest, fastest-relaxed, fastest-relaxed-anderson, "
+                   "fastest-relaxed-extrapolated, fastest-relaxed-memory, fastest-memory, "
+                   "fastest-memory-eps3, fastest-memory-eps5.")
+def compare_cmd(config, K, eps, gamma, dt, T, quiet, ports, parameter_set, masters, ks, out, no_certificates, plots,
+                dr_options):
+    """Every master over a grid of budgets against the monolithic reference: error, energy, cost."""
+    from .sweeps.comparison import COMPARE_FIELDS, parse_options
+    options = parse_options(dr_options)
+    names = [m.strip() for m in masters.split(",") if m.strip()]
+    for name in names:
+        if name not in ALGORITHMS:
+            raise ConfigError(f"--masters: unknown master {name!r} (have: {', '.join(ALGORITHMS)})")
+    if K is not None and ks is not None:
+        raise ConfigError("--K and --Ks: give one budget (--K) or a list (--Ks), not both")
+    Ks = [K] if K is not None else None
+    if ks is not None:
+        Ks = parse_budgets(ks)
+    scenario = _apply_overrides(_read_config(config, ports, parameter_set, dt, T, gamma), None, eps, gamma, dt, T)
+    table = api.compare(scenario, names, Ks, out_dir=out, progress=(lambda label: _progress(label, quiet)),
+                        certificates=not no_certificates, options=options)
+    reference, results, rows = table.reference, table.results, table.rows
+    click.echo(f"{scenario.name}: {len(rows)} runs of {len(names)} masters -> {out / 'compare.json'}")
+    print_table(rows, list(COMPARE_FIELDS))
+    for r in rows:
+        if r["status"] != "finished":
+            click.echo(f"{r['master']} K={r['K']}: {r['status']} after {r['steps']} steps: {r['message']}")
+    if plots:
+        from .plots import compare_plots
+        for p in compare_plots(rows, results, reference, out):
+            click.echo(f"wrote {p}")
+
+
+@cli.command("validate")
+@config_argument
+@ssp_options
+def validate_cmd(config, ports, parameter_set):
+    """Check a scenario file (or an SSP system) and its FMUs without running it."""
+    from .core.scene import build_scene
+    scenario = _read_config(config, ports, parameter_set)
+    scene = build_scene(scenario, wave=True)
+    try:
+        wm = scene.wave_map()
+        signals = (f", {len(scene.signal_only)} signal-only, {len(scenario.signals)} signals, "
+                   f"{len(scenario.sources)} sources") if scenario.signals else ""
+        click.echo(f"{scenario.source}: OK ({len(scene.subsystems)} subsystems{signals}, {scene.n_channels} channels, "
+                   f"|P^T P - I| = {wm.orthogonality_residual:.1e})")
+    finally:
+        scene.close()
+
+
+@cli.command("import-ssp")
+@click.argument("ssp", type=click.Path(exists=False, path_type=Path))
+@ssp_options
+@click.option("-o", "--out", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="The YAML draft to write.")
+def import_ssp_cmd(ssp, ports, parameter_set, out):
+    """Write an SSP system (.ssd, .ssp or a folder) as a scenario file to edit, each part commented
+    with where it came from."""
+    from .scenario.ssp import import_ssp
+    from .scenario.ssp.draft import write_draft
+    imported = import_ssp(ssp, ports, parameter_set)
+    for note in imported.notes:
+        click.echo(f"warning: {note}", err=True)
+    click.echo(f"wrote {write_draft(imported, out)}")
+
+
+@cli.command("build")
+@click.option("--force", is_flag=True, help="Rebuild even when sources are unchanged.")
+def build_cmd(force):
+    """Build the package's FMUs and C kernel into the per-user cache (done on demand by every other command)."""
+    from .fmi.builtin import build_all
+    for ident, path in build_all(force=force, log=lambda msg: click.echo(msg, err=True)).items():
+        click.echo(f"{ident}: {path}")
+
+
+@cli.command("examples")
+@click.argument("name", required=False)
+def examples_cmd(name):
+    """List the example scenarios shipped with wavecosim, or print the path of one (NAME)."""
+    from . import examples
+    if name is None:
+        for each in examples.names():
+            click.echo(each)
+        return
+    try:
+        click.echo(examples.path(name))
+    except FileNotFoundError as exc:
+        raise ConfigError(str(exc)) from None
+
+
+@cli.command("bench")
+@click.option("--quick", is_flag=True, help="Fewer steps and repeats (a few seconds instead of about a minute).")
+@click.option("--json", "json_file", type=click.Path(dir_okay=False, path_type=Path), help="Also write the figures here.")
+def bench_cmd(quick, json_file):
+    """Time the inner iteration: plain fmpy loop, Python reference, C fast path and the C floor; the deadline bound."""
+    from .bench.main import report, run_bench
+    result = run_bench(quick=quick, progress=lambda msg: click.echo(msg, err=True))
+    for line in report(result):
+        click.echo(line)
+    if json_file:
+        write_json(json_file, result)
+        click.echo(f"wrote {json_file}")
+
+
+def main(argv=None):
+    try:
+        cli.main(args=argv, standalone_mode=False)
+    except click.exceptions.Abort:
+        click.echo("error: interrupted", err=True)
+        sys.exit(130)
+    except click.ClickException as exc:
+        click.echo(f"error: {exc.format_message()}", err=True)    # one line, naming the option
+        sys.exit(2)
+    except Interrupted as exc:
+        click.echo(f"interrupted: {exc}; results so far are on disk", err=True)
+        sys.exit(130)
+    except WavecosimError as exc:
+        click.echo(f"error: {exc}", err=True)
+        sys.exit(getattr(exc, "exit_code", 1))
+    except KeyboardInterrupt:
+        click.echo("error: interrupted", err=True)
+        sys.exit(130)
+    sys.exit(0)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,118 @@
+"""The wave adapter port with its solve in C (wavecosim.kernel.adapter, kernel/c/adapter.c).
+
+`KernelAdapter` takes over a subsystem's `ports.WaveAdapter` with all its memory (warm start,
+slope, figures) and solves each query in C, operation by operation as the Python reference, so the
+numbers are the same to the last bit. Its C struct is also an fmi2 component: `shim()` gives the
+function table the DR kernel calls as a wave port (set a, doStep solves, get b), wrapping whatever
+FMU function table it was given. Queries made from Python (gamma probes, certificates, a redone
+commit) run the same C solve on the same memory, so both routes see one adapter.
+"""
+import ctypes
+
+from ..kernel.adapter import AD_FMU, AD_SINGULAR, AD_STALLED, SHIM, AdapterC, load_library
+from . import ports
+
+
+def _doubles(values):
+    return (ctypes.c_double * len(values))(*values)
+
+
+class KernelAdapter(ports.AdapterPort):
+    """ports.WaveAdapter with its solve in C; built from one (`port`), whose memory it takes over,
+    over the FMU function table `fns` (drkernel.h DRFunctions) and component `comp`. `functions`
+    names the FMU functions by the kernel's DR_FN_* index (for errors)."""
+
+    def __init__(self, port, fns, comp, functions):
+        super().__init__(port.sub, port.effort_in, port.sign)
+        lib, m, sub = load_library(), self.m, port.sub
+        self.lib, self.functions = lib, functions
+        st = self.struct = AdapterC()
+        self._ref = ctypes.byref(st)
+        ctypes.memmove(st.fn, ctypes.addressof(fns), ctypes.sizeof(st.fn))
+        st.comp, st.state, st.m = comp, sub.state_handle_address(), m
+        st.in_vr, st.out_vr = sub._in_vr, sub._out_vr        # the Subsystem's physical input and output
+        # arrays assigned to the struct's pointers stay alive with it (ctypes keeps them)
+        st.effort_in, st.sign = (ctypes.c_int * m)(*self.effort_in), _doubles(self.sign)
+        st.u, st.y = _doubles(port.u), _doubles(port.y or [0.0] * m)
+        st.D, st.J_inv = _doubles(_flat(port.D, m)), _doubles(_flat(port.J_inv, m))
+        st.wu, st.wy, st.a, st.e, st.f, st.b, st.failed_r = [_doubles([0.0] * m) for _ in range(7)]
+        st.work = _doubles([0.0] * lib.adapter_work_size(m))
+        st.tol, st.accept, st.slope_rel = ports.TOL, ports.ACCEPT, ports.SLOPE_REL
+        st.max_iter, st.stall = ports.MAX_ITER, ports.STALL
+        st.have_slope, st.h2, st.u_scale = port.D is not None, port.h2, port.u_scale
+        st.evaluations, st.do_steps, st.accepted = port.evaluations, port.doSteps, port.accepted
+        st.worst_accepted = port.worst_accepted
+        self._set_weights(port.gamma)
+
+    def shim(self):
+        """(function table, component) of the adapter as an fmi2 wave port, for the DR kernel."""
+        return [ctypes.cast(getattr(self.lib, f"adapter_{name}"), ctypes.c_void_p).value for name in SHIM], \
+            ctypes.addressof(self.struct)
+
+    def _set_weights(self, gamma):
+        self.weights(gamma)
+        st = self.struct
+        st.gamma, st.c, st.k = self.gamma, self.c, self.k
+        for j in range(self.m):
+            st.wu[j], st.wy[j] = self.wu[j], self.wy[j]
+
+    def set_gamma(self, gamma):
+        """A new impedance (between macro-steps); the Newton matrix follows in C."""
+        self._set_weights(gamma)
+        if self.lib.adapter_reinvert(self._ref):
+            raise self.kernel_error(self.sub.step_index, self.sub.t)
+
+    def new_step(self):
+        """x_i^n changed (Subsystem.freeze): the slope no longer holds."""
+        self.struct.have_slope = 0
+
+    def _solve(self, a):
+        """One query from Python: the C solve from the Subsystem's x_i^n, its calls booked."""
+        st, sub = self.struct, self.sub
+        for j in range(self.m):
+            st.a[j] = a[j]
+        st.dirty = sub._dirty                                  # the Subsystem's own record of it
+        status = self.lib.adapter_solve(self._ref, sub.t, sub.dt)
+        sub._dirty = bool(st.dirty)
+        self.book()
+        if status > 1:
+            raise self.kernel_error(sub.step_index, sub.t)
+        return st.e[:self.m], st.f[:self.m]
+
+    def book(self):
+        """Add the FMU calls the C adapter made since the last booking to the Subsystem's counts."""
+        calls = self.struct.calls
+        for i, key in enumerate(("doStep", "save", "restore")):
+            self.sub.calls[key] += calls[i]
+            calls[i] = 0
+
+    def kernel_error(self, n, t):
+        """The error of the adapter's last failed call, as the Python reference raises it at step n, or None."""
+        st, m = self.struct, self.m
+        if st.failure == AD_FMU:
+            return self.sub.fmu.status_error(self.functions[st.failed_function], st.failed_status, n, t)
+        if st.failure == AD_SINGULAR:
+            return self.error(st.failed_r[:m], ports.singular_why(), n, t)
+        if st.failure == AD_STALLED:
+            return self.error(st.failed_r[:m], ports.stalled_why(st.failed_rel), n, t)
+        return None
+
+    @property
+    def evaluations(self):
+        return self.struct.evaluations
+
+    @property
+    def doSteps(self):
+        return self.struct.do_steps
+
+    @property
+    def accepted(self):
+        return self.struct.accepted
+
+    @property
+    def worst_accepted(self):
+        return self.struct.worst_accepted
+
+
+def _flat(M, m):
+    return [0.0] * (m * m) if M is None else [float(x) for row in M for x in row]

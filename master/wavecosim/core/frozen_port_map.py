@@ -1,0 +1,275 @@
+"""A subsystem as the masters see it: an FMU, its port channels, and its frozen port map S_i^n.
+
+`freeze()` saves x_i^n; `query(a)` is S_i^n(a) (paper eq. 12): restore x_i^n, apply a, one doStep,
+read b, discard the state; `advance(a)` is Phi_i (eq. 21): the same from x_i^n, but the state is
+kept. Calls go straight to the FMU's C functions with pre-converted arguments (in fmi2 form; for an
+FMI 3 FMU, wavecosim/fmi3.py puts its fmi3 functions behind the same signatures). How a becomes b is
+the subsystem's port (wavecosim/core/ports.py): the FMU's own wave mode, or the wave adapter for an FMU
+with only a physical port.
+"""
+import ctypes
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..kernel.build import helper_library
+from ..errors import FmuError
+from ..kernel.drkernel import FMI_NAMES, FUNCTIONS, DRFunctions
+from .adapter_kernel import KernelAdapter
+from .ports import DirectPort, WaveAdapter
+
+
+@dataclass
+class PortSpec:
+    """Variable names of a subsystem's port channels (one entry per channel)."""
+    wave_in: list
+    wave_out: list
+    effort: list
+    flow: list
+    physical_in: list = field(default_factory=list)
+    input_is_flow: list = field(default_factory=list)
+    energy: str = "H"                  # None: the FMU has no stored-energy output
+    physical_out: list = field(default_factory=list)      # given: a physical port (effort/flow are its in/out)
+    sign: list = field(default_factory=list)              # power into the FMU = sign e f, per channel
+
+    @property
+    def m(self):
+        return len(self.physical_out or self.wave_in)
+
+    @property
+    def physical(self):
+        """A declared physical port: the FMU's input and output variables are the port."""
+        return bool(self.physical_out)
+
+
+class Subsystem:
+    """One FMU instance with a port; `wave` says whether the masters exchange waves with it, and
+    `adapter` whether those waves go through the wave adapter (an FMU without a wave mode)."""
+
+    def __init__(self, name, fmu, port: PortSpec, dt, wave=True, adapter=False, gamma=1.0):
+        self.name, self.fmu, self.port, self.dt, self.wave = name, fmu, port, dt, wave
+        self.adapter = adapter
+        self.m = port.m
+        self.step_index = 0
+        m = self.m
+        self._comp = ctypes.c_void_p(fmu.component)
+        self._h = ctypes.c_double(dt)
+        self._get_state = fmu.raw_function("fmi2GetFMUstate")
+        self._set_state = fmu.raw_function("fmi2SetFMUstate")
+        self._set_real = fmu.raw_function("fmi2SetReal")
+        self._get_real = fmu.raw_function("fmi2GetReal")
+        self._do_step = fmu.raw_function("fmi2DoStep")
+        in_names = port.wave_in if wave and not port.physical else port.physical_in
+        out_names = port.wave_out if wave and not port.physical else [e if flow_in else f for e, f, flow_in in
+                                                                      zip(port.effort, port.flow, port.input_is_flow)]
+        self._in_vr = (ctypes.c_uint * m)(*fmu.real_vrs(in_names))
+        self._out_vr = (ctypes.c_uint * m)(*fmu.real_vrs(out_names))
+        self._in_val = (ctypes.c_double * m)()
+        self._out_val = (ctypes.c_double * m)()
+        self._m = ctypes.c_size_t(m)
+        self._state = ctypes.c_void_p()
+        self._dirty = False
+        self._batch = None                   # (queries library or None, its DRFunctions), on first raw_queries
+        self.t = 0.0
+        self._t = ctypes.c_double(0.0)
+        self.calls = {"doStep": 0, "save": 0, "restore": 0}
+        self.map = self._port_map(gamma)
+
+    def _port_map(self, gamma):
+        """The port that turns the master's inputs into outputs (wavecosim/core/ports.py)."""
+        port = self.port
+        if self.adapter:
+            return WaveAdapter(self, [not flow_in for flow_in in port.input_is_flow], port.sign, gamma)
+        if port.physical and any(s != 1.0 for s in port.sign):
+            return DirectPort(self, [s if flow_in else 1.0 for s, flow_in in zip(port.sign, port.input_is_flow)],
+                              [1.0 if flow_in else s for s, flow_in in zip(port.sign, port.input_is_flow)])
+        return DirectPort(self)
+
+    def orient(self, signs):
+        """Set the physical port's signs (power into the FMU = sign e f) and rebuild the port map."""
+        gamma = self.map.gamma if self.adapter else 1.0
+        self.port.sign = [float(x) for x in signs]
+        self.map = self._port_map(gamma)
+
+    @property
+    def gamma(self):
+        """The wave impedance this subsystem runs at (NaN when it has none)."""
+        if self.adapter:
+            return self.map.gamma
+        return float(self.fmu.get_real(self.fmu.vrs(["gamma"]))[0]) if "gamma" in self.fmu.variables else float("nan")
+
+    def set_gamma(self, gamma):
+        """A new wave impedance (between macro-steps)."""
+        if self.adapter:
+            self.map.set_gamma(gamma)
+        else:
+            self.fmu.set_real(self.fmu.vrs(["gamma"]), [gamma])
+
+    def stage(self):
+        """Oriented stage effort and flow of the last step, [e..., f...] (power into the FMU = e f)."""
+        v = self.read(list(self.port.effort) + list(self.port.flow))
+        if self.port.physical:
+            v[self.m:] = [s * f for s, f in zip(self.port.sign, v[self.m:])]
+        return list(v)
+
+    def _call(self, fn, name, *args):
+        status = fn(*args)
+        if status > 1:
+            raise self.fmu.status_error(name, status, self.step_index, self.t)
+
+    def begin(self, step_index, t):
+        """Start macro-step n at time t without saving the state (masters that never roll back)."""
+        self.step_index, self.t, self._t = step_index, t, ctypes.c_double(t)
+
+    def step_alone(self, step_index, t):
+        """One doStep from the current state with the inputs already set: a subsystem without a port
+        (signals only), stepped once per macro-step and never frozen or rolled back."""
+        self.begin(step_index, t)
+        self._call(self._do_step, "fmi2DoStep", self._comp, self._t, self._h, 1)     # never rolled back
+        self.calls["doStep"] += 1
+
+    def freeze(self, step_index, t):
+        """Save x_i^n, the state every query of this macro-step starts from."""
+        self.begin(step_index, t)
+        self._call(self._get_state, "fmi2GetFMUstate", self._comp, ctypes.byref(self._state))
+        self.calls["save"] += 1
+        self._dirty = False
+        self.map.new_step()
+
+    def _step(self, a):
+        for j in range(self.m):
+            self._in_val[j] = a[j]
+        self._call(self._set_real, "fmi2SetReal", self._comp, self._in_vr, self._m, self._in_val)
+        # noSetFMUStatePriorToCurrentPoint = false: a later query, or the energy guard's undo after the
+        # commit, restores x_i^n at t, a point before the t + dt this doStep reaches (FMI 2.0.x, 4.2.2)
+        self._call(self._do_step, "fmi2DoStep", self._comp, self._t, self._h, 0)
+        self.calls["doStep"] += 1
+        self._call(self._get_real, "fmi2GetReal", self._comp, self._out_vr, self._m, self._out_val)
+        return self._out_val[:]
+
+    def _restore(self):
+        self._call(self._set_state, "fmi2SetFMUstate", self._comp, self._state)
+        self.calls["restore"] += 1
+
+    def query(self, a):
+        """S_i^n(a): restore x_i^n, apply a, read the output; the state is discarded."""
+        return self.map.query(a)
+
+    def advance(self, a):
+        """Phi_i(x_i^n, a): like query, but the new state is kept (the one commit of the macro-step)."""
+        return self.map.advance(a)
+
+    def raw_query(self, u):
+        """Restore x_i^n, set the FMU's inputs u, one doStep, read its outputs; the state is discarded."""
+        if self._dirty:
+            self._restore()
+        self._dirty = True
+        return self._step(u)
+
+    def adapter_in_kernel(self, fns, comp, functions):
+        """The wave adapter moved to C over the FMU function table (fns, comp), once: the adapter's
+        own (function table, component) for the DR kernel to call as a wave port."""
+        if not isinstance(self.map, KernelAdapter):
+            self.map = KernelAdapter(self.map, fns, comp, functions)
+        return self.map.shim()
+
+    def plain_wave_port(self):
+        """Whether the port is the FMU's own wave map: no adapter, no input scaling."""
+        return not self.adapter and isinstance(self.map, DirectPort) and self.map.in_scale is None
+
+    def queries(self, rows):
+        """query of each row of a 2-D array, in order, as rows (one C call when the port is the FMU's own map)."""
+        if self.plain_wave_port():
+            return self.raw_queries(rows)
+        return np.array([self.query(list(r)) for r in rows], float).reshape(len(rows), self.m)
+
+    def raw_queries(self, rows):
+        """raw_query of each row of a 2-D array, in order, as rows of outputs: one C call
+        (kernel/c/queries.c) making the same FMU calls, or raw_query row by row without it."""
+        if self._batch is None:
+            lib = helper_library("queries")
+            self._batch = (lib, lib and DRFunctions(*[self.fmu.function_pointer(name) for name in FMI_NAMES]))
+        lib, fns = self._batch
+        if lib is None:
+            return np.array([self.raw_query(list(r)) for r in rows], float).reshape(len(rows), self.m)
+        inputs = np.ascontiguousarray(rows, dtype=float)
+        out, failed, p = np.empty_like(inputs), (ctypes.c_int * 2)(), ctypes.c_void_p
+        done = lib.fq_queries(ctypes.byref(fns), self._comp, ctypes.byref(self._state), self._in_vr, self._out_vr,
+                              self.m, self._t, self._h, p(inputs.ctypes.data), len(inputs), p(out.ctypes.data),
+                              int(self._dirty), failed)
+        fn = failed[0] if done < len(inputs) else 0
+        restore_fn = FUNCTIONS.index("fmi2SetFMUstate")
+        self.calls["restore"] += max(0, done + (fn > 0) - (not self._dirty)) - (fn == restore_fn)
+        self.calls["doStep"] += done + (fn == FUNCTIONS.index("fmi2GetReal"))
+        self._dirty = self._dirty or done > 0 or fn > restore_fn
+        if fn:
+            raise self.fmu.status_error(FUNCTIONS[fn], failed[1], self.step_index, self.t)
+        return out
+
+    def raw_advance(self, u):
+        """Like raw_query, but the new state is kept."""
+        if self._dirty:
+            self._restore()
+        self._dirty = False
+        return self._step(u)
+
+    def keep(self):
+        """Keep the state the last raw_query left (it becomes the commit of the macro-step)."""
+        self._dirty = False
+
+    def thaw(self):
+        """Put the instance back at x_i^n after queries made outside the master (certificates)."""
+        if self._dirty:
+            self._restore()
+            self._dirty = False
+
+    def restore_frozen(self):
+        """Back to x_i^n even after the commit: the energy guard undoes a macro-step with it."""
+        self._restore()
+        self._dirty = False
+
+    def read(self, names):
+        return self.fmu.get_real(self.fmu.vrs(names))
+
+    def reader(self, names):
+        """(read, buffer): read() fills the fixed ctypes buffer with `names` in one raw fmi2GetReal."""
+        k = len(names)
+        vr = (ctypes.c_uint * k)(*self.fmu.real_vrs(names))
+        buf, size = (ctypes.c_double * k)(), ctypes.c_size_t(k)
+        get_real, comp, call = self._get_real, self._comp, self._call
+
+        def read():
+            call(get_real, "fmi2GetReal", comp, vr, size, buf)
+            return buf
+        return read, buf
+
+    def port_vrs(self):
+        """The value references (ctypes arrays) of the inputs a query sets and the outputs it reads."""
+        return self._in_vr, self._out_vr
+
+    def state_handle_address(self):
+        """Address of the handle x_i^n is saved into; the C kernel saves into it too, so after a
+        kernel macro-step this Subsystem holds x_i^n exactly as after a Python one."""
+        return ctypes.addressof(self._state)
+
+    def note_kernel_step(self, step_index, t, iterations, steps=1, redone=0):
+        """Book `steps` macro-steps the C kernel made, the last one step n at t (frozen at x^n):
+        each a save, its queries and one commit; `iterations` counts the queries of them all and
+        `redone` the energy ledger's redo rounds (a restore and a doStep each)."""
+        self.begin(step_index, t)
+        self.calls["save"] += steps
+        self.calls["doStep"] += iterations + steps + redone
+        self.calls["restore"] += iterations + redone
+        self._dirty = False
+
+    def release(self):
+        if self._state.value:
+            self.fmu.free_state_handle(self._state)
+            self._state = ctypes.c_void_p()
+
+    def close(self):
+        try:
+            self.release()
+        except FmuError:
+            pass
+        self.fmu.close()

@@ -1,0 +1,142 @@
+"""What the runner reads from the FMUs after each macro-step, in one raw getReal per subsystem:
+stored energy H_i, stage effort and flow, the outgoing waves (wave masters) and the recorded outputs.
+A physical port (wavecosim/core/ports.py) gives its oriented e, f and the wave b; H_i is NaN where the FMU
+has no stored-energy output."""
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..kernel.linalg import DOT_EXACT
+
+
+@dataclass
+class Reading:
+    """The FMUs' values at x^{n+1}: per subsystem H_i, and stacked over the channels e, f and b."""
+    H: list
+    E: list
+    F: list
+    B: list
+    outputs: list
+
+
+class BlockReading:
+    """The Readings of many macro-steps as 2-D arrays, one row per step: H (steps x subsystems),
+    E, F, B (steps x channels) and outputs (steps x output columns), each taken when first read
+    from the observed values (Sampler.observed concatenated, one row per value, one column per step):
+    a view where its values are evenly spaced (readings.as_index), else a copy."""
+    KEYS = ("H", "E", "F", "B", "outputs")
+
+    def __init__(self, observed, columns):
+        self._observed, self._columns = observed, columns
+
+    def __getattr__(self, key):
+        if key not in BlockReading.KEYS:
+            raise AttributeError(key)
+        value = self._observed[self._columns[key]].T
+        setattr(self, key, value)
+        return value
+
+    def rows(self, key):
+        """Which rows of the observed values hold `key` (H, E, F, B or outputs), in order."""
+        index = self._columns[key]
+        return list(range(len(self._observed))[index]) if isinstance(index, slice) else [int(i) for i in index]
+
+
+def row_sums(X):
+    """The builtin sum() of each row of X, to the last bit: left to right from 0 (Python < 3.12)."""
+    acc = 0.0 + X[:, 0]
+    for j in range(1, X.shape[1]):
+        acc = acc + X[:, j]
+    return acc
+
+
+
+
+def row_dots(A, B):
+    """a @ b of each pair of rows of A and B, to the last bit (rows over DOT_EXACT long: one dot each)."""
+    if A.shape[1] <= DOT_EXACT:
+        return row_sums(A * B)
+    return np.array([float(a @ b) for a, b in zip(A, B)])
+
+
+def as_index(indices):
+    """A list of indices as a slice when evenly spaced (a view, not a copy), else as an index array."""
+    if not indices:
+        return slice(0, 0)
+    steps = {b - a for a, b in zip(indices, indices[1:])}
+    if len(steps) > 1 or min(steps, default=1) < 1:
+        return np.array(indices, dtype=np.intp)
+    return slice(indices[0], indices[-1] + 1, steps.pop() if steps else 1)
+
+
+class Sampler:
+    """Reads a Reading from every subsystem of a scene; buffers and value references are fixed at
+    set-up, so a step costs one C call per subsystem."""
+
+    def __init__(self, scene, outputs):
+        self.parts, self.observed = [], []        # observed: per subsystem the names read, H_i first
+        for s in scene.subsystems:
+            cols = [var for ref in outputs.values() for name, var in [ref.split(".", 1)] if name == s.name]
+            if s.port.physical:
+                self.parts.append(self._physical_part(s, cols))
+                continue
+            names = [s.port.energy, *s.port.effort, *s.port.flow, *(s.port.wave_out if scene.wave else [])]
+            read, buf = s.reader(names + cols)
+            self.parts.append((read, s.m, len(names)))
+            self.observed.append(names + cols)
+        self.alone = [s.reader([var for ref in outputs.values() for name, var in [ref.split(".", 1)]
+                                if name == s.name])[0] for s in scene.signal_only]
+        owner = [ref.split(".", 1)[0] for ref in outputs.values()]
+        everyone = scene.subsystems + scene.signal_only
+        order = [(i, sum(1 for o in owner[:k] if o == s.name)) for k, o in enumerate(owner)
+                 for i, s in enumerate(everyone) if s.name == o]
+        self._order = order
+        whole = len(self.observed) == len(self.parts) and not self.alone   # else no kernel blocks
+        self._columns = {key: as_index(cols) for key, cols in self._block_columns(order).items()} if whole else None
+        by_name = {s.name: s for s in everyone}
+        self.units = {col: by_name[ref.split(".", 1)[0]].fmu.variable(ref.split(".", 1)[1]).unit or ""
+                      for col, ref in outputs.items()}
+
+    def _block_columns(self, order):
+        """Where H, E, F, B and the outputs sit in the concatenated observed values of all subsystems."""
+        at, starts, cols = 0, [], {"H": [], "E": [], "F": [], "B": []}
+        for (_, m, k), names in zip(self.parts, self.observed):
+            starts.append(at)
+            cols["H"].append(at)
+            for key, first, last in (("E", 1, 1 + m), ("F", 1 + m, 1 + 2 * m), ("B", 1 + 2 * m, k)):
+                cols[key].extend(range(at + first, at + last))
+            at += len(names)
+        cols["outputs"] = [starts[i] + self.parts[i][2] + j for i, j in order]
+        return cols
+
+    def block(self, observed) -> BlockReading:
+        """The BlockReading of observed values (the subsystems' `observed` names concatenated, one
+        row per name, one column per step)."""
+        return BlockReading(observed, self._columns)
+
+    @staticmethod
+    def _physical_part(s, cols):
+        """A reader for a physical port: [H or NaN, e..., f..., b... (adapter)] followed by the outputs."""
+        names = [*([s.port.energy] if s.port.energy else []), *s.port.effort, *s.port.flow]
+        raw, _ = s.reader(names + cols)
+        m, h, sign = s.m, len(names) - 2 * s.m, s.port.sign
+
+        def read():
+            v = raw()[:]
+            e, f = v[h:h + m], [si * x for si, x in zip(sign, v[h + m:h + 2 * m])]
+            b = s.map.outgoing(e, f) if s.adapter else []
+            return [v[0] if h else math.nan, *e, *f, *b, *v[h + 2 * m:]]
+        return read, m, 1 + 2 * m + (m if s.adapter else 0)
+
+    def read(self) -> Reading:
+        H, E, F, B, own = [], [], [], [], []
+        for read, m, k in self.parts:
+            v = read()[:]
+            H.append(v[0])
+            E.extend(v[1:1 + m])
+            F.extend(v[1 + m:1 + 2 * m])
+            B.extend(v[1 + 2 * m:k])
+            own.append(v[k:])
+        own.extend(read()[:] for read in self.alone)         # signal-only subsystems: outputs only
+        return Reading(H, E, F, B, [own[i][j] for i, j in self._order])

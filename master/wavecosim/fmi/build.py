@@ -1,0 +1,122 @@
+"""Build every model of the package's data (models/ and the port-Hamiltonian specs/) into an FMI 2.0
+co-simulation FMU in the per-user cache (wavecosim.kernel.build).
+
+One loop: for each model folder, compile the shared FMI layer (fmus/layer) with the model into
+binaries/linux64/<Id>.so, print modelDescription.xml from the same tables, zip into <Id>.fmu.
+A build whose sources and flags are unchanged is found in the cache and not redone.
+"""
+import importlib.util
+import re
+import shutil
+import tempfile
+import zipfile
+from pathlib import Path
+
+from ..kernel.build import (CFLAGS, BuildError, build_library, fmi_headers, library_names, place, run, stamp,
+                            target)
+
+DATA = Path(__file__).resolve().parent.parent / "data"
+LAYER = DATA / "fmus" / "layer"
+CODEGEN = DATA / "fmus" / "codegen"
+MODELS = DATA / "models"
+SPECS = DATA / "specs"
+PLATFORM = "linux64"
+
+
+def _sources(model_dir: Path):
+    return [p for p in LAYER.iterdir() if p.suffix in (".c", ".h")] + \
+           [p for p in model_dir.iterdir() if p.suffix in (".c", ".h")]
+
+
+def _packed_sources(model_dir: Path):
+    """What goes into the FMU's sources/: the binary's C files (the <SourceFiles> that describe.c
+    lists) and the headers they include; describe.c is a build tool, not part of the model."""
+    return [p for p in _sources(model_dir) if p.name != "describe.c"]
+
+
+def model_identifier(model_dir: Path) -> str:
+    text = (model_dir / "config.h").read_text()
+    m = re.search(r"#define\s+MODEL_IDENTIFIER\s+(\w+)", text)
+    if not m:
+        raise BuildError(f"{model_dir / 'config.h'}: no MODEL_IDENTIFIER")
+    return m.group(1)
+
+
+def build_model(model_dir: Path, force=False, log=print) -> Path:
+    """Compile one model into <cache>/fmus/<stamp>/<Id>.fmu; returns its path."""
+    ident = model_identifier(model_dir)
+    path = target("fmus", stamp(_sources(model_dir)), f"{ident}.fmu")
+    if path.exists() and not force:
+        return path
+    log(f"building {path}")
+    includes = ["-I", fmi_headers(), "-I", LAYER, "-I", model_dir]
+    with tempfile.TemporaryDirectory() as tmp:
+        describe, so = Path(tmp) / "describe", Path(tmp) / f"{ident}.so"
+        run(["gcc", *CFLAGS, *includes, LAYER / "describe.c", "-o", describe], f"{ident} description")
+        xml = run([describe], f"{ident} description")
+        run(["gcc", *CFLAGS, "-shared", *includes, LAYER / "fmi2_cosim.c", model_dir / "model.c", "-o", so, "-lm"],
+            ident)
+
+        members = [("modelDescription.xml", xml.encode()), (f"binaries/{PLATFORM}/{ident}.so", so.read_bytes())]
+        members += [(f"sources/{src.name}", src.read_bytes()) for src in _packed_sources(model_dir)]
+        return place(lambda part: _zip(part, members), path)
+
+
+def _zip(path, members):
+    """A zip of (name, bytes) with fixed dates, so the same sources give the same FMU bytes."""
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as z:
+        for name, data in members:
+            info = zipfile.ZipInfo(name, date_time=(1980, 1, 1, 0, 0, 0))
+            info.compress_type, info.external_attr = zipfile.ZIP_DEFLATED, 0o644 << 16
+            z.writestr(info, data)
+
+
+def model_dirs():
+    return sorted(p for p in MODELS.iterdir() if (p / "config.h").exists())
+
+
+def generated(spec: Path) -> Path:
+    """<cache>/gen/<stamp>/<spec name>/: the model folder generated from a port-Hamiltonian spec
+    (fmus/codegen/ph.py), made when missing."""
+    out = target("gen", stamp([spec, *CODEGEN.glob("*.py"), *CODEGEN.glob("*.h")]), spec.stem)
+    if not (out / "config.h").exists():
+        out.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{spec.stem}."))
+        try:
+            codegen().generate(spec, tmp)
+            tmp.rename(out)
+        except OSError:                     # another process placed it first
+            if not (out / "config.h").exists():
+                raise
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+    return out
+
+
+def build_spec(spec: Path, force=False, log=print) -> Path:
+    """The FMU of a port-Hamiltonian spec: its generated model folder, built."""
+    return build_model(generated(spec), force, log)
+
+
+def codegen():
+    """fmus/codegen/ph.py loaded as a module (a script folder of the package data, not a package)."""
+    loader = importlib.util.spec_from_file_location("wavecosim_codegen_ph", CODEGEN / "ph.py")
+    ph = importlib.util.module_from_spec(loader)
+    loader.loader.exec_module(ph)
+    return ph
+
+
+def spec_files():
+    return sorted(SPECS.glob("*.yaml")) if SPECS.is_dir() else []
+
+
+def build_all(force=False, log=print) -> dict:
+    """Build every model, every spec and the kernel libraries; returns {identifier: fmu path}."""
+    if shutil.which("gcc") is None:
+        raise BuildError("gcc was not found on PATH; it is needed to build the FMUs")
+    fmus = {model_identifier(d): build_model(d, force, log) for d in model_dirs()}
+    for spec in spec_files():
+        fmus[model_identifier(generated(spec))] = build_spec(spec, force, log)
+    for name in library_names():
+        build_library(name, force, log)
+    return fmus

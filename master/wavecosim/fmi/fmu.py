@@ -1,0 +1,325 @@
+"""Thin wrapper over one FMI 2.0 or 3.0 co-simulation FMU instance (loaded by fmpy).
+
+Keeps FMI names, converts arguments, turns bad statuses into FmuError carrying the FMU's own
+log message, and exposes the raw C function pointers for the fast path, all in fmi2 form; the
+FMI 3 specifics (instantiation, typed setters, the fmi2-signature shim) live in wavecosim/fmi/fmi3.py.
+Nothing above this module imports ctypes except the hot paths (frozen_port_map.py, fast_path.py).
+"""
+import atexit
+import ctypes
+import math
+import shutil
+import tempfile
+import zipfile
+from pathlib import Path
+
+import numpy as np
+from fmpy import platform as fmpy_platform
+from fmpy import read_model_description, sharedLibraryExtension
+from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
+from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, fmi2StepFinishedTYPE
+
+from ..errors import FmuError
+from .values import is_number, is_whole
+
+_STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
+_libc = ctypes.CDLL(None)
+_libc.calloc.restype = ctypes.c_void_p
+_libc.calloc.argtypes = [ctypes.c_size_t, ctypes.c_size_t]
+_libc.free.argtypes = [ctypes.c_void_p]
+
+
+def extract_fmu(path: Path) -> Path:
+    """Extract an FMU into a fresh temporary folder, refusing members that would escape it."""
+    path = Path(path)
+    if not path.exists():
+        raise FmuError(f"FMU file not found: {path}")
+    if not zipfile.is_zipfile(path):
+        raise FmuError(f"{path} is not an FMU (not a zip archive)")
+    target = Path(tempfile.mkdtemp(prefix="wavecosim-fmu-"))
+    atexit.register(shutil.rmtree, target, True)
+    try:
+        with zipfile.ZipFile(path) as z:
+            names = z.namelist()
+            if "modelDescription.xml" not in names:
+                raise FmuError(f"{path} is not an FMU (no modelDescription.xml)")
+            root = target.resolve()
+            for member in names:
+                dest = (target / member).resolve()
+                if dest != root and root not in dest.parents:
+                    raise FmuError(f"{path}: archive member {member!r} escapes the extraction folder")
+            z.extractall(target)
+    except (zipfile.BadZipFile, OSError) as exc:
+        shutil.rmtree(target, ignore_errors=True)
+        raise FmuError(f"{path}: cannot extract FMU: {exc}") from None
+    except FmuError:
+        shutil.rmtree(target, ignore_errors=True)
+        raise
+    return target
+
+
+def shared_folder(path: Path, pool):
+    """(key, folder): one extraction per FMU file for all its instances opened with the same pool
+    (a dict the caller owns, e.g. one per scene), so they share one loaded binary and N instances
+    of one FMU cost no more code in the caches than one; pool None: a folder of its own."""
+    path = Path(path)
+    if pool is None or not path.exists():
+        return None, extract_fmu(path)
+    st = path.resolve().stat()
+    key = (str(path.resolve()), st.st_mtime_ns, st.st_size)
+    entry = pool.get(key)
+    if entry is None:
+        entry = pool[key] = [extract_fmu(path), 0]
+    entry[1] += 1
+    return key, entry[0]
+
+
+def release_folder(pool, key, folder):
+    """One instance less on a shared extraction; the folder goes with the last one."""
+    entry = pool.get(key) if pool is not None else None
+    if entry is not None and entry[0] == folder:
+        entry[1] -= 1
+        if entry[1] > 0:
+            return
+        del pool[key]
+    shutil.rmtree(folder, ignore_errors=True)
+
+
+def check_version(path, folder) -> str:
+    """FMI 2.0 or 3.0, read from modelDescription.xml's root before anything else parses it."""
+    import xml.etree.ElementTree as ET
+    try:
+        version = ET.parse(folder / "modelDescription.xml").getroot().get("fmiVersion", "?")
+    except ET.ParseError as exc:
+        raise FmuError(f"{path}: cannot read modelDescription.xml: {exc}") from None
+    if version != "2.0" and not version.startswith("3."):
+        raise FmuError(f"{path.name} is an FMI {version} FMU; wavecosim runs FMI 2.0 and 3.0 co-simulation FMUs")
+    return version
+
+
+def check_runnable(path, folder, description, platform=fmpy_platform):
+    """One line naming the FMU and the reason when this build cannot run it: no co-simulation
+    interface, or no binary for this platform (binaries/<platform>: linux64 in FMI 2, x86_64-linux in 3)."""
+    cs = description.coSimulation
+    if cs is None:
+        raise FmuError(f"{path}: the FMU has no co-simulation interface")
+    binary = folder / "binaries" / platform / f"{cs.modelIdentifier}{sharedLibraryExtension}"
+    if not binary.exists():
+        have = sorted(p.name for p in (folder / "binaries").iterdir()) if (folder / "binaries").is_dir() else []
+        raise FmuError(f"{path.name} has no binary for this platform ({platform}; it has: "
+                       f"{', '.join(have) or 'none'})")
+
+
+# FMI type -> (FMU2Slave setter, (accepts the YAML value, converts it))
+SETTERS = {
+    "Real": ("setReal", (is_number, float)),
+    "Integer": ("setInteger", (is_whole, int)),
+    "Enumeration": ("setInteger", (is_whole, int)),
+    "Boolean": ("setBoolean", (lambda v: isinstance(v, bool), bool)),
+    "String": ("setString", (lambda v: isinstance(v, str), str)),
+}
+
+
+class Fmi2:
+    """The FMI 2.0 side of one Fmu: its FMU2Slave; the calls are the FMU's own fmi2 functions."""
+    prefix = "fmi2"
+    real = "Real"
+    platform = fmpy_platform
+    setters = SETTERS
+
+    def __init__(self, fmu, model_identifier):
+        self._callbacks = self._make_callbacks(fmu.messages)
+        self.slave = FMU2Slave(guid=fmu.description.guid, unzipDirectory=str(fmu.folder),
+                               modelIdentifier=model_identifier, instanceName=fmu.name)
+        fmu.checked(self.slave.instantiate, "fmi2Instantiate", callbacks=self._callbacks)
+        self.component = self.slave.component
+
+    def _make_callbacks(self, messages):
+        def logger(env, instance, status, category, message):
+            messages.append((status, message.decode("utf-8", "replace") if message else ""))
+        cb = fmi2CallbackFunctions()
+        self._logger_ref = fmi2CallbackLoggerTYPE(logger)
+        cb.logger = self._logger_ref
+        self._alloc_ref = fmi2CallbackAllocateMemoryTYPE(_libc.calloc)
+        self._free_ref = fmi2CallbackFreeMemoryTYPE(_libc.free)
+        cb.allocateMemory = self._alloc_ref
+        cb.freeMemory = self._free_ref
+        cb.stepFinished = fmi2StepFinishedTYPE()
+        cb.componentEnvironment = None
+        return cb
+
+    def setup_experiment(self, fmu, start_time):
+        fmu.checked(self.slave.setupExperiment, "fmi2SetupExperiment", startTime=start_time)
+
+    def enter_initialization(self, fmu, start_time):
+        fmu.checked(self.slave.enterInitializationMode, "fmi2EnterInitializationMode")
+
+    def get_real(self, vrs):
+        return self.slave.getReal(vrs)
+
+    def set_real(self, vrs, values):
+        self.slave.setReal(vrs, values)
+
+    def free_state(self, handle):
+        self.slave.fmi2FreeFMUstate(self.component, ctypes.byref(handle))
+
+    def raw_function(self, fname):
+        return self.slave.dll[fname]
+
+    def function_pointer(self, fname):
+        return ctypes.cast(self.slave.dll[fname], ctypes.c_void_p).value
+
+    @staticmethod
+    def name(fname):
+        """The FMU's function called for an fmi2 name (itself)."""
+        return fname
+
+    def failure(self, fname, status_text):
+        """(function name, what happened) for a call that returned an error status."""
+        return fname, f"returned {status_text}"
+
+
+class Fmu:
+    """One instantiated, initialized FMU (FMI 2.0 or 3.0); `name` is the subsystem name used in messages."""
+
+    def __init__(self, path, name, values=None, integer_values=None, start_time=0.0, optional=(), pool=None):
+        """Load, instantiate and initialize; `values` (and `integer_values`) are start values and
+        parameters by name, each set with the FMI type its variable declares (Real, Integer,
+        Enumeration, Boolean, String; in FMI 3 also Float32 and every IntN/UIntN); names in
+        `optional` are skipped when the FMU lacks them. Instances opened with one `pool` share the
+        extracted FMU (see shared_folder)."""
+        self.path, self.name = Path(path), name
+        self._pool = pool
+        self._key, self.folder = shared_folder(self.path, pool)
+        self.fmi_version = check_version(self.path, self.folder)
+        try:
+            self.description = read_model_description(str(self.folder), validate=False)
+        except Exception as exc:  # fmpy raises bare exceptions for malformed XML
+            raise FmuError(f"{self.path}: cannot read modelDescription.xml: {exc}") from None
+        binding = Fmi2
+        if self.fmi_version != "2.0":
+            from .fmi3 import Fmi3 as binding
+        cs = self.description.coSimulation
+        check_runnable(self.path, self.folder, self.description, binding.platform)
+        if cs.canBeInstantiatedOnlyOncePerProcess:       # its own copy of the binary for each instance
+            release_folder(pool, self._key, self.folder)
+            self._key, self.folder = None, extract_fmu(self.path)
+        self.can_save_state = bool(cs.canGetAndSetFMUstate)
+        self.variables = {v.name: v for v in self.description.modelVariables}
+        self.messages = []
+        self._fmi = binding(self, cs.modelIdentifier)
+        self.component = self._fmi.component
+        drop = [k for k in optional if k not in self.variables]
+        given = {k: v for k, v in {**(values or {}), **(integer_values or {})}.items() if k not in drop}
+        self._setup(given, start_time)
+
+    def last_message(self) -> str:
+        return self.messages[-1][1] if self.messages else "no message from the FMU"
+
+    def checked(self, call, fname, *args, **kwargs):
+        """call(*args, **kwargs), an fmpy method; its exception becomes an FmuError with the FMU's message."""
+        try:
+            return call(*args, **kwargs)
+        except Exception as exc:
+            raise FmuError(f"{self.name}: {fname} failed: {self.last_message()}", subsystem=self.name) from exc
+
+    def _setup(self, given, start_time):
+        fmi = self._fmi
+        fmi.setup_experiment(self, start_time)
+        by_type = {}
+        for name, value in given.items():
+            kind = self.scalar(name).type
+            setter, convert = fmi.setters.get(kind, (None, None))
+            if setter is None or not convert[0](value):
+                raise FmuError(f"{self.name}: {name} is a {kind} variable of {self.path.name}; got {value!r}",
+                               subsystem=self.name, variable=name)
+            by_type.setdefault(setter, ([], []))
+            by_type[setter][0].append(self.vr(name))
+            by_type[setter][1].append(convert[1](value))
+        for setter, (vrs, vals) in by_type.items():
+            self.checked(getattr(fmi.slave, setter), f"{fmi.prefix}{setter[0].upper()}{setter[1:]}", vrs, vals)
+        fmi.enter_initialization(self, start_time)
+        self.checked(fmi.slave.exitInitializationMode, f"{fmi.prefix}ExitInitializationMode")
+
+    def variable(self, name):
+        if name not in self.variables:
+            raise FmuError(f"{self.name}: the FMU {self.path.name} has no variable {name!r}", subsystem=self.name,
+                           variable=name)
+        return self.variables[name]
+
+    def scalar(self, name):
+        """The variable, refused in one line if it is an array (FMI 3 dimensions): only scalars are set and read."""
+        v = self.variable(name)
+        if getattr(v, "dimensions", None):
+            raise FmuError(f"{self.name}: {name} is an array variable of {self.path.name}; wavecosim sets and "
+                           f"reads scalar variables only", subsystem=self.name, variable=name)
+        return v
+
+    def vr(self, name) -> int:
+        return self.variable(name).valueReference
+
+    def vrs(self, names) -> np.ndarray:
+        return np.array([self.vr(n) for n in names], dtype=np.uint32)
+
+    def real_vrs(self, names) -> list:
+        """Value references of scalar Real (FMI 2) or Float64 (FMI 3) variables, the types ports and
+        readings exchange; another type is refused in one line."""
+        for name in names:
+            kind = self.scalar(name).type
+            if kind != self._fmi.real:
+                raise FmuError(f"{self.name}: {name} is a {kind} variable of {self.path.name}; a port or reading "
+                               f"needs a {self._fmi.real}", subsystem=self.name, variable=name)
+        return [self.vr(n) for n in names]
+
+    # ---- the calls a master makes, status-checked ----
+    def get_real(self, vrs) -> np.ndarray:
+        return np.array(self.checked(self._fmi.get_real, self._fmi.name("fmi2GetReal"),
+                                     list(map(int, vrs))))
+
+    def set_real(self, vrs, values):
+        values = [float(v) for v in values]
+        if not all(math.isfinite(v) for v in values):
+            raise FmuError(f"{self.name}: refusing to set a non-finite input {values}", subsystem=self.name)
+        self.checked(self._fmi.set_real, self._fmi.name("fmi2SetReal"), list(map(int, vrs)), values)
+
+    def free_state_handle(self, handle):
+        """Free a saved state held in a ctypes FMU state handle (the frozen port map's x_i^n)."""
+        self.checked(self._fmi.free_state, self._fmi.name("fmi2FreeFMUstate"), handle)
+
+    @property
+    def slave(self):
+        """The fmpy FMU2Slave or FMU3Slave (for code that wants fmpy's own calls, e.g. the bench's plain loop)."""
+        return self._fmi.slave
+
+    def raw_function(self, fname):
+        """A callable with the fmi2 signature of `fname` (e.g. "fmi2DoStep") taking `component` first:
+        the FMU's own ctypes function for FMI 2, a wrapper of its fmi3 function for FMI 3 (wavecosim/fmi3.py).
+        No argtypes: callers pass pre-converted arguments."""
+        return self._fmi.raw_function(fname)
+
+    def function_pointer(self, fname) -> int:
+        """Address of a C function with the fmi2 signature of `fname` taking `component`, for the C fast
+        path: the FMU's own for FMI 2, kernel/c/fmi3shim.c's for FMI 3."""
+        return self._fmi.function_pointer(fname)
+
+    def function_name(self, fname):
+        """The FMU's own function behind an fmi2 name (fmi3SetFloat64 for fmi2SetReal in FMI 3)."""
+        return self._fmi.name(fname)
+
+    def status_error(self, fname, status, step=None, time=None):
+        """The FmuError for a call in fmi2 form (`fname`) that returned `status`."""
+        where = "" if step is None else f" at step {step} (t = {time:.6g})"
+        shown, what = self._fmi.failure(fname, _STATUS.get(status, status))
+        return FmuError(f"subsystem {self.name}: {shown} {what}{where}: {self.last_message()}",
+                        subsystem=self.name, step=step, time=time)
+
+    def close(self):
+        slave, self._fmi = getattr(getattr(self, "_fmi", None), "slave", None), None
+        for call in (slave.terminate, slave.freeInstance) if slave is not None else ():
+            try:
+                call()
+            except Exception:
+                pass
+        if getattr(self, "folder", None) is not None:
+            release_folder(self._pool, self._key, self.folder)
+            self.folder = None

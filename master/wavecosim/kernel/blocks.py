@@ -1,0 +1,78 @@
+"""The runner's per-block arithmetic over the C kernel's log (kernel/c/blocks.c, built into
+the kernel library libblocks.so): the rows of a block of macro-steps (block_rows) and Condition 2 over it
+(passivity_block) and the certificates' columns (sampled_block, watch_block), each in one pass and
+bit for bit the step-by-step Python's. Without a C compiler
+the library is missing, `library()` is None and the runner goes step by step (as it must anyway:
+the kernel needs the compiler too)."""
+import ctypes
+
+from .build import helper_library
+
+_lib = None
+_int_p, _double_p = ctypes.POINTER(ctypes.c_int), ctypes.POINTER(ctypes.c_double)
+
+
+class PassBlock(ctypes.Structure):
+    """blocks.c: one block for passivity_block (the log's rows read, the columns written, the figures)."""
+    _fields_ = [("count", ctypes.c_int), ("k", ctypes.c_int), ("wave", ctypes.c_int), ("dt", ctypes.c_double),
+                ("log", ctypes.c_void_p), ("ld", ctypes.c_long), ("out", ctypes.c_void_p), ("ldo", ctypes.c_long),
+                *[(name, _int_p) for name in ("port", "a", "b", "e", "f", "h")],
+                ("prev", _double_p), ("fig", _double_p)]
+
+
+class BlockRows(ctypes.Structure):
+    """blocks.c: one block for block_rows (grid, log rows, the steps' and the trajectory's columns)."""
+    _fields_ = [("count", ctypes.c_int), ("n_out", ctypes.c_int), ("n0", ctypes.c_double),
+                ("inverse", ctypes.c_double), ("dt", ctypes.c_double), ("log", ctypes.c_void_p), ("ld", ctypes.c_long),
+                ("outputs", _int_p), ("steps", ctypes.c_void_p), ("lds", ctypes.c_long),
+                ("trajectory", ctypes.c_void_p), ("ldt", ctypes.c_long),
+                ("iterations_sum", ctypes.c_double), ("iterations_max", ctypes.c_double)]
+
+
+class SampledBlock(ctypes.Structure):
+    """blocks.c: one block for sampled_block (CertificateSampler's columns and running figures)."""
+    _fields_ = [*[(name, ctypes.c_int) for name in ("count", "k", "n", "nb", "first", "every", "fne", "augmented",
+                                                    "rounds")],
+                ("log", ctypes.c_void_p), ("ld", ctypes.c_long), ("certs", ctypes.c_void_p), ("ldc", ctypes.c_long),
+                ("out", ctypes.c_void_p), ("ldo", ctypes.c_long), *[(name, _int_p) for name in ("a", "b", "h")],
+                *[(name, _double_p) for name in ("min_fne", "max_aug", "H_prev")]]
+
+
+class WatchBlock(ctypes.Structure):
+    """blocks.c: one block for watch_block (FneWatch's column and running figures)."""
+    _fields_ = [*[(name, ctypes.c_int) for name in ("count", "k", "first", "every")], ("tol", ctypes.c_double),
+                ("certs", ctypes.c_void_p), ("ldc", ctypes.c_long), ("out", ctypes.c_void_p),
+                ("min_margin", _double_p), ("probed", ctypes.c_long)]
+
+
+def library():
+    """libblocks, built on first use; None when it cannot be built."""
+    global _lib
+    if _lib is None:
+        lib = helper_library("blocks")
+        if lib is None:
+            return None
+        lib.passivity_block.argtypes = [ctypes.POINTER(PassBlock)]
+        lib.block_rows.argtypes = [ctypes.POINTER(BlockRows)]
+        lib.sampled_block.argtypes = [ctypes.POINTER(SampledBlock)]
+        lib.watch_block.argtypes = [ctypes.POINTER(WatchBlock)]
+        lib.passivity_block.restype = lib.block_rows.restype = lib.sampled_block.restype = None
+        _lib = lib
+    return _lib
+
+
+def ints(values):
+    """A C int array of these values (at least one element)."""
+    return (ctypes.c_int * max(1, len(values)))(*values)
+
+
+def columns(array):
+    """(address, doubles between columns) of a 2-D float array whose columns are contiguous."""
+    if array.strides[0] != 8:
+        raise ValueError("blocks: a column's values must be contiguous")
+    return array.ctypes.data, array.strides[1] // 8
+
+
+def rows(array):
+    """(address, doubles between rows) of a 2-D float array whose rows are contiguous."""
+    return columns(array.T)

@@ -1,0 +1,118 @@
+"""Compiling C into a per-user cache: the kernel's libraries (kernel/c/*.c) here, the models' FMUs
+through wavecosim.fmi.build. Every output sits in a folder named by a hash of its sources and flags,
+so installed copies, clones and versions never overwrite each other's builds, and a finished
+output is only ever moved into place whole (several processes may build at once)."""
+import ctypes
+import hashlib
+import os
+import subprocess
+import tempfile
+from pathlib import Path
+
+from ..errors import FmuError
+
+SOURCES = Path(__file__).resolve().parent / "c"
+CFLAGS = ["-O2", "-std=c99", "-fPIC", "-ffp-contract=off", "-Wall", "-Wextra", "-Werror"]
+# C files compiled into another file's library: the routes built on the DR kernel's subsystem
+# evaluation (classical.c, newton.c, certs.c) go into libdrkernel.so.
+PART_OF_LIBRARY = {"classical.c": "drkernel", "newton.c": "drkernel", "certs.c": "drkernel"}
+_loaded = {}
+
+
+class BuildError(RuntimeError):
+    """A model or a kernel library failed to compile."""
+
+
+def cache_dir() -> Path:
+    """$WAVECOSIM_CACHE, else $XDG_CACHE_HOME/wavecosim, else ~/.cache/wavecosim."""
+    if os.environ.get("WAVECOSIM_CACHE"):
+        return Path(os.environ["WAVECOSIM_CACHE"])
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(base) / "wavecosim"
+
+
+def fmi_headers() -> Path:
+    """The official FMI headers shipped inside fmpy."""
+    import fmpy
+    return Path(fmpy.__file__).parent / "c-code"
+
+
+def run(cmd, what):
+    """Run a compiler command; its stdout, or a BuildError with the command and its stderr."""
+    try:
+        proc = subprocess.run([str(c) for c in cmd], capture_output=True, text=True)
+    except FileNotFoundError:
+        raise BuildError(f"{cmd[0]} was not found on PATH; it is needed to build {what}") from None
+    if proc.returncode != 0:
+        raise BuildError(f"building {what} failed: {' '.join(map(str, cmd))}\n{proc.stderr.strip()}")
+    return proc.stdout
+
+
+def stamp(files, extra="") -> str:
+    """A hash of the files' names and bytes, the flags and `extra`: the name of a build's folder."""
+    h = hashlib.sha256(" ".join(CFLAGS).encode() + extra.encode())
+    for f in sorted(files, key=lambda p: (p.name, str(p))):
+        h.update(f.name.encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()[:20]
+
+
+def target(kind, key, name) -> Path:
+    """Where a build of `name` whose stamp is `key` lives in the cache."""
+    return cache_dir() / kind / key / name
+
+
+def place(build, path: Path):
+    """Call build(tmp) for a file made in a private temporary path, then move it to `path` whole."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix)
+    os.close(fd)
+    try:
+        build(Path(tmp))
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return path
+
+
+def library_sources(name):
+    """kernel/c/<name>.c, the files PART_OF_LIBRARY puts into it and the kernel's headers."""
+    parts = sorted(SOURCES / f for f, lib in PART_OF_LIBRARY.items() if lib == name)
+    return [SOURCES / f"{name}.c", *parts, *sorted(SOURCES.glob("*.h"))]
+
+
+def library_names():
+    """Every kernel library: one per C file that is not part of another's."""
+    return sorted(c.stem for c in SOURCES.glob("*.c") if c.name not in PART_OF_LIBRARY)
+
+
+def build_library(name, force=False, log=print) -> Path:
+    """lib<name>.so from library_sources(name), built into the cache unless it is there."""
+    sources = library_sources(name)
+    path = target("lib", stamp(sources), f"lib{name}.so")
+    if path.exists() and not force:
+        return path
+    log(f"building {path}")
+    return place(lambda tmp: run(["gcc", *CFLAGS, "-shared", "-I", fmi_headers(),
+                                  *[s for s in sources if s.suffix == ".c"], "-o", tmp, "-lm", "-ldl"],
+                                 f"the kernel library {name}"), path)
+
+
+def helper_library(name):
+    """lib<name>.so loaded with ctypes (built on first use); None when it cannot be built (no C compiler)."""
+    if name not in _loaded:
+        try:
+            _loaded[name] = ctypes.CDLL(str(build_library(name, log=lambda msg: None)))
+        except (BuildError, OSError):
+            _loaded[name] = None
+    return _loaded[name]
+
+
+def kernel_library(name, what):
+    """helper_library(name), or an FmuError naming `what` when it cannot be built or loaded."""
+    lib = helper_library(name)
+    if lib is None:
+        raise FmuError(f"{what}: the kernel library lib{name}.so could not be built from {SOURCES} "
+                       f"(is gcc installed?)")
+    return lib

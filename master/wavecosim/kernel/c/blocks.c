@@ -1,0 +1,265 @@
+/* What the runner does with a block of macro-steps made in one kernel call (wavecosim/kernel/blocks.py), in
+ * one pass over the kernel's log each, with the operation order of the step-by-step Python, so that
+ * every number is the same to the last bit:
+ * - block_rows: the rows' grid time, iterations, residual and reason, and the trajectory's rows
+ *   (wavecosim/run/runner.py, LiveRun._after_block);
+ * - passivity_block: Condition 2, per step the energy into each port and into all of them,
+ *   r_i = (H_i - H_i before) - supplied_i (eq. 27) and H_total, and the running figures
+ *   (wavecosim/run/observers/passivity.py, Passivity.after_block; builtin sum() from 0, left to right);
+ * - sampled_block and watch_block: the certificates' columns of the steps from the rows the
+ *   certificates' kernel made (wavecosim/run/observers/certificates.py CertificateSampler and
+ *   observers/fne_watch.py FneWatch, after_block). */
+#include <math.h>
+#include <stddef.h>
+
+/* Python's grow_max_pos: the running max(0, x), NaN ignored (NaN until a number arrives). Over a
+ * block it is applied once, to the largest number of the block: max(0, x) is never -0, so the
+ * running maximum does not depend on the order of the numbers. */
+static double grow_max_pos(double current, double x) {
+    if (x != x) return current;
+    x = x > 0.0 ? x : 0.0;
+    return current >= x ? current : x;
+}
+
+/* Energy into port i over step s: 1/2 (|a|^2 - |b|^2) (wave) or dt e.f, channel j's values at
+ * x[j][s] (x: a, b, e, f); `all` gathers the sums of squares over every channel so far (wave). */
+static double port_supply(const double *const *x[4], size_t s, int first, int last, int wave, double dt,
+                          double all[2]) {
+    double in = 0.0, out = 0.0;
+    if (!wave) {
+        for (int j = first; j < last; j++) in += x[2][j][s] * x[3][j][s];
+        return dt * in;
+    }
+    for (int j = first; j < last; j++) {
+        double v = x[0][j][s] * x[0][j][s];
+        in += v;
+        all[0] += v;
+    }
+    for (int j = first; j < last; j++) {
+        double v = x[1][j][s] * x[1][j][s];
+        out += v;
+        all[1] += v;
+    }
+    return 0.5 * (in - out);
+}
+
+/* One block (blocks.py, PassBlock): steps 0 .. count - 1. The values are rows of `log`, ld
+ * doubles apart, one value per step: a_hat, b, e, f (channel j: row a[j] ...; port i holds channels
+ * port[i] .. port[i + 1] - 1) and the k subsystems' H_i (rows h[i]). The columns r_0 .. r_{k-1},
+ * supply, H_total go to `out` (ldo doubles apart). prev[k]: the H_i before the block, left at the
+ * last step's. fig[k + 4]: the running max_r_i, max_supply, drift, H_max, carried on, and H_final. */
+typedef struct {
+    int count, k, wave;
+    double dt;
+    const double *log;
+    long ld;
+    double *out;
+    long ldo;
+    const int *port, *a, *b, *e, *f, *h;
+    double *prev, *fig;
+} PassBlock;
+
+void passivity_block(const PassBlock *p) {
+    int count = p->count, k = p->k, wave = p->wave;
+    double dt = p->dt, *prev = p->prev, *fig = p->fig;
+    const double *log = p->log;
+    const int *port = p->port, *a = p->a, *b = p->b, *e = p->e, *f = p->f, *h = p->h;
+    size_t ld = (size_t)p->ld;
+    int n = port[k];
+    const double *rows[4][n > 0 ? n : 1], *H[k], *const *x[4] = {rows[0], rows[1], rows[2], rows[3]};
+    double *r[k + 2], last[k], worst[k + 1], drift = fig[k + 1], H_max = fig[k + 2], total = fig[k + 3];
+    int seen[k + 1];
+    for (int j = 0; j < n; j++) {
+        rows[0][j] = log + (size_t)a[j] * ld;
+        rows[1][j] = wave ? log + (size_t)b[j] * ld : NULL;
+        rows[2][j] = wave ? NULL : log + (size_t)e[j] * ld;
+        rows[3][j] = wave ? NULL : log + (size_t)f[j] * ld;
+    }
+    for (int i = 0; i < k; i++) {
+        H[i] = log + (size_t)h[i] * ld;
+        last[i] = prev[i];
+    }
+    for (int i = 0; i <= k; i++) {
+        r[i] = p->out + (size_t)i * (size_t)p->ldo;
+        worst[i] = -INFINITY;
+        seen[i] = 0;
+    }
+    r[k + 1] = p->out + (size_t)(k + 1) * (size_t)p->ldo;
+    for (size_t s = 0; s < (size_t)count; s++) {
+        double all[2] = {0.0, 0.0}, physical = 0.0;
+        total = 0.0;
+        for (int i = 0; i < k; i++) {
+            double supplied = port_supply(x, s, port[i], port[i + 1], wave, dt, all);
+            double Hi = H[i][s], ri = (Hi - last[i]) - supplied;
+            physical += supplied;
+            total += Hi;
+            last[i] = Hi;
+            r[i][s] = ri;
+            worst[i] = ri > worst[i] ? ri : worst[i];          /* branch-free (maxsd), NaN skipped */
+            seen[i] += ri == ri;
+        }
+        double supply = wave ? 0.5 * (all[0] - all[1]) : physical;
+        r[k][s] = supply;
+        r[k + 1][s] = total;
+        worst[k] = supply > worst[k] ? supply : worst[k];
+        seen[k] += supply == supply;
+        drift += supply;
+        H_max = total == total ? (total > H_max ? total : H_max) : total;
+    }
+    for (int i = 0; i < k; i++) prev[i] = last[i];
+    for (int i = 0; i <= k; i++)
+        if (seen[i]) fig[i] = grow_max_pos(fig[i], worst[i]);
+    fig[k + 1] = drift;
+    fig[k + 2] = H_max;
+    fig[k + 3] = total;
+}
+
+/* One block (blocks.py, BlockRows): steps n0 + 1 .. n0 + count are the grid points (n0 + 1 + s) /
+ * inverse (inverse > 0: 1/dt a whole number) or (n0 + 1 + s) dt, as runner.grid_clock. The kernel
+ * log holds iterations, reason and residual at rows 0, 1, 2 and the outputs at rows outputs[j]. The
+ * steps' columns time, iterations, inner_residual, reason go to `steps` (lds doubles apart), the
+ * trajectory's time and outputs to `trajectory` (ldt apart). Sum and max of the iterations out. */
+typedef struct {
+    int count, n_out;
+    double n0, inverse, dt;
+    const double *log;
+    long ld;
+    const int *outputs;
+    double *steps;
+    long lds;
+    double *trajectory;
+    long ldt;
+    double iterations_sum, iterations_max;
+} BlockRows;
+
+void block_rows(BlockRows *p) {
+    size_t ld = (size_t)p->ld, lds = (size_t)p->lds, ldt = (size_t)p->ldt, count = (size_t)p->count;
+    const double *iterations = p->log, *reason = p->log + ld, *residual = p->log + 2 * ld;
+    double sum = 0.0, most = -INFINITY;
+    for (size_t s = 0; s < count; s++) {
+        double k = p->n0 + 1.0 + (double)s, t = p->inverse > 0.0 ? k / p->inverse : k * p->dt;
+        p->steps[s] = t;
+        p->steps[lds + s] = iterations[s];
+        p->steps[2 * lds + s] = residual[s];
+        p->steps[3 * lds + s] = reason[s];
+        p->trajectory[s] = t;
+        sum += iterations[s];
+        most = iterations[s] > most ? iterations[s] : most;
+    }
+    for (int j = 0; j < p->n_out; j++) {
+        const double *from = p->log + (size_t)p->outputs[j] * ld;
+        double *to = p->trajectory + (size_t)(j + 1) * ldt;
+        for (size_t s = 0; s < count; s++) to[s] = from[s];
+    }
+    p->iterations_sum = sum;
+    p->iterations_max = most;
+}
+
+/* Whether step s of a block is sampled: s = first, first + every, ... */
+static int sampled(int s, int first, int every) { return s >= first && (s - first) % every == 0; }
+
+/* One block (blocks.py, SampledBlock) for CertificateSampler: steps 0 .. count - 1, the certificates'
+ * kernel's row of step s at certs + s ldc (fne_0 .. fne_{k-1}, the Fejer term, ...). Columns to `out`
+ * (ldo apart): fne_i of every step (fne), then augmented (NaN but at the sampled steps) = ((H - H
+ * before) + Fejer) - 1/2 (|a_hat|^2 - |B|^2), NaN after a ledger redo (log row `rounds` > 0); the
+ * kernel's log rows: a_hat (n: a), B (nb: b), H_i (k: h). min_fne[k] and max_aug[1] are folded as
+ * builtin min and grow_max_pos fold, step after step; H_prev[1]: the summed H before, left at the
+ * last step's. */
+typedef struct {
+    int count, k, n, nb, first, every, fne, augmented, rounds;
+    const double *log;
+    long ld;
+    const double *certs;
+    long ldc;
+    double *out;
+    long ldo;
+    const int *a, *b, *h;
+    double *min_fne, *max_aug, *H_prev;
+} SampledBlock;
+
+static double sum_squares(const double *log, size_t ld, const int *rows, int count, size_t s) {
+    double acc = 0.0;
+    for (int j = 0; j < count; j++) {
+        double v = log[(size_t)rows[j] * ld + s];
+        acc += v * v;
+    }
+    return acc;
+}
+
+void sampled_block(const SampledBlock *p) {
+    size_t ld = (size_t)p->ld, ldo = (size_t)p->ldo;
+    int k = p->k, fne = p->fne;
+    double *aug = p->out + (size_t)(fne ? k : 0) * ldo, H_prev = *p->H_prev;
+    for (int s = 0; s < p->count; s++) {
+        const double *row = p->certs + (size_t)s * (size_t)p->ldc;
+        double H = 0.0;
+        for (int i = 0; i < k; i++) H += p->log[(size_t)p->h[i] * ld + (size_t)s];
+        for (int j = 0; j < k && fne; j++) p->out[(size_t)j * ldo + (size_t)s] = row[j];
+        if (p->augmented) aug[s] = NAN;
+        if (sampled(s, p->first, p->every)) {
+            for (int j = 0; j < k && fne; j++)
+                if (row[j] < p->min_fne[j]) p->min_fne[j] = row[j];
+            if (p->augmented) {
+                double supplied = 0.5 * (sum_squares(p->log, ld, p->a, p->n, (size_t)s)
+                                         - sum_squares(p->log, ld, p->b, p->nb, (size_t)s));
+                double r = ((H - H_prev) + row[k]) - supplied;
+                aug[s] = p->log[(size_t)p->rounds * ld + (size_t)s] > 0.0 ? NAN : r;
+                *p->max_aug = grow_max_pos(*p->max_aug, aug[s]);
+            }
+        }
+        H_prev = H;
+    }
+    *p->H_prev = H_prev;
+}
+
+/* One block (blocks.py, WatchBlock) for FneWatch: the certificates' kernel's rows as above, with the
+ * secant margin of subsystem i at column k + 1 + i and whether it was estimated at 2 k + 1 + i (> 0),
+ * at every step (every = 1) or the probed ones (first, first + every, ...). Column fne_watch (`out`):
+ * the smallest estimated margin of each such step, NaN at the others; min_margin[k] folded with each
+ * column's smallest; *probed += the steps with an estimate. Returns 1, writing nothing, when a margin
+ * falls below -tol or one estimated is NaN or zero (the caller books those steps one by one). */
+typedef struct {
+    int count, k, first, every;
+    double tol;
+    const double *certs;
+    long ldc;
+    double *out, *min_margin;
+    long probed;
+} WatchBlock;
+
+static int watch_is_plain(const WatchBlock *p) {
+    int k = p->k;
+    for (int s = p->first; s < p->count; s += p->every) {
+        const double *row = p->certs + (size_t)s * (size_t)p->ldc;
+        double worst = INFINITY;
+        for (int i = 0; i < k; i++) {
+            double m = row[k + 1 + i];
+            if (!(row[2 * k + 1 + i] > 0.0)) continue;
+            if (m != m || m == 0.0) return 0;
+            worst = m < worst ? m : worst;
+        }
+        if (worst < -p->tol) return 0;
+    }
+    return 1;
+}
+
+int watch_block(WatchBlock *p) {
+    int k = p->k;
+    if (!watch_is_plain(p)) return 1;
+    for (int s = 0; s < p->count; s++) p->out[s] = NAN;
+    for (int s = p->first; s < p->count; s += p->every) {
+        const double *row = p->certs + (size_t)s * (size_t)p->ldc;
+        double worst = INFINITY;
+        int some = 0;
+        for (int i = 0; i < k; i++) {
+            if (!(row[2 * k + 1 + i] > 0.0)) continue;
+            double m = row[k + 1 + i];
+            worst = m < worst ? m : worst;
+            p->min_margin[i] = m < p->min_margin[i] ? m : p->min_margin[i];
+            some = 1;
+        }
+        p->out[s] = some ? worst : NAN;
+        p->probed += some;
+    }
+    return 0;
+}

@@ -1,0 +1,913 @@
+/* Algorithm 1 of the paper for one macro-step, in C, calling the FMUs through their own fmi2
+ * function pointers (see drkernel.h). The Python reference is master/masters/dr.py::algorithm1
+ * with master/frozen_port_map.py::Subsystem; each line below names the line it mirrors. */
+#define _POSIX_C_SOURCE 200809L
+#include <float.h>
+#include <math.h>
+#include <pthread.h>
+#include <sched.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "drkernel.h"
+#include "kernel_internal.h"
+#include "linalg.h"
+#include "dr_options.h"
+
+/* A thread waiting for the other spins this long, then sleeps on a condition variable: spinning
+ * answers within a microsecond when both have a core, sleeping leaves the core to the other
+ * thread (or another process) when they do not. */
+#define SPIN_NS 50000.0
+
+/* Evaluations timed per subsystem for dr_costs (the median is robust to a preemption). */
+#define MAX_SAMPLES 64
+
+typedef struct {
+    DRFunctions fn;
+    fmi2Component comp;
+    fmi2FMUstate *state;           /* x_i^n, saved once per macro-step into this handle: */
+    fmi2FMUstate own_state;        /* the kernel's own, or the caller's (see dr_set_subsystem) */
+    fmi2ValueReference *in_vr, *out_vr;
+    fmi2ValueReference *obs_vr;    /* values read after each commit of dr_run_steps (first: H_i) */
+    size_t m, offset, n_obs;
+    int thread;
+    int frozen, dirty;             /* x_i^n saved this macro-step / instance moved away from it */
+    int failed_function, failed_status;
+    long n_do_step, n_save, n_restore;
+    double sample_ns[MAX_SAMPLES];
+    int n_samples;
+} Sub;
+
+typedef struct {
+    DRKernel *k;
+    int id, started;
+    pthread_t thread;
+    pthread_mutex_t mutex;
+    pthread_cond_t cond, done_cond;
+    unsigned posted, done;         /* task generations, accessed atomically */
+    int sleeping, caller_sleeping, stop; /* accessed atomically */
+    int failed;                    /* first failing subsystem of this thread's last task, or -1 */
+} Worker;
+
+struct DRKernel {
+    int n_sub;
+    size_t n;
+    Sub *sub;
+    Csr *P, *J_L;                  /* one malloc each (freed with free) */
+    double *b, *a_hat, *u0, *uK;   /* the caller's */
+    double *u, *u_next, *b_hat, *z, *w;
+    double *trace;                 /* the caller's, or NULL */
+    double *redo;                  /* the ledger's redo: a, b^{n+1}, the probe's b, zeros (4 n) */
+    double *obs;                   /* one subsystem's observed values, read before they are logged */
+    int trace_capacity;
+    int n_threads;
+    unsigned generation;
+    Worker worker[DR_MAX_THREADS]; /* worker[0] is unused: thread 0 is the caller */
+    /* the task all threads work on: evaluate their subsystems at task_in -> task_out */
+    const double *task_in;
+    double *task_out;
+    double task_t, task_h;
+    int task_commit, task_measure;
+    DROptions *opt;                /* the DR master's named options, or NULL (the paper's Algorithm 1) */
+    DRHookFn hook_before, hook_after; /* around each step of dr_run_steps_of (certs.c), or NULL */
+    void *hook_ctx;
+};
+
+static double now_ns(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return 1e9 * (double)ts.tv_sec + (double)ts.tv_nsec;
+}
+
+/* This thread's CPU time: a step's wall time beyond it is time the machine ran something else. */
+static double cpu_ns(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return 1e9 * (double)ts.tv_sec + (double)ts.tv_nsec;
+}
+
+static void cpu_relax(void) {
+#if defined(__x86_64__) || defined(__i386__)
+    __builtin_ia32_pause();
+#endif
+}
+
+/* ---- the arithmetic of master/linalg.py, in the same operation order ---- */
+
+/* Rows r0 .. r1 - 1 of y = M x, each summed over its stored entries left to right from 0.0
+ * (linalg.matvec_rows): the same bits as the dense sum, whose other terms are exact zeros added to
+ * a sum that is never -0.0. */
+void dr_csr_rows(const Csr *M, const double *x, double *y, size_t r0, size_t r1) {
+    for (size_t i = r0; i < r1; i++) {
+        double acc = 0.0;
+        for (int p = M->start[i]; p < M->start[i + 1]; p++) acc += M->val[p] * x[M->col[p]];
+        y[i] = acc;
+    }
+}
+
+/* y = M x (linalg.matvec). */
+static void csr_matvec(const Csr *M, const double *x, double *y, size_t n) {
+    dr_csr_rows(M, x, y, 0, n);
+}
+
+/* A Csr of n rows with nnz entries in one block (val first, so it stays aligned), or NULL. */
+static Csr *csr_alloc(size_t n, size_t nnz) {
+    Csr *M = malloc(sizeof *M + nnz * sizeof(double) + (n + 1 + nnz) * sizeof(int));
+    if (!M) return NULL;
+    M->n = n;
+    M->nnz = nnz;
+    M->val = (double *)(M + 1);
+    M->start = (int *)(M->val + nnz);
+    M->col = M->start + n + 1;
+    return M;
+}
+
+/* The nonzero entries of a dense row-major n x n matrix. */
+static Csr *csr_from_dense(const double *D, size_t n) {
+    size_t nnz = 0;
+    for (size_t j = 0; j < n * n; j++) nnz += D[j] != 0.0;
+    Csr *M = csr_alloc(n, nnz);
+    if (!M) return NULL;
+    size_t p = 0;
+    for (size_t i = 0; i < n; i++) {
+        M->start[i] = (int)p;
+        for (size_t j = 0; j < n; j++)
+            if (D[i * n + j] != 0.0) {
+                M->col[p] = (int)j;
+                M->val[p++] = D[i * n + j];
+            }
+    }
+    M->start[n] = (int)p;
+    return M;
+}
+
+/* A copy of the caller's compressed rows, or NULL if they are malformed (or no memory). */
+Csr *dr_csr_copy(const int *start, const int *col, const double *val, size_t n) {
+    if (start[0] != 0) return NULL;
+    for (size_t i = 0; i < n; i++)
+        if (start[i + 1] < start[i]) return NULL;
+    size_t nnz = (size_t)start[n];
+    for (size_t p = 0; p < nnz; p++)
+        if (col[p] < 0 || (size_t)col[p] >= n) return NULL;
+    Csr *M = csr_alloc(n, nnz);
+    if (!M) return NULL;
+    memcpy(M->start, start, (n + 1) * sizeof(int));
+    memcpy(M->col, col, nnz * sizeof(int));
+    memcpy(M->val, val, nnz * sizeof(double));
+    return M;
+}
+
+/* ---- one subsystem: the frozen port map (frozen_port_map.Subsystem) ---- */
+
+static int failed(Sub *s, int function, fmi2Status status) {
+    if (status <= fmi2Warning) return 0;
+    s->failed_function = function;
+    s->failed_status = (int)status;
+    return 1;
+}
+
+/* S_i^n(a) (commit = 0, eq. 12) or Phi_i(x_i^n, a) (commit = 1, eq. 21) on the channels of s:
+ * save x_i^n on the first call of the macro-step (line 3), restore it if an earlier query moved
+ * the instance, set the incident waves, one doStep, read the outgoing waves. */
+static int evaluate(Sub *s, const double *in, double *out, double t, double h, int commit, int measure) {
+    double t0 = measure ? now_ns() : 0.0;
+    if (!s->frozen) {
+        if (failed(s, DR_FN_GET_STATE, s->fn.getFMUstate(s->comp, s->state))) return 1;
+        s->n_save++;
+        s->frozen = 1;
+        s->dirty = 0;
+    }
+    if (s->dirty) {
+        if (failed(s, DR_FN_SET_STATE, s->fn.setFMUstate(s->comp, *s->state))) return 1;
+        s->n_restore++;
+    }
+    s->dirty = !commit;
+    if (failed(s, DR_FN_SET_REAL, s->fn.setReal(s->comp, s->in_vr, s->m, in + s->offset))) return 1;
+    /* noSetFMUStatePriorToCurrentPoint = false, as in the reference: the next query, or an undo of
+     * the commit, restores x_i^n at t, before the point t + h this doStep reaches. */
+    if (failed(s, DR_FN_DO_STEP, s->fn.doStep(s->comp, t, h, fmi2False))) return 1;
+    s->n_do_step++;
+    if (failed(s, DR_FN_GET_REAL, s->fn.getReal(s->comp, s->out_vr, s->m, out + s->offset))) return 1;
+    if (measure && s->n_samples < MAX_SAMPLES) s->sample_ns[s->n_samples++] = now_ns() - t0;
+    return 0;
+}
+
+/* Every subsystem of one thread on the current task; the first that failed, or -1. */
+static int run_group(DRKernel *k, int thread) {
+    for (int i = 0; i < k->n_sub; i++) {
+        Sub *s = &k->sub[i];
+        if (s->thread == thread &&
+            evaluate(s, k->task_in, k->task_out, k->task_t, k->task_h, k->task_commit, k->task_measure))
+            return i;
+    }
+    return -1;
+}
+
+/* ---- persistent workers: spin on a task generation, then sleep on a condition variable ---- */
+
+/* Spin until *word != value (or stop is set), for at most SPIN_NS; returns 1 if it changed. */
+static int spin_while(const unsigned *word, unsigned value, const int *stop) {
+    double start = -1.0;
+    for (int spins = 1;; spins++) {
+        if (__atomic_load_n(word, __ATOMIC_ACQUIRE) != value) return 1;
+        if (stop && __atomic_load_n(stop, __ATOMIC_ACQUIRE)) return 1;
+        cpu_relax();
+        if (spins % 256) continue;
+        if (start < 0.0) start = now_ns();
+        else if (now_ns() - start > SPIN_NS) return 0;
+    }
+}
+
+/* Sleep until *word != value (or stop): the waker stores *word, then reads *sleeping (both
+ * seq_cst), so either it sees us asleep and signals under the mutex, or we see its store. */
+static void sleep_while(Worker *w, pthread_cond_t *cond, int *sleeping, const unsigned *word, unsigned value) {
+    pthread_mutex_lock(&w->mutex);
+    __atomic_store_n(sleeping, 1, __ATOMIC_SEQ_CST);
+    while (__atomic_load_n(word, __ATOMIC_SEQ_CST) == value && !__atomic_load_n(&w->stop, __ATOMIC_SEQ_CST))
+        pthread_cond_wait(cond, &w->mutex);
+    __atomic_store_n(sleeping, 0, __ATOMIC_SEQ_CST);
+    pthread_mutex_unlock(&w->mutex);
+}
+
+static void wake(Worker *w, pthread_cond_t *cond, int *sleeping, unsigned *word, unsigned value) {
+    __atomic_store_n(word, value, __ATOMIC_SEQ_CST);
+    if (__atomic_load_n(sleeping, __ATOMIC_SEQ_CST)) {
+        pthread_mutex_lock(&w->mutex);
+        pthread_cond_signal(cond);
+        pthread_mutex_unlock(&w->mutex);
+    }
+}
+
+static void *worker_main(void *arg) {
+    Worker *w = arg;
+    unsigned seen = 0;
+    for (;;) {
+        if (!spin_while(&w->posted, seen, &w->stop)) sleep_while(w, &w->cond, &w->sleeping, &w->posted, seen);
+        if (__atomic_load_n(&w->stop, __ATOMIC_ACQUIRE)) return NULL;
+        unsigned g = __atomic_load_n(&w->posted, __ATOMIC_ACQUIRE);
+        if (g == seen) continue;
+        seen = g;
+        w->failed = run_group(w->k, w->id);
+        wake(w, &w->done_cond, &w->caller_sleeping, &w->done, g);
+    }
+}
+
+static void post(Worker *w, unsigned g) {
+    wake(w, &w->cond, &w->sleeping, &w->posted, g);
+}
+
+static void wait_done(Worker *w, unsigned g) {
+    unsigned last = g - 1;       /* done holds the previous generation until this task is finished */
+    if (!spin_while(&w->done, last, NULL)) sleep_while(w, &w->done_cond, &w->caller_sleeping, &w->done, last);
+}
+
+static void stop_workers(DRKernel *k) {
+    for (int id = 1; id < DR_MAX_THREADS; id++) {
+        Worker *w = &k->worker[id];
+        if (!w->started) continue;
+        __atomic_store_n(&w->stop, 1, __ATOMIC_SEQ_CST);
+        pthread_mutex_lock(&w->mutex);
+        pthread_cond_broadcast(&w->cond);
+        pthread_mutex_unlock(&w->mutex);
+        pthread_join(w->thread, NULL);
+        pthread_cond_destroy(&w->done_cond);
+        pthread_cond_destroy(&w->cond);
+        pthread_mutex_destroy(&w->mutex);
+        w->started = 0;
+    }
+    k->n_threads = 1;
+    for (int i = 0; i < k->n_sub; i++) k->sub[i].thread = 0;
+}
+
+/* Evaluate every subsystem at in -> out (line 10 when commit = 0, lines 20-22 when commit = 1);
+ * the first failing subsystem in subsystem order, or -1. */
+static int evaluate_all(DRKernel *k, const double *in, double *out, double t, double h, int commit, int measure) {
+    k->task_in = in;
+    k->task_out = out;
+    k->task_t = t;
+    k->task_h = h;
+    k->task_commit = commit;
+    k->task_measure = measure;
+    if (k->n_threads == 1) return run_group(k, 0);
+    unsigned g = ++k->generation;
+    for (int id = 1; id < k->n_threads; id++) post(&k->worker[id], g);
+    int first = run_group(k, 0);
+    for (int id = 1; id < k->n_threads; id++) {
+        wait_done(&k->worker[id], g);
+        int f = k->worker[id].failed;
+        if (f >= 0 && (first < 0 || f < first)) first = f;
+    }
+    return first;
+}
+
+static int report_failure(DRKernel *k, DRStep *io, int i) {
+    io->failed_subsystem = i;
+    io->failed_function = k->sub[i].failed_function;
+    io->failed_status = k->sub[i].failed_status;
+    return -1;
+}
+
+static void begin_macro_step(DRKernel *k, DRStep *io) {
+    for (int i = 0; i < k->n_sub; i++) {
+        k->sub[i].frozen = 0;
+        k->sub[i].failed_function = DR_FN_NONE;
+        k->sub[i].failed_status = 0;
+    }
+    io->failed_subsystem = -1;
+    io->failed_function = DR_FN_NONE;
+    io->failed_status = 0;
+}
+
+/* ---- the DR master's named options (dr_options.h; wavecosim/masters/dr_options.py) ---- */
+
+/* Start of a macro-step: forget the Anderson history (kept with its memory); with the warm start, u^0 = P (2 b^n - b^{n-1})
+ * once b^{n-1} is known (dr_options.warm_start), and b^n is remembered for the next step. */
+static void options_begin(DRKernel *k, double *u) {
+    DROptions *o = k->opt;
+    if (!o->memory) o->count = o->start = 0;                     /* the Anderson memory keeps its differences */
+    o->have_acc = o->candidate = 0;
+    if (!o->warm_start) return;
+    if (o->have_prev) {
+        for (size_t j = 0; j < k->n; j++) o->z[j] = 2.0 * k->b[j] - o->b_prev[j];
+        csr_matvec(k->P, o->z, u, k->n);
+    }
+    memcpy(o->b_prev, k->b, k->n * sizeof *u);
+    o->have_prev = 1;
+}
+
+/* Line 12 relaxed (dr_options.relaxed_update), then the safeguarded Anderson step. */
+static void options_step(DRKernel *k, const double *u, double *u_next, const double **b_star) {
+    DROptions *o = k->opt;
+    if (o->lambda != 1.0)
+        for (size_t j = 0; j < k->n; j++) u_next[j] = u[j] + o->lambda * (k->w[j] - k->b_hat[j]);
+    if (o->m > 0) options_anderson(o, u, u_next, k->b_hat, b_star);
+}
+
+int dr_set_options(DRKernel *k, double relaxation, int anderson, int warm_start) {
+    options_free(k->opt);
+    k->opt = NULL;
+    if (relaxation == 1.0 && anderson == 0 && !warm_start) return 0;
+    if (!(relaxation > 0.0 && relaxation < 2.0) || anderson < 0 || anderson > DR_ANDERSON_MAX) return -1;
+    k->opt = options_create(relaxation, anderson, warm_start, k->n);
+    return k->opt ? 0 : -1;
+}
+
+/* The Anderson memory across macro-steps and the extrapolated b^* (after dr_set_options); -1 without Anderson. */
+int dr_set_anderson_modes(DRKernel *k, int memory, int extrapolate) {
+    if (!memory && !extrapolate) return 0;
+    if (!k->opt || k->opt->m == 0) return -1;
+    k->opt->memory = memory;
+    k->opt->extrapolate = extrapolate;
+    return 0;
+}
+
+/* ---- the public API ---- */
+
+int dr_macro_step(DRKernel *k, DRStep *io) {
+    size_t n = k->n;
+    begin_macro_step(k, io);
+    double deadline = io->deadline_s > 0.0 ? now_ns() + 1e9 * io->deadline_s : 0.0;
+    double *u = k->u, *u_next = k->u_next;
+    csr_matvec(k->P, k->b, u, n);                                    /* line 6, eq. (19): u^0 = P b^n */
+    if (k->opt) options_begin(k, u);                             /* warm start: u^0 = P (2 b^n - b^{n-1}) */
+    memcpy(k->u0, u, n * sizeof *u);
+    const double *b_star = k->b;                                 /* line 7, eq. (19): b^* = b^n */
+    int it = 0, reason = DR_BUDGET;
+    double residual = NAN;
+    while (it < io->K) {                                         /* line 9 */
+        int f = evaluate_all(k, u, k->b_hat, io->t, io->dt, 0, io->measure); /* line 10, eq. (17) response */
+        if (f >= 0) return report_failure(k, io, f);
+        if (k->trace && it < k->trace_capacity) {
+            memcpy(k->trace + 2 * n * (size_t)it, u, n * sizeof *u);
+            memcpy(k->trace + 2 * n * (size_t)it + n, k->b_hat, n * sizeof *u);
+        }
+        for (size_t j = 0; j < n; j++) k->z[j] = 2.0 * k->b_hat[j] - u[j];
+        csr_matvec(k->J_L, k->z, k->w, n);                           /* line 11, eq. (17): w = J_L(2b - u) */
+        for (size_t j = 0; j < n; j++) u_next[j] = u[j] + k->w[j] - k->b_hat[j]; /* line 12, eq. (17) update */
+        b_star = k->b_hat;                                       /* line 13, eq. (20): b^* = last b */
+        if (k->opt) options_step(k, u, u_next, &b_star);         /* relaxation, Anderson acceleration */
+        residual = distance(u_next, u, n);
+        double *swap = u;
+        u = u_next;
+        u_next = swap;
+        it++;
+        if (io->eps >= 0.0 && residual <= io->eps) {            /* lines 14-16: optional exit */
+            reason = DR_TOLERANCE;
+            break;
+        }
+        if (deadline > 0.0 && now_ns() >= deadline) {
+            reason = DR_DEADLINE;
+            break;
+        }
+    }
+    csr_matvec(k->P, b_star, k->a_hat, n);                           /* line 19, eq. (21): a = P b^* */
+    memcpy(k->uK, u, n * sizeof *u);
+    io->iterations = it;
+    io->residual = residual;
+    io->reason = io->K ? reason : DR_EXPLICIT;
+    /* lines 20-22, eq. (21): commit Phi_i(x_i^n, a_i); the outgoing waves are b^{n+1} */
+    int f = evaluate_all(k, k->a_hat, k->b, io->t, io->dt, 1, io->measure);
+    return f >= 0 ? report_failure(k, io, f) : 0;
+}
+
+int dr_set_observed(DRKernel *k, int i, const fmi2ValueReference *vrs, int count) {
+    if (i < 0 || i >= k->n_sub || count < 0) return -1;
+    Sub *s = &k->sub[i];
+    size_t largest = (size_t)count;
+    for (int j = 0; j < k->n_sub; j++)
+        if (j != i && k->sub[j].n_obs > largest) largest = k->sub[j].n_obs;
+    fmi2ValueReference *copy = malloc(((size_t)count + 1) * sizeof *copy);
+    double *obs = malloc((largest + 1) * sizeof *obs);
+    if (!copy || !obs) {
+        free(copy);
+        free(obs);
+        return -1;
+    }
+    memcpy(copy, vrs, (size_t)count * sizeof *vrs);
+    free(s->obs_vr);
+    free(k->obs);
+    s->obs_vr = copy;
+    s->n_obs = (size_t)count;
+    k->obs = obs;
+    return 0;
+}
+
+size_t dr_log_width(const DRKernel *k) {
+    size_t width = 3 + 2 * k->n;
+    for (int i = 0; i < k->n_sub; i++) width += k->sub[i].n_obs;
+    return width + DR_LEDGER_COLUMNS;
+}
+
+/* Log step s after its commit, column-major: value c at rows[c ld + s]; the first failing subsystem's read, or -1. */
+static int log_step(DRKernel *k, const DRStep *io, double *rows, size_t ld, size_t s) {
+    size_t n = k->n, c = 3 + 2 * n;
+    rows[s] = (double)io->iterations;
+    rows[ld + s] = (double)io->reason;
+    rows[2 * ld + s] = io->residual;
+    for (size_t j = 0; j < n; j++) {
+        rows[(3 + j) * ld + s] = k->a_hat[j];
+        rows[(3 + n + j) * ld + s] = k->b[j];
+    }
+    for (int i = 0; i < k->n_sub; i++) {
+        Sub *s_i = &k->sub[i];
+        if (!s_i->n_obs) continue;
+        if (failed(s_i, DR_FN_GET_REAL, s_i->fn.getReal(s_i->comp, s_i->obs_vr, s_i->n_obs, k->obs))) return i;
+        for (size_t j = 0; j < s_i->n_obs; j++) rows[(c + j) * ld + s] = k->obs[j];
+        c += s_i->n_obs;
+    }
+    return -1;
+}
+
+/* Stop after this step? When an observed value (obs: the step's column of them, stride ld) is
+ * not finite, or when the stored energy (the sum of every subsystem's first observed value) may
+ * exceed H_cap: the bound 4 n_sub eps sum|H_i| covers any order of summation, so the caller's exact
+ * test never sees a step above the cap go by. */
+static int stop_after(const DRKernel *k, const double *obs, size_t ld, double H_cap) {
+    double sum = 0.0, magnitude = 0.0;
+    for (int i = 0; i < k->n_sub; i++) {
+        const Sub *s = &k->sub[i];
+        for (size_t j = 0; j < s->n_obs; j++)
+            if (!isfinite(obs[j * ld])) return 1;
+        if (s->n_obs) {
+            sum += obs[0];
+            magnitude += fabs(obs[0]);
+        }
+        obs += s->n_obs * ld;
+    }
+    return isfinite(H_cap) && sum + 4.0 * k->n_sub * DBL_EPSILON * magnitude > H_cap;
+}
+
+/* ---- the interface energy ledger and its scaled redo (wavecosim/run/observers/energy_ledger.py) ---- */
+
+#define LEDGER_TARGET 0.9          /* energy_ledger.TARGET */
+#define LEDGER_SMOOTH 0.1          /* energy_ledger.SMOOTH */
+#define LEDGER_MIN_INNER_S 1e-9    /* masters/base.py MIN_INNER_S */
+enum { LEDGER_KEPT = 0, LEDGER_SCALED = 1, LEDGER_ZERO = 2 };   /* energy_ledger.ACTIONS */
+
+/* The interface's supply 1/2 (|in|^2 - |out|^2) and traffic 1/2 (|in|^2 + |out|^2) (masters/base.py
+ * WaveMaster.supply: sums from 0.0, left to right). */
+static void supply_of(const double *in, const double *out, size_t n, double *supplied, double *traffic) {
+    double aa = 0.0, bb = 0.0;
+    for (size_t j = 0; j < n; j++) aa += in[j] * in[j];
+    for (size_t j = 0; j < n; j++) bb += out[j] * out[j];
+    *supplied = 0.5 * (aa - bb);
+    *traffic = 0.5 * (aa + bb);
+}
+
+/* The supply of the step with inputs s a1, its outputs interpolated between y0 (s = 0) and y1 (s = 1). */
+static double model_supply(const double *a1, const double *y0, const double *y1, size_t n, double s) {
+    double aa = 0.0, bb = 0.0;
+    for (size_t j = 0; j < n; j++) {
+        double x = s * a1[j];
+        aa += x * x;
+    }
+    for (size_t j = 0; j < n; j++) {
+        double y = y0[j] + s * (y1[j] - y0[j]);
+        bb += y * y;
+    }
+    return 0.5 * (aa - bb);
+}
+
+/* energy_ledger.largest_root, operation for operation (Python's max keeps the first of equals). */
+static double largest_root(double q0, double qh, double q1, double target) {
+    double alpha = 2.0 * (q1 - 2.0 * qh + q0), beta = q1 - q0 - alpha, gamma = q0 - target;
+    double roots[2];
+    int count = 0;
+    if (fabs(alpha) <= 1e-12 * (fabs(beta) + fabs(gamma))) {
+        if (beta != 0.0) roots[count++] = -gamma / beta;
+    } else {
+        double disc = beta * beta - 4.0 * alpha * gamma;
+        if (0.0 > disc) disc = 0.0;
+        double sq = beta != 0.0 ? copysign(sqrt(disc), beta) : sqrt(disc);
+        double big = -0.5 * (beta + sq);                          /* the stable pair of quadratic roots */
+        roots[count++] = big / alpha;
+        if (big != 0.0) roots[count++] = gamma / big;
+    }
+    int found = 0;
+    double best = 0.0;
+    for (int i = 0; i < count; i++)
+        if (0.0 <= roots[i] && roots[i] < 1.0 && (!found || roots[i] > best)) {
+            best = roots[i];
+            found = 1;
+        }
+    return best;
+}
+
+/* Every subsystem back at x_i^n after the commit (masters/base.py undo_step); the first failing one, or -1. */
+static int restore_all(DRKernel *k) {
+    for (int i = 0; i < k->n_sub; i++) {
+        Sub *s = &k->sub[i];
+        if (failed(s, DR_FN_SET_STATE, s->fn.setFMUstate(s->comp, *s->state))) return i;
+        s->n_restore++;
+        s->dirty = 0;
+    }
+    return -1;
+}
+
+/* The running time of one evaluation round (every subsystem once), as EnergyLedger._time_round: a
+ * sample is taken at most at twice the estimate, so that a step the machine descheduled does not
+ * shorten the next steps' inner loops (a real rise is followed within a few steps). */
+static void track(double *estimate, double seconds) {
+    if (*estimate > 0.0 && seconds > 2.0 * *estimate) seconds = 2.0 * *estimate;
+    *estimate = *estimate > 0.0 ? (1.0 - LEDGER_SMOOTH) * *estimate + LEDGER_SMOOTH * seconds : seconds;
+}
+
+static void track_round(DRStep *io, double seconds) { track(&io->round_s, seconds); }
+
+/* The probe at s = 0 and the commit at the fitted s (EnergyLedger._scaled); out as in ledger_redo. */
+static int scaled_redo(DRKernel *k, DRStep *io, double supplied_1, double budget, double *out) {
+    size_t n = k->n;
+    double *a1 = k->redo, *y1 = a1 + n, *y0 = y1 + n, *zero = y0 + n;
+    int f = evaluate_all(k, zero, y0, io->t, io->dt, 0, 0);
+    if (f >= 0) return f;
+    double s = largest_root(model_supply(a1, y0, y1, n, 0.0), model_supply(a1, y0, y1, n, 0.5), supplied_1,
+                            LEDGER_TARGET * budget);
+    for (size_t j = 0; j < n; j++) k->a_hat[j] = s * a1[j];
+    f = evaluate_all(k, k->a_hat, k->b, io->t, io->dt, 1, 0);
+    if (f >= 0) return f;
+    out[0] = s;
+    supply_of(k->a_hat, k->b, n, &out[1], &out[2]);
+    out[3] = LEDGER_SCALED;
+    out[4] = 2.0;
+    return -1;
+}
+
+/* Undo the step and commit it again with s a (EnergyLedger._redo): the fitted s if `fitted` (two
+ * rounds are left), kept if it fits the budget; else, or on a miss, s = 0 (matched loads, always
+ * safe). out: s, supply, traffic, action, rounds. k->a_hat ends as s a (the log's), k->b as b^{n+1}.
+ * The first failing subsystem, or -1. */
+static int ledger_redo(DRKernel *k, DRStep *io, double supplied_1, double budget, int fitted, double *out) {
+    size_t n = k->n;
+    double *a1 = k->redo, *y1 = a1 + n, *zero = y1 + 2 * n;
+    memcpy(a1, k->a_hat, n * sizeof *a1);
+    memcpy(y1, k->b, n * sizeof *y1);
+    for (size_t j = 0; j < n; j++) zero[j] = 0.0;
+    int f = restore_all(k), rounds = 0;
+    if (f < 0 && fitted) {
+        f = scaled_redo(k, io, supplied_1, budget, out);
+        if (f >= 0 || out[1] <= budget) return f;
+        rounds = 2;
+        f = restore_all(k);
+    }
+    if (f >= 0) return f;
+    f = evaluate_all(k, zero, k->b, io->t, io->dt, 1, 0);
+    for (size_t j = 0; j < n; j++) k->a_hat[j] = 0.0 * a1[j];   /* the reference logs s a with s = 0 */
+    out[0] = 0.0;
+    supply_of(zero, k->b, n, &out[1], &out[2]);
+    out[3] = LEDGER_ZERO;
+    out[4] = rounds + 1;
+    return f;
+}
+
+/* Book the step just committed (EnergyLedger.after_step): I = 1/2 (|a|^2 - |b|^2); a step with
+ * L + I > tol = rtol (traffic + its own) is redone by ledger_redo first. Its row goes into the log's
+ * last DR_LEDGER_COLUMNS columns; io->reason becomes DR_ENERGY_GUARD when it was redone. t0, c0: the
+ * step's start, wall and CPU (ns). The first failing subsystem, or -1 (the step then is neither
+ * booked nor logged). */
+/* Whether a step is timed: only a deadline reads the step and round times (a clock read costs
+ * ~30 ns, a tenth of a macro-step at K = 0). */
+static int clocked(const DRStep *io) { return io->step_deadline_s > 0.0 || io->deadline_s > 0.0; }
+
+static int ledger_step(DRKernel *k, DRStep *io, double t0, double c0, double *rows, size_t ld, size_t s) {
+    double *row = rows + (dr_log_width(k) - DR_LEDGER_COLUMNS) * ld + s;
+    double out[5] = {1.0, NAN, NAN, LEDGER_KEPT, 0.0};
+    int timed = clocked(io);
+    if (io->ledger_on) {
+        double now = timed ? now_ns() : 0.0, tol;
+        if (timed)
+            track_round(io, 1e-9 * (now - t0) / (io->iterations + 1));
+        if (timed && io->reason == DR_DEADLINE && io->step_deadline_s > 0.0)      /* past the inner deadline */
+            track(&io->tail_s, 1e-9 * (now - t0) - io->deadline_s);
+        supply_of(k->a_hat, k->b, k->n, &out[1], &out[2]);
+        tol = io->ledger_rtol * (io->traffic + out[2]);
+        if (io->ledger + out[1] > tol) {
+            double left = io->step_deadline_s > 0.0 ? io->step_deadline_s - 1e-9 * (now - t0) : INFINITY;
+            int f = ledger_redo(k, io, out[1], tol - io->ledger, left >= 2.0 * io->round_s, out);
+            if (f >= 0) return f;
+            if (timed)
+                track_round(io, 1e-9 * (now_ns() - now) / out[4]);
+            io->reason = DR_ENERGY_GUARD;
+        }
+        io->ledger += out[1];
+        io->traffic += out[2];
+    }
+    /* the wall clock is read between the CPU clock's reads (system calls), which it so leaves out */
+    double wall = timed ? 1e-9 * (now_ns() - t0) : NAN;
+    double cpu = c0 > 0.0 ? 1e-9 * (cpu_ns() - c0) : NAN;
+    double logged[DR_LEDGER_COLUMNS] = {out[1], io->ledger_on ? io->ledger : NAN, io->ledger_on ? io->traffic : NAN,
+                                        out[0], out[3], out[4], wall, io->round_s, cpu};
+    for (int c = 0; c < DR_LEDGER_COLUMNS; c++) row[(size_t)c * ld] = logged[c];
+    return -1;
+}
+
+int dr_ledger_redo(DRKernel *k, DRStep *io, double supplied, double budget, int fitted, double *out) {
+    int f = ledger_redo(k, io, supplied, budget, fitted, out);
+    return f >= 0 ? report_failure(k, io, f) : 0;
+}
+
+/* dr_macro_step; under a step deadline with the ledger, its inner loop stops early enough for its
+ * last iteration's overrun and the commit to end by the deadline, so that an s = 0 redo ends within
+ * a round of it: two rounds before it at first, then the running time steps took past the inner
+ * deadline (io->tail_s, from ledger_step: on average half a round of overrun and the commit, whose
+ * code may be cold when the caller ran between steps) plus a round for the spread of the overrun.
+ * The inner deadline stays in io->deadline_s for ledger_step; dr_run_steps restores the caller's. */
+static int guarded_macro_step(DRKernel *k, DRStep *io) {
+    if (io->ledger_on && io->step_deadline_s > 0.0) {
+        double reserve = io->tail_s > 0.0 ? io->tail_s + io->round_s : 2.0 * io->round_s;
+        double inner = io->step_deadline_s - reserve;
+        io->deadline_s = inner > LEDGER_MIN_INNER_S ? inner : LEDGER_MIN_INNER_S;
+    }
+    return dr_macro_step(k, io);
+}
+
+static int guarded_step_of(void *k, DRStep *io) { return guarded_macro_step(k, io); }
+
+int dr_run_steps(DRKernel *k, DRStep *io, int n0, int count, double *rows, long ld, double H_cap) {
+    return dr_run_steps_of(k, io, n0, count, rows, ld, H_cap, guarded_step_of, k);
+}
+
+int dr_run_steps_of(DRKernel *k, DRStep *io, int n0, int count, double *rows, long ld, double H_cap, DRStepFn step,
+                    void *ctx) {
+    size_t m = (size_t)ld, first_observed = (3 + 2 * k->n) * m;
+    io->stopped = 0;
+    for (int s = 0; s < count; s++) {
+        io->t = (double)(n0 + s) * io->dt;
+        if (k->hook_before && k->hook_before(k->hook_ctx, io, n0 + s)) return s;    /* not the step's time */
+        double c0 = io->ledger_on && io->step_deadline_s > 0.0 ? cpu_ns() : 0.0, t0 = clocked(io) ? now_ns() : 0.0;
+        double caller = io->deadline_s;
+        int failure = step(ctx, io);
+        int f = failure ? -1 : ledger_step(k, io, t0, c0, rows, m, (size_t)s);
+        io->deadline_s = caller;
+        if (failure) return s;
+        if (f < 0) f = log_step(k, io, rows, m, (size_t)s);
+        if (f >= 0) {
+            report_failure(k, io, f);
+            return s;
+        }
+        if (k->hook_after) k->hook_after(k->hook_ctx, io, n0 + s);
+        if (stop_after(k, rows + first_observed + s, m, H_cap)) {
+            io->stopped = 1;
+            return s + 1;
+        }
+    }
+    return count;
+}
+
+int dr_floor(DRKernel *k, DRStep *io, const double *inputs, int n_steps) {
+    size_t n = k->n;
+    for (int step = 0; step < n_steps; step++) {
+        double t = io->t + step * io->dt;
+        begin_macro_step(k, io);
+        for (int it = 0; it <= io->K; it++) {
+            int commit = it == io->K;
+            const double *in = inputs ? inputs + ((size_t)step * (size_t)(io->K + 1) + (size_t)it) * n : k->b;
+            double *out = inputs && !commit ? k->b_hat : k->b;
+            for (int i = 0; i < k->n_sub; i++)
+                if (evaluate(&k->sub[i], in, out, t, io->dt, commit, 0)) return report_failure(k, io, i);
+        }
+    }
+    return 0;
+}
+
+DRKernel *dr_create(int n_sub, int n, const double *P, const double *J_L, double *b, double *a_hat,
+                    double *u0, double *uK) {
+    if (n_sub < 1 || n < 1) return NULL;
+    DRKernel *k = calloc(1, sizeof *k);
+    if (!k) return NULL;
+    size_t nn = (size_t)n;
+    k->n_sub = n_sub;
+    k->n = nn;
+    k->sub = calloc((size_t)n_sub, sizeof *k->sub);
+    k->P = P ? csr_from_dense(P, nn) : csr_alloc(nn, 0);
+    k->J_L = J_L ? csr_from_dense(J_L, nn) : csr_alloc(nn, 0);
+    k->u = calloc(5 * nn, sizeof(double));
+    k->redo = calloc(4 * nn, sizeof(double));
+    if (!k->sub || !k->P || !k->J_L || !k->u || !k->redo) {
+        dr_destroy(k);
+        return NULL;
+    }
+    if (!P) memset(k->P->start, 0, (nn + 1) * sizeof(int));
+    if (!J_L) memset(k->J_L->start, 0, (nn + 1) * sizeof(int));
+    k->u_next = k->u + nn;
+    k->b_hat = k->u + 2 * nn;
+    k->z = k->u + 3 * nn;
+    k->w = k->u + 4 * nn;
+    k->b = b;
+    k->a_hat = a_hat;
+    k->u0 = u0;
+    k->uK = uK;
+    k->n_threads = 1;
+    return k;
+}
+
+int dr_set_subsystem(DRKernel *k, int i, const DRFunctions *fn, fmi2Component comp, fmi2FMUstate *state,
+                     const fmi2ValueReference *in_vr, const fmi2ValueReference *out_vr, int m, int offset) {
+    if (i < 0 || i >= k->n_sub || m < 1 || offset < 0 || (size_t)offset + (size_t)m > k->n) return -1;
+    if (!fn->getFMUstate || !fn->setFMUstate || !fn->freeFMUstate || !fn->setReal || !fn->doStep || !fn->getReal)
+        return -1;
+    Sub *s = &k->sub[i];
+    if (s->own_state) s->fn.freeFMUstate(s->comp, &s->own_state);
+    free(s->in_vr);
+    s->in_vr = malloc(2 * (size_t)m * sizeof *s->in_vr);
+    if (!s->in_vr) return -1;
+    s->out_vr = s->in_vr + m;
+    memcpy(s->in_vr, in_vr, (size_t)m * sizeof *in_vr);
+    memcpy(s->out_vr, out_vr, (size_t)m * sizeof *out_vr);
+    s->fn = *fn;
+    s->comp = comp;
+    s->state = state ? state : &s->own_state;
+    s->m = (size_t)m;
+    s->offset = (size_t)offset;
+    return 0;
+}
+
+int dr_set_maps(DRKernel *k, const int *P_start, const int *P_col, const double *P_val, const int *J_start,
+                const int *J_col, const double *J_val) {
+    Csr *P = dr_csr_copy(P_start, P_col, P_val, k->n), *J_L = dr_csr_copy(J_start, J_col, J_val, k->n);
+    if (!P || !J_L) {
+        free(P);
+        free(J_L);
+        return -1;
+    }
+    free(k->P);
+    free(k->J_L);
+    k->P = P;
+    k->J_L = J_L;
+    return 0;
+}
+
+void dr_set_trace(DRKernel *k, double *trace, int capacity) {
+    k->trace = capacity > 0 ? trace : NULL;
+    k->trace_capacity = capacity > 0 ? capacity : 0;
+}
+
+int dr_set_threads(DRKernel *k, int n_threads, const int *thread_of) {
+    stop_workers(k);
+    if (n_threads < 1 || n_threads > DR_MAX_THREADS) return -1;
+    for (int i = 0; i < k->n_sub; i++)
+        if (n_threads > 1 && (thread_of[i] < 0 || thread_of[i] >= n_threads)) return -1;
+    if (n_threads == 1) return 0;
+    for (int id = 1; id < n_threads; id++) {
+        Worker *w = &k->worker[id];
+        memset(w, 0, sizeof *w);
+        w->k = k;
+        w->id = id;
+        w->failed = -1;
+        pthread_mutex_init(&w->mutex, NULL);
+        pthread_cond_init(&w->cond, NULL);
+        pthread_cond_init(&w->done_cond, NULL);
+        if (pthread_create(&w->thread, NULL, worker_main, w) != 0) {
+            pthread_cond_destroy(&w->done_cond);
+            pthread_cond_destroy(&w->cond);
+            pthread_mutex_destroy(&w->mutex);
+            stop_workers(k);
+            return -1;
+        }
+        w->started = 1;
+    }
+    k->generation = 0;
+    for (int i = 0; i < k->n_sub; i++) k->sub[i].thread = thread_of[i];
+    k->n_threads = n_threads;
+    return 0;
+}
+
+static int compare_doubles(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+void dr_costs(DRKernel *k, double *us_per_eval) {
+    for (int i = 0; i < k->n_sub; i++) {
+        Sub *s = &k->sub[i];
+        int m = s->n_samples;
+        qsort(s->sample_ns, (size_t)m, sizeof(double), compare_doubles);
+        us_per_eval[i] = m == 0 ? 0.0 : 1e-3 * (m % 2 ? s->sample_ns[m / 2]
+                                                      : 0.5 * (s->sample_ns[m / 2 - 1] + s->sample_ns[m / 2]));
+        s->n_samples = 0;
+    }
+}
+
+void dr_counts(const DRKernel *k, long *counts) {
+    for (int i = 0; i < k->n_sub; i++) {
+        counts[3 * i] = k->sub[i].n_do_step;
+        counts[3 * i + 1] = k->sub[i].n_save;
+        counts[3 * i + 2] = k->sub[i].n_restore;
+    }
+}
+
+void dr_destroy(DRKernel *k) {
+    if (!k) return;
+    stop_workers(k);
+    if (k->sub) {
+        for (int i = 0; i < k->n_sub; i++) {
+            Sub *s = &k->sub[i];
+            if (s->own_state) s->fn.freeFMUstate(s->comp, &s->own_state);
+            free(s->in_vr);
+            free(s->obs_vr);
+        }
+    }
+    free(k->sub);
+    free(k->P);
+    free(k->J_L);
+    free(k->u);
+    free(k->obs);
+    free(k->redo);
+    options_free(k->opt);
+    free(k);
+}
+
+/* ---- for the other routes on the same subsystem evaluation (kernel_internal.h) ---- */
+
+size_t dr_channels(const DRKernel *k) { return k->n; }
+
+int dr_subsystems(const DRKernel *k) { return k->n_sub; }
+
+void dr_span(const DRKernel *k, int i, size_t *offset, size_t *m) {
+    *offset = k->sub[i].offset;
+    *m = k->sub[i].m;
+}
+
+void dr_begin(DRKernel *k, DRStep *io) { begin_macro_step(k, io); }
+
+int dr_evaluate(DRKernel *k, int i, const double *in, double *out, double t, double h, int commit) {
+    return evaluate(&k->sub[i], in, out, t, h, commit, 0);
+}
+
+void dr_set_hooks(DRKernel *k, DRHookFn before, DRHookFn after, void *ctx) {
+    k->hook_before = before, k->hook_after = after, k->hook_ctx = ctx;
+}
+
+void dr_iterates(DRKernel *k, double **u0, double **uK, double **trace, int *capacity) {
+    *u0 = k->u0, *uK = k->uK, *trace = k->trace, *capacity = k->trace_capacity;
+}
+
+int dr_read(DRKernel *k, int i, const fmi2ValueReference *vr, int count, double *out) {
+    Sub *s = &k->sub[i];
+    return failed(s, DR_FN_GET_REAL, s->fn.getReal(s->comp, vr, (size_t)count, out));
+}
+
+int dr_thaw(DRKernel *k, int i) {
+    Sub *s = &k->sub[i];
+    if (!s->frozen || !s->dirty) return 0;
+    if (failed(s, DR_FN_SET_STATE, s->fn.setFMUstate(s->comp, *s->state))) return 1;
+    s->n_restore++;
+    s->dirty = 0;
+    return 0;
+}
+
+int dr_advance(DRKernel *k, int i, const double *in, double *out, double t, double h) {
+    k->sub[i].frozen = 1;                                   /* nothing saved, nothing to restore */
+    k->sub[i].dirty = 0;
+    return evaluate(&k->sub[i], in, out, t, h, 1, 0);
+}
+
+int dr_fail(DRKernel *k, DRStep *io, int i) { return report_failure(k, io, i); }
+
+double dr_distance(const double *x, const double *y, size_t n) { return distance(x, y, n); }
+
+double dr_now_ns(void) { return now_ns(); }
+
+double *dr_outputs(DRKernel *k) { return k->b; }
+
+double *dr_inputs(DRKernel *k) { return k->a_hat; }

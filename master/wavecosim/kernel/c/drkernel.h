@@ -1,0 +1,163 @@
+/* The fast path of the DR master (master/fast_path.py drives it through ctypes).
+ *
+ * One call of dr_macro_step() runs Algorithm 1 of the paper for one macro-step, lines 3-22: save
+ * x_i^n, K inner iterations (each queries every frozen port map S_i^n once), a = P b^*, and the
+ * commit Phi_i(x_i^n, a_i). FMUs are called through their own fmi2 function pointers, so the
+ * kernel works for any FMI 2.0 co-simulation FMU that can get and set its state.
+ *
+ * The arithmetic follows master/linalg.py and master/masters/dr.py operation by operation
+ * (sums from 0.0, left to right; compiled with -ffp-contract=off), so the numbers are
+ * bit-identical to the Python reference.
+ *
+ * Threads: subsystem i is evaluated by thread thread_of[i] (0 = the caller). Every thread writes
+ * only its own subsystems' slices and the caller does the DR arithmetic alone, so any thread
+ * plan gives the same numbers as the serial one.
+ */
+#ifndef WAVECOSIM_DRKERNEL_H
+#define WAVECOSIM_DRKERNEL_H
+
+#include <stddef.h>
+#include "fmi2FunctionTypes.h"
+
+#define DR_MAX_THREADS 8
+
+/* Termination reasons (StepLog.reason in Python). */
+enum { DR_BUDGET = 0, DR_TOLERANCE = 1, DR_DEADLINE = 2, DR_EXPLICIT = 3, DR_ENERGY_GUARD = 5 };
+
+/* The energy ledger's columns at the end of each dr_run_steps log row: I^n, L^n, the cumulative
+ * traffic, s, action (0 kept, 1 scaled, 2 zero), redo rounds (0-3), the step's wall time (s), the
+ * running time of one evaluation round (s) and, under a step deadline, the step's CPU time on the
+ * calling thread (s; else NaN). Without the ledger: NaN, NaN, NaN, 1, 0, 0, wall time, round, NaN. */
+#define DR_LEDGER_COLUMNS 9
+
+/* FMU functions, as reported in DRStep.failed_function. */
+enum { DR_FN_NONE = 0, DR_FN_GET_STATE, DR_FN_SET_STATE, DR_FN_SET_REAL, DR_FN_DO_STEP, DR_FN_GET_REAL };
+
+/* The FMU functions the kernel calls, taken from the FMU's own shared library. */
+typedef struct {
+    fmi2GetFMUstateTYPE *getFMUstate;
+    fmi2SetFMUstateTYPE *setFMUstate;
+    fmi2FreeFMUstateTYPE *freeFMUstate;
+    fmi2SetRealTYPE *setReal;
+    fmi2DoStepTYPE *doStep;
+    fmi2GetRealTYPE *getReal;
+} DRFunctions;
+
+/* One macro-step: the caller fills the inputs, the kernel the results. */
+typedef struct {
+    double t, dt;        /* in: t_n and the macro-step size */
+    int K;               /* in: inner-iteration budget */
+    double eps;          /* in: tolerance of lines 14-16; < 0 = off */
+    double deadline_s;   /* in: wall-clock budget of the inner loop; <= 0 = none */
+    int measure;         /* in: time every evaluation (per-subsystem cost, see dr_costs) */
+    int iterations;      /* out: inner iterations done */
+    int reason;          /* out: DR_BUDGET, DR_TOLERANCE, DR_DEADLINE or DR_EXPLICIT (K = 0) */
+    double residual;     /* out: |u^k - u^{k-1}| of the last iteration (NaN if none) */
+    int failed_subsystem; /* out: -1, or the first subsystem whose FMU call failed */
+    int failed_function; /* out: DR_FN_* of that call */
+    int failed_status;   /* out: the fmi2Status it returned */
+    int stopped;         /* out (dr_run_steps): 1 if it stopped early, after the last step it logged */
+    int ledger_on;       /* in (dr_run_steps): keep the interface energy ledger (wavecosim/run/observers/energy_ledger.py) */
+    double ledger;       /* in/out: L, the energy the interface supplied so far (steps accepted) */
+    double traffic;      /* in/out: the interface's cumulative traffic 1/2 (|a|^2 + |b|^2) */
+    double ledger_rtol;  /* in: a step with L + I^n > rtol (traffic + its own) is redone with its inputs scaled */
+    double step_deadline_s; /* in (dr_run_steps, ledger): wall-clock budget of a step, redo included; <= 0 = none */
+    double round_s;      /* in/out (dr_run_steps, ledger): running time of one evaluation round (all subsystems) */
+    double tail_s;       /* in/out (dr_run_steps, ledger): running time a step takes past its inner loop's deadline */
+} DRStep;
+
+typedef struct DRKernel DRKernel;
+
+/* A kernel for n_sub subsystems with n channels in all. P and J_L (n x n, dense row-major) are
+ * copied as sparse rows, or NULL: then dr_set_maps gives them (sparse) before the first macro-step.
+ * b (b^n, updated to b^{n+1} by each macro-step), a_hat, u0 and uK (length n) stay the caller's. */
+DRKernel *dr_create(int n_sub, int n, const double *P, const double *J_L, double *b, double *a_hat,
+                    double *u0, double *uK);
+
+/* Subsystem i: its functions, instance, value references of the wave inputs and outputs (m each)
+ * and the offset of its first channel in the stacked vectors. x_i^n is saved into *state (the
+ * caller's handle, which the caller frees) or, if state is NULL, into a handle of the kernel's
+ * own (freed by dr_destroy). Returns 0, or -1 on bad arguments. */
+int dr_set_subsystem(DRKernel *k, int i, const DRFunctions *fn, fmi2Component comp, fmi2FMUstate *state,
+                     const fmi2ValueReference *in_vr, const fmi2ValueReference *out_vr, int m, int offset);
+
+/* New P and J_L (copied), e.g. after gamma was re-tuned between macro-steps, in compressed rows:
+ * row i of P holds the columns P_col[P_start[i] .. P_start[i+1]) (ascending, for the order of the
+ * sums) with values P_val, P_start[0] = 0; J_L alike. Returns 0, or -1 on malformed rows or no
+ * memory (the maps in force stay). */
+int dr_set_maps(DRKernel *k, const int *P_start, const int *P_col, const double *P_val, const int *J_start,
+                const int *J_col, const double *J_val);
+
+/* Record the inner loop's queries: trace[2 n k .. 2 n k + n) = u^k and the next n values S(u^k),
+ * for k < capacity; trace = NULL stops recording. The buffer stays the caller's. */
+void dr_set_trace(DRKernel *k, double *trace, int capacity);
+
+/* Evaluate subsystem i on thread thread_of[i] of n_threads (0 = the caller); starts or stops the
+ * persistent worker threads as needed. Returns 0, or -1 if a thread cannot be started (the kernel
+ * then stays serial). */
+int dr_set_threads(DRKernel *k, int n_threads, const int *thread_of);
+
+/* The DR master's named options (wavecosim/masters/dr_options.py): relaxation lambda in (0, 2) of
+ * line 12, Anderson window (0: off, at most 16), warm start of u^0 from b^n and b^{n-1}. Each call
+ * forgets b^{n-1}; (1, 0, 0) is the paper's Algorithm 1. Returns 0, or -1 on bad values or no memory. */
+int dr_set_options(DRKernel *k, double relaxation, int anderson, int warm_start);
+/* After dr_set_options with an Anderson window: keep its differences across macro-steps (memory) and
+ * commit the Anderson combination of the responses (extrapolate). Returns -1 without a window. */
+int dr_set_anderson_modes(DRKernel *k, int memory, int extrapolate);
+
+/* Algorithm 1, lines 3-22, for one macro-step. Returns 0, or -1 when an FMU call failed
+ * (see io->failed_*); the instances are then left where the failure happened. */
+int dr_macro_step(DRKernel *k, DRStep *io);
+
+/* Values to read from subsystem i after each commit of dr_run_steps (value references, copied);
+ * the first is its stored energy H_i. Returns 0, or -1 on bad arguments or no memory. */
+int dr_set_observed(DRKernel *k, int i, const fmi2ValueReference *vrs, int count);
+
+/* Doubles per row of dr_run_steps' log: 3 + 2 n + every subsystem's observed count + DR_LEDGER_COLUMNS. */
+size_t dr_log_width(const DRKernel *k);
+
+/* Macro-steps n0 .. n0 + count - 1, each exactly dr_macro_step at t = (double)n dt, logged
+ * column-major (value c of step s at rows[c ld + s], ld >= count, so each value is one contiguous
+ * column; a call may go on in the columns after an earlier call's):
+ * iterations, reason, residual, a (n), b^{n+1} (n), then every subsystem's observed values in
+ * subsystem order, then the ledger's DR_LEDGER_COLUMNS. With io->ledger_on it keeps the interface
+ * energy ledger of wavecosim/run/observers/energy_ledger.py, bit for bit: a step that would lift L above
+ * tol is undone and committed again with its inputs scaled (a, b and the observed values logged are
+ * the redo's, its reason DR_ENERGY_GUARD); with io->step_deadline_s the inner loop stops early enough
+ * for its overrun and the commit to end by the deadline (two rounds at first, then the time steps
+ * took past the inner deadline, io->tail_s, plus a round) and the fitted scale is tried only when
+ * two rounds are left (else s = 0), so a step ends within about one round of the deadline. A call of
+ * one step is the guarded step of a step-by-step run (wavecosim/masters/dr_fast.py). It stops right
+ * after a step whose observed values are not all finite or whose stored energy may exceed H_cap
+ * (pass INFINITY for none; the caller decides exactly), setting io->stopped (also when that step was
+ * the last of the call). Returns the number of steps done and logged; when an FMU call failed, io->failed_* name it and the step it
+ * failed in (the one after those done) has no entries. */
+int dr_run_steps(DRKernel *k, DRStep *io, int n0, int count, double *rows, long ld, double H_cap);
+
+/* The energy ledger's redo of the step dr_macro_step just committed (a_hat and b as it left them),
+ * whose commit supplied `supplied` beyond the ledger's `budget` (wavecosim/run/observers/energy_ledger.py
+ * _redo): every subsystem back at x_i^n, then, if `fitted`, a probe at s = 0 and the commit at the
+ * fitted s, kept if it fits the budget; else, or on a miss, the commit at s = 0. a_hat becomes s a,
+ * b the new b^{n+1}; out[0..4] = s, supply, traffic, action (1 scaled, 2 zero), rounds. Returns 0,
+ * or -1 when an FMU call failed (see io->failed_*). */
+int dr_ledger_redo(DRKernel *k, DRStep *io, double supplied, double budget, int fitted, double *out);
+
+/* The floor: n_steps macro-steps making the same FMU calls as dr_macro_step with K = io->K
+ * (serial), with no DR arithmetic; t = io->t + s dt at step s. The inputs of step s are
+ * inputs[((K + 1) s + k) n ..] for query k < K and the commit k = K (e.g. u^k and a recorded from
+ * a run, which then replays that run's FMU work exactly); inputs = NULL feeds every subsystem its
+ * own last outgoing wave. Returns like dr_macro_step. */
+int dr_floor(DRKernel *k, DRStep *io, const double *inputs, int n_steps);
+
+/* Median wall time (microseconds) of one evaluation of each subsystem over the macro-steps run
+ * with io->measure set (the first 64 evaluations), then resets the measurement. */
+void dr_costs(DRKernel *k, double *us_per_eval);
+
+/* Calls made so far per subsystem: counts[3 i + 0..2] = doStep, getFMUstate, setFMUstate. */
+void dr_counts(const DRKernel *k, long *counts);
+
+/* Stops the workers, frees the kernel's own saved FMU states (call it before the instances are
+ * freed) and the kernel. */
+void dr_destroy(DRKernel *k);
+
+#endif

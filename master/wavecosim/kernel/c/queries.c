@@ -1,0 +1,34 @@
+/* Many queries of one frozen port map S_i^n in one call (wavecosim/core/frozen_port_map.py,
+ * Subsystem.raw_queries): each restores x_i^n, sets the inputs, makes one doStep and reads the
+ * outputs, the same FMU calls in the same order as that many Subsystem.raw_query calls. */
+#include "drkernel.h"
+
+/* Queries q = 0 .. count-1 with inputs[q m ..] into outputs[q m ..]; the first restores x_i^n (from
+ * *state) only when dirty. Returns how many were made; on a failed FMU call (status worse than
+ * Warning) failed[0] is its DR_FN_* and failed[1] its status, and that query is not counted. */
+int fq_queries(const DRFunctions *fn, fmi2Component comp, fmi2FMUstate *state, const fmi2ValueReference *in_vr,
+               const fmi2ValueReference *out_vr, int m, double t, double dt, const double *inputs, int count,
+               double *outputs, int dirty, int *failed)
+{
+    size_t n = (size_t)m;
+    for (int q = 0; q < count; q++) {
+        int status;
+        if ((dirty || q > 0) && (status = fn->setFMUstate(comp, *state)) > fmi2Warning) {
+            failed[0] = DR_FN_SET_STATE, failed[1] = status;
+            return q;
+        }
+        if ((status = fn->setReal(comp, in_vr, n, inputs + (size_t)q * n)) > fmi2Warning) {
+            failed[0] = DR_FN_SET_REAL, failed[1] = status;
+            return q;
+        }
+        if ((status = fn->doStep(comp, t, dt, fmi2False)) > fmi2Warning) {
+            failed[0] = DR_FN_DO_STEP, failed[1] = status;
+            return q;
+        }
+        if ((status = fn->getReal(comp, out_vr, n, outputs + (size_t)q * n)) > fmi2Warning) {
+            failed[0] = DR_FN_GET_REAL, failed[1] = status;
+            return q;
+        }
+    }
+    return count;
+}

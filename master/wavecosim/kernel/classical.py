@@ -1,0 +1,103 @@
+"""The kernel route of the classical masters (explicit, gauss-seidel, jacobi-iter, gauss-seidel-iter).
+
+kernel/c/classical.c runs a whole macro-step of the Python reference
+(wavecosim/masters/explicit.py, fixed_point.py) in C, through the DR kernel's subsystem evaluation with the FMUs
+in their physical port mode, in the reference's operation order, so the numbers are bit-identical.
+`ClassicalKernel` wires it up through ctypes; the masters pick it with `master.fast` like DR
+(wavecosim/masters/kernel_route.py), one macro-step per call or blocks of them.
+"""
+import ctypes
+import functools
+import math
+
+import numpy as np
+
+from ..errors import ConfigError, FmuError
+from .drkernel import Kernel, load_library, unusable
+
+_double_p = ctypes.POINTER(ctypes.c_double)
+
+
+def _library():
+    lib = load_library()
+    if not hasattr(lib, "_classical_ready"):
+        p, ip = ctypes.c_void_p, ctypes.POINTER(ctypes.c_int)
+        lib.cl_create.restype = p
+        lib.cl_create.argtypes = [p, ip, ip, _double_p]
+        lib.cl_fixed_point_step.argtypes = [p, p, p, p, p, ctypes.c_int]      # arrays by address
+        lib.cl_explicit_step.argtypes = [p, p, p, p, ctypes.c_int]
+        lib.cl_run_steps.argtypes = [p, p, ctypes.c_int, ctypes.c_int, p, ctypes.c_long, ctypes.c_double,
+                                     ctypes.c_int, ctypes.c_int]
+        lib.cl_destroy.argtypes = [p]
+        lib.cl_destroy.restype = None
+        lib._classical_ready = True
+    return lib
+
+
+def refusal(scene, mode):
+    """Why the Python reference runs (None: the kernel can run); master.fast: true insists."""
+    if mode == "false":
+        return "master.fast is false"
+    why = unusable(scene)
+    if why is None:
+        physical = [s.name for s in scene.subsystems if s.port.physical]
+        why = f"subsystem {physical[0]} has a declared physical port (Python only for now)" if physical else None
+    if why is not None and mode == "true":
+        raise ConfigError(f"{scene.scenario.source}: master.fast: true, but {why}")
+    return why
+
+
+class ClassicalKernel:
+    """A DR kernel over the scene's subsystems (physical mode) and the classical step on it."""
+
+    def __init__(self, scene, G, explicit, sequential):
+        self.lib = _library()
+        self.base = Kernel(scene, None, None)
+        self.base.configure(scene.scenario.dt, 0)
+        self.n = scene.n_channels
+        ptr = ctypes.POINTER(ctypes.c_int)
+        self.handle = self.lib.cl_create(self.base.handle, G.start.ctypes.data_as(ptr), G.col.ctypes.data_as(ptr),
+                                         G.val.ctypes.data_as(_double_p))
+        if not self.handle:
+            self.base.close()
+            raise FmuError("the classical kernel could not be created (out of memory)")
+        self._handle, self._step = ctypes.c_void_p(self.handle), self.lib.cl_fixed_point_step
+        # the DR kernel's block call, log and observed values, with the classical step in it
+        self.base._run_steps = functools.partial(self._blocks, int(explicit), int(sequential))
+
+    def _blocks(self, explicit, sequential, _, io, n0, count, rows, ld, H_cap):
+        return self.lib.cl_run_steps(self._handle, io, n0, count, rows, ld, H_cap, explicit, sequential)
+
+    def run_steps(self, n0, count, y, H_cap=math.inf):
+        """Macro-steps n0 .. n0 + count - 1 from outputs y in one call (classical.h, cl_run_steps):
+        (steps done, their fast_path.BlockLog, the FmuError of the step after them or None)."""
+        self.base.b[:] = [float(x) for x in y]
+        return self.base.run_steps(n0, count, H_cap)
+
+    def configure(self, K, eps, deadline_s):
+        self.base.configure(self.base.io.dt, K, eps, deadline_s)
+
+    def fixed_point_step(self, n, t, y, sequential):
+        """Macro-step n from outputs y: (io, y^{n+1}, committed inputs); raises the reference's FmuError."""
+        io = self.base.io
+        io.t = t
+        y_n = np.ascontiguousarray(y, dtype=np.float64)
+        y_next, u = np.empty(self.n), np.empty(self.n)
+        if self._step(self._handle, self.base._io, y_n.ctypes.data, y_next.ctypes.data, u.ctypes.data, sequential):
+            raise self.base.failure(n, t)
+        return io, y_next, u
+
+    def explicit_step(self, n, t, y, sequential):
+        """Explicit macro-step n from outputs y, nothing saved: (io, y^{n+1})."""
+        self.base.io.t = t
+        y_n = np.ascontiguousarray(y, dtype=np.float64)
+        y_next = np.empty(self.n)
+        if self.lib.cl_explicit_step(self._handle, self.base._io, y_n.ctypes.data, y_next.ctypes.data, sequential):
+            raise self.base.failure(n, t)
+        return self.base.io, y_next
+
+    def close(self):
+        if self.handle:
+            self.lib.cl_destroy(self.handle)
+            self.handle = None
+        self.base.close()

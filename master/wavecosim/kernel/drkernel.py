@@ -1,0 +1,400 @@
+"""The fast path of the DR master: Algorithm 1 for a whole macro-step in one call into C.
+
+The C kernel (kernel/c/drkernel.c, built with the FMUs into the kernel library libdrkernel.so) calls
+each FMU through its own fmi2 function pointers with preallocated buffers, and does the DR
+arithmetic in the operation order of wavecosim/kernel/linalg.py, so its numbers are bit-identical to the
+readable reference `DRMaster` (wavecosim/masters/dr.py). This module wires the kernel up through
+ctypes: `Kernel` owns one C kernel for a scene's subsystems and the buffers it shares with
+Python. The master that uses it is wavecosim/masters/dr_fast.py::FastDRMaster.
+An FMI 3 FMU is handed over in fmi2 form: `Fmu.function_pointer` gives the functions of
+kernel/c/fmi3shim.c, which take the FMU's shim (`Fmu.component`) as their fmi2Component.
+"""
+import ctypes
+import math
+import os
+import time
+
+import numpy as np
+
+from .build import kernel_library
+from ..errors import ConfigError, FmuError
+from .adapter import load_library as load_adapter_library
+from .linalg import Sparse
+
+PARALLEL_MIN_US = 150.0
+REASONS = ("budget", "tolerance", "deadline", "explicit", "converged", "energy-guard")  # as masters/base.py (the
+#                                                  runner asserts it); the kernel never gives "converged"
+LEDGER_LOG = ("supplied", "ledger", "traffic", "scale", "action", "rounds", "step_s", "round_s", "cpu_s")  # drkernel.h
+FUNCTIONS = (None, "fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2SetReal", "fmi2DoStep", "fmi2GetReal")
+FMI_NAMES = ("fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate", "fmi2SetReal", "fmi2DoStep",
+              "fmi2GetReal")
+
+
+class Trace:
+    """The queries (u^k, S(u^k)) of one macro-step's inner loop, read like the reference's list of
+    pairs; a pair is unpacked into lists only when it is read (most steps nobody reads them)."""
+
+    def __init__(self, values, n, count):
+        self._values, self._n, self._count = values, n, count
+
+    def __len__(self):
+        return self._count
+
+    def __getitem__(self, k):
+        if isinstance(k, slice):
+            return [self[i] for i in range(*k.indices(len(self)))]
+        k = k + len(self) if k < 0 else k
+        if not 0 <= k < len(self):
+            raise IndexError("trace index out of range")
+        n, v = self._n, self._values
+        return v[2 * n * k:2 * n * k + n], v[2 * n * k + n:2 * n * (k + 1)]
+
+    def __iter__(self):
+        return (self[k] for k in range(len(self)))
+
+    def as_array(self):
+        """All pairs as one (count, 2, n) array, without a Python object per pair."""
+        arr = np.frombuffer(self._values, dtype=np.float64, count=2 * self._n * self._count)
+        return arr.reshape(self._count, 2, self._n)
+
+
+class DRFunctions(ctypes.Structure):
+    """drkernel.h: the FMU functions the kernel calls."""
+    _fields_ = [(name, ctypes.c_void_p) for name in
+                ("getFMUstate", "setFMUstate", "freeFMUstate", "setReal", "doStep", "getReal")]
+
+
+class DRStep(ctypes.Structure):
+    """drkernel.h: inputs and results of one macro-step."""
+    _fields_ = [("t", ctypes.c_double), ("dt", ctypes.c_double), ("K", ctypes.c_int), ("eps", ctypes.c_double),
+                ("deadline_s", ctypes.c_double), ("measure", ctypes.c_int), ("iterations", ctypes.c_int),
+                ("reason", ctypes.c_int), ("residual", ctypes.c_double), ("failed_subsystem", ctypes.c_int),
+                ("failed_function", ctypes.c_int), ("failed_status", ctypes.c_int), ("stopped", ctypes.c_int),
+                ("ledger_on", ctypes.c_int), ("ledger", ctypes.c_double), ("traffic", ctypes.c_double),
+                ("ledger_rtol", ctypes.c_double), ("step_deadline_s", ctypes.c_double), ("round_s", ctypes.c_double),
+                ("tail_s", ctypes.c_double)]
+
+
+_lib = None
+
+
+def load_library():
+    """The kernel library, built (with the FMUs) if missing or stale; raises FmuError if it cannot be."""
+    global _lib
+    if _lib is None:
+        lib = kernel_library("drkernel", "the kernel library")
+        p, i, d = ctypes.c_void_p, ctypes.c_int, ctypes.POINTER(ctypes.c_double)
+        lib.dr_create.restype = p
+        lib.dr_create.argtypes = [i, i, d, d, d, d, d, d]
+        lib.dr_set_subsystem.argtypes = [p, i, ctypes.POINTER(DRFunctions), p, p, ctypes.POINTER(ctypes.c_uint),
+                                         ctypes.POINTER(ctypes.c_uint), i, i]
+        lib.dr_set_threads.argtypes = [p, i, ctypes.POINTER(ctypes.c_int)]
+        lib.dr_costs.argtypes = [p, d]
+        lib.dr_costs.restype = None
+        lib.dr_counts.argtypes = [p, ctypes.POINTER(ctypes.c_long)]
+        lib.dr_counts.restype = None
+        lib.dr_destroy.argtypes = [p]
+        lib.dr_destroy.restype = None
+        lib.dr_floor.argtypes = [p, ctypes.POINTER(DRStep), d, i]
+        ip = ctypes.POINTER(ctypes.c_int)
+        lib.dr_set_maps.argtypes = [p, ip, ip, d, ip, ip, d]
+        lib.dr_set_trace.argtypes = [p, d, i]
+        lib.dr_set_trace.restype = None
+        lib.dr_set_observed.argtypes = [p, i, ctypes.POINTER(ctypes.c_uint), i]
+        lib.dr_log_width.argtypes = [p]
+        lib.dr_log_width.restype = ctypes.c_size_t
+        lib.dr_run_steps.argtypes = [p, ctypes.POINTER(DRStep), i, i, p, ctypes.c_long, ctypes.c_double]
+        lib.dr_set_options.argtypes = [p, ctypes.c_double, i, i]
+        lib.dr_set_anderson_modes.argtypes = [p, i, i]
+        lib.dr_ledger_redo.argtypes = [p, ctypes.POINTER(DRStep), ctypes.c_double, ctypes.c_double, i, d]
+        _lib = lib
+    return _lib
+
+
+class BlockLog:
+    """The macro-steps run in one kernel call, one row per step: iterations, reason (index into
+    REASONS), residual, a (steps x n), b^{n+1} (steps x n); `observed` holds the observed values one
+    per row (values x steps), as the kernel logs them (each value contiguous), and `ledger` the energy
+    ledger's (LEDGER_LOG x steps). `stopped`: the kernel stopped early after the last step (its H may
+    exceed the cap, or a value is not finite)."""
+
+    def __init__(self, columns, n, stopped=False):
+        self.columns, self.n, self.stopped = columns, n, stopped     # one row per logged value
+        self.iterations, self.reason, self.residual = columns[0], columns[1], columns[2]
+        end = len(columns) - len(LEDGER_LOG)
+        self.a_hat, self.b, self.observed = columns[3:3 + n].T, columns[3 + n:3 + 2 * n].T, columns[3 + 2 * n:end]
+        self.a_rows, self.observed_at = range(3, 3 + n), 3 + 2 * n       # where a_hat and observed start
+        self.ledger_rows, self.ledger_at = columns[end:], end            # LEDGER_LOG x steps, from row end
+        self.ledger = dict(zip(LEDGER_LOG, self.ledger_rows))
+
+    def __len__(self):
+        return self.columns.shape[1]
+
+    def first(self, k):
+        """The first k steps (not stopped): this log when that is all of it."""
+        if k == len(self) and not self.stopped:
+            return self
+        return BlockLog(self.columns[:, :k], self.n)
+
+
+def unusable(scene):
+    """Why the kernel cannot run this scene, or None if it can."""
+    for s in scene.subsystems:
+        if not s.fmu.can_save_state:
+            return f"subsystem {s.name} cannot get and set its FMU state"
+        for name in FMI_NAMES:
+            try:
+                s.fmu.function_pointer(name)      # FMI 3: kernel/c/fmi3shim.c's, in fmi2 form
+            except AttributeError:
+                return f"subsystem {s.name}: the FMU does not export {s.fmu.function_name(name)}"
+            except FmuError as exc:
+                return str(exc)
+    try:
+        load_library()
+        if any(s.adapter for s in scene.subsystems):
+            load_adapter_library()
+    except FmuError as exc:
+        return str(exc)
+    return None
+
+
+def kernel_refusal(scene, mode):
+    """Why a master's Python reference runs instead of its kernel route (None: the kernel can run),
+    for master.fast `mode`; `true` insists (a config error when the kernel cannot run)."""
+    if mode == "false":
+        return "master.fast is false"
+    why = unusable(scene)
+    if why is not None and mode == "true":
+        raise ConfigError(f"{scene.scenario.source}: master.fast: true, but {why}")
+    return why
+
+
+def available_cpus():
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:
+        return os.cpu_count() or 1
+
+
+def thread_plan(costs_us, n_threads):
+    """Subsystem -> thread (0 = the caller): longest evaluation first onto the least loaded thread."""
+    load, plan = [0.0] * n_threads, [0] * len(costs_us)
+    for i in sorted(range(len(costs_us)), key=lambda i: -costs_us[i]):
+        k = min(range(n_threads), key=lambda k: (load[k], k))
+        plan[i] = k
+        load[k] += costs_us[i]
+    return plan, load
+
+
+def fmu_functions(s):
+    """The FMU functions and component the kernel calls for subsystem s: its own fmi2 ones."""
+    return DRFunctions(*[s.fmu.function_pointer(name) for name in FMI_NAMES]), s.fmu.component
+
+
+def adapter_port(s, fns, comp):
+    """A subsystem with a physical port: its wave adapter goes to C over the FMU's table (fns, comp)
+    (Subsystem.adapter_in_kernel), and the kernel calls the adapter's fmi2 shim as a wave port with
+    value references 0 .. m - 1. Returns (functions, component, vr_in, vr_out)."""
+    table, adapter = s.adapter_in_kernel(fns, comp, FUNCTIONS)
+    vrs = (ctypes.c_uint * s.m)(*range(s.m))
+    return DRFunctions(*table), adapter, vrs, vrs
+
+
+class Kernel:
+    """One C kernel over a scene's subsystems (wave mode), with its buffers b, a_hat, u^0, u^K."""
+
+    def __init__(self, scene, P, J_L):
+        """P, J_L: linalg.Sparse or dense rows; None for a route without them (classical_path.py),
+        which then runs the subsystems in the port mode the scene opened them in."""
+        lib = self.lib = load_library()
+        n = scene.n_channels
+        self.subsystems = scene.subsystems
+        array = ctypes.c_double * n
+        self.n = n
+        # b^n, a, u^0, u^K side by side, so that one slice reads all four after a macro-step
+        self.results = (ctypes.c_double * (4 * n))()
+        self.b, self.a_hat, self.u0, self.uK = [array.from_buffer(self.results, 8 * n * j) for j in range(4)]
+        self.handle = lib.dr_create(len(self.subsystems), n, None, None, self.b, self.a_hat, self.u0, self.uK)
+        if not self.handle:
+            raise FmuError("the DR kernel could not be created (out of memory)")
+        self._handle = ctypes.c_void_p(self.handle)
+        try:
+            if P is not None:
+                self.set_maps(P, J_L)
+        except FmuError:
+            self.close()
+            raise
+        for i, (s, off) in enumerate(zip(self.subsystems, scene.offsets)):
+            fns, comp = fmu_functions(s)
+            if s.adapter:
+                fns, comp, vr_in, vr_out = adapter_port(s, fns, comp)
+            else:
+                vr_in, vr_out = s.port_vrs()
+            # x_i^n goes into the Subsystem's own handle, so that after a fast macro-step the
+            # Subsystem holds x_i^n exactly as after the reference one (restore_frozen, thaw work)
+            state = s.state_handle_address()
+            if lib.dr_set_subsystem(self.handle, i, ctypes.byref(fns), comp, state, vr_in, vr_out, s.m,
+                                    int(off)):
+                self.close()
+                raise FmuError(f"subsystem {s.name}: the DR kernel refused its port")
+        self.io = DRStep(measure=0, eps=-1.0, deadline_s=0.0)
+        self.at = (None, None)                     # (n, t) of the last macro_step
+        self._io = ctypes.byref(self.io)
+        self._macro_step = lib.dr_macro_step       # called with pre-converted arguments
+        self.threads = 1
+        self.trace, self.trace_capacity = None, 0
+        self.width, self.log = lib.dr_log_width(self._handle), np.empty((0, 0))
+        self._run_steps = lib.dr_run_steps
+
+    def observe(self, names, steps=0):
+        """Read these variables of each subsystem (names[i], H_i first) after every commit of run_steps,
+        with a log of room for `steps` steps made now; returns an empty BlockLog of the blocks' layout
+        (what the runner prepares its passes with)."""
+        for i, (s, vars_i) in enumerate(zip(self.subsystems, names)):
+            vrs = (ctypes.c_uint * len(vars_i))(*s.fmu.real_vrs(vars_i))
+            if self.lib.dr_set_observed(self._handle, i, vrs, len(vars_i)):
+                raise FmuError(f"subsystem {s.name}: the DR kernel could not keep {len(vars_i)} observed values")
+        self.width = self.lib.dr_log_width(self._handle)
+        self._log_room(0, steps)
+        return BlockLog(self.log[:, :0], self.n)
+
+    def _log_room(self, keep, steps):
+        """A log of room for `steps` steps per call (written through once, so no page of it is first
+        touched inside a block), its first `keep` columns kept."""
+        if self.log.shape[0] == self.width and self.log.shape[1] >= steps:
+            return
+        log = np.full((self.width, max(steps, 1)), math.nan)
+        if keep:
+            log[:, :keep] = self.log[:, :keep]
+        self.log = log
+
+    def keep_ledger(self, ledger, traffic, rtol, step_deadline_s=None):
+        """From the next run_steps on, the kernel books the interface energy ledger from (L, traffic)
+        and redoes a step that would lift it above tol, within step_deadline_s (drkernel.c, ledger_step)."""
+        io = self.io
+        io.ledger_on, io.ledger, io.traffic, io.ledger_rtol = 1, ledger, traffic, rtol
+        io.step_deadline_s = step_deadline_s or 0.0
+
+    def run_steps(self, n0, count, H_cap=math.inf, measure=False, at=0):
+        """Macro-steps n0 .. n0 + count - 1 in one call (drkernel.h, dr_run_steps): (steps done, their
+        BlockLog, the FmuError of the step after them or None). The call logs from column `at` on,
+        after the last call's first `at` steps (joined_log reads them as one, without a copy); the log
+        is overwritten by the next call from column 0."""
+        self._log_room(at, at + count)
+        self.io.measure = measure
+        log, ld = self.log, self.log.shape[1]
+        done = self._run_steps(self._handle, self._io, n0, count, log.ctypes.data + 8 * at, ld, H_cap)
+        n = n0 + done
+        error = self.failure(n, n * self.io.dt) if self.io.failed_subsystem >= 0 else None
+        return done, BlockLog(log[:, at:at + done], self.n, bool(self.io.stopped)), error
+
+    def joined_log(self, steps, stopped):
+        """The log's first `steps` columns as one BlockLog (a call and the calls it went on after)."""
+        return BlockLog(self.log[:, :steps], self.n, stopped)
+
+    def set_options(self, relaxation, anderson, warm_start, memory=False, extrapolate=False):
+        """The DR master's named options (wavecosim/masters/dr_options.py); forgets b^{n-1} and the
+        Anderson differences."""
+        if (self.lib.dr_set_options(self._handle, float(relaxation), int(anderson), int(bool(warm_start)))
+                or self.lib.dr_set_anderson_modes(self._handle, int(bool(memory)), int(bool(extrapolate)))):
+            raise FmuError(f"the DR kernel refused its options (relaxation {relaxation}, anderson {anderson})")
+
+    def set_maps(self, P, J_L):
+        """P and J_L (linalg.Sparse, or dense rows) for the next macro-steps, copied by the kernel."""
+        args = []
+        for M in (P, J_L):
+            M = M if isinstance(M, Sparse) else Sparse.from_dense(M)
+            args += [M.start.ctypes.data_as(ctypes.POINTER(ctypes.c_int)),
+                     M.col.ctypes.data_as(ctypes.POINTER(ctypes.c_int)),
+                     M.val.ctypes.data_as(ctypes.POINTER(ctypes.c_double))]
+        if self.lib.dr_set_maps(self.handle, *args):
+            raise FmuError("the DR kernel refused the coupling maps (out of memory)")
+
+    def record(self, capacity):
+        """Record up to `capacity` inner-loop queries (u^k, S(u^k)) per macro-step (0 = stop)."""
+        if capacity > self.trace_capacity:
+            self._trace_type = ctypes.c_double * (2 * self.n * capacity)
+            self.trace = self._trace_type()
+        self.trace_capacity = max(capacity, 0)
+        self.lib.dr_set_trace(self.handle, self.trace, self.trace_capacity)
+
+    def recorded(self, iterations):
+        """[(u^k, S(u^k))] of the last macro-step, as the reference DRMaster.S records them."""
+        count = min(iterations, self.trace_capacity)
+        copy = (ctypes.c_double * (2 * self.n * count))()          # not the whole capacity (K may be huge)
+        ctypes.memmove(copy, self.trace, 16 * self.n * count)
+        return Trace(copy, self.n, count)
+
+    def configure(self, dt, K, eps=None, deadline_s=None):
+        self.io.dt, self.io.K = dt, K
+        self.io.eps = -1.0 if eps is None else eps
+        self.io.deadline_s = deadline_s or 0.0
+
+    def macro_step(self, n, t, measure=False):
+        """Algorithm 1, lines 3-22, in C; raises the FmuError the reference path would raise."""
+        io = self.io
+        io.t, io.measure, self.at = t, measure, (n, t)
+        if self._macro_step(self._handle, self._io):
+            raise self.failure(n, t)
+        return io
+
+    def redo(self, supplied, budget, fitted):
+        """The energy ledger's redo of the step macro_step just made (drkernel.h, dr_ledger_redo):
+        (s, supply, traffic, action, rounds); b and a_hat become the redo's."""
+        out = (ctypes.c_double * 5)()
+        if self.lib.dr_ledger_redo(self._handle, self._io, supplied, budget, int(fitted), out):
+            raise self.failure(*self.at)
+        return out[0], out[1], out[2], int(out[3]), int(out[4])
+
+    def floor(self, n_steps, K, inputs=None, t0=0.0):
+        """The FMU calls of n_steps macro-steps with budget K and no DR logic (the floor); returns
+        the seconds spent in the C driver.
+
+        inputs: None, or per step K + 1 stacked input vectors (the u^k of the queries, then the
+        a of the commit), flat, as recorded from a run; replaying them repeats its FMU work."""
+        buf = None
+        if inputs is not None:
+            if len(inputs) != n_steps * (K + 1) * self.n:
+                raise ValueError(f"floor: need {n_steps * (K + 1) * self.n} inputs, got {len(inputs)}")
+            buf = (ctypes.c_double * len(inputs))(*inputs)
+        io = self.io
+        K_run, io.t, io.K = io.K, t0, K
+        try:
+            started = time.perf_counter()
+            failed = self.lib.dr_floor(self._handle, self._io, buf, n_steps)
+            elapsed = time.perf_counter() - started
+        finally:
+            io.K = K_run
+        if failed:
+            raise self.failure(None, None)
+        return elapsed
+
+    def failure(self, n, t):
+        io = self.io
+        sub = self.subsystems[io.failed_subsystem]
+        inner = sub.map.kernel_error(n, t) if sub.adapter else None      # the wave adapter's own failure
+        return inner or sub.fmu.status_error(FUNCTIONS[io.failed_function], io.failed_status, n, t)
+
+    def costs(self):
+        """Median µs per evaluation of each subsystem since the last call (steps run with measure)."""
+        out = (ctypes.c_double * len(self.subsystems))()
+        self.lib.dr_costs(self.handle, out)
+        return list(out)
+
+    def counts(self):
+        """[(doStep, save, restore)] made by the kernel per subsystem."""
+        out = (ctypes.c_long * (3 * len(self.subsystems)))()
+        self.lib.dr_counts(self.handle, out)
+        return [tuple(out[3 * i:3 * i + 3]) for i in range(len(self.subsystems))]
+
+    def set_threads(self, plan):
+        """Evaluate subsystem i on thread plan[i] (0 = the caller); False if threads cannot start."""
+        n_threads = max(plan) + 1
+        ok = self.lib.dr_set_threads(self.handle, n_threads, (ctypes.c_int * len(plan))(*plan)) == 0
+        self.threads = n_threads if ok else 1
+        return ok
+
+    def close(self):
+        if self.handle:
+            self.lib.dr_destroy(self.handle)
+            self.handle = None

@@ -1,0 +1,226 @@
+"""The contract every master meets, so the runner never asks a master for its name.
+
+A master advances every subsystem of a Scene by one macro-step in `step(n, t)` and returns a
+StepLog. Class attributes say what it needs and how it is shown:
+  wave            the FMUs run in wave port mode (else physical port variables)
+  needs_rollback  it freezes and restores FMU states (so FMUs must get and set their state)
+  budgets         the grid of inner budgets K `compare` tries ((None,): no inner budget)
+  style           (colour, marker) in the comparison plots
+  iterates        it gives the DR iterates u^0 and u^K, so Theorem 1's residual, the Condition 1
+                  watch and the monolithic energy guard apply
+  default_guard   the energy guard it runs with when the scenario names none (DR: ledger; the
+                  classical masters: off, as other tools run them)
+  evaluations     FMU evaluations per subsystem of one macro-step when fixed (DR: K + 1), else None;
+                  it paces the sampled certificates (certificates.sampling)
+  guardable       its commit can supply energy, and it can undo the commit and redo it with other
+                  inputs (undo_step, recommit, probe, supply): the energy guards apply
+Wave masters (WaveMaster) own the compiled wave map P, J_L and the committed wave b^n: nothing
+else writes them; observers act through the methods below.
+"""
+import math
+from dataclasses import dataclass
+from typing import Optional, Protocol, runtime_checkable
+
+from ..errors import ConfigError
+from ..kernel.linalg import matvec
+from .monolithic import solve_interface
+
+
+MIN_INNER_S = 1e-9        # an inner deadline this short stops the loop after its first iteration
+REASONS = ("budget", "tolerance", "deadline", "explicit", "converged", "energy-guard", "none")
+
+
+@dataclass
+class StepLog:
+    """What one macro-step did: inner iterations, last inner residual and why the iteration stopped.
+
+    Wave masters also give the incident waves used (a_hat), and DR the iterates u^0 and u^K."""
+    iterations: int = 0
+    residual: float = float("nan")
+    reason: str = "none"
+    a_hat: list = None
+    u0: list = None
+    uK: list = None
+
+
+@runtime_checkable
+class Route(Protocol):
+    """The kernel route of a master: what the runner may ask of a master whose macro-steps run in C,
+    in blocks of many macro-steps per kernel call, bit for bit its Python reference made step by
+    step. `Master.route()` gives it, or None when the master runs step by step only."""
+
+    keeps_ledger: bool        # the energy ledger can be kept inside its blocks (keep_ledger)
+
+    def can_run_steps(self, n) -> bool:
+        """Whether run_steps may make macro-step n now."""
+
+    def observe(self, names, steps=0):
+        """The variables of each subsystem read after every commit (names[i], H_i first), with room
+        for blocks of `steps` steps; an empty BlockLog of the blocks' layout, or None."""
+
+    def run_steps(self, n0, count, H_cap=math.inf):
+        """Macro-steps n0 .. n0 + count - 1 in one call, stopping early after a step whose H may exceed
+        H_cap or whose observed values are not finite: (steps done, their BlockLog, an FmuError or None)."""
+
+    def step_log(self, log, j) -> StepLog:
+        """The StepLog of row j of a BlockLog."""
+
+    def guards_steps(self) -> bool:
+        """Whether step() can keep the energy ledger in the kernel too (keep_ledger) right now."""
+
+    def keep_ledger(self, ledger, traffic, rtol):
+        """The energy ledger's state for the kernel's next steps and blocks."""
+
+
+class Master:
+    """Base of all masters; see the module docstring for the contract."""
+    wave = True
+    needs_rollback = True
+    budgets = (None,)
+    style = ("gray", "o")
+    iterates = False          # gives the DR iterates u^0, u^K (Theorem 1, Condition 1 watch, energy guard)
+    guardable = False         # an energy guard applies (undo_step, recommit, probe, supply)
+    default_guard = "off"     # master.energy_guard when the scenario does not say
+    evaluations = None        # FMU evaluations per subsystem of a macro-step, when fixed
+
+    def __init__(self, scene, settings):
+        self.scene, self.settings = scene, settings
+        self.subsystems = scene.subsystems
+        self.dt = scene.scenario.dt
+        self.deadline_s = settings.deadline_us * 1e-6 if settings.deadline_us else None
+        self.inner_deadline_s = self.deadline_s          # the inner loop's share of the deadline
+        self.step_started = 0.0                          # perf_counter() when the last step began
+
+    def reserve_time(self, seconds):
+        """Stop the inner loop `seconds` before master.deadline_us, leaving them for a redo."""
+        if self.deadline_s is not None:
+            self.inner_deadline_s = max(self.deadline_s - seconds, MIN_INNER_S)
+
+    def step(self, n, t) -> StepLog:
+        raise NotImplementedError
+
+    def route(self) -> Optional[Route]:
+        """The kernel route of this master when it runs (blocks of macro-steps in C), else None."""
+        return None
+
+    def probe(self, inputs):
+        """After undo_step: the outputs of macro-step n from x^n with `inputs` (stacked); state discarded."""
+        return self.scene.S(inputs)
+
+    def redo_in_kernel(self, supplied, budget, fitted):
+        """The energy ledger's redo of the step just made, done in C: (s, supply, traffic, action,
+        rounds); None where there is no kernel (the ledger then redoes it through the methods above)."""
+        return None
+
+    def kernel_certificates(self, floor):
+        """The sampled certificates computed inside this master's blocks of steps (certs_path), or
+        None: the observers then compute them step by step."""
+        return None
+
+    def enable_trace(self, on=True):
+        """Record the inner loop's queries (u, S(u)) of each macro-step; False if this master cannot."""
+        return False
+
+    @property
+    def trace(self):
+        """The last macro-step's queries [(u^k, S(u^k))], or None when not recorded."""
+        return None
+
+    def run_info(self) -> dict:
+        """Figures for the run summary (e.g. which code path ran)."""
+        return {}
+
+    def close(self):
+        """Release anything the master holds beyond the scene (threads, C buffers)."""
+
+
+class WaveMaster(Master):
+    """A master on the wave interface a = P b; it owns P, J_L and the committed wave b^n."""
+
+    def __init__(self, scene, settings):
+        super().__init__(scene, settings)
+        self._compile()
+        self._b = [0.0] * scene.n_channels                             # b^0 = 0
+        self._b_step_start = self._b
+
+    @property
+    def b(self):
+        """The committed outgoing waves b^n (read only)."""
+        return self._b
+
+    def _compile(self):
+        coupling = self.scene.wave_map()
+        self.P, self.J_L = coupling.P_sparse, coupling.J_L_sparse        # linalg.Sparse; np.asarray gives them dense
+
+    def _set_b(self, b):
+        self._b = b
+
+    def commit(self, a_hat):
+        """Lines 20-22, eq. (21): advance every subsystem from x^n with a_hat; b^{n+1} becomes b^n."""
+        self._b_step_start = self._b
+        self._set_b(self.scene.advance(a_hat))
+
+    def retune(self, b):
+        """Between macro-steps, after the scene's gammas changed: recompile P, J_L and take b^n
+        re-scattered to the new impedances."""
+        self._compile()
+        self._set_b(list(b))
+
+    def undo_step(self):
+        """Put every subsystem back at x^n and b^n back, after the commit of macro-step n."""
+        self.scene.restore_frozen()
+        self._set_b(self._b_step_start)
+
+    def fixed_point(self, n, t):
+        """b* = S^n(P b*) at the frozen x^n (eq. 15), solved from b^n (u* = P b* of the certificates);
+        the FMUs are left at x^n."""
+        return solve_interface(self.scene, self.P, self._b, where=f" at step {n} (t = {t:.6g})")[0].tolist()
+
+    def interface_solution(self, n, t, tag=""):
+        """The monolithic incident waves at the frozen x^n: a = P b*, b* = S^n(P b*) (eqs. 14-15),
+        solved from b^n; returns (a, iterations, residual)."""
+        b_star, iters, res, _ = solve_interface(self.scene, self.P, self._b, where=f"{tag} at step {n} (t = {t:.6g})")
+        return matvec(self.P, b_star.tolist()), iters, res
+
+    def recommit(self, a_hat):
+        """After undo_step: commit macro-step n again with other incident waves; returns b^{n+1}."""
+        self.commit(a_hat)
+        return self._b
+
+    @property
+    def committed_outputs(self):
+        """The outputs of the last commit: b^{n+1}."""
+        return self._b
+
+    @staticmethod
+    def committed_inputs(log):
+        """The stacked inputs the step committed with: the incident waves a_hat."""
+        return log.a_hat
+
+    @staticmethod
+    def supply(inputs, outputs):
+        """Energy the interface supplies over a step, 1/2 (|a|^2 - |b|^2) (eq. 5), and its traffic
+        1/2 (|a|^2 + |b|^2), the scale of its roundoff."""
+        aa, bb = sum(x * x for x in inputs), sum(x * x for x in outputs)
+        return 0.5 * (aa - bb), 0.5 * (aa + bb)
+
+
+def require_wave_tuning(master, mode, source):
+    """auto-retune changes gamma between macro-steps: only wave masters can follow it."""
+    if mode == "auto-retune" and not isinstance(master, WaveMaster):
+        raise ConfigError(f"{source}: gamma: auto-retune needs a wave master that can change gamma between "
+                          f"macro-steps (dr, newton)")
+
+
+class KernelOwner:
+    """Mixin of a master that may run its macro-steps in a C kernel (self.kernel, or None on the
+    Python reference): what it reports of the route, and the kernel closed with the master."""
+
+    def run_info(self):
+        return {"fast_path": self.kernel is not None, "fast_note": self.fast_note}
+
+    def close(self):
+        if self.kernel is not None:
+            self.kernel.close()
+            self.kernel = None
+        super().close()

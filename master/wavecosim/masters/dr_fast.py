@@ -1,0 +1,307 @@
+"""`master.algorithm: dr`: the reference DRMaster with the macro-step run by the C kernel.
+
+With `master.fast: auto` (the default) the kernel (wavecosim/kernel/drkernel.py) runs Algorithm 1 when its
+library is built and every FMU can get and set its state; with `fast: false`, or when the kernel
+cannot be used, `step` is the Python reference unchanged. Both give the same numbers to the last
+bit, and the same FMU call counts.
+
+Threads (`master.threads`): the first macro-step runs serially and times one evaluation of each
+subsystem; then `1` stays serial, `2` evaluates the subsystems on two threads (the costliest
+first, each onto the less loaded thread), and `auto` does so only when the work the second
+thread would take over costs at least PARALLEL_MIN_US per inner iteration (below that, hand-offs
+and a busy second core cost more than they save), and keeps two threads only if the second
+macro-step, run on them, was at least 1 / KEEP_PARALLEL times faster per evaluation round than
+the first (the threads meet at every iteration, so on a busy machine, where one of them is often
+descheduled, serial is faster). Each thread writes only its own subsystems' outputs and the caller does all the arithmetic, so
+the thread plan never changes a number.
+"""
+import math
+import time
+
+from ..kernel.drkernel import PARALLEL_MIN_US, REASONS, Kernel, available_cpus, kernel_refusal, thread_plan
+from ..kernel.certs import KernelCertificates, supports
+from ..kernel.newton import NewtonKernel
+from .base import StepLog
+from .dr import DRMaster
+
+KEEP_PARALLEL = 0.85      # threads=auto keeps two threads if a round takes at most this much of serial
+BLOCK_SECONDS = 0.25      # run_steps makes about this much work at most, so Ctrl-C and progress stay prompt
+
+
+class FastDRMaster(DRMaster):
+    """`master.algorithm: dr`. Algorithm 1 runs in the C kernel when `fast` allows it, otherwise in
+    the reference DRMaster.step; the result is the same to the last bit either way.
+
+    `fast` (bool) says which path runs and `fast_note` why; `threads` and `thread_note` tell the
+    thread plan once it is chosen (after the first macro-step)."""
+
+    def __init__(self, scene, settings):
+        super().__init__(scene, settings)
+        self.kernel, self.fast, self.threads = None, False, 1
+        self.guarded = None       # the kernel's BlockLog of the last step when step() made the ledger's guard too
+        self._guarding = False    # keep_ledger was called: step() makes iteration, commit and redo in one call
+        self._newton = None       # the certificates' interface Newton in C (newton_path.NewtonKernel), when asked
+        self._certs = None        # the certificates inside the blocks (certs_path.KernelCertificates), when asked
+        # blocks of steps (run_steps) read the observed values in C; a physical port's b is computed
+        # from them in Python (readings.py), so scenes with wave adapters run one step per call
+        self._blocks = not any(s.adapter for s in scene.subsystems)
+        self.thread_note = "serial"
+        self.fast_note = self._kernel_refusal(scene, str(settings.fast).lower())
+        if self.fast_note is not None:
+            return
+        self.kernel = Kernel(scene, self.P, self.J_L)
+        self.kernel.configure(self.dt, self.K, self.eps, self.deadline_s)
+        self._send_options()
+        self.fast, self.fast_note = True, "C kernel"
+        self.thread_mode = str(settings.threads)
+        # the first macro-step this master makes picks the thread plan (None: not made yet)
+        self._choose_after = None if self.thread_mode != "1" and len(self.subsystems) > 1 else -1
+        self._on_trial = False
+        self._step_s = 0.0        # seconds per macro-step of the last run_steps call
+
+    def _send_options(self):
+        """The named options to the kernel (it forgets b^{n-1} and the Anderson differences)."""
+        s = self.settings
+        self.kernel.set_options(self.relaxation, s.anderson, self.warm_start, s.anderson_memory, s.anderson_extrapolate)
+
+    @staticmethod
+    def _kernel_refusal(scene, mode):
+        """Why the reference path runs (None: the kernel can run); master.fast: true insists."""
+        return kernel_refusal(scene, mode)
+
+    def _set_b(self, b):
+        super()._set_b(b)
+        if self.kernel is not None:
+            self.kernel.b[:] = [float(x) for x in b]
+
+    def _compile(self):
+        super()._compile()
+        if getattr(self, "kernel", None) is not None:
+            self.kernel.set_maps(self.P, self.J_L)
+        if getattr(self, "_newton", None) is not None:
+            self._newton.set_map(self.P)
+
+    def fixed_point(self, n, t):
+        """b* in C (newton.c: nt_solve, the reference's Newton to the last bit) when the kernel runs a
+        scene without wave adapters (their Python maps keep figures the C route would not book)."""
+        if self.kernel is None or not self._blocks:
+            return super().fixed_point(n, t)
+        return self._newton_kernel().solve(n, t, self._b)
+
+    def _newton_kernel(self):
+        if self._newton is None:
+            self._newton = NewtonKernel(self.scene, self.P)
+        return self._newton
+
+    def kernel_certificates(self, floor):
+        """The certificates inside this master's blocks (certs_path.KernelCertificates; the watch keeps
+        pairs above `floor`), made on the first ask; None where the blocks cannot compute them."""
+        if self._certs is None and self.kernel is not None and self._blocks and supports(self.scene):
+            self._certs = KernelCertificates(self.kernel, self._newton_kernel(), self.scene, floor)
+        return self._certs
+
+    def retune(self, b):
+        super().retune(b)
+        if self.kernel is not None:
+            self._send_options()                                   # b^{n-1} and the Anderson memory forgotten
+
+    def reserve_time(self, seconds):
+        super().reserve_time(seconds)
+        if self.kernel is not None:
+            self.kernel.configure(self.dt, self.K, self.eps, self.inner_deadline_s)
+
+    def enable_trace(self, on=True):
+        super().enable_trace(on)
+        if self.kernel is not None:
+            self.kernel.record(max(self.K, 1) if on else 0)
+        return True
+
+    def step(self, n, t) -> StepLog:
+        if self.kernel is None:
+            return super().step(n, t)
+        kernel = self.kernel
+        self.step_started = time.perf_counter()
+        if self._choose_after is None:
+            self._choose_after = n
+        measure = n == self._choose_after
+        timing = self._choose_after >= 0 and n - self._choose_after in (0, 1)
+        started = time.perf_counter() if timing else 0.0
+        io, redone = self._kernel_step(n, t, measure)
+        k = io.iterations
+        if timing:
+            per_round = (time.perf_counter() - started) / (k + 1 + redone)   # K queries, the commit, the redo
+        self._note_kernel_steps(n, t, k, 1, redone)   # frozen at x^n (saved by the kernel), calls counted
+        n_ch = kernel.n
+        out = kernel.results[:]                  # b^{n+1}, a, u^0, u^K
+        self._b_step_start, self._b = self._b, out[:n_ch]
+        if self._trace is not None:
+            self._trace = kernel.recorded(k)
+        if measure:
+            self.choose_threads(kernel.costs(), per_round)
+        elif timing and self._on_trial:
+            self.confirm_threads(per_round)
+        u0, uK = (None, None) if redone else (out[2 * n_ch:3 * n_ch], out[3 * n_ch:])   # a redo's log has none
+        return StepLog(iterations=k, residual=io.residual, reason=REASONS[io.reason], a_hat=out[n_ch:2 * n_ch],
+                       u0=u0, uK=uK)
+
+    def _kernel_step(self, n, t, measure):
+        """Macro-step n in one kernel call: (its DRStep, the ledger's redo rounds). With the ledger kept
+        (keep_ledger) the call is dr_run_steps of one step: iteration, commit, ledger check and redo,
+        within master.deadline_us as in blocks, and its BlockLog goes to self.guarded."""
+        if not self._guarding:
+            self.guarded = None
+            return self.kernel.macro_step(n, t, measure), 0
+        _, self.guarded, error = self.kernel.run_steps(n, 1, math.inf, measure)
+        if error is not None:
+            raise error
+        return self.kernel.io, int(self.guarded.ledger["rounds"][0])
+
+    def redo_in_kernel(self, supplied, budget, fitted):
+        """The energy ledger's redo of the step just made, by the kernel (fast_path.Kernel.redo); its
+        rounds are booked on the Subsystems and b^{n+1} becomes the redo's."""
+        if self.kernel is None:
+            return None
+        done = self.kernel.redo(supplied, budget, fitted)
+        self._b = self.kernel.b[:]
+        self._note_kernel_steps(self.subsystems[0].step_index, self.subsystems[0].t, 0, 0, done[4])
+        return done
+
+    keeps_ledger = True
+
+    def route(self):
+        """This master as its kernel route (base.Route) while the kernel runs."""
+        return self if self.fast else None
+
+    def can_run_steps(self, n):
+        """Whether run_steps may make macro-step n: the kernel runs and no trial of two threads is on
+        (threads=auto times it on the macro-step after the first, alone)."""
+        return self.kernel is not None and self._blocks and not self._on_trial \
+            and (self._choose_after is None or n > self._choose_after)
+
+    def observe(self, names, steps=0):
+        """The variables of each subsystem run_steps reads after every commit (names[i], H_i first),
+        with room for blocks of `steps` steps made now; returns an empty BlockLog of the blocks' layout
+        (None without blocks)."""
+        return self.kernel.observe(names, steps) if self._blocks else None
+
+    def guards_steps(self):
+        """Whether step() can keep the energy ledger in the kernel (keep_ledger): the kernel runs and no
+        wave adapter's accuracy (the ledger's tol) moves within a step."""
+        return self.kernel is not None and self._blocks
+
+    def keep_ledger(self, ledger, traffic, rtol):
+        """The energy ledger's state for the kernel's next steps and blocks, which it keeps within
+        master.deadline_us (see fast_path.Kernel.keep_ledger)."""
+        self.kernel.keep_ledger(ledger, traffic, rtol, self.deadline_s)
+        self._guarding = True
+
+    def run_steps(self, n0, count, H_cap=math.inf):
+        """Macro-steps n0 .. n0 + count - 1 in one kernel call, stopping early after a step whose H
+        may exceed H_cap or whose observed values are not finite (fast_path.Kernel.run_steps), and
+        making no more than about BLOCK_SECONDS of work: (steps done, their BlockLog, the FmuError
+        of the step after them or None). b^n and b^{n+1} of the last step done become the master's,
+        so undo_step works as after step()."""
+        if self._choose_after is None:
+            return self._first_steps(n0, count, H_cap)
+        return self._kernel_steps(n0, count, H_cap)
+
+    def _first_steps(self, n0, count, H_cap):
+        """The first call: macro-step n0 alone and timed picks the thread plan, then the others
+        follow in a second call unless two threads go on trial (on the next step, alone)."""
+        self._choose_after = n0
+        done, first, error = self._kernel_steps(n0, 1, H_cap, measure=True)
+        if not done:
+            return done, first, error
+        self.choose_threads(self.kernel.costs(), self._step_s / (first.iterations[0] + 1))
+        if first.stopped or self._on_trial or count == 1:
+            return 1, first, None
+        done, rest, error = self._kernel_steps(n0 + 1, count - 1, H_cap, at=1)    # logged after the first
+        return done + 1, self.kernel.joined_log(done + 1, rest.stopped), error
+
+    def _kernel_steps(self, n0, count, H_cap, measure=False, at=0):
+        """One call of the kernel, of at most about BLOCK_SECONDS at the last call's pace, booked; it
+        logs after the last call's first `at` steps (fast_path.Kernel.run_steps)."""
+        if self._step_s > 0.0:
+            count = max(1, min(count, int(BLOCK_SECONDS / self._step_s)))
+        started = time.perf_counter()
+        if self._certs is not None:
+            self._certs.arm(n0, count)
+        done, log, error = self.kernel.run_steps(n0, count, H_cap, measure, at)
+        if self._certs is not None:
+            error = self._certs.disarm(done) or error
+        if done:
+            self._step_s = (time.perf_counter() - started) / done
+        self._book(n0, done, log)
+        return done, log, error
+
+    def _book(self, n0, done, log):
+        """Book macro-steps n0 .. n0 + done - 1 of the kernel: calls and step on the Subsystems, b^n, b^{n+1}."""
+        if not done:
+            return
+        last = n0 + done - 1
+        iterations, redone = int(log.iterations.sum()), int(log.ledger["rounds"].sum())
+        self._note_kernel_steps(last, last * self.dt, iterations, done, redone)
+        self._b_step_start = log.b[done - 2].tolist() if done > 1 else self._b
+        self._b = self.kernel.b[:]
+        if self._trace is not None:
+            self._trace = self.kernel.recorded(int(log.iterations[-1]))
+
+    def _note_kernel_steps(self, n, t, iterations, steps=1, redone=0):
+        """Book `steps` kernel macro-steps (the last one step n at t) and `redone` ledger redo rounds
+        on the Subsystems; a wave adapter's FMU calls are its own count (its queries take a varying
+        number of doSteps)."""
+        for s in self.subsystems:
+            if s.adapter:
+                s.note_kernel_step(n, t, 0, 0)
+                s.map.book()
+            else:
+                s.note_kernel_step(n, t, iterations, steps, redone)
+
+    def step_log(self, log, j):
+        """The StepLog of row j of a BlockLog (without u^0 and u^K)."""
+        return StepLog(iterations=int(log.iterations[j]), residual=float(log.residual[j]),
+                       reason=REASONS[int(log.reason[j])], a_hat=log.a_hat[j].tolist())
+
+    def choose_threads(self, costs_us, serial_round_s):
+        """After the first (serial) macro-step: pick the thread plan from the measured µs per
+        evaluation of each subsystem; with threads=auto, two threads go on trial for one step."""
+        self.costs_us, self._serial_round_s = costs_us, serial_round_s
+        plan, load = thread_plan(costs_us, 2)
+        if self.thread_mode == "auto":
+            cpus = available_cpus()
+            if min(load) < PARALLEL_MIN_US:
+                self.thread_note = (f"serial: a second thread would take over {min(load):.3g} µs per inner "
+                                    f"iteration (< {PARALLEL_MIN_US:g} µs)")
+                return
+            if cpus < 2:
+                self.thread_note = f"serial: {cpus} CPU available"
+                return
+        if not self.kernel.set_threads(plan):
+            self.thread_note = "serial: the worker thread could not be started"
+            return
+        self.threads, self._on_trial = 2, self.thread_mode == "auto"
+        costs = ", ".join(f"{c:.3g}" for c in costs_us)
+        self.thread_note = f"2 threads: subsystems on threads {plan} (µs per evaluation: {costs})"
+
+    def confirm_threads(self, parallel_round_s):
+        """threads=auto, after the second macro-step (on two threads): keep them only if faster."""
+        self._on_trial = False
+        rounds = f"{1e6 * self._serial_round_s:.3g} µs per round serial, {1e6 * parallel_round_s:.3g} µs on two threads"
+        if parallel_round_s <= KEEP_PARALLEL * self._serial_round_s:
+            self.thread_note += f"; {rounds}"
+            return
+        self.kernel.set_threads([0] * len(self.subsystems))
+        self.threads = 1
+        self.thread_note = f"serial: two threads were not faster here ({rounds})"
+
+    def run_info(self):
+        """For the run summary: which path and thread plan ran."""
+        return {**super().run_info(), "fast_path": self.fast, "fast_note": self.fast_note, "threads": self.threads,
+                "thread_note": self.thread_note}
+
+    def close(self):
+        for part in (self._certs, self.kernel, self._newton):
+            if part is not None:
+                part.close()
+        self.kernel = self._newton = self._certs = None
+        super().close()

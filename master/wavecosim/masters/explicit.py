@@ -1,0 +1,38 @@
+"""Zero-order-hold Jacobi: every FMU gets the other's last output, one doStep each, no iteration.
+
+With `master.fast` (auto, as for DR) the step runs in C (wavecosim/kernel/classical.py), one
+call per step or blocks of steps (masters/kernel_route.py), to the last bit the same."""
+from .base import StepLog
+from .kernel_route import KernelRoute
+from .physical import PhysicalMaster, step_forward
+
+
+class ExplicitMaster(KernelRoute, PhysicalMaster):
+    """y^{n+1} = Phi(x^n, G y^n) for all subsystems at once; no state is saved or restored."""
+    style = ("tab:red", "v")
+    needs_rollback = False
+
+    def __init__(self, scene, settings):
+        super().__init__(scene, settings)
+        self.attach_kernel(scene, settings)
+
+    def step(self, n, t) -> StepLog:
+        if self.kernel is not None:
+            _, self.y = self.kernel.explicit_step(n, t, self.y, int(self.sequential))
+            self.book_kernel(n, t, 0, 1)
+            return StepLog(iterations=0, reason="explicit")
+        self.y = self.sweep(self.y, lambda sub, inputs: step_forward(sub, n, t, inputs))
+        return StepLog(iterations=0, reason="explicit")
+
+    def configure_kernel(self):
+        """Nothing to set: an explicit step has no inner loop."""
+
+    def book_kernel(self, n, t, iterations, steps):
+        """Book `steps` kernel macro-steps (the last one step n at t) as step_forward books each."""
+        for sub in self.subsystems:
+            sub.begin(n, t)
+            sub.calls["doStep"] += steps
+
+    def took_block(self, log, done):
+        """After a block of kernel steps: its last y^{n+1} (copied: the next call overwrites the log)."""
+        self.y = log.b[done - 1].copy()

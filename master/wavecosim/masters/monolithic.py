@@ -1,0 +1,89 @@
+"""The monolithic macro-step: solve the interface condition b = S^n(P b) (eqs. 14-15) by Newton.
+
+This is the monolithic reference of the DR master (the true monolithic discrete-time step, not a
+long DR run), the Newton master's step and the energy guard's redo. The Jacobian of the
+block-diagonal S^n is taken by forward differences through rollback, perturbing channel j of
+every subsystem at once.
+
+Acceptance: |b - S(Pb)| <= ACCEPT (1 + |b|), or, for FMUs whose step map is smooth only to their
+own solver's tolerance (the wave adapter then solves S only to about that), within ACCEPT_REL of
+the port-wave scale |a| + |b|. Past the absolute level, Newton also stops after STALL iterations in
+a row that do not halve the residual (it has reached the FMUs' noise floor). Our own FMUs converge
+to TOL well before either applies, so their reference results do not depend on them.
+
+The arithmetic runs in a fixed operation order (wavecosim/kernel/linalg.py: sums left to right, the LU
+solve of `solve`), mirrored by kernel/c/newton.c, so the Newton master's kernel route
+(wavecosim/kernel/newton.py, which also holds the acceptance constants both share) gives the same bits.
+"""
+import numpy as np
+
+from ..kernel.linalg import distance, matvec, norm2, solve
+from ..kernel.newton import (ACCEPT, ACCEPT_REL, MAX_ITER, NON_FINITE, SINGULAR, STALL, TOL, failed,
+                             not_converged)
+
+
+def _jacobian(scene, a, s, h):
+    """dS/da of the block-diagonal frozen map by forward differences, one query per channel index."""
+    n, J_S = len(a), np.zeros((len(a), len(a)))
+    for j in range(max(scene.sizes)):
+        da = np.zeros(n)
+        da[[off + j for off, m in zip(scene.offsets, scene.sizes) if j < m]] = h
+        ds = (np.array(scene.S(list(a + da))) - s) / h
+        for off, m in zip(scene.offsets, scene.sizes):
+            if j < m:
+                J_S[off:off + m, off + j] = ds[off:off + m]
+    return J_S
+
+
+def newton_matrix(J_S, P, offsets, sizes):
+    """I - J_S P for the block-diagonal J_S: entry (i, j) sums J_S[i, k] P[k, j] over k ascending
+    (P's stored entries, subsystem blocks of J_S), then is subtracted from the identity's."""
+    n = len(J_S)
+    JP = np.zeros((n, n))
+    for off, m in zip(offsets, sizes):
+        for k in range(off, off + m):
+            cols, vals = P.col[P.start[k]:P.start[k + 1]], P.val[P.start[k]:P.start[k + 1]]
+            JP[off:off + m, cols] += J_S[off:off + m, k, None] * vals
+    return np.eye(n) - JP
+
+
+def solve_interface(scene, P, b0, tol=TOL, max_iter=MAX_ITER, where=""):
+    """Newton on F(b) = b - S^n(P b) at the frozen x^n (P a linalg.Sparse); returns (b*, iterations,
+    |F(b*)|, S-evaluations)."""
+    b = [float(x) for x in b0]
+    evals, best, stalled = 0, None, 0
+    for it in range(max_iter + 1):
+        a = matvec(P, b)
+        s = scene.S(a)
+        evals += 1
+        res = distance(b, s)
+        if not np.isfinite(res):
+            raise failed(where, NON_FINITE)
+        stalled = stalled + 1 if best is not None and res > 0.5 * best[1] else 0
+        if best is None or res < best[1]:
+            best = (b, res, _wave_scale(a, b))
+        if res <= tol * (1.0 + norm2(b)) or it == max_iter or _stalled(best, stalled):
+            break
+        a = np.array(a)
+        J_S = _jacobian(scene, a, np.array(s), 1e-7 * (1.0 + float(np.abs(a).max())))
+        evals += max(scene.sizes)
+        step = solve(newton_matrix(J_S, P, scene.offsets, scene.sizes), [-(bi - si) for bi, si in zip(b, s)])
+        if step is None:
+            raise failed(where, SINGULAR)
+        b = [bi + di for bi, di in zip(b, step.tolist())]
+    b, res, scale = best
+    if res > ACCEPT * (1.0 + norm2(b)) and res > ACCEPT_REL * scale:
+        raise not_converged(where, res, scale)
+    return np.array(b), it, res, evals
+
+
+def _wave_scale(a, b):
+    """|a| + |b|: the size of the waves the residual is measured against."""
+    return norm2(a) + norm2(b)
+
+
+def _stalled(best, stalled):
+    """Newton sits at the FMUs' noise floor: STALL steps without halving, past the absolute level
+    but within the relative one (so it is accepted)."""
+    b, res, scale = best
+    return stalled >= STALL and ACCEPT * (1.0 + norm2(b)) < res <= ACCEPT_REL * scale

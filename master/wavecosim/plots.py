@@ -1,0 +1,315 @@
+"""PNG figures of a run, a K-sweep (the paper's Figs. 4-6) and a comparison of masters (Agg backend).
+
+Every function takes finished (or partial) RunResults, writes into `out` and returns the paths.
+Log axes cannot show zero or negative values: such points are drawn at FLOOR and the axis says so.
+"""
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.ticker import NullFormatter  # noqa: E402
+
+from .sweeps.comparison import group_name, style as _style  # noqa: E402
+
+FLOOR = 1e-17
+DPI = 130
+
+
+def _save(fig, path):
+    fig.savefig(path, dpi=DPI, bbox_inches="tight")
+    plt.close(fig)
+    return path
+
+
+def _finite(x, y):
+    x, y = np.asarray(x, float)[:len(y)], np.asarray(y, float)
+    keep = np.isfinite(y)
+    return x[keep], y[keep]
+
+
+def _floored(values):
+    """Values for a log axis: <= 0 (and anything below FLOOR) at FLOOR; nan stays missing."""
+    v = np.asarray(values, float)
+    return np.where(np.isnan(v) | (v > FLOOR), v, FLOOR)
+
+
+def _unit(result, col):
+    u = result.units.get(col, "")
+    return f"{col} ({u})" if u else col
+
+
+def _error_label(result):
+    cols = result.error_columns
+    units = {result.units.get(c, "") for c in cols}
+    unit = f" ({units.pop()})" if len(units) == 1 and "" not in units else ""
+    return "‖(" + ", ".join(f"Δ{c}" for c in cols) + f")‖₂{unit}"
+
+
+def _columns(result):
+    return result.error_columns or result.columns[:2]
+
+
+def _colors(n):
+    return plt.cm.viridis(np.linspace(0.0, 0.9, max(n, 1)))
+
+
+def _energy_t(result):
+    return result.t[:len(result.energy)]
+
+
+def _k_label(result):
+    return f"K = {result.K}"
+
+
+# ---------------------------------------------------------------- one run
+
+def run_plots(result, reference, out):
+    """trajectories.png (error columns with the monolithic reference), energy.png, error.png."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    cols = _columns(result)
+    fig, axes = plt.subplots(len(cols), 1, figsize=(7, 2.4 * len(cols)), sharex=True, squeeze=False)
+    for ax, col in zip(axes[:, 0], cols):
+        ax.plot(*_finite(result.t, result.column(col)), label=f"{result.master}, K = {result.K}")
+        if reference is not None:
+            ax.plot(reference.t, reference.column(col), "k--", lw=1, label="monolithic")
+        ax.set_ylabel(_unit(result, col))
+        ax.grid(alpha=0.3)
+    axes[0, 0].legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    axes[0, 0].set_title(f"{result.summary.get('scenario', '')}: trajectories ({result.status})")
+    axes[-1, 0].set_xlabel("t (s)")
+    paths.append(_save(fig, out / "trajectories.png"))
+
+    fig, ax = plt.subplots(figsize=(7, 3.2))
+    ax.plot(*_finite(_energy_t(result), result.energy), label=f"{result.master}, K = {result.K}")
+    if reference is not None:
+        ax.plot(_energy_t(reference), reference.energy, "k--", lw=1, label="monolithic")
+    ax.set(xlabel="t (s)", ylabel="stored energy H (J)", title="Total stored energy")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    paths.append(_save(fig, out / "energy.png"))
+
+    if result.error is not None:
+        fig, ax = plt.subplots(figsize=(7, 3.2))
+        ax.semilogy(result.t[:len(result.error)], _floored(result.error))
+        ax.set(xlabel="t (s)", ylabel=_error_label(result), title="Error against the monolithic reference")
+        ax.grid(alpha=0.3, which="both")
+        paths.append(_save(fig, out / "error.png"))
+    return paths
+
+
+# ---------------------------------------------------------------- K sweep (paper Figs. 4-6)
+
+def sweep_plots(results, reference, out):
+    """fig4_trajectories.png, fig5_certificates.png, fig6_error.png and energy_by_K.png of a DR sweep."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    Ks = [r.K for r in results]
+    colors = _colors(len(results))
+    return [_fig4(results, reference, colors, out / "fig4_trajectories.png"),
+            _fig5(results, Ks, out / "fig5_certificates.png"),
+            _fig6(results, Ks, colors, out / "fig6_error.png"),
+            _energy_by_run(results, reference, colors, out / "energy_by_K.png")]
+
+
+def _fig4(results, reference, colors, path):
+    cols = _columns(results[0])
+    fig, axes = plt.subplots(len(cols), 1, figsize=(7.5, 2.6 * len(cols)), sharex=True, squeeze=False)
+    for ax, col in zip(axes[:, 0], cols):
+        for r, c in zip(results, colors):
+            ax.plot(*_finite(r.t, r.column(col)), color=c, lw=1.1, label=_k_label(r))
+        ax.plot(reference.t, reference.column(col), "k--", lw=1.2, label="monolithic")
+        ax.set_ylabel(_unit(results[0], col))
+        ax.grid(alpha=0.3)
+    axes[0, 0].legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    axes[0, 0].set_title("Fig. 4: trajectories for each inner budget K and the monolithic reference")
+    axes[-1, 0].set_xlabel("t (s)")
+    return _save(fig, path)
+
+
+def _fig5(results, Ks, path):
+    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 3.8))
+    names = list(results[0].summary.get("min_fne_margin_by_subsystem", {}))
+    for name in names:
+        fne = [r.summary["min_fne_margin_by_subsystem"].get(name, np.nan) for r in results]
+        a.plot(Ks, fne, "o-", label=f"subsystem {name}: min over steps and sampled pairs")
+    a.axhline(0.0, color="k", lw=0.8, ls="--", label="FNE threshold 0")
+    a.set(xlabel="inner budget K", ylabel="normalized FNE margin Δ/‖α−β‖²",
+          title="(a) Condition 1: FNE margins")
+    a.grid(alpha=0.3)
+    a.legend(fontsize=8)
+    top = 1e-6
+    for key, label, marker in (("max_passivity_pos", r"passivity: $\max_{n,i}\,(r_i^n)_+$, eq. (27)", "o"),
+                               ("max_augmented_pos", r"augmented storage: $\max_n\,(\cdot)_+$, eq. (32)", "s")):
+        vals = [r.summary.get(key, np.nan) for r in results]
+        b.semilogy(Ks, _floored(vals), marker + "-", label=label)
+        top = max([top] + [10 * v for v in vals if np.isfinite(v)])
+    b.set(xlabel="inner budget K", ylabel=f"largest positive part (J); ≤ 0 drawn at {FLOOR:g}",
+          title="(b) Condition 2 and Theorem 1", ylim=(FLOOR / 3, top))
+    b.grid(alpha=0.3, which="both")
+    b.legend(fontsize=8)
+    return _save(fig, path)
+
+
+def _fig6(results, Ks, colors, path):
+    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 3.8))
+    for r, c in zip(results, colors):
+        if r.error is not None:
+            a.semilogy(r.t[:len(r.error)], _floored(r.error), color=c, lw=1, label=_k_label(r))
+    a.set(xlabel="t (s)", ylabel=_error_label(results[0]), title="(a) Error history")
+    a.grid(alpha=0.3, which="both")
+    a.legend(ncol=2, fontsize=8)
+    for key, label, marker in (("max_error", "max", "o"), ("rms_error", "time-RMS", "s"),
+                               ("final_error", "final", "^")):
+        b.semilogy(Ks, _floored([r.summary.get(key, np.nan) for r in results]), marker + "-", label=label)
+    b.set(xlabel="inner budget K", ylabel=_error_label(results[0]), title="(b) Error versus K")
+    b.grid(alpha=0.3, which="both")
+    b.legend(fontsize=8)
+    return _save(fig, path)
+
+
+def _energy_by_run(results, reference, colors, path):
+    fig, ax = plt.subplots(figsize=(7.5, 3.6))
+    for r, c in zip(results, colors):
+        ax.plot(*_finite(_energy_t(r), r.energy), color=c, lw=1.1, label=_k_label(r))
+    ax.plot(_energy_t(reference), reference.energy, "k--", lw=1.2, label="monolithic")
+    ax.set(xlabel="t (s)", ylabel="stored energy H (J)", title="Total stored energy H(t)")
+    ax.grid(alpha=0.3)
+    ax.legend(ncol=2, fontsize=8)
+    return _save(fig, path)
+
+
+# ---------------------------------------------------------------- comparison of masters
+
+def compare_plots(rows, results, reference, out):
+    """pareto.png (error against wall time and FMU calls) and energy_by_master.png (H(t) per master)."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    scenario = reference.summary.get("scenario", "")
+    return [_pareto(rows, _error_label(reference), scenario, out / "pareto.png"),
+            _energy_per_master(rows, results, reference, scenario, out / "energy_by_master.png")]
+
+
+def _by_master(rows, results):
+    """{master or master:option: [(row, result), ...]} in the order of the rows."""
+    groups = {}
+    for row, res in zip(rows, results):
+        groups.setdefault(group_name(row), []).append((row, res))
+    return groups
+
+
+def _pareto_label(name, members, ok):
+    bad = [str(r["K"]) for r, _ in members if r not in ok]
+    return name if not bad else f"{name} (diverged{'' if bad == ['-'] else ' at K = ' + ', '.join(bad)})"
+
+
+def _pareto(rows, error_label, scenario, path):
+    """Max error against master wall time and against doSteps per macro-step, and the energy growth
+    max H/H(0) against doSteps per macro-step: every master and DR option, one line each."""
+    fig, axes = plt.subplots(1, 3, figsize=(18, 5.4))
+    for name, members in _by_master(rows, rows).items():
+        color, marker = _style(name)
+        ok = [r for r, _ in members if r["diverged"] == "no" and np.isfinite(r["max_error"])]
+        label = _pareto_label(name, members, ok)
+        for ax, xkey in zip(axes[:2], ("wall_time_s", "doSteps_per_step")):
+            x, y = [float(r[xkey]) for r in ok], _floored([r["max_error"] for r in ok])
+            ax.loglog(x, y, marker=marker, color=color, ls="-" if xkey != "wall_time_s" else "none", ms=4, lw=1,
+                      label=label)
+            for xi, yi, r in zip(x, y, ok if xkey == "doSteps_per_step" and len(members) > 1 else ()):
+                ax.annotate(f"{r['K']}", (xi, yi), textcoords="offset points", xytext=(3, 2), fontsize=6, color=color)
+        done = [r for r, _ in members if r["steps"]]
+        axes[2].loglog([r["doSteps_per_step"] for r in done], [r["H_growth"] for r in done], marker=marker,
+                       color=color, ls="-", ms=4, lw=1)
+    axes[0].set(xlabel="master wall time (s), log", ylabel=f"max error {error_label}, log (0 drawn at {FLOOR:g})",
+                title="Error against master wall time")
+    axes[1].set(xlabel="FMU doSteps per macro-step, log", title="Error against FMU calls (numbers: budget K)")
+    axes[2].axhline(1.0, color="k", lw=0.8, ls="--")
+    axes[2].set(xlabel="FMU doSteps per macro-step, log", ylabel="energy growth max H(t)/H(0), log",
+                title="Energy growth (> 1: energy supplied)")
+    for ax in axes:
+        ax.grid(alpha=0.3, which="both")
+        ax.xaxis.set_minor_formatter(NullFormatter())
+    fig.suptitle(f"{scenario}: accuracy against cost, every master, DR option and budget")
+    axes[0].legend(fontsize=7, loc="upper center", bbox_to_anchor=(1.7, -0.12), ncol=5)
+    return _save(fig, path)
+
+
+def _energy_per_master(rows, results, reference, scenario, path):
+    """H(t) of each master at its smallest and largest budget; a diverging run leaves the top of the axes."""
+    fig, axes = plt.subplots(1, 2, figsize=(12, 5.2), sharey=True)
+    H0 = reference.energy[0]
+    lows, highs = [np.nanmin(reference.energy)], [np.nanmax(reference.energy)]
+    for ax, pick, title in ((axes[0], 0, "(a) smallest budget of each master"),
+                            (axes[1], -1, "(b) largest budget of each master")):
+        for name, members in _by_master(rows, results).items():
+            if name == "newton" or ":" in name:         # newton is the reference, drawn dashed; DR options:
+                continue                                # their energy growth is in the Pareto figure
+            row, res = members[pick]
+            color, _ = _style(name)
+            t, H = _finite(_energy_t(res), res.energy)
+            keep = H > 0
+            tag = name if row["K"] == "-" else f"{name}, K = {row['K']}"
+            if row["diverged"] == "yes":
+                tag += f" (diverged, max H/H(0) = {row['H_growth']:.1e})"
+            elif H[keep].size:
+                lows.append(H[keep].min())
+                highs.append(H[keep].max())
+            ax.semilogy(t[keep], H[keep], color=color, lw=1.2, label=tag)
+        ax.semilogy(_energy_t(reference), reference.energy, "k--", lw=1.2, label="monolithic (newton)")
+        ax.set(xlabel="t (s)", title=title)
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2)
+    diverging = any(r["diverged"] == "yes" for r in rows)
+    axes[0].set_ylim(min(lows) / 2, H0 * 1e3 if diverging else max(highs) * 2)
+    axes[0].set_ylabel("stored energy H (J), log")
+    fig.suptitle(f"{scenario}: total stored energy H(t) per master (H(0) = {H0:.4g} J)")
+    return _save(fig, path)
+
+
+# ---------------------------------------------------------------- general sweep (rows of runs.csv)
+
+def _numeric(values):
+    return all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values)
+
+
+def figure_plots(rows, keys, figures, out):
+    """<figure>_vs_<key>.png for each figure: the figure against the first swept key, one line per
+    combination of the other swept keys; non-numeric keys on a categorical axis."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    if not keys or not rows:
+        return []
+    x_key, others = keys[0], keys[1:]
+    groups = {}
+    for row in rows:
+        groups.setdefault(tuple(row.get(k) for k in others), []).append(row)
+    xs = [row.get(x_key) for row in rows]
+    categories = None if _numeric(xs) else list(dict.fromkeys(map(str, xs)))
+    return [_figure_vs_key(groups, x_key, others, y, categories, out) for y in figures]
+
+
+def _figure_vs_key(groups, x_key, others, y, categories, out):
+    fig, ax = plt.subplots(figsize=(7, 4))
+    colors = _colors(len(groups))
+    values = []
+    for color, (group, rows) in zip(colors, groups.items()):
+        x = [categories.index(str(r.get(x_key))) if categories else r.get(x_key) for r in rows]
+        v = [r.get(y) if isinstance(r.get(y), (int, float)) else float("nan") for r in rows]
+        values += v
+        label = ", ".join(f"{k} = {g}" for k, g in zip(others, group)) or None
+        ax.plot(*_finite(x, v), "o-", color=color, ms=3, lw=1, label=label)
+    finite = np.asarray([v for v in values if np.isfinite(v)], float)
+    if finite.size and finite.min() > 0 and finite.max() > 100 * finite.min():
+        ax.set_yscale("log")
+    if categories:
+        ax.set_xticks(range(len(categories)), categories, rotation=45, ha="right")
+    ax.set(xlabel=x_key, ylabel=y, title=f"{y} against {x_key}")
+    ax.grid(alpha=0.3, which="both")
+    if 1 < len(groups) <= 12:
+        ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    name = "".join(c if c.isalnum() or c in "._-" else "_" for c in f"{y}_vs_{x_key}")
+    return _save(fig, out / f"{name}.png")

@@ -1,0 +1,273 @@
+"""The recorder: owns a run's rows, its CSV (and MAT) files and the Ctrl-C handling.
+
+Rows go into preallocated blocks of BLOCK rows and are written to disk a block at a time, so a
+failure or Ctrl-C loses nothing already computed and memory does not grow with the run: a table
+keeps all its rows in memory only while they fit in KEEP_VALUES numbers (or when it has no file);
+beyond that it reads them back from its file when asked. Every float is written as repr writes it
+(the shortest text that reads back to the same bits): a block at a time in C (wavecosim/kernel/csvfmt.py),
+or with repr itself when the C formatter is not built or a column has a formatter of its own.
+"""
+import json
+import math
+import re
+import signal
+import threading
+from functools import partial
+from pathlib import Path
+
+import numpy as np
+
+from ..kernel.csvfmt import block_writer
+from .writer import Writer
+
+BLOCK = 1024
+KEEP_VALUES = 262_144             # 2 MB of rows per table at most stays in memory
+
+
+def _floats(col):
+    return list(map(repr, col.tolist()))
+
+
+def _ints(col):
+    return [str(int(v)) for v in col.tolist()]
+
+
+class Labels:
+    """A formatter writing code k of a column as names[k] (e.g. the reason an inner loop stopped)."""
+
+    def __init__(self, names):
+        self.names = list(names)
+
+    def __call__(self, col):
+        return [self.names[int(v)] for v in col.tolist()]
+
+    def parse(self, cells):
+        return [self.names.index(v) for v in cells]
+
+
+class Table:
+    """One table of float rows (`columns`), streamed to `path` (CSV) when given.
+
+    `formats` maps a column to a formatter (default repr of floats); see `ints` and `Labels`.
+    Rows fill one of two blocks; a full block is handed to the writer threads (observers/writer.py)
+    while the other fills, and is filled again only once its rows are formatted (a table that keeps
+    its rows in memory keeps its full blocks themselves and takes fresh ones)."""
+
+    def __init__(self, columns, path=None, formats=None, expected_rows=0):
+        self.columns, self.path = list(columns), path
+        self._fmt = [(formats or {}).get(c, _floats) for c in self.columns]
+        self._slots = [self._new_slot(), None]        # (block, its formatter); the second made when first needed
+        self._pending = [[], []]                      # each block's hand-overs not yet settled (writer Pieces)
+        self._at, self._fill, self._handed = 0, 0, 0  # block in use, rows filled, rows of it handed over
+        self._block = self._slots[0][0]
+        self._kept = [] if path is None or expected_rows * len(self.columns) <= KEEP_VALUES else None
+        self.rows = 0
+        self._file, self._writer = None, None
+        if path is not None:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            self._file = open(path, "wb")
+            self._file.write((",".join(self.columns) + "\r\n").encode())
+            self._writer = Writer(self._file)
+
+    def _new_slot(self):
+        """A block of BLOCK rows (columns contiguous) and what formats its rows for the file."""
+        block = np.empty((BLOCK, len(self.columns)), order="F")
+        if self.path is None:
+            return block, None
+        return block, block_writer(block, [_kind(f) for f in self._fmt]) or self._python_text(block)
+
+    def next_row(self):
+        """A row to fill in place (the block's next slot); it is booked by `commit_row`."""
+        if self._fill == BLOCK:
+            self.flush()
+        if self._block is None:
+            self._take_block()
+        return self._block[self._fill]
+
+    def commit_row(self):
+        self._fill += 1
+        self.rows += 1
+
+    def reserve(self, k):
+        """k rows (k <= BLOCK) of the block to fill in place, booked by commit_rows(k)."""
+        if self._fill + k > BLOCK:
+            self.flush()
+        if self._block is None:
+            self._take_block()
+        return self._block[self._fill:self._fill + k]
+
+    def commit_rows(self, k):
+        self._fill += k
+        self.rows += k
+
+    def append_block(self, rows):
+        """Book many rows at once (a 2-D array of the table's columns), as next_row and commit_row would."""
+        at = 0
+        while at < len(rows):
+            if self._fill == BLOCK:
+                self.flush()
+            if self._block is None:
+                self._take_block()
+            k = min(BLOCK - self._fill, len(rows) - at)
+            self._block[self._fill:self._fill + k] = rows[at:at + k]
+            self._fill, self.rows, at = self._fill + k, self.rows + k, at + k
+
+    def hand_over(self):
+        """Hand the rows filled since the last hand-over to the writer threads now (the runner does after
+        each block of macro-steps, so they are formatted while the master makes the next block)."""
+        if self._writer is None or self._fill == self._handed:
+            return
+        self._writer.check()
+        text = partial(self._slots[self._at][1], start=self._handed)
+        self._pending[self._at].append(self._writer.hand_over(text, self._fill - self._handed))
+        self._handed = self._fill
+
+    def flush(self):
+        """Hand the rest of the block to the writer (and keep it when the table stays in memory), then
+        go on in the other block once its rows are formatted; raises a writer's error."""
+        if self._writer is not None:
+            self._writer.check()
+        if not self._fill:
+            return
+        self.hand_over()
+        if self._kept is not None:
+            self._kept.append(self._block[:self._fill])      # the block itself: it is not filled again
+            self._slots[self._at] = None
+        self._at, self._fill, self._handed, self._block = 1 - self._at, 0, 0, None
+        for piece in self._pending[self._at]:
+            self._writer.settle(piece)
+        self._pending[self._at] = []
+        if self._writer is not None:
+            self._writer.check()
+
+    def _take_block(self):
+        """Rows go next into the current slot's block, made when first needed (after a flush)."""
+        self._slots[self._at] = self._slots[self._at] or self._new_slot()
+        self._block = self._slots[self._at][0]
+
+    def _python_text(self, block):
+        """Rows start .. start + rows - 1 of `block` as CSV lines, formatted in Python."""
+        def text(rows, start=0):
+            cells = [fmt(block[start:start + rows, j]) for j, fmt in enumerate(self._fmt)]
+            return "".join(",".join(r) + "\r\n" for r in zip(*cells)).encode()
+        return text
+
+    def wait(self):
+        """Until every row handed over is in the file; raises a writer's error."""
+        if self._writer is not None:
+            self._writer.wait()
+
+    def close(self):
+        """Write every row and close the file; a Ctrl-C meanwhile is held until all is written (a table
+        without a file only keeps its last rows: nothing to hold Ctrl-C for)."""
+        if self._file is None:
+            self.flush()
+            return
+        with Interrupts() as held:
+            try:
+                self.flush()
+                self.wait()
+            finally:
+                self._close_file()
+        held.check()
+
+    def _close_file(self):
+        """Close the file once no writer thread uses it; after a writer's error (the one raised) the
+        file's own complaint about its unwritten buffer is left out."""
+        if self._file is None or self._file.closed:
+            return
+        failed = self._writer.wait_quietly()
+        try:
+            self._file.close()
+        except OSError:
+            if not failed:
+                raise
+
+    def array(self):
+        """All rows as a 2-D float array (read back from the file when not kept in memory)."""
+        if self._kept is not None:
+            rows = self._kept + ([self._block[:self._fill].copy()] if self._fill else [])
+            return np.concatenate(rows) if rows else np.empty((0, len(self.columns)))
+        self.flush()
+        self.wait()
+        return _read_csv(self.path, self._fmt)
+
+
+def _read_csv(path, formats):
+    """A table's CSV back into floats (label columns back to their codes)."""
+    with open(path) as f:
+        f.readline()
+        rows = [line.rstrip("\r\n").split(",") for line in f if line.strip()]
+    out = np.empty((len(rows), len(formats)))
+    for j, fmt in enumerate(formats):
+        col = [r[j] for r in rows]
+        out[:, j] = fmt.parse(col) if isinstance(fmt, Labels) else np.array(col, float)
+    return out
+
+
+ints = _ints
+
+
+def _kind(fmt):
+    """What the C formatter calls a column's formatter: 0 floats, 1 integers, label names; None: unknown."""
+    if isinstance(fmt, Labels):
+        return fmt.names
+    return {_floats: 0, _ints: 1}.get(fmt)
+
+
+class Interrupts:
+    """Holds Ctrl-C (SIGINT) until the step in progress is booked: `pending` says one came, and
+    `check()` raises KeyboardInterrupt between steps. A second Ctrl-C raises at once."""
+
+    def __enter__(self):
+        self.pending, self._old = False, None
+        if threading.current_thread() is threading.main_thread():
+            self._old = signal.signal(signal.SIGINT, self._hold)
+        return self
+
+    def _hold(self, signum, frame):
+        if self.pending:
+            raise KeyboardInterrupt
+        self.pending = True
+
+    def check(self):
+        if self.pending:
+            raise KeyboardInterrupt
+
+    def __exit__(self, *exc):
+        if self._old is not None:
+            signal.signal(signal.SIGINT, self._old)
+        return False
+
+
+def clean_json(obj):
+    """JSON-safe copy: non-finite floats become strings, numpy scalars plain numbers."""
+    if isinstance(obj, dict):
+        return {str(k): clean_json(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [clean_json(v) for v in obj]
+    if hasattr(obj, "item") and not isinstance(obj, (list, dict)):
+        obj = obj.item()
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return str(obj)
+    if isinstance(obj, Path):
+        return str(obj)
+    return obj
+
+
+def write_json(path: Path, data):
+    """Write JSON atomically (a .part file renamed), so a reader never sees half a file."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".json.part")
+    tmp.write_text(json.dumps(clean_json(data), indent=2) + "\n")
+    tmp.replace(path)
+
+
+def write_mat(path: Path, table: Table):
+    """The table as a MATLAB file (scipy.io.savemat), one variable per column (names made valid)."""
+    from scipy.io import savemat
+    data = table.array()
+    names = [re.sub(r"\W", "_", c) if re.match(r"[A-Za-z]", c) else f"v_{re.sub(r'[^0-9A-Za-z]', '_', c)}"
+             for c in table.columns]
+    savemat(str(path), {n: data[:, j] for j, n in enumerate(names)}, oned_as="column")

@@ -1,0 +1,591 @@
+"""Runs one scenario with one master: set up the parts, step them, summarise.
+
+    live = LiveRun(scenario, ...)        scene, master, sampler, observers, recorder tables
+    live.start()                         reading at t = 0, first rows
+    for n in range(N): live.step(n)      before_step, master.step, after_step, one row
+    live.finish(status, error)           summary.json, metadata.json, the RunResult
+
+When the master can make many macro-steps in one call (the C kernel's run_steps) and every observer
+takes them at once (Observer.after_block), `advance` makes blocks of up to BLOCK_STEPS steps: the
+same numbers as step by step, to the last bit, without crossing into Python at every step.
+
+A monolithic reference runs in lockstep (its own LiveRun) when asked, so errors are computed as
+both runs stream and memory does not grow with the number of steps.
+"""
+import ctypes
+import math
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..kernel import blocks
+from ..errors import ConfigError, Interrupted, NumericalError, RunFailed, WavecosimError
+from ..kernel.drkernel import REASONS as KERNEL_REASONS
+from ..core.gamma import GammaTuner
+from ..masters import MASTERS
+from ..masters.base import REASONS, WaveMaster, require_wave_tuning
+from .metadata import run_metadata
+from .observers import Observer
+from ..core.certificates import sampling
+from .observers.certificates import CertificatePace, CertificateSampler
+from .observers.energy_guard import EnergyGuard
+from .observers.energy_ledger import EnergyLedger
+from .observers.errors import ErrorTracker, stored_reference, stored_rows
+from .observers.fne_watch import FneWatch
+from .observers.gamma import GammaLog, TunedGammaLog
+from .observers.passivity import Passivity
+from .recorder import BLOCK, Interrupts, Labels, Table, ints, write_json, write_mat
+from ..core.readings import Sampler
+from ..core.scene import build_scene
+
+FORMATS = ("csv", "mat")
+STEP_COLUMNS = ("time", "iterations", "inner_residual", "reason")
+BLOCK_STEPS = BLOCK                    # macro-steps per call of the master, at most a table block
+assert REASONS[:len(KERNEL_REASONS)] == KERNEL_REASONS     # the kernel's reason codes are the runner's
+
+
+def grid_inverse(dt):
+    """1/dt when it is a whole number (the grid is then k / (1/dt)), else 0 (the grid is k * dt)."""
+    inverse = round(1.0 / dt)
+    return inverse if inverse > 0 and abs(inverse * dt - 1.0) < 1e-12 else 0
+
+
+def grid_clock(dt):
+    """k -> the grid value k dt: k / (1/dt) when 1/dt is a whole number (so t = 0.3 is 0.3, not
+    0.30000000000000004), else k * dt."""
+    inverse = grid_inverse(dt)
+    if inverse:
+        return lambda k: k / inverse
+    return lambda k: k * dt
+
+
+def grid_times(k, dt):
+    """grid_clock for an array of step indices."""
+    return grid_clock(dt)(np.asarray(k, float))
+
+
+def _structured(table):
+    """A table's rows as a NumPy structured array, one float field per column ('reason' as text)."""
+    data = table.array()
+    fields = [(c, "U12" if c == "reason" else "f8") for c in table.columns]
+    out = np.empty(len(data), dtype=fields)
+    for j, (name, _) in enumerate(fields):
+        out[name] = [REASONS[int(v)] for v in data[:, j]] if name == "reason" else data[:, j]
+    return out
+
+
+@dataclass
+class RunResult:
+    """What a run produced: `trajectory` and `steps` as NumPy structured arrays whose first field is
+    `time` (fmpy's plot_result and write_csv take them as they are), `summary` (as summary.json),
+    status and message; arrays of long runs are read back from their files when asked."""
+    label: str
+    master: str
+    K: int
+    columns: list
+    units: dict
+    error_columns: list
+    trajectory_table: Table = None
+    steps_table: Table = None
+    first: dict = field(default_factory=dict)      # values at t = 0 that steps.csv has no row for
+    summary: dict = field(default_factory=dict)
+    status: str = "finished"
+    message: str = ""
+    reference: "RunResult" = None                  # the lockstep monolithic reference, when one ran
+
+    @property
+    def trajectory(self):
+        return _structured(self.trajectory_table)
+
+    @property
+    def steps(self):
+        return _structured(self.steps_table)
+
+    @property
+    def t(self):
+        return self.trajectory_table.array()[:, 0]
+
+    @property
+    def outputs(self):
+        return self.trajectory_table.array()[:, 1:]
+
+    def column(self, name):
+        return self.outputs[:, self.columns.index(name)]
+
+    def _series(self, key, column):
+        """A per-step column with its value at t = 0 in front: one entry per trajectory row."""
+        if column not in self.steps_table.columns:
+            return None
+        data = self.steps_table.array()[:, self.steps_table.columns.index(column)]
+        return np.concatenate([[self.first.get(key, np.nan)], data])
+
+    @property
+    def energy(self):
+        """Total stored energy H at every recorded grid point, t = 0 included."""
+        return self._series("H", "H_total")
+
+    @property
+    def error(self):
+        """Error against the monolithic reference at every recorded grid point (None without one)."""
+        return self._series("error", "error")
+
+    def per_subsystem(self, prefix):
+        """The per-subsystem columns `prefix<name>` of steps (r_, fne_, gamma_) as one 2-D array."""
+        cols = [c for c in self.steps_table.columns if c.startswith(prefix) and c != "fne_watch"]
+        data = self.steps_table.array()
+        return data[:, [self.steps_table.columns.index(c) for c in cols]]
+
+    def to_pandas(self):
+        """The trajectory as a pandas DataFrame indexed by time (pandas is not a dependency)."""
+        import pandas as pd
+        return pd.DataFrame(self.trajectory).set_index("time")
+
+
+def _warn_stderr(message):
+    print(f"warning: {message}", file=sys.stderr, flush=True)
+
+
+def _once(warn):
+    """`warn` that lets each distinct message through once."""
+    seen = set()
+
+    def once(message):
+        if message not in seen:
+            seen.add(message)
+            warn(message)
+    return once
+
+
+def open_parts(scenario, warn):
+    """Scene, master and gamma tuner of a run; whatever was opened is closed if set-up fails."""
+    cls = MASTERS[scenario.master.algorithm]
+    scene = build_scene(scenario, wave=cls.wave, needs_rollback=cls.needs_rollback)
+    for note in scene.notes:
+        warn(note)
+    master = None
+    try:
+        tuner = None
+        if cls.wave and isinstance(scenario.gamma, str):
+            tuner = GammaTuner(scene, scenario.gamma, warn if cls.iterates else None)
+            tuner.initial([0.0] * scene.n_channels)                # sets the scene's per-subsystem gammas
+        master = cls(scene, scenario.master)
+        require_wave_tuning(master, scenario.gamma, scenario.source)
+        return scene, master, tuner
+    except BaseException:
+        if master is not None:
+            master.close()
+        scene.close()
+        raise
+
+
+def make_observers(scenario, scene, master, tuner, certificates, warn):
+    """The observers this run needs, in the order they act (the energy guard first)."""
+    obs, unavailable = [], []
+    has_H = all(s.port.energy is not None for s in scene.subsystems)
+    guard = scenario.master.energy_guard or master.default_guard
+    if guard == "ledger" and master.guardable:
+        obs.append(EnergyLedger(master))
+    elif guard == "monolithic" and master.guardable and master.iterates:
+        if has_H:
+            obs.append(EnergyGuard(master))
+        else:
+            unavailable.append("energy_guard (monolithic: needs every subsystem's stored energy H)")
+    if isinstance(master, WaveMaster):
+        obs.append(TunedGammaLog(scene, master, tuner) if tuner and tuner.retune else GammaLog(scene, master, tuner))
+    certs = scenario.certificates
+    pace = sampling(certs, master.evaluations)
+    if master.iterates and scenario.fne_watch and certificates:
+        obs.append(FneWatch(scene, master, pace, warn))
+    augmented = master.iterates and has_H
+    if certificates and master.iterates and certs.augmented and not has_H:
+        unavailable.append("max_augmented_pos (Theorem 1 needs every subsystem's stored energy H)")
+    if certificates and scene.wave and (certs.fne_pairs or (certs.augmented and augmented)):
+        obs.append(CertificateSampler(scene, master, certs, augmented=augmented, pace=pace))
+    if any(isinstance(o, (FneWatch, CertificateSampler)) for o in obs):
+        obs.append(CertificatePace(pace))
+    obs.append(Passivity(scene, unavailable))
+    return obs
+
+
+class LiveRun:
+    """One run while it runs; it owns its parts and closes them."""
+
+    def __init__(self, scenario, out_dir=None, label=None, certificates=True, warn=None, file_suffix=True,
+                 output_interval=1, formats=("csv",)):
+        self.scenario, self.warn = scenario, warn or _warn_stderr
+        settings = scenario.master
+        self.label = label or f"{settings.algorithm}_K{settings.K}"
+        self.scene, self.master, tuner = open_parts(scenario, self.warn)
+        self.observers = make_observers(scenario, self.scene, self.master, tuner, certificates, self.warn)
+        self.guard_mode = (settings.energy_guard or self.master.default_guard) if self.master.guardable else "n/a"
+        if any(o.needs_trace for o in self.observers):
+            self.master.enable_trace(True)
+        self.out_dir, self.formats = (Path(out_dir) if out_dir is not None else None), formats
+        self.suffix = f"_{self.label}" if file_suffix else ""
+        self.every, self.n_steps, self.dt = output_interval, scenario.n_steps, scenario.dt
+        self.sampler = Sampler(self.scene, scenario.outputs)
+        self.columns = list(scenario.outputs)
+        self.master_time, self.steps_done, self.started = 0.0, 0, time.perf_counter()
+        self.iterations = [0, 0]                       # sum and max of the inner iterations per step
+        self.loop_time = 0.0                           # start() to the last row written: the run's own per-step cost
+        self.led, self.failure, self.recent = 0, None, {}   # as a lockstep reference (lead)
+        self.block_steps = 0                                # macro-steps made in blocks
+
+    def add_observer(self, observer: Observer):
+        """Before start(): one more observer (e.g. the error tracker), acting last."""
+        self.observers.append(observer)
+
+    def _tables(self):
+        rows = self.n_steps // self.every + 2
+        path = (lambda kind: self.out_dir / f"{kind}{self.suffix}.csv") if self.out_dir else (lambda kind: None)
+        self.trajectory = Table(["time", *self.columns], path("trajectory"), expected_rows=rows)
+        obs_cols = [c for o in self.observers for c in o.columns]
+        formats = {"iterations": ints, "reason": Labels(REASONS)}
+        for o in self.observers:
+            formats.update(o.formats)
+        self.steps = Table([*STEP_COLUMNS, *obs_cols], path("steps"), expected_rows=rows, formats=formats)
+        self.scratch = np.full(len(self.steps.columns), np.nan)
+        self.slices, self.spans, at = [], {}, len(STEP_COLUMNS)
+        for o in self.observers:
+            self.slices.append(self.scratch[at:at + len(o.columns)])
+            self.spans[id(o)] = slice(at, at + len(o.columns))
+            at += len(o.columns)
+        self.time_of = grid_clock(self.dt)
+
+    def start(self):
+        """Read the FMUs at t = 0, start the observers, record the first trajectory row."""
+        self._tables()
+        first = self.sampler.read()
+        for o in self.observers:
+            o.start(first)
+        self._check_finite(first, -1)
+        row = self.trajectory.next_row()
+        row[0], row[1:] = 0.0, first.outputs
+        self.trajectory.commit_row()
+        self.first = {"H": sum(first.H), "error": next((o.first for o in self.observers
+                                                        if isinstance(o, ErrorTracker)), math.nan)}
+        self.bracket = any(type(o).before_step is not Observer.before_step for o in self.observers)
+        self.guard, self.guard_row = next(((o, row) for o, row in zip(self.observers, self.slices) if o.redoes),
+                                          (None, None))
+        self.after = [(o, row) for o, row in zip(self.observers, self.slices) if o is not self.guard]
+        self.recent = {0: first.outputs}
+        self._plan_blocks()
+        self.loop_started = time.perf_counter()
+        self.calls_at_start, self.excluded = self._totals(), {k: 0 for k in ("doStep", "save", "restore")}
+
+    def step(self, n):
+        """Macro-step n: observers before, the master, observers after (the guard may redo), one row;
+        returns the Reading of the FMUs after it."""
+        t = n * self.dt
+        self.scene.begin_step(n)                     # signals held over the step (none: nothing)
+        before = self._totals() if self.bracket else None
+        for o in self.observers:
+            o.before_step(n, t)
+        if before is not None:                       # observers' own FMU calls are not the master's
+            for k, v in self._totals().items():
+                self.excluded[k] += v - before[k]
+        if self.kernel_guard:                        # the kernel makes the step and the ledger's redo in one call
+            self.master.keep_ledger(*self.guard.kernel_state())
+        t0 = time.perf_counter()
+        log = self.master.step(n, t)
+        self.master_time += time.perf_counter() - t0
+        return self._after_master(n, t, log)
+
+    def _after_master(self, n, t, log):
+        """After the master made step n: read the FMUs, the guard (it may redo), the observers, one row."""
+        reading = self.sampler.read()
+        if self.guard is not None:
+            t0 = time.perf_counter()
+            redo = self.guard.after_step(n, t, log, reading, self.guard_row)
+            self.master_time += time.perf_counter() - t0
+            if redo is not None:
+                log, reading = redo, self.sampler.read()
+        for o, row in self.after:
+            o.after_step(n, t, log, reading, row)
+        self._record(n, log, reading)
+        self._check_finite(reading, n)
+        self.loop_time = time.perf_counter() - self.loop_started
+        return reading
+
+    def _plan_blocks(self):
+        """Blocks when the master can make them, every observer takes them, nothing acts before a
+        step (a paced observer: before the steps it names; blocks stop before them), and builtin sum()
+        adds left to right (Python < 3.12: the blocks' sums are written so)."""
+        guard = self.guard
+        self.cap = guard.cap if isinstance(guard, EnergyGuard) else math.inf
+        self.ledger = isinstance(guard, EnergyLedger)
+        route = self.master.route()
+        self.kernel_guard = self.ledger and route is not None and route.guards_steps()
+        self.blocks = (route is not None
+                       and all(o.paced or type(o).before_step is Observer.before_step for o in self.observers)
+                       and all(o.blocks for o, _ in self.after)
+                       and (guard is None or isinstance(guard, EnergyGuard)
+                            or (self.ledger and route.keeps_ledger))          # classical: step by step
+                       and self.scene.signals is None and blocks.library() is not None
+                       and sys.version_info < (3, 12))
+        self.rows_call = None                    # block_rows' arguments, from the blocks' layout
+        self.paced = [o for o in self.observers if o.paced]          # blocks stop before their steps
+        if self.blocks:
+            layout = self.master.observe(self.sampler.observed, BLOCK_STEPS)
+            self.block_observers = [(o, self.spans[id(o)]) for o in ([guard] if self.ledger else [])
+                                    + [o for o, _ in self.after]]
+            if layout is not None:
+                self._prepare_blocks(layout)
+
+    def _prepare_blocks(self, layout):
+        """The C passes' arguments built in set-up, from an empty log of the blocks' layout, so the first
+        block costs no more than the others."""
+        readings = self.sampler.block(layout.observed)
+        self.rows_call = self._rows_call(layout, readings)
+        for o, _ in self.block_observers:
+            o.prepare_block(layout, readings)
+
+    def block_size(self, n):
+        """How many macro-steps advance(n, ...) may make in one call of the master."""
+        if self.blocks and self.master.can_run_steps(n):
+            return max(1, min([BLOCK_STEPS, self.n_steps - n] + [o.next_before(n) - n for o in self.paced]))
+        return 1
+
+    def advance(self, n, count):
+        """Macro-steps from n on: up to `count` in one call of the master when count > 1, else step(n);
+        returns how many were made."""
+        if count == 1:
+            self.step(n)
+            return 1
+        return self.step_block(n, count)
+
+    def step_block(self, n0, count):
+        """Macro-steps n0 .. n0 + count - 1 in one call of the master; the master stops early after a
+        step the energy guard must judge (or with a non-finite value), which is then finished as in
+        step() (the ledger is kept, and redone, in the kernel: such a step is in the block, and a
+        non-finite value ends the run after it). Returns the steps made; raises the FmuError of the
+        step after them."""
+        if self.ledger:
+            self.master.keep_ledger(*self.guard.kernel_state())
+        t0 = time.perf_counter()
+        done, log, error = self.master.run_steps(n0, count, self.cap)
+        self.master_time += time.perf_counter() - t0
+        self.block_steps += done
+        whole = done - 1 if log.stopped and not self.ledger else done      # the ledger's kernel books every step
+        if whole:
+            self._after_block(n0, log.first(whole))
+        if whole < done:
+            n = n0 + whole
+            self._after_master(n, n * self.dt, self.master.step_log(log, whole))
+        elif log.stopped:
+            self._check_finite(self.sampler.read(), n0 + done - 1)
+        self.loop_time = time.perf_counter() - self.loop_started
+        if error is not None:
+            raise error
+        return done
+
+    def _after_block(self, n0, log):
+        """The observers and the rows of a block of steps (all finite: the kernel stops at a non-finite
+        value); with an output interval the rows kept are picked afterwards."""
+        count, readings, every = len(log), self.sampler.block(log.observed), self.every == 1
+        rows = self.steps.reserve(count) if every else np.empty((count, len(self.steps.columns)), order="F")
+        trajectory = self.trajectory.reserve(count) if every else np.empty((count, 1 + len(self.columns)), order="F")
+        iterations = self._block_rows(n0, log, readings, rows, trajectory)
+        with np.errstate(over="ignore", invalid="ignore"):     # as Python floats overflow: inf, nan, silently
+            for o, span in self.block_observers:
+                o.after_block(n0, log, readings, rows[:, span])
+        self.steps_done = n0 + count
+        self.iterations[0] += int(iterations[0])
+        self.iterations[1] = max(self.iterations[1], int(iterations[1]))
+        if every:
+            self.steps.commit_rows(count)
+            self.trajectory.commit_rows(count)
+        else:
+            ks = np.arange(n0 + 1, n0 + count + 1)
+            keep = (ks % self.every == 0) | (ks == self.n_steps)
+            self.steps.append_block(rows[keep])
+            self.trajectory.append_block(trajectory[keep])
+        self.steps.hand_over()
+        self.trajectory.hand_over()
+
+    def _block_rows(self, n0, log, readings, rows, trajectory):
+        """The steps' grid time, iterations, residual and reason, and the trajectory's rows, in one C
+        pass over the kernel's log (kernel/c/blocks.c, block_rows); (sum, max) of the iterations."""
+        if self.rows_call is None:
+            self.rows_call = self._rows_call(log, readings)
+        call, ref = self.rows_call
+        call.count, call.n0 = len(log), n0
+        (call.log, call.ld), (call.steps, call.lds) = blocks.rows(log.columns), blocks.columns(rows)
+        call.trajectory, call.ldt = blocks.columns(trajectory)
+        blocks.library().block_rows(ref)
+        return call.iterations_sum, call.iterations_max
+
+    def _rows_call(self, log, readings):
+        """block_rows' fixed arguments: where the outputs are in the kernel's log, the grid."""
+        outputs = blocks.ints([log.observed_at + r for r in readings.rows("outputs")])
+        call = blocks.BlockRows(n_out=len(self.columns), inverse=grid_inverse(self.dt), dt=self.dt, outputs=outputs)
+        return call, ctypes.byref(call)
+
+    def lead(self, n, end):
+        """As the lockstep reference of a run at step n: make the steps up to end - 1 not made yet,
+        keeping the outputs of the grid points after n (`recent`); a failure stops it and is kept in
+        `failure`. Returns how many steps were made in all."""
+        self.recent = {k: v for k, v in self.recent.items() if k > n}
+        while self.failure is None and self.led < end:
+            try:
+                reading = self.step(self.led)
+            except WavecosimError as exc:
+                self.failure = exc
+                break
+            self.led += 1
+            self.recent[self.led] = reading.outputs
+        return self.led
+
+    def _totals(self):
+        return {k: sum(s.calls[k] for s in self.scene.subsystems) for k in ("doStep", "save", "restore")}
+
+    def _record(self, n, log, reading):
+        self.steps_done = n + 1
+        self.iterations[0] += log.iterations
+        self.iterations[1] = max(self.iterations[1], log.iterations)
+        s = self.scratch
+        s[0], s[1], s[2], s[3] = self.time_of(n + 1), log.iterations, log.residual, REASONS.index(log.reason)
+        if (n + 1) % self.every and n + 1 != self.n_steps:
+            return
+        self.steps.next_row()[:] = s
+        self.steps.commit_row()
+        row = self.trajectory.next_row()
+        row[0], row[1:] = self.time_of(n + 1), reading.outputs
+        self.trajectory.commit_row()
+
+    def _check_finite(self, reading, n):
+        H = [h for s, h in zip(self.scene.subsystems, reading.H) if s.port.energy is not None]
+        if not all(map(math.isfinite, reading.outputs)) or not all(map(math.isfinite, H)):
+            bad = next((s.name for s, h in zip(self.scene.subsystems, reading.H)
+                        if s.port.energy is not None and not math.isfinite(h)), "an output")
+            raise NumericalError(f"non-finite value in {bad} at step {n} (t = {(n + 1) * self.dt:.6g})")
+
+    def fmu_calls(self):
+        """doStep, save and restore calls the master made (observers' probes excluded)."""
+        now = self._totals()
+        return {k: now[k] - self.calls_at_start[k] - self.excluded[k] for k in now}
+
+    def summary(self, status, message):
+        settings, sc = self.scenario.master, self.scenario
+        n, iters = self.steps_done, self.iterations
+        out = {"label": self.label, "scenario": sc.name, "master": settings.algorithm, "K": settings.K,
+               "eps": settings.eps, "dt": sc.dt, "T": sc.T, "steps": n, "status": status, "message": message,
+               "iterations_mean": iters[0] / n if n else 0.0, "iterations_max": iters[1],
+               "wall_time_s": self.master_time, "total_time_s": time.perf_counter() - self.started,
+               "loop_time_s": self.loop_time,
+               "real_time_factor": (n * sc.dt) / self.master_time if self.master_time > 0 else float("nan"),
+               "fmu_calls": self.fmu_calls(), "output_interval": self.every,
+               "energy_guard": self.guard_mode, "block_steps": self.block_steps}
+        for o in self.observers:
+            out.update(o.summary())
+        if self.master is not None:
+            out.update(self.master.run_info())
+            out.update(self.scene.port_info())
+            out.update(self.scene.signal_info(out.get("fast_note")))
+        return out
+
+    def finish(self, status, message):
+        """Close the tables and parts, write summary.json (and metadata.json, MAT files); the RunResult.
+        The rows still to write count in the run's own time (loop_time_s)."""
+        started = time.perf_counter()
+        tables = [t for t in (getattr(self, "trajectory", None), getattr(self, "steps", None)) if t is not None]
+        for table in tables:           # both tables' last rows handed to the writer threads at once
+            table.flush()
+        for table in tables:
+            table.close()
+        self.loop_time += time.perf_counter() - started
+        summary = self.summary(status, message)
+        self.close()
+        result = RunResult(self.label, self.scenario.master.algorithm, self.scenario.master.K, self.columns,
+                           self.sampler.units, list(self.scenario.error), self.trajectory, self.steps,
+                           getattr(self, "first", {}), summary, status, message)
+        if self.out_dir is not None:
+            self._write_files(result)
+        return result
+
+    def _write_files(self, result):
+        name = (lambda kind, ext: self.out_dir / f"{kind}{self.suffix}.{ext}")
+        write_json(name("summary", "json"), result.summary)
+        write_json(name("metadata", "json"), run_metadata(self.scenario, self.scene))
+        if "mat" in self.formats:
+            write_mat(name("trajectory", "mat"), self.trajectory)
+            write_mat(name("steps", "mat"), self.steps)
+
+    def close(self):
+        """Release the master and the FMUs (idempotent)."""
+        if self.master is not None:
+            self.master.close()
+            self.scene.close()
+            self.master = None
+
+
+def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True, progress=None, warn=None,
+        file_suffix=True, output_interval=1, formats=("csv",)) -> RunResult:
+    """Run `scenario` with its master; stream trajectory.csv and steps.csv into out_dir when given.
+
+    reference: None (no errors), a RunResult of the monolithic reference, or "lockstep" (run the
+    monolithic reference alongside, writing its files with the label "monolithic"). Raises
+    RunFailed (with .result) on a failure, Interrupted (with .result) on Ctrl-C."""
+    warn = _once(warn or _warn_stderr)                 # the lockstep reference repeats set-up notes
+    live = LiveRun(scenario, out_dir, label, certificates, warn, file_suffix, output_interval, formats)
+    ref = None
+    try:
+        rows = None
+        if reference == "lockstep":
+            try:
+                ref = LiveRun(reference_scenario(scenario), out_dir, "monolithic", False, warn, True,
+                              output_interval, formats)
+            except ConfigError as exc:     # e.g. an FMU without state save that only the reference rolls back
+                raise type(exc)(f"{exc} (needed by the monolithic reference; --no-reference runs without it)") from None
+            reference = lambda k: ref.recent.get(k)          # noqa: E731  (ref steps first)
+        elif reference is not None:
+            reference, rows = stored_reference(reference), stored_rows(reference)
+        if reference is not None and scenario.error:
+            live.add_observer(ErrorTracker(live.columns, scenario.error, reference, rows))
+    except BaseException:
+        live.close()
+        raise
+    status, error = _loop(live, ref, progress)
+    result = live.finish(status, str(error) if error else "")
+    if ref is not None:
+        result.reference = ref.finish(status, str(error) if error else "")
+    if status == "interrupted":
+        raise Interrupted(f"interrupted by the user after {result.summary['steps']} steps", result)
+    if status == "failed":
+        raise RunFailed(error, result) from error
+    return result
+
+
+def _loop(live, ref, progress):
+    """Every macro-step of the run (and of its lockstep reference); returns (status, exception)."""
+    every = max(1, live.n_steps // 200)
+    with Interrupts() as stop:
+        try:
+            for part in (ref, live):
+                if part is not None:
+                    part.start()
+            n = 0
+            while n < live.n_steps:
+                count = live.block_size(n)
+                if ref is not None:
+                    count = min(count, ref.lead(n, n + count) - n)
+                    if count <= 0:
+                        raise ref.failure
+                done = live.advance(n, count)
+                stop.check()
+                if progress and ((n + done) // every > n // every or n + done == live.n_steps):
+                    progress(n + done, live.n_steps)
+                n += done
+        except KeyboardInterrupt:
+            return "interrupted", None
+        except WavecosimError as exc:
+            return "failed", exc
+    return "finished", None
+
+
+def reference_scenario(scenario):
+    """The monolithic reference of a scenario: interface Newton at every macro-step."""
+    return scenario.with_master(algorithm="newton")

@@ -1,0 +1,91 @@
+"""The package's shape: imports flow one way, scenario -> core -> masters -> kernel, never back up;
+no import cycle between modules; at most 12 modules at the top of the package."""
+import ast
+from pathlib import Path
+
+import wavecosim
+
+PACKAGE = Path(wavecosim.__file__).resolve().parent
+# Each part may import itself and the parts ranked below it, never one ranked above.
+RANK = {"errors": 0, "examples": 0, "kernel": 1, "fmi": 2, "masters": 3, "core": 4, "scenario": 5, "run": 6,
+        "sweeps": 7, "bench": 7, "api": 8, "cli": 8, "plots": 8, "__init__": 8, "__main__": 8}
+
+
+def modules():
+    """{dotted name: path} of every module of the package."""
+    out = {}
+    for path in PACKAGE.rglob("*.py"):
+        parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+        out[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
+    return out
+
+
+def imported(name, path):
+    """The package's modules that the module `name` imports (relative and absolute imports)."""
+    package = name if path.name == "__init__.py" else name.rsplit(".", 1)[0]
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")[: len(package.split(".")) - node.level + 1]
+                target = ".".join(base + ([node.module] if node.module else []))
+            else:
+                target = node.module or ""
+            if target.split(".")[0] == "wavecosim":
+                yield target, [a.name for a in node.names]
+        elif isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.name.split(".")[0] == "wavecosim":
+                    yield alias.name, []
+
+
+def part(name):
+    """The part of the package a module belongs to: its first component below wavecosim."""
+    pieces = name.split(".")
+    return pieces[1] if len(pieces) > 1 else "__init__"
+
+
+def edges():
+    mods = modules()
+    for name, path in mods.items():
+        for target, names in imported(name, path):
+            subs = [f"{target}.{n}" for n in names if f"{target}.{n}" in mods]
+            for t in subs or [target]:
+                yield name, t
+
+
+def test_every_part_is_ranked():
+    assert {part(m) for m in modules()} <= set(RANK)
+
+
+def test_imports_never_reach_up():
+    upward = [f"{a} imports {b}" for a, b in edges() if RANK[part(b)] > RANK[part(a)]]
+    assert upward == []
+
+
+def test_no_import_cycle():
+    graph = {}
+    for a, b in edges():
+        if b != a:
+            graph.setdefault(a, set()).add(b)
+    seen, stack, cycles = set(), [], []
+
+    def visit(node):
+        if node in stack:
+            cycles.append(stack[stack.index(node):] + [node])
+            return
+        if node in seen:
+            return
+        seen.add(node)
+        stack.append(node)
+        for nxt in sorted(graph.get(node, ())):
+            visit(nxt)
+        stack.pop()
+
+    for node in sorted(graph):
+        visit(node)
+    assert cycles == []
+
+
+def test_top_level_is_small():
+    top = [p.name for p in PACKAGE.glob("*.py")]
+    assert len(top) <= 12, top
