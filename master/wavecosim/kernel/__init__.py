@@ -1,0 +1,2 @@
+"""Every binding of the C kernel (one place that knows its ABI) and its sources (c/), compiled into the
+per-user cache on first use (build.py)."""
