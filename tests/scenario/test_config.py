@@ -333,3 +333,12 @@ def test_executable(case_id, tmp_path):
     assert_one_line_error(proc.returncode, proc.stderr, str(bad), *needles)
     assert proc.stdout == ""
     assert not list(tmp_path.glob("wavecosim-fmu-*"))
+
+
+def test_gamma_is_auto_where_there_is_a_power_bond_and_none_without():
+    from wavecosim.scenario.config import parse_scenario
+    raw = mutate(_drop(["gamma"]))
+    assert parse_scenario(raw, "base").gamma == "auto"
+    alone = {"dt": 0.01, "T": 0.05, "subsystems": {"B": {"fmu": "LinearSide"}}}
+    sc = parse_scenario(alone, "alone")
+    assert sc.gamma is None and sc.master.algorithm == "explicit" and sc.subsystems == []
