@@ -16,6 +16,7 @@ import time
 
 import numpy as np
 
+from .abi import mirrors
 from .build import kernel_library
 from ..errors import ConfigError, FmuError
 from .adapter import load_library as load_adapter_library
@@ -58,12 +59,14 @@ class Trace:
         return arr.reshape(self._count, 2, self._n)
 
 
+@mirrors("drkernel", "queries", "DRFunctions")
 class DRFunctions(ctypes.Structure):
     """drkernel.h: the FMU functions the kernel calls."""
     _fields_ = [(name, ctypes.c_void_p) for name in
                 ("getFMUstate", "setFMUstate", "freeFMUstate", "setReal", "doStep", "getReal")]
 
 
+@mirrors("drkernel", "DRStep")
 class DRStep(ctypes.Structure):
     """drkernel.h: inputs and results of one macro-step."""
     _fields_ = [("t", ctypes.c_double), ("dt", ctypes.c_double), ("K", ctypes.c_int), ("eps", ctypes.c_double),
