@@ -4,6 +4,8 @@ FmuError naming the struct."""
 import ctypes
 import importlib
 import pkgutil
+import subprocess
+import sys
 
 import pytest
 
@@ -50,3 +52,19 @@ def test_a_mirror_that_differs_from_c_is_a_one_line_error():
         class Missing(ctypes.Structure):
             _fields_ = [("x", ctypes.c_int)]
     assert not any(cls.__module__ == __name__ for classes in abi.MIRRORS.values() for cls in classes)
+
+
+def test_a_run_over_a_mirror_that_differs_stops_with_one_line_and_the_fmu_exit_code(tmp_path, built_fmus):
+    """Not a quiet fall back to the Python reference: the run stops before its first step."""
+    script = "\n".join([
+        "import ctypes",
+        "from wavecosim.kernel.abi import mirrors",
+        "@mirrors('drkernel', 'DRStep')",
+        "class Short(ctypes.Structure):",
+        "    _fields_ = [('t', ctypes.c_double)]",
+        "from wavecosim.cli import main",
+        "main(['run', '--T', '0.1', '--no-reference', '--quiet', '--out', 'out'])"])
+    done = subprocess.run([sys.executable, "-c", script], cwd=tmp_path, capture_output=True, text=True)
+    assert done.returncode == FmuError.exit_code
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "struct DRStep has " in lines[0] and "but 8 in its mirror __main__.Short" in lines[0]

@@ -4,7 +4,8 @@ Every ctypes Structure of the package names the C struct it mirrors and the kern
 define it (`@mirrors("drkernel", "DRStep")`); each such library exports `size_t DRStep_struct_size(void)`
 (kernel/c/abi.h, MIRRORED). When a library is loaded (kernel/build.py, helper_library) every mirror
 of it is compared with that size, and a mirror defined after the load is compared when defined: a
-layout that drifted apart is a one-line FmuError naming the struct, never a run on garbage.
+layout that drifted apart is a one-line FmuError (LayoutError) naming the struct, never a run on
+garbage and never a quiet fall back to the Python reference.
 """
 import ctypes
 
@@ -13,6 +14,10 @@ from ..errors import FmuError
 MIRRORS = {}         # library name -> the Structure classes mirroring its structs
 CHECKED = set()      # the Structure classes compared with their C struct (in every library of theirs)
 _libraries = {}      # library name -> the loaded library, once its mirrors were checked
+
+
+class LayoutError(FmuError):
+    """A mirrored struct differs from its C struct (or cannot be checked): the build is broken."""
 
 
 def mirrors(*names):
@@ -35,12 +40,12 @@ def check(name, lib, cls):
     try:
         size_of = getattr(lib, f"{cls.c_struct}_struct_size")
     except AttributeError:
-        raise FmuError(f"lib{name}.so does not export {cls.c_struct}_struct_size: the layout of struct "
+        raise LayoutError(f"lib{name}.so does not export {cls.c_struct}_struct_size: the layout of struct "
                        f"{cls.c_struct} ({cls.__module__}.{cls.__qualname__}) cannot be checked") from None
     size_of.restype, size_of.argtypes = ctypes.c_size_t, []
     size, mine = size_of(), ctypes.sizeof(cls)
     if size != mine:
-        raise FmuError(f"struct {cls.c_struct} has {size} bytes in lib{name}.so but {mine} in its mirror "
+        raise LayoutError(f"struct {cls.c_struct} has {size} bytes in lib{name}.so but {mine} in its mirror "
                        f"{cls.__module__}.{cls.__qualname__}: the layouts differ")
     if all(other == name or other in _libraries for other in cls.c_libraries):
         CHECKED.add(cls)

@@ -16,7 +16,7 @@ import time
 
 import numpy as np
 
-from .abi import mirrors
+from .abi import LayoutError, mirrors
 from .build import kernel_library
 from ..errors import ConfigError, FmuError
 from .adapter import load_library as load_adapter_library
@@ -141,7 +141,8 @@ class BlockLog:
 
 
 def unusable(scene):
-    """Why the kernel cannot run this scene, or None if it can."""
+    """Why the kernel cannot run this scene, or None if it can; a library whose structs differ from
+    their mirrors is no reason to fall back but an error (abi.LayoutError)."""
     for s in scene.subsystems:
         if not s.fmu.can_save_state:
             return f"subsystem {s.name} cannot get and set its FMU state"
@@ -150,12 +151,16 @@ def unusable(scene):
                 s.fmu.function_pointer(name)      # FMI 3: kernel/c/fmi3shim.c's, in fmi2 form
             except AttributeError:
                 return f"subsystem {s.name}: the FMU does not export {s.fmu.function_name(name)}"
+            except LayoutError:
+                raise
             except FmuError as exc:
                 return str(exc)
     try:
         load_library()
         if any(s.adapter for s in scene.subsystems):
             load_adapter_library()
+    except LayoutError:
+        raise
     except FmuError as exc:
         return str(exc)
     return None
