@@ -44,19 +44,19 @@ def bits(x):
 
 
 @pytest.fixture(scope="module")
-def scenes(built_fmus):
-    """scenes(name, T=None, **master): a shipped scene with T and master settings replaced (loaded once
-    per module; skipped when it needs the absent third-party FMUs)."""
+def scenario(built_fmus):
+    """scenario(name, T=None, **master): a shipped scenario file with T and master settings replaced
+    (read once per module; skipped when it needs the absent third-party FMUs)."""
     loaded = {}
 
-    def scene(name, T=None, **master):
+    def shipped(name, T=None, **master):
         if name not in loaded:
             if name in THIRD_PARTY_SCENES and not THIRD_PARTY.exists():
                 pytest.skip("needs the third-party FMUs (../shared/third_party)")
             loaded[name] = load_scenario(CONFIGS / f"{name}.yaml")
         sc = copy.deepcopy(loaded[name])
         return dataclasses.replace(sc, T=T or sc.T).with_master(**master)
-    return scene
+    return shipped
 
 
 @contextlib.contextmanager
@@ -111,10 +111,10 @@ def the_route(master):
     return route
 
 
-def test_every_master_is_routed_or_declares_no_route(scenes):
+def test_every_master_is_routed_or_declares_no_route(scenario):
     """A master not in ROUTED gives no route and runs its Python reference; a routed one runs the
     kernel with fast: auto (newton makes no blocks: one kernel call per step), the reference with false."""
-    sc = scenes("two_oscillators_stiff", K=3)
+    sc = scenario("two_oscillators_stiff", K=3)
     for name, cls in MASTERS.items():
         scene = build_scene(sc, wave=cls.wave, needs_rollback=cls.needs_rollback)
         try:
@@ -158,20 +158,20 @@ def retune(masters, scenes):
 
 
 @pytest.mark.parametrize("case", STEPPED)
-def test_step_by_step(scenes, case):
+def test_step_by_step(scenario, case):
     """Every StepLog, the committed waves or outputs and the FMU calls after each step, the DR trace;
     wave masters change gamma half way; then an undo of the last step and its recommit."""
     name, scene, settings = STEPPED[case]
-    sc = scenes(scene, algorithm=name, **settings)
-    with both_routes(sc) as ((ref, fast), scenes_):
+    sc = scenario(scene, algorithm=name, **settings)
+    with both_routes(sc) as ((ref, fast), scenes):
         assert fast.run_info()["fast_path"] and not ref.run_info()["fast_path"]
         traced = [m.enable_trace(True) for m in (ref, fast)]
         for n in range(STEPS):
             if n == STEPS // 2 and ref.wave:
-                retune((ref, fast), scenes_)
+                retune((ref, fast), scenes)
             a, b = ref.step(n, n * sc.dt), fast.step(n, n * sc.dt)
             same_logs(a, b, f"step {n}")
-            same_state(ref, fast, scenes_, f"step {n}")
+            same_state(ref, fast, scenes, f"step {n}")
             if traced == [True, True]:
                 assert [bits(p) for q in ref.trace for p in q] == [bits(p) for q in fast.trace for p in q]
         if ref.guardable:
@@ -179,7 +179,7 @@ def test_step_by_step(scenes, case):
             for m in (ref, fast):
                 m.undo_step()
                 m.recommit(inputs)
-            same_state(ref, fast, scenes_, "undo and recommit")
+            same_state(ref, fast, scenes, "undo and recommit")
 
 
 @pytest.mark.parametrize("name, scene, settings", [
@@ -187,15 +187,15 @@ def test_step_by_step(scenes, case):
     ("explicit", "two_oscillators_stiff", {}),
     ("gauss-seidel", "two_oscillators", {}), ("jacobi-iter", "two_oscillators_stiff", dict(K=3)),
     ("gauss-seidel-iter", "two_oscillators_stiff", dict(K=10, eps=1e-12))])
-def test_the_route_makes_the_steps_of_the_reference(scenes, name, scene, settings):
+def test_the_route_makes_the_steps_of_the_reference(scenario, name, scene, settings):
     """Route.run_steps in blocks of 7 (the last one short) logs the reference's steps and reads what
     its Sampler reads; with an H cap below H it stops after one step, and undo_step after a block
     goes back as after step()."""
-    sc = scenes(scene, algorithm=name, **settings)
-    with both_routes(sc) as ((ref, fast), scenes_):
+    sc = scenario(scene, algorithm=name, **settings)
+    with both_routes(sc) as ((ref, fast), scenes):
         route = the_route(fast)
         assert route is not None and ref.route() is None
-        samplers = [Sampler(s, sc.outputs) for s in scenes_]
+        samplers = [Sampler(s, sc.outputs) for s in scenes]
         route.observe(samplers[1].observed)
         n = 0
         while n < STEPS:
@@ -204,7 +204,7 @@ def test_the_route_makes_the_steps_of_the_reference(scenes, name, scene, setting
             for j in range(done):
                 same_block_logs(ref.step(n + j, (n + j) * sc.dt), route.step_log(log, j), f"step {n + j}")
             n += done
-            same_state(ref, fast, scenes_, f"block ending at step {n - 1}")
+            same_state(ref, fast, scenes, f"block ending at step {n - 1}")
         observed = samplers[1].block(log.observed).outputs[-1]
         assert bits(samplers[0].read().outputs) == bits(observed)
         done, log, error = route.run_steps(n, 10, H_cap=0.0)
@@ -213,9 +213,9 @@ def test_the_route_makes_the_steps_of_the_reference(scenes, name, scene, setting
         if ref.guardable:
             for m in (ref, fast):
                 m.undo_step()
-            same_state(ref, fast, scenes_, "undo after a block")
+            same_state(ref, fast, scenes, "undo after a block")
             same_block_logs(ref.step(n, n * sc.dt), route.step_log(route.run_steps(n, 1)[1], 0), "step after the undo")
-            same_state(ref, fast, scenes_, "step after the undo")
+            same_state(ref, fast, scenes, "step after the undo")
 
 
 def same_run(ref, fast, skip=()):
@@ -269,9 +269,9 @@ RUNS = {
 
 
 @pytest.mark.parametrize("case", RUNS)
-def test_whole_runs(scenes, case):
+def test_whole_runs(scenario, case):
     name, scene, T, settings, options, shows = RUNS[case]
-    ref, fast = run_both(scenes(scene, T, algorithm=name, **settings), **options)
+    ref, fast = run_both(scenario(scene, T, algorithm=name, **settings), **options)
     same_run(ref, fast)
     s = fast.summary
     assert ref.summary["block_steps"] == 0
@@ -305,10 +305,10 @@ def failing(sc, **options):
 
 @pytest.mark.parametrize("name, threads, newton_max_iter, q1, step",
                          [(m, "1", 1, 3.0, 0) for m in ROUTED] + [("dr", "2", 1, 3.0, 0), ("dr", "2", 4, 2.0, 18)])
-def test_an_fmu_error_is_the_references(scenes, name, threads, newton_max_iter, q1, step):
+def test_an_fmu_error_is_the_references(scenario, name, threads, newton_max_iter, q1, step):
     """A doStep that fails (the Duffing side's Newton held to a few iterations) names subsystem, call,
     step and time."""
-    sc = scenes("two_oscillators", 1.0, algorithm=name, K=3, threads=threads)
+    sc = scenario("two_oscillators", 1.0, algorithm=name, K=3, threads=threads)
     sc.subsystems[0].integers["newton_max_iter"] = newton_max_iter
     sc.subsystems[0].start["q1"] = q1
     error = failing(sc)
@@ -316,16 +316,16 @@ def test_an_fmu_error_is_the_references(scenes, name, threads, newton_max_iter, 
     assert str(error).startswith(f"subsystem A: fmi2DoStep returned Error at step {step} ")
 
 
-def test_a_run_that_blows_up_fails_alike_in_blocks(scenes):
+def test_a_run_that_blows_up_fails_alike_in_blocks(scenario):
     """Explicit coupling pumps the stiff scene up until an FMU fails: the same failure at the same step
     and the same rows before it (output interval 7), the kernel's in blocks."""
-    error = failing(scenes("two_oscillators_stiff", 20.0, algorithm="explicit"), output_interval=7)
+    error = failing(scenario("two_oscillators_stiff", 20.0, algorithm="explicit"), output_interval=7)
     assert "fmi2DoStep returned Error" in str(error) and error.result.summary["block_steps"] > 0
 
 
-def test_a_newton_that_does_not_converge_is_the_references(scenes):
+def test_a_newton_that_does_not_converge_is_the_references(scenario):
     """Gamma 0.4 on a stiff coupling with a heavy mass: the interface Newton gives up, alike."""
-    sc = scenes("two_oscillators", 10.0, algorithm="newton").with_changes(gamma=0.4, dt=0.1)
+    sc = scenario("two_oscillators", 10.0, algorithm="newton").with_changes(gamma=0.4, dt=0.1)
     sc.subsystems[0].parameters["k12"] = 1.2e5
     sc.subsystems[1].parameters["m2"] = 400.0
     error = failing(sc)
@@ -333,33 +333,34 @@ def test_a_newton_that_does_not_converge_is_the_references(scenes):
     assert str(error).startswith("interface Newton at step ") and "did not converge" in str(error)
 
 
-def test_an_unsolved_adapter_query_is_the_references(scenes, monkeypatch):
+def test_an_unsolved_adapter_query_is_the_references(scenario, monkeypatch):
     monkeypatch.setattr(ports, "TOL", 0.0)
     monkeypatch.setattr(ports, "ACCEPT", 0.0)
-    error = failing(scenes("foreign_pair", 0.2).with_changes(gamma=1.0))
+    error = failing(scenario("foreign_pair", 0.2).with_changes(gamma=1.0))
     assert isinstance(error.error, NumericalError)
     assert str(error).startswith("subsystem A: wave adapter at step 0 (t = 0): no convergence in 30 Newton iterations")
 
 
-def test_an_fmu_error_inside_an_adapter_query_is_the_references(scenes):
+def test_an_fmu_error_inside_an_adapter_query_is_the_references(scenario):
     """A spring so stiff that one doStep overflows its force: named as the FMU's own call."""
-    sc = scenes("foreign_pair", 0.2, K=5).with_changes(gamma=1.0)
+    sc = scenario("foreign_pair", 0.2, K=5).with_changes(gamma=1.0)
     sc.subsystems[1].parameters["k"] = 1e300
     error = failing(sc)
     assert str(error).startswith("subsystem B: fmi2DoStep returned Error at step 0 (t = 0)")
 
 
 @pytest.mark.parametrize("name", ["dr", "jacobi-iter", "newton"])
-def test_fast_true_where_the_kernel_cannot_run_is_a_config_error(scenes, name):
+def test_fast_true_where_the_kernel_cannot_run_is_a_config_error(scenario, name):
     """master.fast: true insists on the kernel: one line naming the subsystem; auto falls back."""
-    sc = scenes("two_oscillators", algorithm=name)
+    sc = scenario("two_oscillators", algorithm=name)
     cls = MASTERS[name]
     scene = build_scene(sc, wave=cls.wave)
     try:
         scene.subsystems[1].fmu.can_save_state = False
         with pytest.raises(ConfigError) as info:
             cls(scene, dataclasses.replace(sc.master, fast="true"))
-        assert "\n" not in str(info.value) and "master.fast: true, but subsystem B cannot get and set" in str(info.value)
+        message = str(info.value)
+        assert "\n" not in message and "master.fast: true, but subsystem B cannot get and set" in message
         fallback = cls(scene, dataclasses.replace(sc.master, fast="auto"))
         assert not fallback.run_info()["fast_path"] and "subsystem B" in fallback.run_info()["fast_note"]
         assert fallback.route() is None
@@ -368,8 +369,8 @@ def test_fast_true_where_the_kernel_cannot_run_is_a_config_error(scenes, name):
         scene.close()
 
 
-def test_declared_physical_ports_keep_the_classical_masters_on_the_reference(scenes):
-    sc = scenes("foreign_pair", 0.05, algorithm="jacobi-iter", K=2)
+def test_declared_physical_ports_keep_the_classical_masters_on_the_reference(scenario):
+    sc = scenario("foreign_pair", 0.05, algorithm="jacobi-iter", K=2)
     result = run(sc, certificates=False, warn=lambda note: None)
     assert result.summary["fast_path"] is False and "physical port" in result.summary["fast_note"]
     with pytest.raises(ConfigError) as info:

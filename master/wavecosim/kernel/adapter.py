@@ -34,7 +34,8 @@ _lib = None
 
 
 def load_library():
-    """The adapter library, built (with the FMUs) if missing or stale; raises FmuError if it cannot be (or its struct differs)."""
+    """The adapter library, built if missing or stale; raises FmuError if it cannot be (LayoutError if its
+    struct differs from AdapterC)."""
     global _lib
     if _lib is None:
         lib = kernel_library(LIBRARY_NAME, "the wave adapter library")
