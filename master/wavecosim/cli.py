@@ -124,7 +124,7 @@ with_output = options(output_options)
 
 ssp_options = options([
     click.option("--ports", type=click.Path(dir_okay=False, path_type=Path),
-                 help="SSP input: a YAML overlay with the power ports and the run's settings (README, \"SSP in\")."),
+                 help="SSP input: a YAML overlay with the power ports and the run's settings (docs/your-fmus.md)."),
     click.option("--parameter-set", help="SSP input: use only the parameter sets of this name."),
 ])
 

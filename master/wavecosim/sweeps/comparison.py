@@ -25,7 +25,7 @@ DIVERGED_GROWTH = 1e3      # max H(t) / H(0) above this: the interface pumped en
 # The DR options compare can add: name -> (scenario gamma or None to keep the scenario's, master options,
 # marker in the plots). Energy-safe all: the ledger guard (the DR default) holds every one; Theorem 1's
 # per-step certificate holds for all but those with Anderson acceleration (masters/dr_options.py).
-# fastest-memory's lambda = 1.9 was found by a grid over lambda on Table I and the stiff scene (README);
+# fastest-memory's lambda = 1.9 was found by a grid over lambda on Table I and the stiff scene (docs/masters.md);
 # -eps3 / -eps5 add the inner tolerance eps = 1e-3 / 1e-5 (the exit lowers the doSteps actually made).
 DR_OPTIONS = {
     "relaxed": (None, {"relaxation": "auto"}, ("tab:cyan", "v")),

@@ -48,7 +48,7 @@ def draft_text(imported, folder) -> str:
     """The draft as text; `folder` is where it will be written (relative FMU paths)."""
     raw = imported.raw
     lines = [f"# Drafted by `wavecosim import-ssp` from {imported.ssd.name} ({imported.ssd.parent}).",
-             "# Edit freely; every key is checked when the file is run (README, \"The scenario file\")."]
+             "# Edit freely; every key is checked when the file is run (docs/scenario.md)."]
     lines += [f"# note: {note}" for note in imported.notes]
     for key in ORDER:
         if key == "subsystems":
@@ -56,7 +56,7 @@ def draft_text(imported, folder) -> str:
         elif key in ("couplings", "signals") and key in raw:
             lines += _comment(imported.origins, key) + [f"{key}:"] + [f"  - {_flow(item)}" for item in raw[key]]
             if key == "couplings" and not raw[key]:
-                lines[-1] = "couplings: []   # no power bond found: declare ports with --ports (README, \"SSP in\")"
+                lines[-1] = "couplings: []   # no power bond found: declare ports with --ports (docs/your-fmus.md)"
         elif key in raw:
             lines += _comment(imported.origins, key) + [f"{key}: {_flow(raw[key])}"]
         elif key in NEEDED:
