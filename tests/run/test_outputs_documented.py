@@ -10,7 +10,7 @@ import json
 import pytest
 
 import wavecosim as wc
-from paths import CONFIGS
+from paths import CONFIGS, THIRD_PARTY
 from wavecosim.run import glossary
 from wavecosim.run.observers import Observer, described_as
 from wavecosim.run.runner import OBSERVERS, STEP_DESCRIBED
@@ -108,3 +108,13 @@ def test_units_come_from_the_model_descriptions_and_the_descriptions(written):
     assert steps["gamma_A"] == "N/(m/s)" and steps["error"] == "m" and steps["H_total"] == "J"
     assert steps["inner_residual"] == "sqrt(J)" and steps["reason"] == "text"
     assert written["jacobi-iter"]["metadata"]["units"]["steps"]["inner_residual"] == ""   # port variables of any unit
+
+
+@pytest.mark.skipif(not (THIRD_PARTY / "reference_fmus").is_dir(), reason="the third-party FMUs are not here")
+@pytest.mark.parametrize("version", ["fmi2", "fmi3"])
+def test_a_unit_given_by_the_declared_type_is_the_columns_unit(version, tmp_path):
+    # the Reference FMU BouncingBall declares h and v by type (Position: m, Velocity: m/s), without a unit of their own
+    wc.simulate(THIRD_PARTY / "reference_fmus" / version / "BouncingBall.fmu", T=0.1, out_dir=tmp_path,
+                warn=lambda message: None)
+    units = json.loads((tmp_path / "metadata.json").read_text())["units"]["trajectory"]
+    assert units["BouncingBall.h"] == "m" and units["BouncingBall.v"] == "m/s"
