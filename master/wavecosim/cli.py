@@ -135,12 +135,17 @@ def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None):
 @click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and the Condition 1 watch (faster).")
 @click.option("--no-reference", is_flag=True, help="Skip the monolithic reference run (no error figures).")
 @click.option("--plots", is_flag=True, help="Also write PNG figures into the output folder.")
+@click.option("--threads", help="Threads evaluating the subsystems: auto, or N (up to min(N, CPUs, subsystems)); "
+                                "the numbers are the same for any N.")
 def run_cmd(config, K, eps, gamma, dt, T, quiet, output_interval, formats, ports, parameter_set, algorithm, out,
-            no_certificates, no_reference, plots):
+            no_certificates, no_reference, plots, threads):
     """Run one scenario (with the monolithic reference alongside) and write its trajectory, per-step
     certificates, summary and metadata. CONFIG is a scenario file or an SSP system (.ssd, .ssp, folder)."""
     scenario = _apply_overrides(_read_config(config, ports, parameter_set, dt, T, gamma), K, eps, gamma, dt, T,
                                 algorithm)
+    if threads is not None:
+        from .scenario.config import threads_option
+        scenario = scenario.with_master(threads=threads_option(threads))
     result = simulate(scenario, out_dir=out, progress=_progress("run", quiet) or False,
                       certificates=not no_certificates, reference=not no_reference,
                       output_interval=output_interval, formats=("csv", *formats))
@@ -166,6 +171,8 @@ def _report_run(scenario, result, out):
                       *(["energy_guard_steps"] if "energy_guard_steps" in s else [])])
     if "signal_note" in s:
         click.echo(f"note: {s['signal_note']}")
+    if s.get("threads", 1) > 1 or scenario.master.threads not in ("auto", "1"):
+        click.echo(f"threads: {s.get('thread_note', 'serial')}")
 
 
 # sweep: the common options with --K a list, plus those of general sweeps

@@ -21,7 +21,9 @@ from ..errors import ConfigError, FmuError
 from .adapter import load_library as load_adapter_library
 from .linalg import Sparse
 
-PARALLEL_MIN_US = 150.0
+PARALLEL_MIN_US = 150.0   # a thread pays only when it takes over at least this much work per evaluation round
+DR_MAX_THREADS = 64       # drkernel.h
+CPUS_ENV = "WAVECOSIM_CPUS"
 REASONS = ("budget", "tolerance", "deadline", "explicit", "converged", "energy-guard")  # as masters/base.py (the
 #                                                  runner asserts it); the kernel never gives "converged"
 LEDGER_LOG = ("supplied", "ledger", "traffic", "scale", "action", "rounds", "step_s", "round_s", "cpu_s")  # drkernel.h
@@ -89,6 +91,7 @@ def load_library():
         lib.dr_set_subsystem.argtypes = [p, i, ctypes.POINTER(DRFunctions), p, p, ctypes.POINTER(ctypes.c_uint),
                                          ctypes.POINTER(ctypes.c_uint), i, i]
         lib.dr_set_threads.argtypes = [p, i, ctypes.POINTER(ctypes.c_int)]
+        lib.dr_thread_plan.argtypes = [p, ctypes.POINTER(ctypes.c_int)]
         lib.dr_costs.argtypes = [p, d]
         lib.dr_costs.restype = None
         lib.dr_counts.argtypes = [p, ctypes.POINTER(ctypes.c_long)]
@@ -170,6 +173,13 @@ def kernel_refusal(scene, mode):
 
 
 def available_cpus():
+    """The cores this process may run on, or $WAVECOSIM_CPUS when set (e.g. a container's CPU quota,
+    which the affinity mask does not show)."""
+    value = os.environ.get(CPUS_ENV, "").strip()
+    if value:
+        if not value.isdigit() or int(value) < 1:
+            raise ConfigError(f"{CPUS_ENV} must be a positive integer, got {value!r}")
+        return int(value)
     try:
         return len(os.sched_getaffinity(0))
     except AttributeError:
@@ -393,6 +403,12 @@ class Kernel:
         ok = self.lib.dr_set_threads(self.handle, n_threads, (ctypes.c_int * len(plan))(*plan)) == 0
         self.threads = n_threads if ok else 1
         return ok
+
+    def thread_plan(self):
+        """The plan in force in the kernel: [thread of subsystem i]."""
+        out = (ctypes.c_int * len(self.subsystems))()
+        self.lib.dr_thread_plan(self.handle, out)
+        return list(out)
 
     def close(self):
         if self.handle:

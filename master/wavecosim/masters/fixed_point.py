@@ -50,7 +50,8 @@ class JacobiIterMaster(KernelRoute, RollbackPhysicalMaster):
         """The same macro-step in C (classical.c); the Subsystems book its calls."""
         self.step_started = time.perf_counter()
         self.configure_kernel()
-        io, y_next, u = self.kernel.fixed_point_step(n, t, self.y, int(self.sequential))
+        io, y_next, u = self.planned(lambda measure: self.kernel.fixed_point_step(n, t, self.y, int(self.sequential),
+                                                                                  measure))
         self.book_kernel(n, t, io.iterations, 1)
         self.y_step_start, self.y, self.u = self.y, y_next, u
         return StepLog(iterations=io.iterations, residual=io.residual, reason=REASONS[io.reason])
