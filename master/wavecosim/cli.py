@@ -379,11 +379,17 @@ def examples_cmd(name):
 @cli.command("bench")
 @click.option("--quick", is_flag=True, help="Fewer steps and repeats (a few seconds instead of about a minute).")
 @click.option("--json", "json_file", type=click.Path(dir_okay=False, path_type=Path), help="Also write the figures here.")
-def bench_cmd(quick, json_file):
+@click.option("--only", type=click.Choice(["parallel_threads"]), help="Measure this part alone.")
+def bench_cmd(quick, json_file, only):
     """Time the inner iteration: plain fmpy loop, Python reference, C fast path and the C floor; the deadline bound."""
-    from .bench.main import report, run_bench
-    result = run_bench(quick=quick, progress=lambda msg: click.echo(msg, err=True))
-    for line in report(result):
+    from .bench.main import report, run_bench, run_part
+    progress = lambda msg: click.echo(msg, err=True)      # noqa: E731
+    if only:
+        result, lines = run_part(only, quick, progress)
+    else:
+        result = run_bench(quick=quick, progress=progress)
+        lines = report(result)
+    for line in lines:
         click.echo(line)
     if json_file:
         write_json(json_file, result)
