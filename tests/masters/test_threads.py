@@ -1,7 +1,8 @@
 """`master.threads: auto | N`: the subsystems of DR and of the Jacobi family on up to N threads.
 
 Claims: the files a run writes are the same bytes on 1, 2, 4 and 8 threads, on an 8-subsystem scene
-(the chain of 8 links; the 8 heavy chains) and on Table I, for DR, explicit and jacobi-iter, and the
+(the chain of 8 links; the 8 heavy chains) and on Table I, for DR, explicit, jacobi-iter, aitken and
+iqn-ils (their passes in C, their update in Python, as the Python reference to the last bit), and the
 kernel really ran that many threads; the plan is longest-processing-time first, re-balanced when the
 costs drift; auto keeps a thread only while its measured round pays, and gives threads back when
 the costs fall; N is capped by the CPUs ($WAVECOSIM_CPUS) and the subsystems.
@@ -44,14 +45,17 @@ def eight_cpus(monkeypatch):
     monkeypatch.setenv("WAVECOSIM_CPUS", "8")
 
 
-@pytest.mark.parametrize("algorithm", ["dr", "explicit", "jacobi-iter"])
+JACOBI_FAMILY = ["dr", "explicit", "jacobi-iter", "aitken", "iqn-ils"]
+
+
+@pytest.mark.parametrize("algorithm", JACOBI_FAMILY)
 def test_chain_of_eight_same_bytes_on_1_2_4_8_threads(built_fmus, eight_cpus, tmp_path, algorithm):
     scenario = dataclasses.replace(load_scenario(CONFIGS / "chain.yaml"), T=0.3)
     scenario = scenario.with_master(algorithm=algorithm, K=6, energy_guard="off")
     same_bytes_on_every_thread_count(scenario, tmp_path, lambda n: n)
 
 
-@pytest.mark.parametrize("algorithm", ["dr", "explicit", "jacobi-iter"])
+@pytest.mark.parametrize("algorithm", JACOBI_FAMILY)
 def test_table_i_same_bytes_on_1_2_4_8_threads(built_fmus, eight_cpus, tmp_path, algorithm):
     scenario = dataclasses.replace(load_scenario(), T=1.0).with_master(algorithm=algorithm, K=8)
     same_bytes_on_every_thread_count(scenario, tmp_path, lambda n: min(n, 2))     # two subsystems
@@ -62,6 +66,18 @@ def test_heavy_chains_same_bytes_on_1_2_4_8_threads(built_fmus, eight_cpus, tmp_
         pytest.skip("the HeavyChain FMU is not available")
     scenario = dataclasses.replace(load_scenario(CONFIGS / "heavy_chain_8.yaml"), T=0.03)
     same_bytes_on_every_thread_count(scenario, tmp_path, lambda n: n)
+
+
+@pytest.mark.parametrize("algorithm", ["aitken", "iqn-ils"])
+def test_accelerated_masters_passes_in_c_same_bytes_as_python(built_fmus, eight_cpus, tmp_path, algorithm):
+    """aitken and iqn-ils: their passes in C on 4 threads, their update in Python; the files, the FMU
+    calls and the per-step log as the Python reference's."""
+    scenario = dataclasses.replace(load_scenario(CONFIGS / "chain.yaml"), T=0.3).with_master(algorithm=algorithm, K=6)
+    python, py_summary = written(scenario.with_master(fast="false"), tmp_path / "python")
+    kernel, summary = written(scenario.with_master(fast="true", threads="4"), tmp_path / "kernel")
+    assert not py_summary["fast_path"] and summary["fast_path"] and summary["threads"] == 4
+    assert summary["fast_note"] == "C kernel passes, the update in Python"
+    assert kernel == python and summary["fmu_calls"] == py_summary["fmu_calls"]
 
 
 def test_threads_capped_by_cpus(built_fmus, monkeypatch, tmp_path):

@@ -26,6 +26,7 @@ def _library():
         lib.cl_create.argtypes = [p, ip, ip, _double_p]
         lib.cl_fixed_point_step.argtypes = [p, p, p, p, p, ctypes.c_int]      # arrays by address
         lib.cl_explicit_step.argtypes = [p, p, p, p, ctypes.c_int]
+        lib.cl_pass.argtypes = [p, p, p, p, p, ctypes.c_int, ctypes.c_int]
         lib.cl_run_steps.argtypes = [p, p, ctypes.c_int, ctypes.c_int, p, ctypes.c_long, ctypes.c_double,
                                      ctypes.c_int, ctypes.c_int]
         lib.cl_destroy.argtypes = [p]
@@ -87,6 +88,18 @@ class ClassicalKernel:
         if self._step(self._handle, self.base._io, y_n.ctypes.data, y_next.ctypes.data, u.ctypes.data, sequential):
             raise self.base.failure(n, t)
         return io, y_next, u
+
+    def one_pass(self, n, t, y, commit=False, first=False, measure=False):
+        """One Jacobi pass from y (classical.h, cl_pass): (outputs, inputs handed out); first: macro-step
+        n at t begins; commit: the state is kept. Raises the reference's FmuError."""
+        io = self.base.io
+        io.t, io.measure = t, measure
+        y_n = np.ascontiguousarray(y, dtype=np.float64)
+        y_new, u = np.empty(self.n), np.empty(self.n)
+        if self.lib.cl_pass(self._handle, self.base._io, y_n.ctypes.data, y_new.ctypes.data, u.ctypes.data,
+                            int(commit), int(first)):
+            raise self.base.failure(n, t)
+        return y_new, u
 
     def explicit_step(self, n, t, y, sequential, measure=False):
         """Explicit macro-step n from outputs y, nothing saved: (io, y^{n+1})."""

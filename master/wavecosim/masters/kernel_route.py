@@ -19,17 +19,18 @@ class KernelRoute(KernelOwner):
     the kernel's budget (`configure_kernel`), books its steps on the Subsystems (`book_kernel`) and
     takes a block's last state (`took_block`)."""
 
-    def attach_kernel(self, scene, settings, has_route=True):
-        self.kernel, self.fast_note = None, "Python reference (this master has no kernel route)"
-        self.planner = None                    # the thread plan of a Jacobi pass (masters/threads.py)
+    def attach_kernel(self, scene, settings, blocks=True):
+        """The kernel when master.fast allows it; blocks: it makes whole macro-steps (else only the
+        passes, the master's update staying in Python)."""
+        self.kernel, self.blocks, self.planner = None, blocks, None      # planner: masters/threads.py
         self._step_s = 0.0                     # seconds per macro-step of the last run_steps call
-        if has_route:
-            self.fast_note = refusal(scene, str(settings.fast).lower())
-            if self.fast_note is None:
-                explicit = not self.needs_rollback
-                self.kernel, self.fast_note = ClassicalKernel(scene, self.G, explicit, self.sequential), "C kernel"
-                self.planner = ThreadPlanner(self.kernel.base, settings.threads, len(self.subsystems),
-                                             independent=not self.sequential)
+        self.fast_note = refusal(scene, str(settings.fast).lower())
+        if self.fast_note is None:
+            explicit = not self.needs_rollback
+            self.kernel = ClassicalKernel(scene, self.G, explicit, self.sequential)
+            self.fast_note = "C kernel" if blocks else "C kernel passes, the update in Python"
+            self.planner = ThreadPlanner(self.kernel.base, settings.threads, len(self.subsystems),
+                                         independent=not self.sequential)
 
     def run_info(self):
         """The route and the thread plan of its passes (serial on the Python reference)."""
@@ -54,8 +55,8 @@ class KernelRoute(KernelOwner):
         return self.kernel is not None
 
     def route(self):
-        """This master as its kernel route (base.Route) while the kernel runs."""
-        return self if self.kernel is not None else None
+        """This master as its kernel route (base.Route) while the kernel makes its macro-steps."""
+        return self if self.kernel is not None and self.blocks else None
 
     def guards_steps(self):
         return False
@@ -65,7 +66,7 @@ class KernelRoute(KernelOwner):
 
     def can_run_steps(self, n):
         """The kernel runs and no thread plan is on trial (it is timed on one macro-step, alone)."""
-        return self.kernel is not None and not self.planner.on_trial
+        return self.kernel is not None and self.blocks and not self.planner.on_trial
 
     def observe(self, names, steps=0):
         """The variables of each subsystem run_steps reads after every commit (names[i], H_i first),

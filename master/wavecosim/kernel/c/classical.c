@@ -96,6 +96,12 @@ int cl_fixed_point_step(CLKernel *c, DRStep *io, const double *y_n, double *y_ne
     return f >= 0 ? dr_fail(k, io, f) : 0;
 }
 
+int cl_pass(CLKernel *c, DRStep *io, const double *y, double *y_new, double *inputs, int commit, int first) {
+    if (first) dr_begin(c->k, io);
+    int f = sweep(c, y, y_new, inputs, io->t, io->dt, commit ? COMMIT : QUERY, 0, io->measure);
+    return f >= 0 ? dr_fail(c->k, io, f) : 0;
+}
+
 int cl_explicit_step(CLKernel *c, DRStep *io, const double *y_n, double *y_next, int sequential) {
     dr_begin(c->k, io);
     io->iterations = 0;
