@@ -32,10 +32,11 @@ def makespan(costs, plan, n_threads):
 
 
 class ThreadPlanner:
-    """The thread plan of one kernel (drkernel.Kernel: set_threads, costs). The master asks
-    `wants_measure()` before each macro-step or block (the kernel then times every evaluation),
-    hands the costs and the measured round over with `measured`, runs a step on trial alone and
-    reports its round with `tried`. `threads`, `plan` and `note` say what is in force and why."""
+    """The thread plan of one kernel (drkernel.Kernel: set_threads, costs). The master calls
+    `begin()` before each macro-step or block (whether the kernel times every evaluation) and
+    `end()` after it with its seconds per round, which hands the costs over (`measured`) or the
+    round of a plan on trial (`tried`); it runs no block while a plan is on trial (`on_trial`).
+    `threads`, `plan` and `note` say what is in force and why."""
 
     def __init__(self, kernel, mode, n_sub, independent=True):
         self.kernel, self.auto = kernel, str(mode) == "auto"
@@ -50,8 +51,8 @@ class ThreadPlanner:
         self.note = "serial" if independent else "serial: each subsystem reads its predecessors' new outputs"
         self._asked = "as set" if asked == self.limit else \
             f"threads: {asked} capped at {self.limit}: {self.cpus} CPUs, {n_sub} subsystems"
-        if not self.auto and independent and self.limit == 1 and asked > 1:
-            self.note = f"serial ({self._asked})"
+        if independent and self.limit == 1 and asked > 1:
+            self.note = f"serial ({self._asked})" if not self.auto else f"serial: {self.cpus} CPU"
 
     @property
     def on_trial(self):
