@@ -30,7 +30,7 @@ from wavecosim.masters.base import Route
 from wavecosim.run.runner import run
 from wavecosim.scenario.config import load_scenario
 
-ROUTED = ("dr", "explicit", "gauss-seidel", "jacobi-iter", "gauss-seidel-iter", "newton")
+ROUTED = ("dr", "explicit", "gauss-seidel", "jacobi-iter", "gauss-seidel-iter", "newton", "aitken", "iqn-ils")
 BLOCKS = ("dr", "explicit", "gauss-seidel", "jacobi-iter", "gauss-seidel-iter")     # their route makes blocks
 THIRD_PARTY_SCENES = ("fmi3_damper", "dcmotor_shaft")
 STEPS = 30                          # macro-steps of the step-by-step comparisons
@@ -113,7 +113,8 @@ def the_route(master):
 
 def test_every_master_is_routed_or_declares_no_route(scenario):
     """A master not in ROUTED gives no route and runs its Python reference; a routed one runs the
-    kernel with fast: auto (newton makes no blocks: one kernel call per step), the reference with false."""
+    kernel with fast: auto (newton makes no blocks: one kernel call per step; aitken and iqn-ils neither:
+    their passes in C, their update in Python), the reference with false."""
     sc = scenario("two_oscillators_stiff", K=3)
     for name, cls in MASTERS.items():
         scene = build_scene(sc, wave=cls.wave, needs_rollback=cls.needs_rollback)
@@ -145,6 +146,8 @@ STEPPED = {
     "gauss-seidel-stiff": ("gauss-seidel", "two_oscillators_stiff", {}),
     "jacobi-iter-stiff": ("jacobi-iter", "two_oscillators_stiff", dict(K=3)),
     "gauss-seidel-iter-chain": ("gauss-seidel-iter", "chain", dict(K=10, eps=1e-9)),
+    "aitken-stiff": ("aitken", "two_oscillators_stiff", dict(K=3)),
+    "iqn-ils-chain": ("iqn-ils", "chain", dict(K=6)),
 }
 
 
@@ -265,6 +268,8 @@ RUNS = {
                                  "guard"),
     "jacobi-iter-deadline": ("jacobi-iter", "chain", 0.3, dict(K=1000, deadline_us=1e-3), {}, "deadline"),
     "gauss-seidel-iter-chain": ("gauss-seidel-iter", "chain", 0.5, dict(K=10, eps=1e-9), {}, "blocks"),
+    "aitken-stiff": ("aitken", "two_oscillators_stiff", 0.5, dict(K=3), {}, ""),
+    "iqn-ils-chain-two-threads": ("iqn-ils", "chain", 0.3, dict(K=6, threads="2"), {}, "threads"),
 }
 
 
