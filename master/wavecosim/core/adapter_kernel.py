@@ -49,6 +49,17 @@ class KernelAdapter(ports.AdapterPort):
         return [ctypes.cast(getattr(self.lib, f"adapter_{name}"), ctypes.c_void_p).value for name in SHIM], \
             ctypes.addressof(self.struct)
 
+    def impedance(self):
+        """Addresses of the C struct's gamma and k (the kernel's port view reads them at each commit)."""
+        return self._address("gamma"), self._address("k")
+
+    def noise(self):
+        """Address of the C struct's worst_accepted (the kernel's energy ledger reads it, Scene.map_noise)."""
+        return self._address("worst_accepted")
+
+    def _address(self, name):
+        return ctypes.addressof(self.struct) + getattr(type(self.struct), name).offset
+
     def _set_weights(self, gamma):
         self.weights(gamma)
         st = self.struct

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..kernel.linalg import DOT_EXACT
+from ..kernel.portview import ObservedPort
 
 
 @dataclass
@@ -44,13 +45,11 @@ class BlockReading:
 
 
 def row_sums(X):
-    """The builtin sum() of each row of X, to the last bit: left to right from 0 (Python < 3.12)."""
+    """linalg.total of each row of X, to the last bit: left to right from 0."""
     acc = 0.0 + X[:, 0]
     for j in range(1, X.shape[1]):
         acc = acc + X[:, j]
     return acc
-
-
 
 
 def row_dots(A, B):
@@ -75,31 +74,39 @@ class Sampler:
     set-up, so a step costs one C call per subsystem."""
 
     def __init__(self, scene, outputs):
-        self.parts, self.observed = [], []        # observed: per subsystem the names read, H_i first
+        # observed: per subsystem the names read (H_i first; a physical port's ObservedPort), then per
+        # subsystem stepped alone its outputs: what the kernel logs after each step of a block
+        self.parts, self.observed = [], []
         for s in scene.subsystems:
-            cols = [var for ref in outputs.values() for name, var in [ref.split(".", 1)] if name == s.name]
+            cols = self._own(s, outputs)
             if s.port.physical:
                 self.parts.append(self._physical_part(s, cols))
+                self.observed.append(self._observed_port(s, cols))
                 continue
             names = [s.port.energy, *s.port.effort, *s.port.flow, *(s.port.wave_out if scene.wave else [])]
             read, buf = s.reader(names + cols)
             self.parts.append((read, s.m, len(names)))
             self.observed.append(names + cols)
-        self.alone = [s.reader([var for ref in outputs.values() for name, var in [ref.split(".", 1)]
-                                if name == s.name])[0] for s in scene.signal_only]
+        self.observed.extend(self._own(s, outputs) for s in scene.signal_only)
+        self.alone = [s.reader(self._own(s, outputs))[0] for s in scene.signal_only]
         owner = [ref.split(".", 1)[0] for ref in outputs.values()]
         everyone = scene.subsystems + scene.signal_only
         order = [(i, sum(1 for o in owner[:k] if o == s.name)) for k, o in enumerate(owner)
                  for i, s in enumerate(everyone) if s.name == o]
         self._order = order
-        whole = len(self.observed) == len(self.parts) and not self.alone   # else no kernel blocks
-        self._columns = {key: as_index(cols) for key, cols in self._block_columns(order).items()} if whole else None
+        self._columns = {key: as_index(cols) for key, cols in self._block_columns(order).items()}
         by_name = {s.name: s for s in everyone}
         self.units = {col: by_name[ref.split(".", 1)[0]].fmu.variable(ref.split(".", 1)[1]).unit or ""
                       for col, ref in outputs.items()}
 
+    @staticmethod
+    def _own(s, outputs):
+        """The variables of subsystem s that `outputs` records, in its order."""
+        return [var for ref in outputs.values() for name, var in [ref.split(".", 1)] if name == s.name]
+
     def _block_columns(self, order):
-        """Where H, E, F, B and the outputs sit in the concatenated observed values of all subsystems."""
+        """Where H, E, F, B and the outputs sit in the concatenated observed values of all subsystems
+        (those stepped alone: outputs only, last)."""
         at, starts, cols = 0, [], {"H": [], "E": [], "F": [], "B": []}
         for (_, m, k), names in zip(self.parts, self.observed):
             starts.append(at)
@@ -107,13 +114,24 @@ class Sampler:
             for key, first, last in (("E", 1, 1 + m), ("F", 1 + m, 1 + 2 * m), ("B", 1 + 2 * m, k)):
                 cols[key].extend(range(at + first, at + last))
             at += len(names)
-        cols["outputs"] = [starts[i] + self.parts[i][2] + j for i, j in order]
+        heads = [k for _, _, k in self.parts]
+        for names in self.observed[len(self.parts):]:
+            starts.append(at)
+            heads.append(0)
+            at += len(names)
+        cols["outputs"] = [starts[i] + heads[i] + j for i, j in order]
         return cols
 
     def block(self, observed) -> BlockReading:
         """The BlockReading of observed values (the subsystems' `observed` names concatenated, one
         row per name, one column per step)."""
         return BlockReading(observed, self._columns)
+
+    @staticmethod
+    def _observed_port(s, cols):
+        """What the kernel reads of a physical port for _physical_part's values (kernel/portview.py)."""
+        names = [*([s.port.energy] if s.port.energy else []), *s.port.effort, *s.port.flow]
+        return ObservedPort(names + cols, bool(s.port.energy), s.m, list(s.port.sign), bool(s.adapter), len(cols))
 
     @staticmethod
     def _physical_part(s, cols):

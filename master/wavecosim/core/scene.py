@@ -172,9 +172,9 @@ class Scene:
         adapters = {s.name: s.map.info() for s in self.subsystems if s.adapter}
         return {"port_signs": self.port_signs, **({"wave_adapter": adapters} if adapters else {})}
 
-    def signal_info(self, fast_note=None):
+    def signal_info(self):
         """Summary fields when signals drive inputs: which subsystems, and why their energy is not a
-        violation; the kernel runs one macro-step per call (the signals are set between calls)."""
+        violation."""
         if self.signals is None:
             return {}
         driven = ", ".join(self.signals.driven)
@@ -183,8 +183,6 @@ class Scene:
                               f"legitimate; the energy ledger watches only the interface, and a Condition 2 "
                               f"residual or H growth of {driven} includes that work, so it is not a passivity "
                               f"violation"}
-        if fast_note == "C kernel":
-            out["fast_note"] = "C kernel, one macro-step per call (the signals are set from Python before each step)"
         return out
 
     def map_noise(self):

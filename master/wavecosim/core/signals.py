@@ -32,6 +32,13 @@ class SourceTable:
         k = int(np.searchsorted(self.times, t + self.tol, side="right")) - 1
         return float(values[max(k, 0)])
 
+    def values(self, column, t):
+        """value() at every time of the array t, the same numbers (numpy's loops are elementwise)."""
+        values = self.columns[column]
+        if self.how == "linear":
+            return np.interp(t, self.times, values)
+        return values[np.maximum(np.searchsorted(self.times, t + self.tol, side="right") - 1, 0)]
+
 
 def _variable(where, sub, var, target):
     """The FMU variable a signal reads or drives: Real, and an input when it is driven."""
@@ -57,14 +64,17 @@ class Signals:
         self.where, self.refs = scenario.source, [sig.source for sig in scenario.signals]
         tables = {s.name: SourceTable(s, scenario.dt) for s in scenario.sources}
         self.reads, self.writes = [], {}               # reads: value(t) per signal; writes: {sub: (vrs, rows)}
+        self.subsystems, self.sources = list(subsystems.values()), []      # sources: (sub or table, vr or column)
         for k, sig in enumerate(scenario.signals):
             where = f"{scenario.source}: signals[{k}]"
             name, var = sig.source.split(".", 1)
             if name in tables:
                 self.reads.append(self._from_table(tables[name], var, sig))
+                self.sources.append((tables[name], var, sig))
             else:
-                self.reads.append(self._from_fmu(subsystems[name], _variable(f"{where}.from", subsystems[name],
-                                                                              var, False), sig))
+                vr = _variable(f"{where}.from", subsystems[name], var, False)
+                self.reads.append(self._from_fmu(subsystems[name], vr, sig))
+                self.sources.append((subsystems[name], vr, sig))
             name, var = sig.target.split(".", 1)
             vrs, rows = self.writes.setdefault(subsystems[name], ([], []))
             vrs.append(_variable(f"{where}.to", subsystems[name], var, True))
@@ -85,10 +95,34 @@ class Signals:
         values = [read(t) for read in self.reads]
         if not all(map(math.isfinite, values)):
             k = next(k for k, v in enumerate(values) if not math.isfinite(v))
-            raise NumericalError(f"{self.where}: signals[{k}]: {self.refs[k]} gave {values[k]} at step {n} "
-                                 f"(t = {t:.6g})")
+            raise NumericalError(self._nonfinite(k, values[k], n))
         for sub, (vrs, rows) in self.writes.items():
             sub.fmu.set_real(vrs, [values[k] for k in rows])
+
+    def _nonfinite(self, k, value, n):
+        return f"{self.where}: signals[{k}]: {self.refs[k]} gave {value} at step {n} (t = {n * self.dt:.6g})"
+
+    def plan(self):
+        """The signals as plain data for the kernel's blocks (wavecosim/kernel/signals.py): the FMUs
+        (port subsystems, then those stepped alone), per signal (FMU index or -1, value reference or
+        table column, factor, offset), per driven FMU (its index, value references, signals), the
+        indices of those stepped alone, and tables(n0, count): each table signal's values at t_n."""
+        index = {id(s): j for j, s in enumerate(self.subsystems)}
+        signals, columns = [], []
+        for source, ref, sig in self.sources:
+            if isinstance(source, SourceTable):
+                signals.append((-1, len(columns), float(sig.factor), float(sig.offset)))
+                columns.append((source, ref))
+            else:
+                signals.append((index[id(source)], ref, float(sig.factor), float(sig.offset)))
+        writes = [(index[id(sub)], list(vrs), list(rows)) for sub, (vrs, rows) in self.writes.items()]
+
+        def tables(n0, count):
+            t = np.arange(n0, n0 + count) * self.dt
+            return np.array([table.values(column, t) for table, column in columns]).reshape(len(columns), count)
+        return {"subsystems": self.subsystems, "signals": signals, "writes": writes, "dt": self.dt,
+                "alone": [index[id(s)] for s in self.signal_only], "tables": tables if columns else None,
+                "nonfinite": self._nonfinite}
 
     def begin_step(self, n):
         """Macro-step n begins: the held inputs, then one doStep of every signal-only subsystem."""

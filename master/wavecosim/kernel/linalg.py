@@ -126,6 +126,15 @@ def dot(x, y):
     return acc
 
 
+def total(x):
+    """sum_j x_j, left to right from 0.0 (the builtin sum() adds with compensation from Python 3.12 on;
+    the kernel's C and the blocks' numpy passes add left to right)."""
+    acc = 0.0
+    for xj in x:
+        acc += xj
+    return acc
+
+
 def norm1(x):
     """sum_j |x_j|, left to right from 0.0."""
     acc = 0.0

@@ -66,8 +66,9 @@ class EnergyLedger(Observer):
         self.step_times = []            # under a deadline, per step: (wall, acted, round it may overrun by, CPU) s
 
     def kernel_state(self):
-        """(L, traffic, rtol): what the C kernel needs to keep the ledger itself (blocks)."""
-        return self.L, self.traffic, self.rtol()
+        """(L, traffic, RTOL): what the C kernel needs to keep the ledger itself (blocks); it adds the
+        wave adapters' noise (map_noise) at each step itself, as rtol() does here."""
+        return self.L, self.traffic, RTOL
 
     def rtol(self):
         """The allowance per unit of traffic: RTOL, plus the frozen maps' own accuracy (0.0 when exact)."""

@@ -1,0 +1,171 @@
+/* Signal connections, sources and subsystems stepped alone inside the kernel's blocks of macro-steps
+ * (signals.h): wavecosim/core/signals.py's Signals.begin_step before each step and the reading of the
+ * subsystems stepped alone after it, making the same FMU calls in the same order and the same
+ * arithmetic (to = factor * from + offset), so a block gives the numbers of the Python route. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "signals.h"
+
+typedef struct {
+    int fmu;                       /* the FMU read, or -1: a source table's column */
+    fmi2ValueReference vr;         /* its variable, or the column */
+    double factor, offset;
+} Signal;
+
+struct SGPlan {
+    DRKernel *k;
+    int n_fmus, n_signals, n_writes, n_alone;
+    SGFmu *fmu;
+    Signal *signal;
+    int *write_fmu, *write_start, *write_signal;   /* write w: signals write_signal[start[w] .. start[w + 1]) */
+    fmi2ValueReference *write_vr;
+    int *alone_fmu, *alone_start;                  /* subsystem a stepped alone: its outputs alone_vr[start[a] ..] */
+    fmi2ValueReference *alone_vr;
+    double *value, *scratch;       /* the signals' values at t_n; a write's or a read's values */
+    const double *table;           /* column c at step n: table[c ld + n - table_n0] */
+    long table_ld;
+    int table_n0, table_count;
+    int n_table;
+    SGFailure failure;
+};
+
+static void *grab(void **all, size_t *used, size_t bytes) {
+    void *p = (char *)*all + *used;
+    *used += (bytes + 15) / 16 * 16;
+    return p;
+}
+
+SGPlan *sg_create(DRKernel *k, int n_fmus, const SGFmu *fmus, int n_signals, const int *src_fmu,
+                  const fmi2ValueReference *src_vr, const double *factor, const double *offset, int n_writes,
+                  const int *write_fmu, const int *write_start, const fmi2ValueReference *write_vr,
+                  const int *write_signal, int n_alone, const int *alone_fmu, const int *alone_start,
+                  const fmi2ValueReference *alone_vr) {
+    if (n_fmus < 0 || n_signals < 0 || n_writes < 0 || n_alone < 0) return NULL;
+    size_t writes = (size_t)write_start[n_writes], reads = (size_t)alone_start[n_alone];
+    size_t widest = writes > reads ? writes : reads;
+    size_t bytes = 16 * 12 + sizeof(SGPlan) + (size_t)n_fmus * sizeof(SGFmu) + (size_t)n_signals * sizeof(Signal)
+                   + (2 * (size_t)n_writes + 2 + writes + 2 * (size_t)n_alone) * sizeof(int)
+                   + (writes + reads) * sizeof(fmi2ValueReference) + ((size_t)n_signals + widest) * sizeof(double);
+    void *all = calloc(1, bytes);
+    if (!all) return NULL;
+    size_t used = 0;
+    SGPlan *p = grab(&all, &used, sizeof *p);
+    p->k = k;
+    p->n_fmus = n_fmus, p->n_signals = n_signals, p->n_writes = n_writes, p->n_alone = n_alone;
+    p->fmu = grab(&all, &used, (size_t)n_fmus * sizeof(SGFmu));
+    p->signal = grab(&all, &used, (size_t)n_signals * sizeof(Signal));
+    p->write_fmu = grab(&all, &used, (size_t)n_writes * sizeof(int));
+    p->write_start = grab(&all, &used, ((size_t)n_writes + 1) * sizeof(int));
+    p->write_signal = grab(&all, &used, writes * sizeof(int));
+    p->write_vr = grab(&all, &used, writes * sizeof(fmi2ValueReference));
+    p->alone_fmu = grab(&all, &used, (size_t)n_alone * sizeof(int));
+    p->alone_start = grab(&all, &used, ((size_t)n_alone + 1) * sizeof(int));
+    p->alone_vr = grab(&all, &used, reads * sizeof(fmi2ValueReference));
+    p->value = grab(&all, &used, (size_t)n_signals * sizeof(double));
+    p->scratch = grab(&all, &used, widest * sizeof(double));
+    memcpy(p->fmu, fmus, (size_t)n_fmus * sizeof(SGFmu));
+    for (int s = 0; s < n_signals; s++) {
+        Signal *g = &p->signal[s];
+        g->fmu = src_fmu[s], g->vr = src_vr[s], g->factor = factor[s], g->offset = offset[s];
+        if (g->fmu >= n_fmus) {
+            free(p);
+            return NULL;
+        }
+        if (g->fmu < 0 && (int)g->vr >= p->n_table) p->n_table = (int)g->vr + 1;
+    }
+    memcpy(p->write_fmu, write_fmu, (size_t)n_writes * sizeof(int));
+    memcpy(p->write_start, write_start, ((size_t)n_writes + 1) * sizeof(int));
+    memcpy(p->write_signal, write_signal, writes * sizeof(int));
+    memcpy(p->write_vr, write_vr, writes * sizeof(fmi2ValueReference));
+    memcpy(p->alone_fmu, alone_fmu, (size_t)n_alone * sizeof(int));
+    memcpy(p->alone_start, alone_start, ((size_t)n_alone + 1) * sizeof(int));
+    memcpy(p->alone_vr, alone_vr, reads * sizeof(fmi2ValueReference));
+    return p;
+}
+
+void sg_set_table(SGPlan *p, const double *table, long ld, int n0, int count) {
+    p->table = table, p->table_ld = ld, p->table_n0 = n0, p->table_count = count;
+}
+
+static int fmu_failed(SGPlan *p, int fmu, int function, fmi2Status status) {
+    if (status <= fmi2Warning) return 0;
+    p->failure.kind = SG_FMU, p->failure.index = fmu;
+    p->failure.function = function, p->failure.status = (int)status;
+    return 1;
+}
+
+/* Signals.hold(n) and the steps of the subsystems stepped alone (Signals.begin_step). */
+static int before(void *ctx, DRStep *io, int n) {
+    SGPlan *p = ctx;
+    memset(&p->failure, 0, sizeof p->failure);
+    p->failure.step = n;
+    for (int s = 0; s < p->n_signals; s++) {                    /* every value read before any is set */
+        Signal *g = &p->signal[s];
+        double x;
+        if (g->fmu >= 0) {
+            SGFmu *f = &p->fmu[g->fmu];
+            if (fmu_failed(p, g->fmu, DR_FN_GET_REAL, f->getReal(f->comp, &g->vr, 1, &x))) return 1;
+        } else {
+            if (!p->table || n < p->table_n0 || n >= p->table_n0 + p->table_count) {
+                p->failure.kind = SG_NO_TABLE;
+                return 1;
+            }
+            x = p->table[(long)g->vr * p->table_ld + (n - p->table_n0)];
+        }
+        p->value[s] = g->factor * x + g->offset;
+    }
+    for (int s = 0; s < p->n_signals; s++)
+        if (!isfinite(p->value[s])) {
+            p->failure.kind = SG_NONFINITE, p->failure.index = s, p->failure.value = p->value[s];
+            return 1;
+        }
+    for (int w = 0; w < p->n_writes; w++) {
+        SGFmu *f = &p->fmu[p->write_fmu[w]];
+        int a = p->write_start[w], b = p->write_start[w + 1];
+        for (int j = a; j < b; j++) p->scratch[j - a] = p->value[p->write_signal[j]];
+        if (fmu_failed(p, p->write_fmu[w], DR_FN_SET_REAL,
+                       f->setReal(f->comp, p->write_vr + a, (size_t)(b - a), p->scratch)))
+            return 1;
+    }
+    for (int a = 0; a < p->n_alone; a++) {                       /* Subsystem.step_alone: never rolled back */
+        SGFmu *f = &p->fmu[p->alone_fmu[a]];
+        if (fmu_failed(p, p->alone_fmu[a], DR_FN_DO_STEP, f->doStep(f->comp, io->t, io->dt, fmi2True))) return 1;
+        p->failure.alone_done = a + 1;
+    }
+    return 0;
+}
+
+/* The outputs of the subsystems stepped alone (Sampler.alone), after the step. */
+static int observe(void *ctx, double *out, size_t ld) {
+    SGPlan *p = ctx;
+    for (int a = 0; a < p->n_alone; a++) {
+        SGFmu *f = &p->fmu[p->alone_fmu[a]];
+        int first = p->alone_start[a], count = p->alone_start[a + 1] - first;
+        if (!count) continue;
+        if (fmu_failed(p, p->alone_fmu[a], DR_FN_GET_REAL,
+                       f->getReal(f->comp, p->alone_vr + first, (size_t)count, p->scratch)))
+            return 1;
+        for (int j = 0; j < count; j++) out[(size_t)(first + j) * ld] = p->scratch[j];
+    }
+    return 0;
+}
+
+void sg_attach(SGPlan *p) {
+    DRExtra extra = {before, observe, (size_t)p->alone_start[p->n_alone], p};
+    dr_set_extra(p->k, &extra);
+}
+
+const SGFailure *sg_failure(const SGPlan *p) { return &p->failure; }
+
+void sg_destroy(SGPlan *p) {
+    if (!p) return;
+    dr_set_extra(p->k, NULL);
+    free(p);
+}
+
+void sg_sizes(size_t *out) {
+    out[0] = sizeof(SGFmu);
+    out[1] = sizeof(SGFailure);
+}

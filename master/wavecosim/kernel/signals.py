@@ -1,0 +1,121 @@
+"""Signals, sources and subsystems stepped alone inside the kernel's blocks of macro-steps
+(kernel/c/signals.c, in libdrkernel.so): the C side of wavecosim/core/signals.py's Signals.begin_step,
+making the same FMU calls with the same numbers. `SignalPlan` builds it from plain data (the
+scene's `Signals.plan()`), hands it the source tables' values before each block and books the
+calls of the subsystems stepped alone.
+"""
+import ctypes
+
+import numpy as np
+
+from ..errors import FmuError, NumericalError
+
+_ip, _up, _dp = ctypes.POINTER(ctypes.c_int), ctypes.POINTER(ctypes.c_uint), ctypes.POINTER(ctypes.c_double)
+SG_OK, SG_FMU, SG_NONFINITE, SG_NO_TABLE = range(4)          # signals.h
+
+
+class SGFmu(ctypes.Structure):
+    """signals.h: one FMU's functions and instance."""
+    _fields_ = [("getReal", ctypes.c_void_p), ("setReal", ctypes.c_void_p), ("doStep", ctypes.c_void_p),
+                ("comp", ctypes.c_void_p)]
+
+
+class SGFailure(ctypes.Structure):
+    """signals.h: why the last step's signals failed."""
+    _fields_ = [(name, ctypes.c_int) for name in ("kind", "index", "function", "status", "step", "alone_done")] + \
+               [("value", ctypes.c_double)]
+
+
+def _library(lib):
+    if not hasattr(lib, "_signals_ready"):
+        p, i = ctypes.c_void_p, ctypes.c_int
+        lib.sg_create.restype = p
+        lib.sg_create.argtypes = [p, i, ctypes.POINTER(SGFmu), i, _ip, _up, _dp, _dp, i, _ip, _ip, _up, _ip, i, _ip,
+                                  _ip, _up]
+        lib.sg_set_table.argtypes = [p, p, ctypes.c_long, i, i]
+        lib.sg_set_table.restype = None
+        lib.sg_attach.argtypes = [p]
+        lib.sg_attach.restype = None
+        lib.sg_failure.argtypes = [p]
+        lib.sg_failure.restype = ctypes.POINTER(SGFailure)
+        lib.sg_sizes.argtypes = [ctypes.POINTER(ctypes.c_size_t)]
+        lib.sg_sizes.restype = None
+        lib.sg_destroy.argtypes = [p]
+        lib.sg_destroy.restype = None
+        sizes = (ctypes.c_size_t * 2)()
+        lib.sg_sizes(sizes)
+        if list(sizes) != [ctypes.sizeof(SGFmu), ctypes.sizeof(SGFailure)]:
+            raise FmuError(f"signals.c: SGFmu, SGFailure have {list(sizes)} bytes, wavecosim.kernel.signals "
+                           f"{[ctypes.sizeof(SGFmu), ctypes.sizeof(SGFailure)]} (the layouts differ)")
+        lib._signals_ready = True
+    return lib
+
+
+def _array(kind, values):
+    return (kind * max(1, len(values)))(*values)
+
+
+class SignalPlan:
+    """signals.c's plan over a kernel (`handle`) from `plan` (core.signals.Signals.plan(): the FMUs
+    (port subsystems first, then those stepped alone), the signals, the writes, the tables) and the
+    outputs read of each subsystem stepped alone (`alone_vrs`, one list each); `functions` names the
+    FMU functions by the kernel's DR_FN_* index (for errors)."""
+
+    def __init__(self, lib, handle, plan, alone_vrs, functions):
+        self.lib, self.plan, self.functions = _library(lib), plan, functions
+        self.subsystems, self.alone = plan["subsystems"], plan["alone"]
+        fmus = (SGFmu * max(1, len(self.subsystems)))(*[SGFmu(*[s.fmu.function_pointer(f) for f in
+                                                                  ("fmi2GetReal", "fmi2SetReal", "fmi2DoStep")],
+                                                                s.fmu.component) for s in self.subsystems])
+        sigs, writes = plan["signals"], plan["writes"]
+        starts, alone_starts = [0], [0]
+        for _, vrs, _ in writes:
+            starts.append(starts[-1] + len(vrs))
+        for vrs in alone_vrs:
+            alone_starts.append(alone_starts[-1] + len(vrs))
+        args = [len(self.subsystems), fmus, len(sigs), _array(ctypes.c_int, [s[0] for s in sigs]),
+                _array(ctypes.c_uint, [s[1] for s in sigs]), _array(ctypes.c_double, [s[2] for s in sigs]),
+                _array(ctypes.c_double, [s[3] for s in sigs]), len(writes),
+                _array(ctypes.c_int, [w[0] for w in writes]), _array(ctypes.c_int, starts),
+                _array(ctypes.c_uint, [v for w in writes for v in w[1]]),
+                _array(ctypes.c_int, [k for w in writes for k in w[2]]), len(self.alone),
+                _array(ctypes.c_int, self.alone), _array(ctypes.c_int, alone_starts),
+                _array(ctypes.c_uint, [v for vrs in alone_vrs for v in vrs])]
+        self.handle = self.lib.sg_create(handle, *args)
+        if not self.handle:
+            raise FmuError("the kernel could not take the signals (out of memory)")
+        self.rows = alone_starts[-1]
+        self.table = None
+        self.lib.sg_attach(self.handle)
+
+    def prepare(self, n0, count):
+        """Before a block of steps n0 .. n0 + count - 1: the source tables' values of its steps."""
+        if self.plan["tables"] is None:
+            return
+        self.table = np.ascontiguousarray(self.plan["tables"](n0, count), dtype=np.float64)
+        self.lib.sg_set_table(self.handle, self.table.ctypes.data, max(count, 1), n0, count)
+
+    def book(self, n0, done, failed):
+        """Book the doSteps of the subsystems stepped alone in steps n0 .. n0 + done - 1 (and those
+        made in step n0 + done before a failure there)."""
+        extra = self.lib.sg_failure(self.handle).contents.alone_done if failed else 0
+        last = n0 + done - (0 if failed else 1)
+        for a, j in enumerate(self.alone):
+            s = self.subsystems[j]
+            s.calls["doStep"] += done + (a < extra)
+            if done or failed:
+                s.begin(last, last * self.plan["dt"])
+
+    def error(self, n, t):
+        """The error of the step whose signals failed, as the Python route raises it."""
+        f = self.lib.sg_failure(self.handle).contents
+        if f.kind == SG_NONFINITE:
+            return NumericalError(self.plan["nonfinite"](f.index, f.value, f.step))
+        if f.kind == SG_FMU:
+            return self.subsystems[f.index].fmu.status_error(self.functions[f.function], f.status, n, t)
+        return FmuError(f"the kernel's signals had no source table values for step {f.step}")
+
+    def close(self):
+        if self.handle:
+            self.lib.sg_destroy(self.handle)
+            self.handle = None
