@@ -6,7 +6,7 @@ and, on every shipped scene they can run (the fixed-point masters at K = 0, 3 an
 tolerance), give trajectories, per-step logs and FMU call counts equal bit for bit to `fast: false`;
 blocks and one kernel call per step leave the same logs, outputs, inputs and calls;
 the energy ledger guard (undo, redo) works on it alike, step by step; a run that blows up fails
-alike in blocks; an FMU error comes back as the reference's FmuError; a declared physical port keeps the Python reference (`fast: true` then is a config error).
+alike in blocks; an FMU error comes back as the reference's FmuError (physical ports and signals: test_physical_route.py).
 """
 import dataclasses
 
@@ -16,7 +16,6 @@ import pytest
 from conftest import python_and_kernel_masters
 from paths import ROOT
 from wavecosim.scenario.config import load_scenario
-from wavecosim.errors import ConfigError
 from wavecosim.masters import MASTERS
 from wavecosim.run.runner import RunFailed, run
 from wavecosim.core.scene import build_scene
@@ -134,15 +133,6 @@ def test_fmu_error_through_the_classical_kernel(built_fmus):
             run(sc.with_master(fast=fast), certificates=False)
         messages.append(str(info.value))
     assert messages[0] == messages[1] and messages[0].startswith("subsystem A: fmi2DoStep returned Error at step ")
-
-
-def test_declared_physical_ports_keep_the_reference(built_fmus):
-    sc = scenario("foreign_pair", algorithm="jacobi-iter", K=2)
-    result = run(sc, certificates=False)
-    assert result.summary["fast_path"] is False and "physical port" in result.summary["fast_note"]
-    with pytest.raises(ConfigError) as exc:
-        run(sc.with_master(fast="true"), certificates=False)
-    assert "\n" not in str(exc.value) and "master.fast: true, but subsystem A has a declared physical port" in str(exc.value)
 
 
 def test_a_diverging_run_fails_alike_in_blocks(built_fmus):

@@ -53,9 +53,10 @@ class KernelAdapter(ports.AdapterPort):
         """Addresses of the C struct's gamma and k (the kernel's port view reads them at each commit)."""
         return self._address("gamma"), self._address("k")
 
-    def noise(self):
-        """Address of the C struct's worst_accepted (the kernel's energy ledger reads it, Scene.map_noise)."""
-        return self._address("worst_accepted")
+    def counters(self):
+        """Addresses of the C struct's worst_accepted (the kernel's energy ledger reads it: Scene.map_noise)
+        and do_steps (its count of the FMU's doSteps)."""
+        return self._address("worst_accepted"), self._address("do_steps")
 
     def _address(self, name):
         return ctypes.addressof(self.struct) + getattr(type(self.struct), name).offset

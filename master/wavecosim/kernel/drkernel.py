@@ -105,7 +105,9 @@ def load_library():
         lib.dr_set_trace.restype = None
         lib.dr_set_observed.argtypes = [p, i, ctypes.POINTER(ctypes.c_uint), i]
         lib.dr_set_observed_view.argtypes = [p, i, p, p, i]
-        lib.dr_set_noise.argtypes = [p, i, p]
+        lib.dr_set_adapter.argtypes = [p, i, p, p]
+        lib.dr_redo_do_steps.argtypes = [p]
+        lib.dr_redo_do_steps.restype = ctypes.c_long
         lib.dr_log_width.argtypes = [p]
         lib.dr_log_width.restype = ctypes.c_size_t
         lib.dr_run_steps.argtypes = [p, ctypes.POINTER(DRStep), i, i, p, ctypes.c_long, ctypes.c_double]
@@ -235,7 +237,7 @@ class Kernel:
             fns, comp = fmu_functions(s)
             if s.adapter:
                 fns, comp, vr_in, vr_out = adapter_port(s, fns, comp)
-                lib.dr_set_noise(self.handle, i, s.map.noise())
+                lib.dr_set_adapter(self.handle, i, *s.map.counters())
             else:
                 if s.port_scales() is not None:                # a signed physical port: portview.c's shim
                     self.shims.append(SignedPort(lib, fns, comp, s.m, *s.port_scales()))
@@ -322,6 +324,10 @@ class Kernel:
             self.plan.book(n0, done, failed)
         error = self.failure(n, n * self.io.dt) if failed else None
         return done, BlockLog(log[:, at:at + done], self.n, bool(self.io.stopped)), error
+
+    def redo_do_steps(self):
+        """doSteps of the FMUs in the energy ledger's redos the kernel made so far."""
+        return self.lib.dr_redo_do_steps(self._handle)
 
     def joined_log(self, steps, stopped):
         """The log's first `steps` columns as one BlockLog (a call and the calls it went on after)."""

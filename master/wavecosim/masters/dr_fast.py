@@ -57,6 +57,7 @@ class FastDRMaster(DRMaster):
         self._choose_after = None if self.thread_mode != "1" and len(self.subsystems) > 1 else -1
         self._on_trial = False
         self._step_s = 0.0        # seconds per macro-step of the last run_steps call
+        self._redo_seen = 0       # the kernel's count of redo doSteps when redo_doSteps last looked
 
     def _send_options(self):
         """The named options to the kernel (it forgets b^{n-1} and the Anderson differences)."""
@@ -231,6 +232,12 @@ class FastDRMaster(DRMaster):
             self._step_s = (time.perf_counter() - started) / done
         self._book(n0, done, log)
         return done, log, error
+
+    def redo_doSteps(self):
+        """doSteps of the FMUs in the ledger's redos since the last ask (the kernel counts them: a wave
+        adapter's query takes a varying number)."""
+        made, self._redo_seen = self._redo_seen, self.kernel.redo_do_steps()
+        return self._redo_seen - made
 
     def _book(self, n0, done, log):
         """Book macro-steps n0 .. n0 + done - 1 of the kernel: calls and step on the Subsystems, b^n, b^{n+1}."""

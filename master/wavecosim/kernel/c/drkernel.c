@@ -34,7 +34,8 @@ typedef struct {
     fmi2GetRealTYPE *obs_get;      /* reads them (the FMU's getReal, or a view's: dr_set_observed_view) */
     fmi2Component obs_comp;
     int obs_no_H;                  /* the first observed value is no stored energy (NaN): not checked */
-    const double *noise;           /* a wave adapter's worst kept residual (dr_set_noise), or NULL */
+    const double *noise;           /* a wave adapter's worst kept residual (dr_set_adapter), or NULL */
+    const long *fmu_do_steps;      /* a wave adapter's count of its FMU's doSteps, or NULL */
     int thread;
     int frozen, dirty;             /* x_i^n saved this macro-step / instance moved away from it */
     int failed_function, failed_status;
@@ -77,6 +78,7 @@ struct DRKernel {
     DRHookFn hook_before, hook_after; /* around each step of dr_run_steps_of (certs.c), or NULL */
     void *hook_ctx;
     DRExtra extra;                 /* signals and subsystems stepped alone (signals.c), or zeros */
+    long redo_do_steps;            /* the FMUs' doSteps in the ledger's redos so far */
 };
 
 static double now_ns(void) {
@@ -449,11 +451,14 @@ int dr_set_observed_view(DRKernel *k, int i, fmi2GetRealTYPE *get, fmi2Component
     return 0;
 }
 
-int dr_set_noise(DRKernel *k, int i, const double *worst) {
+int dr_set_adapter(DRKernel *k, int i, const double *worst, const long *do_steps) {
     if (i < 0 || i >= k->n_sub) return -1;
     k->sub[i].noise = worst;
+    k->sub[i].fmu_do_steps = do_steps;
     return 0;
 }
+
+long dr_redo_do_steps(const DRKernel *k) { return k->redo_do_steps; }
 
 void dr_set_extra(DRKernel *k, const DRExtra *extra) {
     static const DRExtra none = {0};
@@ -638,6 +643,13 @@ static double map_noise(const DRKernel *k) {
     return noise;
 }
 
+/* doSteps the FMUs made so far (a wave adapter's own count: its queries take a varying number). */
+static long fmu_do_steps(const DRKernel *k) {
+    long n = 0;
+    for (int i = 0; i < k->n_sub; i++) n += k->sub[i].fmu_do_steps ? *k->sub[i].fmu_do_steps : k->sub[i].n_do_step;
+    return n;
+}
+
 /* Book the step just committed (EnergyLedger.after_step): I = 1/2 (|a|^2 - |b|^2); a step with
  * L + I > tol = rtol (traffic + its own) is redone by ledger_redo first. Its row goes into the log's
  * last DR_LEDGER_COLUMNS columns; io->reason becomes DR_ENERGY_GUARD when it was redone. t0, c0: the
@@ -661,7 +673,9 @@ static int ledger_step(DRKernel *k, DRStep *io, double t0, double c0, double *ro
         tol = (io->ledger_rtol + map_noise(k)) * (io->traffic + out[2]);
         if (io->ledger + out[1] > tol) {
             double left = io->step_deadline_s > 0.0 ? io->step_deadline_s - 1e-9 * (now - t0) : INFINITY;
+            long made = fmu_do_steps(k);
             int f = ledger_redo(k, io, out[1], tol - io->ledger, left >= 2.0 * io->round_s, out);
+            k->redo_do_steps += fmu_do_steps(k) - made;
             if (f >= 0) return f;
             if (timed)
                 track_round(io, 1e-9 * (now_ns() - now) / out[4]);

@@ -63,7 +63,7 @@ typedef struct {
     int ledger_on;       /* in (dr_run_steps): keep the interface energy ledger (wavecosim/run/observers/energy_ledger.py) */
     double ledger;       /* in/out: L, the energy the interface supplied so far (steps accepted) */
     double traffic;      /* in/out: the interface's cumulative traffic 1/2 (|a|^2 + |b|^2) */
-    double ledger_rtol;  /* in: a step with L + I^n > (rtol + the adapters' noise, dr_set_noise) (traffic + its
+    double ledger_rtol;  /* in: a step with L + I^n > (rtol + the adapters' noise, dr_set_adapter) (traffic + its
                           * own) is redone with its inputs scaled */
     double step_deadline_s; /* in (dr_run_steps, ledger): wall-clock budget of a step, redo included; <= 0 = none */
     double round_s;      /* in/out (dr_run_steps, ledger): running time of one evaluation round (all subsystems) */
@@ -123,9 +123,12 @@ int dr_set_observed(DRKernel *k, int i, const fmi2ValueReference *vrs, int count
 int dr_set_observed_view(DRKernel *k, int i, fmi2GetRealTYPE *get, fmi2Component comp, int no_H);
 
 /* Where subsystem i's wave adapter keeps the worst relative residual it accepted (read at each step:
- * the ledger's tolerance is (io->ledger_rtol + the largest of them) times the traffic), or NULL.
- * Returns 0, or -1 on bad arguments. */
-int dr_set_noise(DRKernel *k, int i, const double *worst);
+ * the ledger's tolerance is (io->ledger_rtol + the largest of them) times the traffic) and its count
+ * of the FMU's doSteps, or NULLs. Returns 0, or -1 on bad arguments. */
+int dr_set_adapter(DRKernel *k, int i, const double *worst, const long *do_steps);
+
+/* doSteps of the FMUs in the ledger's redos (dr_run_steps) so far. */
+long dr_redo_do_steps(const DRKernel *k);
 
 /* Doubles per row of dr_run_steps' log: 3 + 2 n + every subsystem's observed count + the values
  * observed by signals.c (subsystems stepped alone) + DR_LEDGER_COLUMNS. */

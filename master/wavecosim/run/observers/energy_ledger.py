@@ -82,7 +82,7 @@ class EnergyLedger(Observer):
         acted, rounds = int(np.count_nonzero(led["action"])), led["rounds"]     # actions: 0 kept, 1 scaled, 2 zero
         if acted:                                                          # only a redone step has rounds
             self.acted += acted
-            self.extra += len(self.master.subsystems) * int(rounds.sum())
+            self.extra += self.master.redo_doSteps()
             self.fallbacks += int(np.count_nonzero(rounds == 3))
         self.L, self.traffic = float(led["ledger"][-1]), float(led["traffic"][-1])
         self.max_L = max(self.max_L, float(led["ledger"].max()))
