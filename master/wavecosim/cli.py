@@ -372,10 +372,13 @@ def examples_cmd(name):
 @cli.command("bench")
 @click.option("--quick", is_flag=True, help="Fewer steps and repeats (a few seconds instead of about a minute).")
 @click.option("--json", "json_file", type=click.Path(dir_okay=False, path_type=Path), help="Also write the figures here.")
-def bench_cmd(quick, json_file):
-    """Time the inner iteration: plain fmpy loop, Python reference, C fast path and the C floor; the deadline bound."""
+@click.option("--only", type=click.Choice(["real_fmus"]), help="Only this part (real_fmus: systems of real FMUs "
+              "against the floor of their FMU calls and libcosim).")
+def bench_cmd(quick, json_file, only):
+    """Time the inner iteration: plain fmpy loop, Python reference, C fast path and the C floor; the deadline
+    bound; real FMUs against their floor and libcosim."""
     from .bench.main import report, run_bench
-    result = run_bench(quick=quick, progress=lambda msg: click.echo(msg, err=True))
+    result = run_bench(quick=quick, progress=lambda msg: click.echo(msg, err=True), only=only)
     for line in report(result):
         click.echo(line)
     if json_file:

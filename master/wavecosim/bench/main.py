@@ -281,6 +281,18 @@ def deadline_bound(quick=False, progress=print):
     return out
 
 
+def with_real_fmus(result, quick, progress):
+    """The result with the real_fmus rows (bench/real_fmus.py) and their targets added."""
+    from .real_fmus import TARGET_FLOOR, real_fmus_rows
+    rows = real_fmus_rows(quick, progress)
+    result["real_fmus"] = rows
+    result["targets"][f"real FMUs: whole run <= {TARGET_FLOOR} x the floor on every row"] = rows["within_floor"]
+    if rows["explicit_not_slower_than_libcosim"] is not None:
+        result["targets"]["real FMUs: wavecosim explicit <= libcosim per macro-step"] = \
+            rows["explicit_not_slower_than_libcosim"]
+    return result
+
+
 def with_scale_and_classical(result, scenario, quick, progress):
     """The result with the scale rows (bench_scale.py) and the classical masters' kernel route
     (bench_classical.py) added, and their targets."""
@@ -290,14 +302,17 @@ def with_scale_and_classical(result, scenario, quick, progress):
     add_newton_rows(result, quick, progress)       # the newton rows (bench_newton.py)
     scale, classical = scale_rows(quick, progress), classical_rows(scenario, quick, progress)
     result.update(us_per_subsystem_iter=scale["us_per_subsystem_iter"], scale=scale, classical_kernel=classical)
+    with_real_fmus(result, quick, progress)
     result["targets"].update({"N = 512 within 1.5x of N = 8 per subsystem and iteration": scale["target_met"],
                               "classical masters on the kernel >= 10x faster than their Python loops":
                               classical["target_met"]})
     return result
 
 
-def run_bench(quick=False, progress=print):
-    """All measurements; returns the JSON-ready result."""
+def run_bench(quick=False, progress=print, only=None):
+    """All measurements (only="real_fmus": that part alone); returns the JSON-ready result."""
+    if only == "real_fmus":
+        return with_real_fmus({"targets": {}}, quick, progress)
     n_steps, repeats = (200, 3) if quick else (1000, 3)
     heavy_steps, heavy_repeats = (30, 2) if quick else (100, 3)
     scenario = load_scenario(TABLE_I)
@@ -368,6 +383,10 @@ def run_targets(over):
 
 def report(result):
     """The printed table."""
+    from .real_fmus import report_real_fmus
+    if "scene" not in result:                      # --only real_fmus
+        return report_real_fmus(result["real_fmus"]) + \
+            ["targets: " + ", ".join(f"{k}: {'met' if v else 'MISSED'}" for k, v in result["targets"].items())]
     lines = [f"{result['scene']}: {result['steps']} macro-steps per run, best of {result['repeats']}",
              f"{'path':<12}" + "".join(f"{'µs/step K=' + str(K):>15}" for K in KS) + f"{'µs/iteration':>15}"]
     for p in PATHS:
@@ -406,5 +425,6 @@ def report(result):
     lines.extend(report_classical(result["classical_kernel"]))
     from .newton import report_newton
     lines.extend(report_newton(result["newton_kernel"]))
+    lines.extend(report_real_fmus(result["real_fmus"]))
     lines.append("targets: " + ", ".join(f"{k}: {'met' if v else 'MISSED'}" for k, v in result["targets"].items()))
     return lines
