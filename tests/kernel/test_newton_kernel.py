@@ -126,3 +126,21 @@ def test_solve_of_a_singular_matrix_is_none():
     assert solve([[1.0, 2.0], [2.0, 4.0]], [1.0, 1.0]) is None
     x = solve([[0.0, 2.0], [3.0, 1.0]], [4.0, 5.0])                  # needs the row swap
     assert x.tolist() == [1.0, 2.0]
+
+
+def test_the_sparse_lu_gives_the_dense_solve_numbers():
+    """linalg.solve_sparse (the interface Newton's solve, kernel/c/newton.c's lu_sparse) gives solve()'s
+    numbers on random sparse systems, row swaps, zero right-hand sides and singular ones included."""
+    from wavecosim.kernel.linalg import solve_sparse
+    rng = np.random.default_rng(7)
+    for _ in range(500):
+        n = int(rng.integers(1, 12))
+        mask = rng.random((n, n)) < rng.uniform(0.1, 0.6)
+        A = np.where(mask, rng.standard_normal((n, n)) * 10.0 ** rng.integers(-3, 4, (n, n)), 0.0)
+        if rng.random() < 0.5:
+            A += np.diag(rng.standard_normal(n))
+        b = np.where(rng.random(n) < 0.2, 0.0, rng.standard_normal(n))
+        dense, sparse = solve(A, b), solve_sparse([{j: v for j, v in enumerate(row) if v != 0.0} for row in A], b)
+        assert (dense is None) == (sparse is None)
+        if dense is not None:
+            assert np.array_equal(dense, sparse)
