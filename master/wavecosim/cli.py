@@ -117,7 +117,7 @@ ssp_options = options([
 
 def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None):
     """A scenario file, or an SSP system (.ssd, .ssp, folder) with its overlay; import notes are warnings."""
-    from .scenario.ssp import is_ssp
+    from .scenario.ssp.archive import is_ssp           # the archive module alone: a scenario file needs no more
     if ports or parameter_set or (config is not None and is_ssp(config)):
         return api.load(config, ports=ports, parameter_set=parameter_set, dt=dt, T=T, gamma=gamma,
                         warn=lambda note: click.echo(f"warning: {note}", err=True))

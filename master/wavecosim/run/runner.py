@@ -526,9 +526,12 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
     """Run `scenario` with its master; stream trajectory.csv and steps.csv into out_dir when given.
 
     reference: None (no errors), a RunResult of the monolithic reference, or "lockstep" (run the
-    monolithic reference alongside, writing its files with the label "monolithic"). Raises
+    monolithic reference alongside, writing its files with the label "monolithic"; only where the
+    scene has power bonds: without them there is no interface to solve monolithically). Raises
     RunFailed (with .result) on a failure, Interrupted (with .result) on Ctrl-C."""
     warn = _once(warn or _warn_stderr)                 # the lockstep reference repeats set-up notes
+    if reference == "lockstep" and not scenario.couplings:
+        reference = None
     live = LiveRun(scenario, out_dir, label, certificates, warn, file_suffix, output_interval, formats)
     ref = None
     try:
