@@ -469,3 +469,14 @@ def test_power_bonds_of_an_osp_system_structure_stand_for_their_connections(tmp_
     with pytest.raises(ConfigError, match=r"OspSystemStructure.xml line \d+: .*B.v is driven by A.x in "
                                           r"SystemStructure.ssd line \d+"):
         import_ssp(tmp_path)
+
+
+def test_an_ssd_with_power_bonds_and_no_gamma_runs_without_asking_for_one(tmp_path, capsys, built_fmus):
+    """gamma is auto where there is a power bond and none is given; the explicit master has no
+    waves, so it runs without any."""
+    from wavecosim.api import load
+    no_gamma = table_i_copy(tmp_path, [(' gamma="0.4"', "")], "no_gamma.ssd")
+    assert load(no_gamma, warn=lambda m: None).gamma == "auto"
+    code, _, err = run_cli(capsys, "run", no_gamma, "--master", "explicit", "--T", "0.05", "--quiet",
+                           "--no-certificates", "--out", tmp_path / "o")
+    assert code == 0 and "gamma" not in err, err

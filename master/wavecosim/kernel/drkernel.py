@@ -75,7 +75,7 @@ class DRStep(ctypes.Structure):
                 ("failed_function", ctypes.c_int), ("failed_status", ctypes.c_int), ("stopped", ctypes.c_int),
                 ("ledger_on", ctypes.c_int), ("ledger", ctypes.c_double), ("traffic", ctypes.c_double),
                 ("ledger_rtol", ctypes.c_double), ("step_deadline_s", ctypes.c_double), ("round_s", ctypes.c_double),
-                ("tail_s", ctypes.c_double)]
+                ("tail_s", ctypes.c_double), ("t0", ctypes.c_double)]
 
 
 _lib = None
@@ -145,7 +145,14 @@ class BlockLog:
 
 
 def unusable(scene):
-    """Why the kernel cannot run this scene, or None if it can."""
+    """Why the kernel cannot run this scene, or None if it can (subsystems stepped alone need only
+    getReal, setReal and doStep)."""
+    for s in scene.signal_only:
+        for name in ("fmi2GetReal", "fmi2SetReal", "fmi2DoStep"):
+            try:
+                s.fmu.function_pointer(name)
+            except (AttributeError, FmuError):
+                return f"subsystem {s.name}: the FMU does not export {s.fmu.function_name(name)}"
     for s in scene.subsystems:
         if not s.fmu.can_save_state:
             return f"subsystem {s.name} cannot get and set its FMU state"
@@ -216,7 +223,7 @@ class Kernel:
         lib = self.lib = load_library()
         n = scene.n_channels
         self.subsystems = scene.subsystems
-        self.signals, self.alone = getattr(scene, "signals", None), getattr(scene, "signal_only", [])
+        self.signals, self.alone = scene.kernel_signals(), scene.signal_only     # plain data, or None
         self.plan, self.views, self.shims = None, [], []    # signals.c's plan, portview.c's views and shims
         array = ctypes.c_double * n
         self.n = n
@@ -250,7 +257,7 @@ class Kernel:
                                     int(off)):
                 self.close()
                 raise FmuError(f"subsystem {s.name}: the DR kernel refused its port")
-        self.io = DRStep(measure=0, eps=-1.0, deadline_s=0.0)
+        self.io = DRStep(measure=0, eps=-1.0, deadline_s=0.0, t0=scene.scenario.start_time)
         self.at = (None, None)                     # (n, t) of the last macro_step
         self._io = ctypes.byref(self.io)
         self._macro_step = lib.dr_macro_step       # called with pre-converted arguments
@@ -289,7 +296,7 @@ class Kernel:
         if self.plan is not None:
             self.plan.close()
         vrs = [s.fmu.real_vrs(names) for s, names in zip(self.alone, alone_names)]
-        self.plan = SignalPlan(self.lib, self._handle, self.signals.plan(), vrs, FUNCTIONS)
+        self.plan = SignalPlan(self.lib, self._handle, self.signals, vrs, FUNCTIONS)
 
     def _log_room(self, keep, steps):
         """A log of room for `steps` steps per call (written through once, so no page of it is first

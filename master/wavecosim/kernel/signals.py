@@ -30,8 +30,8 @@ def _library(lib):
     if not hasattr(lib, "_signals_ready"):
         p, i = ctypes.c_void_p, ctypes.c_int
         lib.sg_create.restype = p
-        lib.sg_create.argtypes = [p, i, ctypes.POINTER(SGFmu), i, _ip, _up, _dp, _dp, i, _ip, _ip, _up, _ip, i, _ip,
-                                  _ip, _up]
+        lib.sg_create.argtypes = [p, i, ctypes.POINTER(SGFmu), i, _ip, _dp, _dp, i, _ip, _ip, _up, _ip, i, _ip, _ip,
+                                  _up, _ip, i, _ip, _ip, _up]
         lib.sg_set_table.argtypes = [p, p, ctypes.c_long, i, i]
         lib.sg_set_table.restype = None
         lib.sg_attach.argtypes = [p]
@@ -55,11 +55,20 @@ def _array(kind, values):
     return (kind * max(1, len(values)))(*values)
 
 
+def _calls(calls):
+    """(count, FMU of each call, starts, value references, signals) of getReal or setReal calls."""
+    starts = [0]
+    for _, vrs, _ in calls:
+        starts.append(starts[-1] + len(vrs))
+    return [len(calls), _array(ctypes.c_int, [c[0] for c in calls]), _array(ctypes.c_int, starts),
+            _array(ctypes.c_uint, [v for c in calls for v in c[1]]), _array(ctypes.c_int, [k for c in calls for k in c[2]])]
+
+
 class SignalPlan:
-    """signals.c's plan over a kernel (`handle`) from `plan` (core.signals.Signals.plan(): the FMUs
-    (port subsystems first, then those stepped alone), the signals, the writes, the tables) and the
-    outputs read of each subsystem stepped alone (`alone_vrs`, one list each); `functions` names the
-    FMU functions by the kernel's DR_FN_* index (for errors)."""
+    """signals.c's plan over a kernel (`handle`) from `plan` (core.scene.Scene.kernel_signals(): the
+    FMUs (port subsystems first, then those stepped alone), the signals, the getReal and setReal calls,
+    the tables) and the outputs read of each subsystem stepped alone (`alone_vrs`, one list each);
+    `functions` names the FMU functions by the kernel's DR_FN_* index (for errors)."""
 
     def __init__(self, lib, handle, plan, alone_vrs, functions):
         self.lib, self.plan, self.functions = _library(lib), plan, functions
@@ -67,18 +76,12 @@ class SignalPlan:
         fmus = (SGFmu * max(1, len(self.subsystems)))(*[SGFmu(*[s.fmu.function_pointer(f) for f in
                                                                   ("fmi2GetReal", "fmi2SetReal", "fmi2DoStep")],
                                                                 s.fmu.component) for s in self.subsystems])
-        sigs, writes = plan["signals"], plan["writes"]
-        starts, alone_starts = [0], [0]
-        for _, vrs, _ in writes:
-            starts.append(starts[-1] + len(vrs))
+        sigs, alone_starts = plan["signals"], [0]
         for vrs in alone_vrs:
             alone_starts.append(alone_starts[-1] + len(vrs))
-        args = [len(self.subsystems), fmus, len(sigs), _array(ctypes.c_int, [s[0] for s in sigs]),
-                _array(ctypes.c_uint, [s[1] for s in sigs]), _array(ctypes.c_double, [s[2] for s in sigs]),
-                _array(ctypes.c_double, [s[3] for s in sigs]), len(writes),
-                _array(ctypes.c_int, [w[0] for w in writes]), _array(ctypes.c_int, starts),
-                _array(ctypes.c_uint, [v for w in writes for v in w[1]]),
-                _array(ctypes.c_int, [k for w in writes for k in w[2]]), len(self.alone),
+        args = [len(self.subsystems), fmus, len(sigs), *[_array(kind, [s[j] for s in sigs]) for j, kind in
+                                                         enumerate((ctypes.c_int, ctypes.c_double, ctypes.c_double))],
+                *_calls(plan["reads"]), *_calls(plan["writes"]), len(self.alone),
                 _array(ctypes.c_int, self.alone), _array(ctypes.c_int, alone_starts),
                 _array(ctypes.c_uint, [v for vrs in alone_vrs for v in vrs])]
         self.handle = self.lib.sg_create(handle, *args)
@@ -92,7 +95,7 @@ class SignalPlan:
         """Before a block of steps n0 .. n0 + count - 1: the source tables' values of its steps."""
         if self.plan["tables"] is None:
             return
-        self.table = np.ascontiguousarray(self.plan["tables"](n0, count), dtype=np.float64)
+        self.table = np.array(self.plan["tables"](n0, count), dtype=np.float64).reshape(-1, count)
         self.lib.sg_set_table(self.handle, self.table.ctypes.data, max(count, 1), n0, count)
 
     def book(self, n0, done, failed):
@@ -104,7 +107,7 @@ class SignalPlan:
             s = self.subsystems[j]
             s.calls["doStep"] += done + (a < extra)
             if done or failed:
-                s.begin(last, last * self.plan["dt"])
+                s.begin(last, self.plan["t0"] + last * self.plan["dt"])
 
     def error(self, n, t):
         """The error of the step whose signals failed, as the Python route raises it."""

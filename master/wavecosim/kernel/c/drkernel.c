@@ -724,7 +724,7 @@ int dr_run_steps_of(DRKernel *k, DRStep *io, int n0, int count, double *rows, lo
     size_t m = (size_t)ld, first_observed = (3 + 2 * k->n) * m;
     io->stopped = 0;
     for (int s = 0; s < count; s++) {
-        io->t = (double)(n0 + s) * io->dt;
+        io->t = io->t0 + (double)(n0 + s) * io->dt;
         if (k->extra.before && k->extra.before(k->extra.ctx, io, n0 + s)) {      /* held signals: failed */
             io->failed_subsystem = DR_FAILED_EXTRA;
             return s;

@@ -9,18 +9,23 @@
 #include "signals.h"
 
 typedef struct {
-    int fmu;                       /* the FMU read, or -1: a source table's column */
-    fmi2ValueReference vr;         /* its variable, or the column */
+    int column;                    /* -1, or the source table column it reads */
     double factor, offset;
 } Signal;
 
+/* One getReal or setReal call: FMU fmu, value references vr[start[g] .. start[g + 1]) of the
+ * signals signal[start[g] ..]. */
+typedef struct {
+    int n, *fmu, *start, *signal;
+    fmi2ValueReference *vr;
+} Groups;
+
 struct SGPlan {
     DRKernel *k;
-    int n_fmus, n_signals, n_writes, n_alone;
+    int n_fmus, n_signals, n_alone;
     SGFmu *fmu;
     Signal *signal;
-    int *write_fmu, *write_start, *write_signal;   /* write w: signals write_signal[start[w] .. start[w + 1]) */
-    fmi2ValueReference *write_vr;
+    Groups reads, writes;
     int *alone_fmu, *alone_start;                  /* subsystem a stepped alone: its outputs alone_vr[start[a] ..] */
     fmi2ValueReference *alone_vr;
     double *value, *scratch;       /* the signals' values at t_n; a write's or a read's values */
@@ -37,51 +42,59 @@ static void *grab(void **all, size_t *used, size_t bytes) {
     return p;
 }
 
-SGPlan *sg_create(DRKernel *k, int n_fmus, const SGFmu *fmus, int n_signals, const int *src_fmu,
-                  const fmi2ValueReference *src_vr, const double *factor, const double *offset, int n_writes,
-                  const int *write_fmu, const int *write_start, const fmi2ValueReference *write_vr,
-                  const int *write_signal, int n_alone, const int *alone_fmu, const int *alone_start,
-                  const fmi2ValueReference *alone_vr) {
-    if (n_fmus < 0 || n_signals < 0 || n_writes < 0 || n_alone < 0) return NULL;
-    size_t writes = (size_t)write_start[n_writes], reads = (size_t)alone_start[n_alone];
-    size_t widest = writes > reads ? writes : reads;
-    size_t bytes = 16 * 12 + sizeof(SGPlan) + (size_t)n_fmus * sizeof(SGFmu) + (size_t)n_signals * sizeof(Signal)
-                   + (2 * (size_t)n_writes + 2 + writes + 2 * (size_t)n_alone) * sizeof(int)
-                   + (writes + reads) * sizeof(fmi2ValueReference) + ((size_t)n_signals + widest) * sizeof(double);
+/* g's arrays carved from the plan's block, copied from the caller's. */
+static void groups(Groups *g, void **all, size_t *used, int n, const int *fmu, const int *start,
+                   const fmi2ValueReference *vr, const int *signal) {
+    size_t count = (size_t)start[n];
+    g->n = n;
+    g->fmu = grab(all, used, (size_t)n * sizeof(int));
+    g->start = grab(all, used, ((size_t)n + 1) * sizeof(int));
+    g->signal = grab(all, used, count * sizeof(int));
+    g->vr = grab(all, used, count * sizeof(fmi2ValueReference));
+    memcpy(g->fmu, fmu, (size_t)n * sizeof(int));
+    memcpy(g->start, start, ((size_t)n + 1) * sizeof(int));
+    memcpy(g->signal, signal, count * sizeof(int));
+    memcpy(g->vr, vr, count * sizeof(fmi2ValueReference));
+}
+
+SGPlan *sg_create(DRKernel *k, int n_fmus, const SGFmu *fmus, int n_signals, const int *column, const double *factor,
+                  const double *offset, int n_reads, const int *read_fmu, const int *read_start,
+                  const fmi2ValueReference *read_vr, const int *read_signal, int n_writes, const int *write_fmu,
+                  const int *write_start, const fmi2ValueReference *write_vr, const int *write_signal, int n_alone,
+                  const int *alone_fmu, const int *alone_start, const fmi2ValueReference *alone_vr) {
+    if (n_fmus < 0 || n_signals < 0 || n_reads < 0 || n_writes < 0 || n_alone < 0) return NULL;
+    size_t reads = (size_t)read_start[n_reads], writes = (size_t)write_start[n_writes];
+    size_t alone = (size_t)alone_start[n_alone], widest = writes;
+    if (reads > widest) widest = reads;
+    if (alone > widest) widest = alone;
+    size_t ints = 3 * (size_t)n_reads + 3 * (size_t)n_writes + 2 * (size_t)n_alone + 3 + reads + writes;
+    size_t bytes = 16 * 20 + sizeof(SGPlan) + (size_t)n_fmus * sizeof(SGFmu) + (size_t)n_signals * sizeof(Signal)
+                   + ints * sizeof(int) + (reads + writes + alone) * sizeof(fmi2ValueReference)
+                   + ((size_t)n_signals + widest) * sizeof(double);
     void *all = calloc(1, bytes);
     if (!all) return NULL;
     size_t used = 0;
     SGPlan *p = grab(&all, &used, sizeof *p);
     p->k = k;
-    p->n_fmus = n_fmus, p->n_signals = n_signals, p->n_writes = n_writes, p->n_alone = n_alone;
+    p->n_fmus = n_fmus, p->n_signals = n_signals, p->n_alone = n_alone;
     p->fmu = grab(&all, &used, (size_t)n_fmus * sizeof(SGFmu));
     p->signal = grab(&all, &used, (size_t)n_signals * sizeof(Signal));
-    p->write_fmu = grab(&all, &used, (size_t)n_writes * sizeof(int));
-    p->write_start = grab(&all, &used, ((size_t)n_writes + 1) * sizeof(int));
-    p->write_signal = grab(&all, &used, writes * sizeof(int));
-    p->write_vr = grab(&all, &used, writes * sizeof(fmi2ValueReference));
+    groups(&p->reads, &all, &used, n_reads, read_fmu, read_start, read_vr, read_signal);
+    groups(&p->writes, &all, &used, n_writes, write_fmu, write_start, write_vr, write_signal);
     p->alone_fmu = grab(&all, &used, (size_t)n_alone * sizeof(int));
     p->alone_start = grab(&all, &used, ((size_t)n_alone + 1) * sizeof(int));
-    p->alone_vr = grab(&all, &used, reads * sizeof(fmi2ValueReference));
+    p->alone_vr = grab(&all, &used, alone * sizeof(fmi2ValueReference));
     p->value = grab(&all, &used, (size_t)n_signals * sizeof(double));
     p->scratch = grab(&all, &used, widest * sizeof(double));
     memcpy(p->fmu, fmus, (size_t)n_fmus * sizeof(SGFmu));
     for (int s = 0; s < n_signals; s++) {
         Signal *g = &p->signal[s];
-        g->fmu = src_fmu[s], g->vr = src_vr[s], g->factor = factor[s], g->offset = offset[s];
-        if (g->fmu >= n_fmus) {
-            free(p);
-            return NULL;
-        }
-        if (g->fmu < 0 && (int)g->vr >= p->n_table) p->n_table = (int)g->vr + 1;
+        g->column = column[s], g->factor = factor[s], g->offset = offset[s];
+        if (g->column >= p->n_table) p->n_table = g->column + 1;
     }
-    memcpy(p->write_fmu, write_fmu, (size_t)n_writes * sizeof(int));
-    memcpy(p->write_start, write_start, ((size_t)n_writes + 1) * sizeof(int));
-    memcpy(p->write_signal, write_signal, writes * sizeof(int));
-    memcpy(p->write_vr, write_vr, writes * sizeof(fmi2ValueReference));
     memcpy(p->alone_fmu, alone_fmu, (size_t)n_alone * sizeof(int));
     memcpy(p->alone_start, alone_start, ((size_t)n_alone + 1) * sizeof(int));
-    memcpy(p->alone_vr, alone_vr, reads * sizeof(fmi2ValueReference));
+    memcpy(p->alone_vr, alone_vr, alone * sizeof(fmi2ValueReference));
     return p;
 }
 
@@ -96,37 +109,41 @@ static int fmu_failed(SGPlan *p, int fmu, int function, fmi2Status status) {
     return 1;
 }
 
-/* Signals.hold(n) and the steps of the subsystems stepped alone (Signals.begin_step). */
+/* Signals.hold(n) and the steps of the subsystems stepped alone (Scene.begin_step). */
 static int before(void *ctx, DRStep *io, int n) {
     SGPlan *p = ctx;
     memset(&p->failure, 0, sizeof p->failure);
     p->failure.step = n;
-    for (int s = 0; s < p->n_signals; s++) {                    /* every value read before any is set */
-        Signal *g = &p->signal[s];
-        double x;
-        if (g->fmu >= 0) {
-            SGFmu *f = &p->fmu[g->fmu];
-            if (fmu_failed(p, g->fmu, DR_FN_GET_REAL, f->getReal(f->comp, &g->vr, 1, &x))) return 1;
-        } else {
+    const Groups *g = &p->reads;                                 /* every value read before any is set */
+    for (int r = 0; r < g->n; r++) {
+        SGFmu *f = &p->fmu[g->fmu[r]];
+        int a = g->start[r], b = g->start[r + 1];
+        if (fmu_failed(p, g->fmu[r], DR_FN_GET_REAL, f->getReal(f->comp, g->vr + a, (size_t)(b - a), p->scratch)))
+            return 1;
+        for (int j = a; j < b; j++) p->value[g->signal[j]] = p->scratch[j - a];
+    }
+    for (int s = 0; s < p->n_signals; s++) {
+        const Signal *sig = &p->signal[s];
+        if (sig->column >= 0) {
             if (!p->table || n < p->table_n0 || n >= p->table_n0 + p->table_count) {
                 p->failure.kind = SG_NO_TABLE;
                 return 1;
             }
-            x = p->table[(long)g->vr * p->table_ld + (n - p->table_n0)];
+            p->value[s] = p->table[(long)sig->column * p->table_ld + (n - p->table_n0)];
         }
-        p->value[s] = g->factor * x + g->offset;
+        p->value[s] = sig->factor * p->value[s] + sig->offset;
     }
     for (int s = 0; s < p->n_signals; s++)
         if (!isfinite(p->value[s])) {
             p->failure.kind = SG_NONFINITE, p->failure.index = s, p->failure.value = p->value[s];
             return 1;
         }
-    for (int w = 0; w < p->n_writes; w++) {
-        SGFmu *f = &p->fmu[p->write_fmu[w]];
-        int a = p->write_start[w], b = p->write_start[w + 1];
-        for (int j = a; j < b; j++) p->scratch[j - a] = p->value[p->write_signal[j]];
-        if (fmu_failed(p, p->write_fmu[w], DR_FN_SET_REAL,
-                       f->setReal(f->comp, p->write_vr + a, (size_t)(b - a), p->scratch)))
+    g = &p->writes;
+    for (int w = 0; w < g->n; w++) {
+        SGFmu *f = &p->fmu[g->fmu[w]];
+        int a = g->start[w], b = g->start[w + 1];
+        for (int j = a; j < b; j++) p->scratch[j - a] = p->value[g->signal[j]];
+        if (fmu_failed(p, g->fmu[w], DR_FN_SET_REAL, f->setReal(f->comp, g->vr + a, (size_t)(b - a), p->scratch)))
             return 1;
     }
     for (int a = 0; a < p->n_alone; a++) {                       /* Subsystem.step_alone: never rolled back */

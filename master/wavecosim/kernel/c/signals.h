@@ -2,10 +2,11 @@
  * wavecosim/kernel/signals.py drives it through ctypes).
  *
  * An SGPlan attached to a DRKernel runs before each macro-step n of dr_run_steps_of what
- * wavecosim/core/signals.py's Signals.begin_step(n) does: read every signal (an FMU's Real variable,
- * one getReal each, or a source table's value at t_n given per block by sg_set_table), scale it
- * (factor * value + offset), check that all are finite, set them on their inputs (one setReal per
- * driven FMU, in the given order), then one doStep(t_n, dt, true) of each subsystem stepped alone.
+ * wavecosim/core/scene.py's Scene.begin_step(n) does for Real signals: read every signal (one getReal
+ * per driven group of FMU variables, or a source table's value at t_n given per block by
+ * sg_set_table), scale it (factor * value + offset), check that all are finite, set them on their
+ * inputs (one setReal per group, in the given order), then one doStep(t_n, dt, true) of each
+ * subsystem stepped alone.
  * After the step it reads those subsystems' outputs into the log, after the subsystems' observed values.
  */
 #ifndef WAVECOSIM_SIGNALS_H
@@ -33,17 +34,17 @@ typedef struct {
 
 typedef struct SGPlan SGPlan;
 
-/* Over kernel k: n_fmus FMUs; n_signals signals, each read from FMU src_fmu[s] (its variable
- * src_vr[s]) or, with src_fmu[s] = -1, from table column src_vr[s], scaled by factor and offset;
- * n_writes setReal calls, call w to FMU write_fmu[w] setting write_vr[j] to signal write_signal[j]
- * for j in write_start[w] .. write_start[w + 1); n_alone subsystems stepped alone, subsystem a being
- * FMU alone_fmu[a] with the outputs alone_vr[alone_start[a] .. alone_start[a + 1]). All copied.
- * NULL on bad arguments or no memory. */
-SGPlan *sg_create(DRKernel *k, int n_fmus, const SGFmu *fmus, int n_signals, const int *src_fmu,
-                  const fmi2ValueReference *src_vr, const double *factor, const double *offset, int n_writes,
-                  const int *write_fmu, const int *write_start, const fmi2ValueReference *write_vr,
-                  const int *write_signal, int n_alone, const int *alone_fmu, const int *alone_start,
-                  const fmi2ValueReference *alone_vr);
+/* Over kernel k: n_fmus FMUs; n_signals signals, signal s scaled by factor[s] and offset[s] and read
+ * from source table column column[s] or, with column[s] = -1, by one of the n_reads getReal calls;
+ * call g of FMU read_fmu[g] reads read_vr[j] into signal read_signal[j] for j in read_start[g] ..
+ * read_start[g + 1); the n_writes setReal calls alike (write_*); n_alone subsystems stepped alone,
+ * subsystem a being FMU alone_fmu[a] with the outputs alone_vr[alone_start[a] .. alone_start[a + 1]).
+ * All copied. NULL on bad arguments or no memory. */
+SGPlan *sg_create(DRKernel *k, int n_fmus, const SGFmu *fmus, int n_signals, const int *column, const double *factor,
+                  const double *offset, int n_reads, const int *read_fmu, const int *read_start,
+                  const fmi2ValueReference *read_vr, const int *read_signal, int n_writes, const int *write_fmu,
+                  const int *write_start, const fmi2ValueReference *write_vr, const int *write_signal, int n_alone,
+                  const int *alone_fmu, const int *alone_start, const fmi2ValueReference *alone_vr);
 
 /* The source tables' values for steps n0 .. n0 + count - 1: column c at step n is
  * table[c ld + n - n0] (the caller's, read during the next dr_run_steps). */
