@@ -6,7 +6,8 @@ subsystem stepped alone and from a port subsystem, physical ports, when ../share
 blocks of macro-steps per kernel call (`fast_path: true`, every step in a block), and the
 trajectories, per-step logs and FMU call counts equal the Python reference's (`fast: false`) bit
 for bit; a scene with a source table and a subsystem stepped alone does too, for a physical and a
-wave master; a non-finite signal inside a block fails as the reference does, after the same rows.
+wave master; Integer and Boolean signals (FMI 2) too; a non-finite signal inside a block fails as the
+reference does, after the same rows.
 """
 import copy
 import dataclasses
@@ -16,7 +17,7 @@ import pytest
 
 from paths import CONFIGS, THIRD_PARTY
 from wavecosim.errors import RunFailed
-from wavecosim.run.runner import run
+from wavecosim.run.runner import LiveRun, _loop, run
 from wavecosim.scenario.config import load_scenario, parse_scenario
 
 MASTERS = ("explicit", "gauss-seidel", "jacobi-iter", "gauss-seidel-iter", "dr")
@@ -110,3 +111,33 @@ def test_a_non_finite_signal_fails_in_a_block_as_in_python(tmp_path, built_fmus)
     assert failed[0].result.summary["block_steps"] == 7
     for name in ("trajectory_table", "steps_table"):
         assert getattr(failed[0].result, name).array().tobytes() == getattr(failed[1].result, name).array().tobytes()
+
+
+TYPED = {
+    "name": "typed", "dt": 0.05, "T": 2.0,
+    "subsystems": {"src": {"fmu": "SignalSource", "parameters": {"frequency": 0.5}, "integers": {"period": 3}},
+                   "sink": {"fmu": "SignalSink", "parameters": {"gain": 3.0}},
+                   "sink2": {"fmu": "SignalSink", "parameters": {"gain": 2.0}}},
+    "signals": [{"from": "src.count", "to": "sink.u", "factor": 2.0, "offset": 0.25},    # Integer -> Real
+                {"from": "src.count", "to": "sink.n"},                                 # Integer -> Integer
+                {"from": "src.flag", "to": "sink.on"},                                 # Boolean -> Boolean
+                {"from": "src.flag", "to": "sink2.u", "factor": -1.5},                 # Boolean -> Real
+                {"from": "src.flag", "to": "sink2.n"}],                                # Boolean -> Integer
+    "outputs": {"i": "sink.integral", "s": "sink.scaled", "i2": "sink2.integral", "y": "src.y"},
+}
+
+
+def test_integer_and_boolean_signals_are_held_in_the_blocks(built_fmus):
+    """The kernel reads and sets FMI 2 Integer and Boolean variables itself: every step in blocks, the
+    Real outputs and the sinks' Integer and Boolean outputs at the end as the Python route's."""
+    ends, results = [], []
+    for fast in ("auto", "false"):
+        live = LiveRun(parse_scenario(TYPED, "typed.yaml").with_master(fast=fast), warn=quiet, certificates=False)
+        status, error = _loop(live, None, None)
+        sinks = {s.name: s.fmu for s in live.scene.signal_only if s.name.startswith("sink")}
+        ends.append([(f.get_values("Integer", [f.vr("shifted")])[0], f.get_values("Boolean", [f.vr("off")])[0])
+                     for f in sinks.values()])
+        results.append(live.finish(status, str(error or "")))
+    assert results[0].summary["fast_path"] and results[0].summary["block_steps"] == 40
+    assert results[1].summary["block_steps"] == 0 and ends[0] == ends[1] and ends[0][0][0] > 10
+    assert results[0].trajectory_table.array().tobytes() == results[1].trajectory_table.array().tobytes()

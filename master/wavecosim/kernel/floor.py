@@ -56,7 +56,10 @@ class FloorRecorder:
         self.names, self._seen = [], set()
 
     def hook(self, fmu, fname, lookup):
-        """The pointer hook: the recording shim of fname for this FMU, registered on first sight."""
+        """The pointer hook: the recording shim of fname for this FMU, registered on first sight (the
+        FMU's own function for a name it does not record)."""
+        if fname not in NAMES:
+            return lookup(fname)
         if fmu.component not in self._seen:
             table = FLFunctions(*[lookup(name) for name in NAMES])
             if self.lib.fl_register(self.handle, fmu.component, ctypes.byref(table)) < 0:

@@ -12,12 +12,22 @@ from ..errors import FmuError, NumericalError
 
 _ip, _up, _dp = ctypes.POINTER(ctypes.c_int), ctypes.POINTER(ctypes.c_uint), ctypes.POINTER(ctypes.c_double)
 SG_OK, SG_FMU, SG_NONFINITE, SG_NO_TABLE = range(4)          # signals.h
+TYPES = ("real", "integer", "boolean")                       # signals.h SG_REAL, SG_INTEGER, SG_BOOLEAN
+OTHER_FUNCTIONS = {16: "fmi2GetInteger", 17: "fmi2GetBoolean", 18: "fmi2SetInteger", 19: "fmi2SetBoolean"}
+FMU_FUNCTIONS = ("fmi2GetReal", "fmi2SetReal", "fmi2DoStep", "fmi2GetInteger", "fmi2SetInteger", "fmi2GetBoolean",
+                 "fmi2SetBoolean")
 
 
 class SGFmu(ctypes.Structure):
     """signals.h: one FMU's functions and instance."""
-    _fields_ = [("getReal", ctypes.c_void_p), ("setReal", ctypes.c_void_p), ("doStep", ctypes.c_void_p),
-                ("comp", ctypes.c_void_p)]
+    _fields_ = [(name, ctypes.c_void_p) for name in ("getReal", "setReal", "doStep", "getInteger", "setInteger",
+                                                      "getBoolean", "setBoolean", "comp")]
+
+
+class SGSignal(ctypes.Structure):
+    """signals.h: one signal's source column, input category, scaling and range."""
+    _fields_ = [("column", ctypes.c_int), ("to", ctypes.c_int), *[(name, ctypes.c_double) for name in
+                                                                   ("factor", "offset", "lo", "hi")]]
 
 
 class SGFailure(ctypes.Structure):
@@ -30,8 +40,8 @@ def _library(lib):
     if not hasattr(lib, "_signals_ready"):
         p, i = ctypes.c_void_p, ctypes.c_int
         lib.sg_create.restype = p
-        lib.sg_create.argtypes = [p, i, ctypes.POINTER(SGFmu), i, _ip, _dp, _dp, i, _ip, _ip, _up, _ip, i, _ip, _ip,
-                                  _up, _ip, i, _ip, _ip, _up]
+        lib.sg_create.argtypes = [p, i, ctypes.POINTER(SGFmu), i, ctypes.POINTER(SGSignal), i, _ip, _ip, _ip, _up, _ip,
+                                  i, _ip, _ip, _ip, _up, _ip, i, _ip, _ip, _up]
         lib.sg_set_table.argtypes = [p, p, ctypes.c_long, i, i]
         lib.sg_set_table.restype = None
         lib.sg_attach.argtypes = [p]
@@ -42,11 +52,11 @@ def _library(lib):
         lib.sg_sizes.restype = None
         lib.sg_destroy.argtypes = [p]
         lib.sg_destroy.restype = None
-        sizes = (ctypes.c_size_t * 2)()
+        sizes, ours = (ctypes.c_size_t * 3)(), [ctypes.sizeof(t) for t in (SGFmu, SGFailure, SGSignal)]
         lib.sg_sizes(sizes)
-        if list(sizes) != [ctypes.sizeof(SGFmu), ctypes.sizeof(SGFailure)]:
-            raise FmuError(f"signals.c: SGFmu, SGFailure have {list(sizes)} bytes, wavecosim.kernel.signals "
-                           f"{[ctypes.sizeof(SGFmu), ctypes.sizeof(SGFailure)]} (the layouts differ)")
+        if list(sizes) != ours:
+            raise FmuError(f"signals.c: SGFmu, SGFailure, SGSignal have {list(sizes)} bytes, wavecosim.kernel.signals "
+                           f"{ours} (the layouts differ)")
         lib._signals_ready = True
     return lib
 
@@ -56,12 +66,23 @@ def _array(kind, values):
 
 
 def _calls(calls):
-    """(count, FMU of each call, starts, value references, signals) of getReal or setReal calls."""
+    """(count, FMU and type of each call, starts, value references, signals) of get or set calls
+    [(FMU, type (TYPES), value references, signals)]."""
     starts = [0]
-    for _, vrs, _ in calls:
+    for _, _, vrs, _ in calls:
         starts.append(starts[-1] + len(vrs))
-    return [len(calls), _array(ctypes.c_int, [c[0] for c in calls]), _array(ctypes.c_int, starts),
-            _array(ctypes.c_uint, [v for c in calls for v in c[1]]), _array(ctypes.c_int, [k for c in calls for k in c[2]])]
+    return [len(calls), _array(ctypes.c_int, [c[0] for c in calls]), _array(ctypes.c_int, [TYPES.index(c[1]) for c in calls]),
+            _array(ctypes.c_int, starts), _array(ctypes.c_uint, [v for c in calls for v in c[2]]),
+            _array(ctypes.c_int, [k for c in calls for k in c[3]])]
+
+
+def _functions(fmu, wanted):
+    """SGFmu of an FMU: the functions in `wanted` (the others NULL)."""
+    table = SGFmu(comp=fmu.component)
+    for name, field in zip(FMU_FUNCTIONS, SGFmu._fields_):
+        if name in wanted:
+            setattr(table, field[0], fmu.function_pointer(name))
+    return table
 
 
 class SignalPlan:
@@ -73,15 +94,18 @@ class SignalPlan:
     def __init__(self, lib, handle, plan, alone_vrs, functions):
         self.lib, self.plan, self.functions = _library(lib), plan, functions
         self.subsystems, self.alone = plan["subsystems"], plan["alone"]
-        fmus = (SGFmu * max(1, len(self.subsystems)))(*[SGFmu(*[s.fmu.function_pointer(f) for f in
-                                                                  ("fmi2GetReal", "fmi2SetReal", "fmi2DoStep")],
-                                                                s.fmu.component) for s in self.subsystems])
+        wanted = [set(FMU_FUNCTIONS[:3]) for _ in self.subsystems]
+        for fmu, kind, _, _ in plan["reads"] + plan["writes"]:
+            if kind != "real":
+                wanted[fmu] |= {f"fmi2Get{kind.title()}", f"fmi2Set{kind.title()}"}
+        fmus = (SGFmu * max(1, len(self.subsystems)))(*[_functions(s.fmu, w) for s, w in zip(self.subsystems, wanted)])
         sigs, alone_starts = plan["signals"], [0]
         for vrs in alone_vrs:
             alone_starts.append(alone_starts[-1] + len(vrs))
-        args = [len(self.subsystems), fmus, len(sigs), *[_array(kind, [s[j] for s in sigs]) for j, kind in
-                                                         enumerate((ctypes.c_int, ctypes.c_double, ctypes.c_double))],
-                *_calls(plan["reads"]), *_calls(plan["writes"]), len(self.alone),
+        signals = (SGSignal * max(1, len(sigs)))(*[SGSignal(column, TYPES.index(to), factor, offset, lo, hi)
+                                                   for column, to, factor, offset, lo, hi in sigs])
+        args = [len(self.subsystems), fmus, len(sigs), signals, *_calls(plan["reads"]), *_calls(plan["writes"]),
+                len(self.alone),
                 _array(ctypes.c_int, self.alone), _array(ctypes.c_int, alone_starts),
                 _array(ctypes.c_uint, [v for vrs in alone_vrs for v in vrs])]
         self.handle = self.lib.sg_create(handle, *args)
@@ -115,7 +139,8 @@ class SignalPlan:
         if f.kind == SG_NONFINITE:
             return NumericalError(self.plan["nonfinite"](f.index, f.value, f.step))
         if f.kind == SG_FMU:
-            return self.subsystems[f.index].fmu.status_error(self.functions[f.function], f.status, n, t)
+            name = OTHER_FUNCTIONS.get(f.function) or self.functions[f.function]
+            return self.subsystems[f.index].fmu.status_error(name, f.status, n, t)
         return FmuError(f"the kernel's signals had no source table values for step {f.step}")
 
     def close(self):

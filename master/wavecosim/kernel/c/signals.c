@@ -1,7 +1,8 @@
 /* Signal connections, sources and subsystems stepped alone inside the kernel's blocks of macro-steps
  * (signals.h): wavecosim/core/signals.py's Signals.begin_step before each step and the reading of the
  * subsystems stepped alone after it, making the same FMU calls in the same order and the same
- * arithmetic (to = factor * from + offset), so a block gives the numbers of the Python route. */
+ * arithmetic (a Real input: factor * from + offset; Integer and Boolean values as they are), so a
+ * block gives the numbers of the Python route. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -10,13 +11,14 @@
 
 typedef struct {
     int column;                    /* -1, or the source table column it reads */
-    double factor, offset;
+    int to;                        /* its input's category: SG_REAL (scaled), SG_INTEGER (in lo .. hi), SG_BOOLEAN */
+    double factor, offset, lo, hi;
 } Signal;
 
-/* One getReal or setReal call: FMU fmu, value references vr[start[g] .. start[g + 1]) of the
- * signals signal[start[g] ..]. */
+/* One get or set call of type type[g] (SG_REAL, SG_INTEGER, SG_BOOLEAN): FMU fmu[g], value references
+ * vr[start[g] .. start[g + 1]) of the signals signal[start[g] ..]. */
 typedef struct {
-    int n, *fmu, *start, *signal;
+    int n, *fmu, *type, *start, *signal;
     fmi2ValueReference *vr;
 } Groups;
 
@@ -29,6 +31,7 @@ struct SGPlan {
     int *alone_fmu, *alone_start;                  /* subsystem a stepped alone: its outputs alone_vr[start[a] ..] */
     fmi2ValueReference *alone_vr;
     double *value, *scratch;       /* the signals' values at t_n; a write's or a read's values */
+    int *ints;                     /* a write's or a read's Integer or Boolean values */
     const double *table;           /* column c at step n: table[c ld + n - table_n0] */
     long table_ld;
     int table_n0, table_count;
@@ -43,10 +46,12 @@ static void *grab(void **all, size_t *used, size_t bytes) {
 }
 
 /* g's arrays carved from the plan's block, copied from the caller's. */
-static void groups(Groups *g, void **all, size_t *used, int n, const int *fmu, const int *start,
+static void groups(Groups *g, void **all, size_t *used, int n, const int *fmu, const int *type, const int *start,
                    const fmi2ValueReference *vr, const int *signal) {
     size_t count = (size_t)start[n];
     g->n = n;
+    g->type = grab(all, used, (size_t)n * sizeof(int));
+    memcpy(g->type, type, (size_t)n * sizeof(int));
     g->fmu = grab(all, used, (size_t)n * sizeof(int));
     g->start = grab(all, used, ((size_t)n + 1) * sizeof(int));
     g->signal = grab(all, used, count * sizeof(int));
@@ -57,9 +62,9 @@ static void groups(Groups *g, void **all, size_t *used, int n, const int *fmu, c
     memcpy(g->vr, vr, count * sizeof(fmi2ValueReference));
 }
 
-SGPlan *sg_create(DRKernel *k, int n_fmus, const SGFmu *fmus, int n_signals, const int *column, const double *factor,
-                  const double *offset, int n_reads, const int *read_fmu, const int *read_start,
-                  const fmi2ValueReference *read_vr, const int *read_signal, int n_writes, const int *write_fmu,
+SGPlan *sg_create(DRKernel *k, int n_fmus, const SGFmu *fmus, int n_signals, const SGSignal *signals, int n_reads,
+                  const int *read_fmu, const int *read_type, const int *read_start, const fmi2ValueReference *read_vr,
+                  const int *read_signal, int n_writes, const int *write_fmu, const int *write_type,
                   const int *write_start, const fmi2ValueReference *write_vr, const int *write_signal, int n_alone,
                   const int *alone_fmu, const int *alone_start, const fmi2ValueReference *alone_vr) {
     if (n_fmus < 0 || n_signals < 0 || n_reads < 0 || n_writes < 0 || n_alone < 0) return NULL;
@@ -67,8 +72,8 @@ SGPlan *sg_create(DRKernel *k, int n_fmus, const SGFmu *fmus, int n_signals, con
     size_t alone = (size_t)alone_start[n_alone], widest = writes;
     if (reads > widest) widest = reads;
     if (alone > widest) widest = alone;
-    size_t ints = 3 * (size_t)n_reads + 3 * (size_t)n_writes + 2 * (size_t)n_alone + 3 + reads + writes;
-    size_t bytes = 16 * 20 + sizeof(SGPlan) + (size_t)n_fmus * sizeof(SGFmu) + (size_t)n_signals * sizeof(Signal)
+    size_t ints = 4 * (size_t)n_reads + 4 * (size_t)n_writes + 2 * (size_t)n_alone + 3 + reads + writes + widest;
+    size_t bytes = 16 * 24 + sizeof(SGPlan) + (size_t)n_fmus * sizeof(SGFmu) + (size_t)n_signals * sizeof(Signal)
                    + ints * sizeof(int) + (reads + writes + alone) * sizeof(fmi2ValueReference)
                    + ((size_t)n_signals + widest) * sizeof(double);
     void *all = calloc(1, bytes);
@@ -79,17 +84,20 @@ SGPlan *sg_create(DRKernel *k, int n_fmus, const SGFmu *fmus, int n_signals, con
     p->n_fmus = n_fmus, p->n_signals = n_signals, p->n_alone = n_alone;
     p->fmu = grab(&all, &used, (size_t)n_fmus * sizeof(SGFmu));
     p->signal = grab(&all, &used, (size_t)n_signals * sizeof(Signal));
-    groups(&p->reads, &all, &used, n_reads, read_fmu, read_start, read_vr, read_signal);
-    groups(&p->writes, &all, &used, n_writes, write_fmu, write_start, write_vr, write_signal);
+    groups(&p->reads, &all, &used, n_reads, read_fmu, read_type, read_start, read_vr, read_signal);
+    groups(&p->writes, &all, &used, n_writes, write_fmu, write_type, write_start, write_vr, write_signal);
     p->alone_fmu = grab(&all, &used, (size_t)n_alone * sizeof(int));
     p->alone_start = grab(&all, &used, ((size_t)n_alone + 1) * sizeof(int));
     p->alone_vr = grab(&all, &used, alone * sizeof(fmi2ValueReference));
     p->value = grab(&all, &used, (size_t)n_signals * sizeof(double));
     p->scratch = grab(&all, &used, widest * sizeof(double));
+    p->ints = grab(&all, &used, widest * sizeof(int));
     memcpy(p->fmu, fmus, (size_t)n_fmus * sizeof(SGFmu));
     for (int s = 0; s < n_signals; s++) {
         Signal *g = &p->signal[s];
-        g->column = column[s], g->factor = factor[s], g->offset = offset[s];
+        const SGSignal *in = &signals[s];
+        g->column = in->column, g->to = in->to, g->factor = in->factor, g->offset = in->offset;
+        g->lo = in->lo, g->hi = in->hi;
         if (g->column >= p->n_table) p->n_table = g->column + 1;
     }
     memcpy(p->alone_fmu, alone_fmu, (size_t)n_alone * sizeof(int));
@@ -109,19 +117,49 @@ static int fmu_failed(SGPlan *p, int fmu, int function, fmi2Status status) {
     return 1;
 }
 
+/* Read call r of g into the signals' values: Reals as they are, Integers as numbers, Booleans as 0 or 1. */
+static int read_group(SGPlan *p, const Groups *g, int r) {
+    SGFmu *f = &p->fmu[g->fmu[r]];
+    int a = g->start[r], b = g->start[r + 1];
+    size_t n = (size_t)(b - a);
+    fmi2Status status;
+    if (g->type[r] == SG_REAL) status = f->getReal(f->comp, g->vr + a, n, p->scratch);
+    else if (g->type[r] == SG_INTEGER) status = f->getInteger(f->comp, g->vr + a, n, p->ints);
+    else status = f->getBoolean(f->comp, g->vr + a, n, p->ints);
+    int fn = g->type[r] == SG_REAL ? DR_FN_GET_REAL : g->type[r] == SG_INTEGER ? SG_FN_GET_INTEGER : SG_FN_GET_BOOLEAN;
+    if (fmu_failed(p, g->fmu[r], fn, status)) return 1;
+    for (int j = a; j < b; j++)
+        p->value[g->signal[j]] = g->type[r] == SG_REAL ? p->scratch[j - a]
+                               : g->type[r] == SG_INTEGER ? (double)p->ints[j - a] : (p->ints[j - a] ? 1.0 : 0.0);
+    return 0;
+}
+
+/* Write call w of g from the signals' values, in its type. */
+static int write_group(SGPlan *p, const Groups *g, int w) {
+    SGFmu *f = &p->fmu[g->fmu[w]];
+    int a = g->start[w], b = g->start[w + 1];
+    size_t n = (size_t)(b - a);
+    fmi2Status status;
+    for (int j = a; j < b; j++) {
+        double v = p->value[g->signal[j]];
+        p->scratch[j - a] = v;
+        p->ints[j - a] = g->type[w] == SG_BOOLEAN ? (v != 0.0) : (int)v;
+    }
+    if (g->type[w] == SG_REAL) status = f->setReal(f->comp, g->vr + a, n, p->scratch);
+    else if (g->type[w] == SG_INTEGER) status = f->setInteger(f->comp, g->vr + a, n, p->ints);
+    else status = f->setBoolean(f->comp, g->vr + a, n, p->ints);
+    int fn = g->type[w] == SG_REAL ? DR_FN_SET_REAL : g->type[w] == SG_INTEGER ? SG_FN_SET_INTEGER : SG_FN_SET_BOOLEAN;
+    return fmu_failed(p, g->fmu[w], fn, status);
+}
+
 /* Signals.hold(n) and the steps of the subsystems stepped alone (Scene.begin_step). */
 static int before(void *ctx, DRStep *io, int n) {
     SGPlan *p = ctx;
     memset(&p->failure, 0, sizeof p->failure);
     p->failure.step = n;
     const Groups *g = &p->reads;                                 /* every value read before any is set */
-    for (int r = 0; r < g->n; r++) {
-        SGFmu *f = &p->fmu[g->fmu[r]];
-        int a = g->start[r], b = g->start[r + 1];
-        if (fmu_failed(p, g->fmu[r], DR_FN_GET_REAL, f->getReal(f->comp, g->vr + a, (size_t)(b - a), p->scratch)))
-            return 1;
-        for (int j = a; j < b; j++) p->value[g->signal[j]] = p->scratch[j - a];
-    }
+    for (int r = 0; r < g->n; r++)
+        if (read_group(p, g, r)) return 1;
     for (int s = 0; s < p->n_signals; s++) {
         const Signal *sig = &p->signal[s];
         if (sig->column >= 0) {
@@ -131,21 +169,18 @@ static int before(void *ctx, DRStep *io, int n) {
             }
             p->value[s] = p->table[(long)sig->column * p->table_ld + (n - p->table_n0)];
         }
-        p->value[s] = sig->factor * p->value[s] + sig->offset;
+        if (sig->to == SG_REAL) p->value[s] = sig->factor * p->value[s] + sig->offset;  /* else taken as read */
+        else if (sig->to == SG_BOOLEAN) p->value[s] = p->value[s] != 0.0 ? 1.0 : 0.0;
     }
     for (int s = 0; s < p->n_signals; s++)
-        if (!isfinite(p->value[s])) {
+        if (!isfinite(p->value[s]) || (p->signal[s].to == SG_INTEGER &&
+                                       !(p->signal[s].lo <= p->value[s] && p->value[s] <= p->signal[s].hi))) {
             p->failure.kind = SG_NONFINITE, p->failure.index = s, p->failure.value = p->value[s];
             return 1;
         }
     g = &p->writes;
-    for (int w = 0; w < g->n; w++) {
-        SGFmu *f = &p->fmu[g->fmu[w]];
-        int a = g->start[w], b = g->start[w + 1];
-        for (int j = a; j < b; j++) p->scratch[j - a] = p->value[g->signal[j]];
-        if (fmu_failed(p, g->fmu[w], DR_FN_SET_REAL, f->setReal(f->comp, g->vr + a, (size_t)(b - a), p->scratch)))
-            return 1;
-    }
+    for (int w = 0; w < g->n; w++)
+        if (write_group(p, g, w)) return 1;
     for (int a = 0; a < p->n_alone; a++) {                       /* Subsystem.step_alone: never rolled back */
         SGFmu *f = &p->fmu[p->alone_fmu[a]];
         if (fmu_failed(p, p->alone_fmu[a], DR_FN_DO_STEP, f->doStep(f->comp, io->t, io->dt, fmi2True))) return 1;
@@ -185,4 +220,5 @@ void sg_destroy(SGPlan *p) {
 void sg_sizes(size_t *out) {
     out[0] = sizeof(SGFmu);
     out[1] = sizeof(SGFailure);
+    out[2] = sizeof(SGSignal);
 }

@@ -14,19 +14,36 @@
 
 #include "kernel_internal.h"
 
-/* One FMU's functions (its own fmi2 ones, or fmi3shim.c's) and instance. */
+/* One FMU's functions (its own fmi2 ones, or fmi3shim.c's) and instance; the Integer and Boolean
+ * ones only where a signal reads or drives such a variable (an FMI 2 FMU), else NULL. */
 typedef struct {
     fmi2GetRealTYPE *getReal;
     fmi2SetRealTYPE *setReal;
     fmi2DoStepTYPE *doStep;
+    fmi2GetIntegerTYPE *getInteger;
+    fmi2SetIntegerTYPE *setInteger;
+    fmi2GetBooleanTYPE *getBoolean;
+    fmi2SetBooleanTYPE *setBoolean;
     fmi2Component comp;
 } SGFmu;
 
-/* SGFailure.kind */
-enum { SG_OK = 0, SG_FMU = 1, SG_NONFINITE = 2, SG_NO_TABLE = 3 };
+/* The categories of values a signal carries (wavecosim/fmi/values.py): a call's type, an input's. */
+enum { SG_REAL = 0, SG_INTEGER = 1, SG_BOOLEAN = 2 };
 
-/* Why the last step's signals failed: an FMU call (index: the FMU, function DR_FN_*, status), a
- * non-finite value (index: the signal, value), or a table not given for the step. */
+/* One signal: its source table column (or -1: read by a get call), its input's category, the
+ * scaling of a Real input (factor * value + offset) and the range of an integer one (lo .. hi). */
+typedef struct {
+    int column, to;
+    double factor, offset, lo, hi;
+} SGSignal;
+
+/* SGFailure.kind; SGFailure.function besides DR_FN_*: the Integer and Boolean calls */
+enum { SG_OK = 0, SG_FMU = 1, SG_NONFINITE = 2, SG_NO_TABLE = 3 };
+enum { SG_FN_GET_INTEGER = 16, SG_FN_GET_BOOLEAN = 17, SG_FN_SET_INTEGER = 18, SG_FN_SET_BOOLEAN = 19 };
+
+/* Why the last step's signals failed: an FMU call (index: the FMU, function DR_FN_* or SG_FN_*,
+ * status), a value its input cannot take (non-finite, an integer out of range; index: the signal,
+ * value), or a table not given for the step. */
 typedef struct {
     int kind, index, function, status, step, alone_done;
     double value;
@@ -34,15 +51,15 @@ typedef struct {
 
 typedef struct SGPlan SGPlan;
 
-/* Over kernel k: n_fmus FMUs; n_signals signals, signal s scaled by factor[s] and offset[s] and read
- * from source table column column[s] or, with column[s] = -1, by one of the n_reads getReal calls;
- * call g of FMU read_fmu[g] reads read_vr[j] into signal read_signal[j] for j in read_start[g] ..
- * read_start[g + 1); the n_writes setReal calls alike (write_*); n_alone subsystems stepped alone,
- * subsystem a being FMU alone_fmu[a] with the outputs alone_vr[alone_start[a] .. alone_start[a + 1]).
- * All copied. NULL on bad arguments or no memory. */
-SGPlan *sg_create(DRKernel *k, int n_fmus, const SGFmu *fmus, int n_signals, const int *column, const double *factor,
-                  const double *offset, int n_reads, const int *read_fmu, const int *read_start,
-                  const fmi2ValueReference *read_vr, const int *read_signal, int n_writes, const int *write_fmu,
+/* Over kernel k: n_fmus FMUs; n_signals signals (SGSignal: a table column or -1, read then by one of
+ * the get calls); n_reads get calls, call g of type read_type[g] (SG_*) to FMU read_fmu[g] reading
+ * read_vr[j] into signal read_signal[j] for j in read_start[g] .. read_start[g + 1); the n_writes set
+ * calls alike (write_*); n_alone subsystems stepped alone, subsystem a being FMU alone_fmu[a] with
+ * the Real outputs alone_vr[alone_start[a] .. alone_start[a + 1]). All copied. NULL on bad arguments
+ * or no memory. A non-finite value, or an integer outside its input's range, fails the step. */
+SGPlan *sg_create(DRKernel *k, int n_fmus, const SGFmu *fmus, int n_signals, const SGSignal *signals, int n_reads,
+                  const int *read_fmu, const int *read_type, const int *read_start, const fmi2ValueReference *read_vr,
+                  const int *read_signal, int n_writes, const int *write_fmu, const int *write_type,
                   const int *write_start, const fmi2ValueReference *write_vr, const int *write_signal, int n_alone,
                   const int *alone_fmu, const int *alone_start, const fmi2ValueReference *alone_vr);
 
@@ -55,7 +72,7 @@ void sg_attach(SGPlan *p);
 
 const SGFailure *sg_failure(const SGPlan *p);
 
-/* sizeof(SGFmu), sizeof(SGFailure): for the caller to check its copy of the layouts. */
+/* sizeof(SGFmu), sizeof(SGFailure), sizeof(SGSignal): for the caller to check its copy of the layouts. */
 void sg_sizes(size_t *out);
 
 void sg_destroy(SGPlan *p);
