@@ -6,15 +6,8 @@ FMUs (`replay`). Its time is what those FMU calls cost with nothing around them.
 import ctypes
 
 from .build import kernel_library
+from .drkernel import FMI_NAMES as NAMES, DRFunctions as FLFunctions       # floor.h: the kernel's table
 from ..errors import FmuError
-
-NAMES = ("fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate", "fmi2SetReal", "fmi2DoStep", "fmi2GetReal")
-
-
-class FLFunctions(ctypes.Structure):
-    """floor.h: an FMU's functions."""
-    _fields_ = [(name, ctypes.c_void_p) for name in
-                ("getFMUstate", "setFMUstate", "freeFMUstate", "setReal", "doStep", "getReal")]
 
 
 _lib = None

@@ -11,21 +11,14 @@
 #define WAVECOSIM_FLOOR_H
 
 #include <stddef.h>
-#include "fmi2FunctionTypes.h"
+#include "drkernel.h"
 
 #define FL_MAX_FMUS 64
 #define FL_MAX_SLOTS 256
 #define FL_MAX_VALUES 4096
 
-/* An FMU's functions (drkernel.h DRFunctions' order). */
-typedef struct {
-    fmi2GetFMUstateTYPE *getFMUstate;
-    fmi2SetFMUstateTYPE *setFMUstate;
-    fmi2FreeFMUstateTYPE *freeFMUstate;
-    fmi2SetRealTYPE *setReal;
-    fmi2DoStepTYPE *doStep;
-    fmi2GetRealTYPE *getReal;
-} FLFunctions;
+/* An FMU's functions: the table the DR kernel calls. */
+typedef DRFunctions FLFunctions;
 
 typedef struct FLRecorder FLRecorder;
 
