@@ -31,8 +31,11 @@ rerun them on your machine with
   in C), through the wave adapter where a master needs waves, with signal connections and source
   tables held and subsystems without a port stepped in C too. The runner makes blocks of macro-steps
   per kernel call, and the numbers are the Python reference's to the last bit (`master.fast: false`
-  runs the reference). Signals of other types than Real (Integer, Boolean, String) are held by
-  Python, one macro-step per kernel call.
+  runs the reference). Real signals, and Integer and Boolean ones of FMI 2 FMUs, are held in C;
+  String signals (and FMI 3 integer or Boolean ones) are held by Python, one macro-step per kernel
+  call, and so are runs recording outputs of those types. DR through wave adapters makes blocks
+  with `--no-certificates`; with the certificates on, the Condition 1 watch probes the adapters
+  from Python after every step (one kernel call per step).
 - **Blocks on every Python.** The reference's sums run left to right (`linalg.total`), as the C
   passes do, so builtin `sum()`'s compensated summation (Python 3.12 and later) changes nothing.
 - **Set-up.** The gamma search of `gamma: auto` runs once per process for a run and its lockstep
