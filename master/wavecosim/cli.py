@@ -152,7 +152,8 @@ def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None, star
 @click.option("--outputs", "outputs", multiple=True, metavar="PATTERN",
               help="Record only the columns matching this glob (e.g. 'IO.y_*'; repeat for more); default: every "
                    "output and connected input, named COMPONENT.variable (or the file's outputs).")
-@click.option("--master", "algorithm", type=click.Choice(ALGORITHMS), help="Master algorithm (default: from CONFIG).")
+@click.option("--master", "algorithm", type=click.Choice(ALGORITHMS),
+              help="Master algorithm (default: from CONFIG; else dr where there are power bonds, explicit without).")
 @click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("out/run"), show_default=True,
               help="Output folder for trajectory.csv, steps.csv, summary.json and metadata.json.")
 @click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and the Condition 1 watch (faster).")
@@ -191,6 +192,8 @@ def _report_run(scenario, result, out):
                                   "total_time_s", "energy_guard_steps") if f in s])
     if "signal_note" in s:
         click.echo(f"note: {s['signal_note']}")
+    if s["status"] == "finished" and s.get("message"):
+        click.echo(f"note: {s['message']}")
 
 
 # sweep: the common options with --K a list, plus those of general sweeps
