@@ -23,7 +23,9 @@ the heavy scene (configs/heavy_chain.yaml): master time with threads = 1 over th
 the wave adapter's cost per query on its Python and C routes (wavecosim/bench/adapter.py), and
 the deadline bound: DR with the energy ledger under master.deadline_us (light FMUs: the star at
 30 µs; heavy: heavy_chain at γ = 600, 1500 µs), realised step times against deadline + one
-evaluation round.
+evaluation round; and real FMUs (wavecosim/bench/real_fmus.py: the foreign pair, a signal-only
+system, the dcmotor) whole runs against the floor of their own FMU calls and libcosim
+(`--only real_fmus` times that part alone).
 """
 import dataclasses
 import os
