@@ -20,6 +20,8 @@ from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
 from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, fmi2StepFinishedTYPE
 
 from ..errors import FmuError
+from .me import ModelExchange
+from .sources import provide_binary
 from .values import is_number, is_whole
 
 _STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
@@ -97,10 +99,11 @@ def check_version(path, folder) -> str:
     return version
 
 
-def check_runnable(path, folder, description, platform=fmpy_platform):
+def check_runnable(path, folder, description, platform=fmpy_platform, interface="coSimulation"):
     """One line naming the FMU and the reason when this build cannot run it: no co-simulation
-    interface, or no binary for this platform (binaries/<platform>: linux64 in FMI 2, x86_64-linux in 3)."""
-    cs = description.coSimulation
+    interface (nor, in FMI 2, a model-exchange one), or no binary for this platform
+    (binaries/<platform>: linux64 in FMI 2, x86_64-linux in 3)."""
+    cs = getattr(description, interface)
     if cs is None:
         raise FmuError(f"{path}: the FMU has no co-simulation interface")
     binary = folder / "binaries" / platform / f"{cs.modelIdentifier}{sharedLibraryExtension}"
@@ -122,6 +125,7 @@ SETTERS = {
 
 class Fmi2:
     """The FMI 2.0 side of one Fmu: its FMU2Slave; the calls are the FMU's own fmi2 functions."""
+    interface = "coSimulation"
     prefix = "fmi2"
     real = "Real"
     platform = fmpy_platform
@@ -179,6 +183,10 @@ class Fmi2:
         return fname, f"returned {status_text}"
 
 
+class ModelExchange2(ModelExchange, Fmi2):
+    """An FMI 2.0 FMU with model exchange only, stepped as co-simulation (wavecosim/fmi/me.py)."""
+
+
 class Fmu:
     """One instantiated, initialized FMU (FMI 2.0 or 3.0); `name` is the subsystem name used in messages."""
 
@@ -199,8 +207,12 @@ class Fmu:
         binding = Fmi2
         if self.fmi_version != "2.0":
             from .fmi3 import Fmi3 as binding
-        cs = self.description.coSimulation
-        check_runnable(self.path, self.folder, self.description, binding.platform)
+        elif self.description.coSimulation is None and self.description.modelExchange is not None:
+            binding = ModelExchange2
+        cs = getattr(self.description, binding.interface)
+        if cs is not None:
+            provide_binary(self.path, self.folder, cs, binding.platform)
+        check_runnable(self.path, self.folder, self.description, binding.platform, binding.interface)
         if cs.canBeInstantiatedOnlyOncePerProcess:       # its own copy of the binary for each instance
             release_folder(pool, self._key, self.folder)
             self._key, self.folder = None, extract_fmu(self.path)
