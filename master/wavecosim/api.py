@@ -57,7 +57,7 @@ def with_overrides(scenario: Scenario, *, master=None, K=None, eps=None, gamma=N
     if eps is not None and not eps > 0:
         raise ConfigError(f"{where}: eps: must be > 0, got {eps!r}")
     if changes:
-        scenario = scenario.with_master(**changes)
+        scenario = scenario.with_master("master" if where == "options" else "--master", **changes)
     top = {k: v for k, v in (("dt", dt), ("T", T)) if v is not None}
     if gamma is not None:
         top["gamma"] = parse_gamma(gamma, f"{where}: gamma" if where != "options" else "gamma")

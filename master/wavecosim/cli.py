@@ -11,7 +11,7 @@ from .errors import ConfigError, Interrupted, WavecosimError
 from . import api
 from .api import simulate, with_overrides
 from .core.gamma import parse_gamma
-from .masters import ALGORITHMS
+from .masters import ALGORITHMS, MASTERS
 from .run.recorder import write_json
 
 
@@ -153,7 +153,8 @@ def run_cmd(config, K, eps, gamma, dt, T, quiet, output_interval, formats, ports
 
 def _report_run(scenario, result, out):
     s = result.summary
-    click.echo(f"{scenario.name}: {s['master']} K={s['K']} dt={scenario.dt} T={scenario.T} -> {out}")
+    budget = f" K={s['K']}" if MASTERS[s["master"]].budgets != (None,) else ""
+    click.echo(f"{scenario.name}: {s['master']}{budget} dt={scenario.dt} T={scenario.T} -> {out}")
     if s.get("gamma_mode", "fixed") != "fixed":
         each = lambda d: ", ".join(f"{k} {v:.6g}" for k, v in d.items())      # noqa: E731
         click.echo(f"gamma: {s['gamma_mode']} -> {each(s['gamma_initial'])} (FNE bounds {each(s['gamma_fne_bounds'])}; "
@@ -161,9 +162,9 @@ def _report_run(scenario, result, out):
                    f"{s['gamma_changes']} changes; "
                    f"{'inside the FNE bounds' if s['gamma_guaranteed'] else 'OUTSIDE an FNE bound: Theorem 1 not guaranteed'}"
                    f"{'' if s.get('fne_watch_ok', True) else '; the Condition 1 watch found a violation'})")
-    print_table([s], ["steps", "max_error", "rms_error", "final_error", "max_passivity_pos", "max_augmented_pos",
-                      "min_fne_margin", "iterations_mean", "wall_time_s", "total_time_s",
-                      *(["energy_guard_steps"] if "energy_guard_steps" in s else [])])
+    print_table([s], [f for f in ("steps", "max_error", "rms_error", "final_error", "max_passivity_pos",
+                                  "max_augmented_pos", "min_fne_margin", "iterations_mean", "wall_time_s",
+                                  "total_time_s", "energy_guard_steps") if f in s])
     if "signal_note" in s:
         click.echo(f"note: {s['signal_note']}")
 
@@ -320,11 +321,11 @@ def validate_cmd(config, ports, parameter_set):
     scenario = _read_config(config, ports, parameter_set)
     scene = build_scene(scenario, wave=True)
     try:
-        wm = scene.wave_map()
         signals = (f", {len(scene.signal_only)} signal-only, {len(scenario.signals)} signals, "
-                   f"{len(scenario.sources)} sources") if scenario.signals else ""
-        click.echo(f"{scenario.source}: OK ({len(scene.subsystems)} subsystems{signals}, {scene.n_channels} channels, "
-                   f"|P^T P - I| = {wm.orthogonality_residual:.1e})")
+                   f"{len(scenario.sources)} sources") if scene.signal_only or scenario.signals else ""
+        waves = f", |P^T P - I| = {scene.wave_map().orthogonality_residual:.1e}" if scene.n_channels else ""
+        click.echo(f"{scenario.source}: OK ({len(scene.subsystems)} subsystems{signals}, {scene.n_channels} channels"
+                   f"{waves})")
     finally:
         scene.close()
 

@@ -113,10 +113,19 @@ class Scene:
             s.set_gamma(gammas[s.name])
         self.gammas = {s.name: float(gammas[s.name]) for s in self.subsystems}
 
-    def begin_step(self, n):
-        """Before anything of macro-step n: hold the signal inputs, step the signal-only subsystems."""
+    def begin_step(self, n, t):
+        """Before anything of macro-step n (at t = t_n): hold the signal inputs, then one doStep of
+        every signal-only subsystem (stepped once per macro-step, never frozen or rolled back)."""
         if self.signals is not None:
-            self.signals.begin_step(n)
+            self.signals.hold(n)
+        for s in self.signal_only:
+            s.step_alone(n, t)
+
+    @property
+    def steps_in_python(self):
+        """Whether Python acts between the macro-steps (held signals, signal-only subsystems), so a
+        master cannot make many of them in one kernel call."""
+        return self.signals is not None or bool(self.signal_only)
 
     def freeze(self, n, t):
         """Save every x_i^n (Algorithm 1, line 3)."""
@@ -150,6 +159,8 @@ class Scene:
     def input_map(self):
         """G with inputs = G outputs for physical masters, from E e + F f = 0 split by causality."""
         n = self.n_channels
+        if n == 0:
+            return np.zeros((0, 0))
         is_flow_in = np.zeros(n, bool)
         for s, off in zip(self.subsystems, self.offsets):
             if len(s.port.input_is_flow) != s.m or len(s.port.physical_in) != s.m:
@@ -221,7 +232,9 @@ def _channels(ref, index, offsets, sizes, where):
 
 
 def coupling_structure(scenario, sizes):
-    """Global E, F over all channels from the scenario's list of couplings."""
+    """Global E, F over all channels from the scenario's list of couplings (empty without ports)."""
+    if not scenario.subsystems:
+        return np.zeros((0, 0)), np.zeros((0, 0)), []
     names = [s.name for s in scenario.subsystems]
     index = {n: i for i, n in enumerate(names)}
     offsets = list(np.cumsum([0] + list(sizes))[:-1])
@@ -318,7 +331,7 @@ def _signals(scenario, opened):
     probes see them); None when the scenario has no signals."""
     if not scenario.signals:
         return None
-    signals = Signals(scenario, {s.name: s for s in opened}, opened[len(scenario.subsystems):])
+    signals = Signals(scenario, {s.name: s for s in opened})
     signals.hold(0)
     return signals
 
@@ -348,7 +361,7 @@ def build_scene(scenario, wave=True, needs_rollback=True) -> Scene:
         E, F, offsets = coupling_structure(scenario, [s.m for s in subsystems])
         scene = Scene(scenario, subsystems, offsets, E, F, wave, gammas, notes, signs,
                       opened[len(subsystems):], signals)
-        if wave:
+        if wave and scene.n_channels:
             scene.wave_map()
         return scene
     except BaseException:

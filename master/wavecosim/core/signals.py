@@ -52,8 +52,8 @@ def _variable(where, sub, var, target):
 class Signals:
     """The scenario's signals over opened subsystems ({name: Subsystem}, port and signal-only)."""
 
-    def __init__(self, scenario, subsystems, signal_only):
-        self.dt, self.signal_only = scenario.dt, signal_only
+    def __init__(self, scenario, subsystems):
+        self.dt = scenario.dt
         self.where, self.refs = scenario.source, [sig.source for sig in scenario.signals]
         tables = {s.name: SourceTable(s, scenario.dt) for s in scenario.sources}
         self.reads, self.writes = [], {}               # reads: value(t) per signal; writes: {sub: (vrs, rows)}
@@ -89,9 +89,3 @@ class Signals:
                                  f"(t = {t:.6g})")
         for sub, (vrs, rows) in self.writes.items():
             sub.fmu.set_real(vrs, [values[k] for k in rows])
-
-    def begin_step(self, n):
-        """Macro-step n begins: the held inputs, then one doStep of every signal-only subsystem."""
-        self.hold(n)
-        for s in self.signal_only:
-            s.step_alone(n, n * self.dt)

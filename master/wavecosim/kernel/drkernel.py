@@ -139,6 +139,8 @@ class BlockLog:
 
 def unusable(scene):
     """Why the kernel cannot run this scene, or None if it can."""
+    if not scene.subsystems:
+        return "no subsystem has a port (signals only)"
     for s in scene.subsystems:
         if not s.fmu.can_save_state:
             return f"subsystem {s.name} cannot get and set its FMU state"

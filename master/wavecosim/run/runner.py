@@ -182,8 +182,11 @@ def open_parts(scenario, warn):
 
 
 def make_observers(scenario, scene, master, tuner, certificates, warn):
-    """The observers this run needs, in the order they act (the energy guard first)."""
+    """The observers this run needs, in the order they act (the energy guard first); none where no
+    subsystem has a port (nothing exchanges energy)."""
     obs, unavailable = [], []
+    if not scene.n_channels:
+        return obs
     has_H = all(s.port.energy is not None for s in scene.subsystems)
     guard = scenario.master.energy_guard or master.default_guard
     if guard == "ledger" and master.guardable:
@@ -280,7 +283,7 @@ class LiveRun:
         """Macro-step n: observers before, the master, observers after (the guard may redo), one row;
         returns the Reading of the FMUs after it."""
         t = n * self.dt
-        self.scene.begin_step(n)                     # signals held over the step (none: nothing)
+        self.scene.begin_step(n, t)                  # signals held, signal-only subsystems stepped
         before = self._totals() if self.bracket else None
         for o in self.observers:
             o.before_step(n, t)
@@ -324,7 +327,7 @@ class LiveRun:
                        and all(o.blocks for o, _ in self.after)
                        and (guard is None or isinstance(guard, EnergyGuard)
                             or (self.ledger and route.keeps_ledger))          # classical: step by step
-                       and self.scene.signals is None and blocks.library() is not None
+                       and not self.scene.steps_in_python and blocks.library() is not None
                        and sys.version_info < (3, 12))
         self.rows_call = None                    # block_rows' arguments, from the blocks' layout
         self.paced = [o for o in self.observers if o.paced]          # blocks stop before their steps
@@ -534,6 +537,8 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
     ref = None
     try:
         rows = None
+        if not scenario.couplings:         # no power bond: no monolithic reference, no errors
+            reference = None
         if reference == "lockstep":
             try:
                 ref = LiveRun(reference_scenario(scenario), out_dir, "monolithic", False, warn, True,

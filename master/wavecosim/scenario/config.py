@@ -19,6 +19,7 @@ from ..masters.dr_options import ANDERSON_MAX
 
 DEFAULT_CONFIG = DEFAULT
 COUPLING_TYPES = tuple(COUPLINGS)
+SIGNALS_MASTER = "explicit"            # the master of a system without power bonds
 
 
 @dataclass
@@ -97,7 +98,7 @@ class Scenario:
     source: str
     dt: float
     T: float
-    gamma: object
+    gamma: object                      # a number, a mode, or None (no power bond: nothing has waves)
     subsystems: list
     couplings: list
     master: MasterConfig
@@ -114,14 +115,31 @@ class Scenario:
     def n_steps(self):
         return int(round(self.T / self.dt))
 
-    def with_master(self, **changes):
-        return replace(self, master=replace(self.master, **changes))
+    def with_master(self, where="master", **changes):
+        """A copy with master settings changed; a master the system cannot run is refused (`where`
+        names the option in the message)."""
+        changed = replace(self, master=replace(self.master, **changes))
+        check_master(changed.master.algorithm, changed.couplings, lambda msg: _fail(where, msg))
+        return changed
 
     def with_changes(self, where="options", **changes):
         """A copy with top-level values changed (dt, T, gamma), checked like the file's own."""
         changed = replace(self, **changes)
         check_whole_steps(changed.T, changed.dt, lambda msg: _fail(where, msg))
         return changed
+
+
+def default_master(couplings):
+    """DR where power bonds make it possible; the explicit (Jacobi) master where there are none."""
+    return "dr" if couplings else SIGNALS_MASTER
+
+
+def check_master(algorithm, couplings, fail):
+    """A system without power bonds has nothing for an iterating or wave master to work on: only the
+    explicit master runs it; `fail(message)` raises."""
+    if not couplings and algorithm != SIGNALS_MASTER:
+        fail(f"{algorithm} couples power bonds, and this system has none (no couplings); it runs with "
+             f"{SIGNALS_MASTER}")
 
 
 def _fail(where, message):
@@ -383,13 +401,14 @@ def load_raw(path) -> dict:
     return expand_repeats(raw, _Checker(str(path)))         # so that --set sees every repeated entry
 
 
-def _master(ck, m) -> MasterConfig:
+def _master(ck, m, couplings) -> MasterConfig:
     ck.mapping(m, "master", ("algorithm", "K", "eps", "deadline_us", "fast", "threads", "energy_guard",
                              "relaxation", "anderson", "anderson_memory",
                              "anderson_extrapolate", "warm_start"))
-    master = MasterConfig()
+    master = MasterConfig(algorithm=default_master(couplings))
     if "algorithm" in m:
         master.algorithm = ck.string(m["algorithm"], "master.algorithm", ALGORITHMS)
+        check_master(master.algorithm, couplings, lambda msg: ck.fail("master.algorithm", msg))
     if "K" in m:
         master.K = ck.integer(m["K"], "master.K", minimum=0)
     if m.get("eps") is not None:
@@ -529,29 +548,25 @@ def parse_scenario(raw, source="<scenario>", base_dir=Path(".")) -> Scenario:
     raw = expand_repeats(raw, ck)
     top = ("name", "description", "dt", "T", "gamma", "subsystems", "couplings", "master", "certificates",
            "outputs", "error", "fne_watch", "sources", "signals")
-    ck.mapping(raw, "", top, required=("dt", "T", "gamma", "subsystems", "couplings"))
+    ck.mapping(raw, "", top, required=("dt", "T", "subsystems"))
     dt = ck.number(raw["dt"], "dt", positive=True)
     T = ck.number(raw["T"], "T", positive=True)
     check_whole_steps(T, dt, lambda msg: ck.fail("T", msg.removeprefix("T ")))
-    gamma = raw["gamma"]
-    if isinstance(gamma, str):
-        ck.string(gamma, "gamma", GAMMA_MODES)
-    else:
-        gamma = ck.number(gamma, "gamma", positive=True)
     subs = raw["subsystems"]
     ck.mapping(subs, "subsystems", list(subs) if isinstance(subs, dict) else [])
     if len(subs) < 1:
         ck.fail("subsystems", "must name at least one subsystem")
     subsystems = [_subsystem(ck, str(n), s, base_dir) for n, s in subs.items()]
     names = [s.name for s in subsystems]
-    couplings = raw["couplings"]
-    if not isinstance(couplings, list) or not couplings:
-        ck.fail("couplings", "must be a non-empty list of couplings")
+    couplings = raw.get("couplings") or []
+    if not isinstance(couplings, list):
+        ck.fail("couplings", "must be a list of couplings (or left out: a system without power bonds)")
     couplings = [_coupling(ck, k, c, names) for k, c in enumerate(couplings)]
-    subsystems, signal_subsystems = _split_signal_only(ck, subsystems, couplings, raw.get("signals"))
+    gamma = _gamma(ck, raw.get("gamma"), couplings)
+    subsystems, signal_subsystems = _split_signal_only(subsystems, couplings)
     sources = _sources(ck, raw.get("sources"), names, base_dir)
     signals = _signals(ck, raw.get("signals"), subsystems + signal_subsystems, sources)
-    master, certs = _master(ck, raw.get("master") or {}), _certificates(ck, raw.get("certificates") or {})
+    master, certs = _master(ck, raw.get("master") or {}, couplings), _certificates(ck, raw.get("certificates") or {})
     outputs, error = _outputs(ck, raw, names)
     return Scenario(name=str(raw.get("name", Path(source).stem)), source=source, dt=dt, T=T, gamma=gamma,
                     subsystems=subsystems, couplings=couplings, master=master, certificates=certs,
@@ -560,19 +575,24 @@ def parse_scenario(raw, source="<scenario>", base_dir=Path(".")) -> Scenario:
                     signal_subsystems=signal_subsystems, sources=sources, signals=signals)
 
 
-def _split_signal_only(ck, subsystems, couplings, raw_signals):
-    """(subsystems with a port, signal-only subsystems): a subsystem without `port:` that no coupling
-    names but a signal does has no port; any other gets the default wave port (our FMUs)."""
+def _gamma(ck, gamma, couplings):
+    """gamma: a number > 0 or a mode; left out, `auto` where there is a power bond, and None (nothing
+    has waves) where there is none."""
+    if gamma is None:
+        return "auto" if couplings else None
+    if isinstance(gamma, str):
+        return ck.string(gamma, "gamma", GAMMA_MODES)
+    return ck.number(gamma, "gamma", positive=True)
+
+
+def _split_signal_only(subsystems, couplings):
+    """(subsystems with a port, signal-only subsystems): a subsystem without `port:` that a coupling
+    names gets the default wave port (our FMUs); one that no coupling names has no port."""
     coupled = {PORT_REF.match(p).group(1) for c in couplings for p in c.ports}
-    signalled = {ref.split(".", 1)[0] for sig in (raw_signals if isinstance(raw_signals, list) else [])
-                 if isinstance(sig, dict) for ref in (sig.get("from"), sig.get("to")) if isinstance(ref, str)}
     for s in subsystems:
-        if s.port is None and (s.name in coupled or s.name not in signalled):
-            s.port = _port(ck, f"subsystems.{s.name}.port", {})
-    ported = [s for s in subsystems if not s.signal_only]
-    if not ported:
-        ck.fail("subsystems", "must have at least one subsystem with a port")
-    return ported, [s for s in subsystems if s.signal_only]
+        if s.port is None and s.name in coupled:
+            s.port = _port(_Checker("<default port>"), f"subsystems.{s.name}.port", {})
+    return [s for s in subsystems if not s.signal_only], [s for s in subsystems if s.signal_only]
 
 
 INTERPOLATIONS = ("hold", "linear")
