@@ -6,9 +6,9 @@ from pathlib import Path
 
 import yaml
 
-ORDER = ("name", "description", "dt", "T", "gamma", "subsystems", "couplings", "signals", "master",
+ORDER = ("name", "description", "dt", "T", "gamma", "subsystems", "couplings", "sources", "signals", "master",
          "certificates", "outputs", "error", "fne_watch")
-NEEDED = {"dt": "0.001", "gamma": "auto"}
+NEEDED = {"dt": "0.001"}
 
 
 def _flow(value):
@@ -56,7 +56,8 @@ def draft_text(imported, folder) -> str:
         elif key in ("couplings", "signals") and key in raw:
             lines += _comment(imported.origins, key) + [f"{key}:"] + [f"  - {_flow(item)}" for item in raw[key]]
             if key == "couplings" and not raw[key]:
-                lines[-1] = "couplings: []   # no power bond found: declare ports with --ports (README, \"SSP in\")"
+                lines[-1] = ("couplings: []   # no power bond: the explicit master runs it; declare ports "
+                             "with --ports for DR (README, \"SSP in\")")
         elif key in raw:
             lines += _comment(imported.origins, key) + [f"{key}: {_flow(raw[key])}"]
         elif key in NEEDED:

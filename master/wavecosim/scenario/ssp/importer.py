@@ -1,8 +1,7 @@
 """An SSP system as a scenario mapping (the YAML format, README "The scenario file"): components
 -> subsystems, time tables -> sources, parameter bindings and values through system connectors ->
 parameters/start, connections -> signals, power bonds -> couplings, what is recorded -> outputs,
-the time grid from the files (experiment.py). Without a power bond the run is the explicit master's.
-Reads files only; no FMU is instantiated."""
+the time grid from the files (experiment.py). Reads files only; no FMU is instantiated."""
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -54,7 +53,7 @@ def import_ssp(path, ports=None, parameter_set=None, settings=None) -> Imported:
     for name, port in declared.items():
         subsystems[name]["port"] = _with_signs(name, port, signs, origins[name])
         out.origins[f"subsystems.{name}.port"] = "; ".join(origins[name])
-    out.raw = _settings(flat, mds, overlay, settings or {}, bool(coupled), out)
+    out.raw = _settings(flat, mds, overlay, settings or {}, out)
     out.raw.update(subsystems=_ordered(subsystems, coupled), couplings=coupled)
     if flat.tables:
         out.raw["sources"] = {t.name: {"csv": str(t.csv), "interpolation": "linear"} for t in flat.tables.values()}
@@ -168,10 +167,10 @@ def _with_signs(name, port, signs, origins):
     return port
 
 
-def _settings(flat, mds, overlay, cli, bonded, out):
+def _settings(flat, mds, overlay, cli, out):
     """name, description, start and stop time from the files, then our annotation, then the overlay,
-    then the command line; then dt from the files when none of them gave it; without power bonds
-    the explicit master unless one is named, with them gamma auto unless one is given."""
+    then the command line; then dt from the files when none of them gave it (the scenario's defaults
+    do the rest: without power bonds the explicit master, with them gamma auto)."""
     raw = {"name": flat.root.get("name", flat.path.stem), "description": flat.top.get("description", "")}
     for key, value, origin in experiment.times(flat, mds):
         raw[key], out.origins[key] = value, origin
@@ -184,11 +183,6 @@ def _settings(flat, mds, overlay, cli, bonded, out):
     if "dt" not in raw:
         raw["dt"], out.origins["dt"], note = experiment.step(flat, mds, raw)
         out.notes.extend([note] if note else [])
-    if not bonded and "algorithm" not in (raw.get("master") or {}):
-        raw["master"] = {"algorithm": "explicit", **(raw.get("master") or {})}
-        out.origins["master"] = "no power bond: the explicit master"
-    if bonded and "gamma" not in raw:
-        raw["gamma"], out.origins["gamma"] = "auto", "a power bond and no gamma given: auto"
     if not raw["description"]:
         del raw["description"]
     return raw
