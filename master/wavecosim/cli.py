@@ -66,6 +66,7 @@ def print_table(rows, fields):
 
 
 config_argument = click.argument("config", required=False, type=click.Path(dir_okay=False, path_type=Path))
+system_argument = click.argument("config", required=False, type=click.Path(path_type=Path))   # also an SSP folder
 common = [
     click.option("--K", "K", type=click.IntRange(min=0), help="Inner-iteration budget K per macro-step."),
     click.option("--eps", type=click.FloatRange(min=0, min_open=True), help="Inner tolerance: stop when |u_new - u| <= eps."),
@@ -268,7 +269,7 @@ def _sweep_progress(total, skipped):
 
 
 @cli.command("compare")
-@config_argument
+@system_argument
 @with_common
 @ssp_options
 @click.option("--masters", default=",".join(ALGORITHMS), show_default=True,
@@ -313,7 +314,7 @@ def compare_cmd(config, K, eps, gamma, dt, T, quiet, ports, parameter_set, maste
 
 
 @cli.command("validate")
-@config_argument
+@system_argument
 @ssp_options
 def validate_cmd(config, ports, parameter_set):
     """Check a scenario file (or an SSP system) and its FMUs without running it."""

@@ -315,7 +315,7 @@ def test_the_step_size_comes_from_osp_then_omsimulator_then_the_fmus_and_the_sto
                                                                                                     built_fmus):
     path = pair(tmp_path, tail="")                              # no DefaultExperiment: T from the FMUs'
     raw, origins = import_ssp(path).raw, import_ssp(path).origins
-    assert (raw["dt"], raw["T"]) == (0.01, 10.0) and "DefaultExperiment stopTime of the FMUs" in origins["T"]
+    assert (raw["dt"], raw["T"]) == (0.01, 10.0) and "largest DefaultExperiment stopTime of the FMUs" in origins["T"]
     path.write_text(path.read_text().replace("</ssd:System>", OMS_STEP, 1))
     assert import_ssp(path).raw["dt"] == 0.005
     (tmp_path / "OspSystemStructure.xml").write_text(OSP)

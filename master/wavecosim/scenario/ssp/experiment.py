@@ -1,7 +1,7 @@
 """The run's time grid when neither the command line, the overlay nor our annotation gives it.
 
-Stop time: ssd:DefaultExperiment stopTime, else the smallest stopTime of the FMUs' DefaultExperiment
-(every FMU's experiment reaches it). Start time: ssd:DefaultExperiment startTime. Step size, the
+Stop time: ssd:DefaultExperiment stopTime, else the largest stopTime of the FMUs' DefaultExperiment
+(as for a scenario file). Start time: ssd:DefaultExperiment startTime. Step size, the
 first of: OSP `BaseStepSize` (OspSystemStructure.xml beside the SSD), OMSimulator's fixed-step master
 (annotation org.openmodelica), the smallest `stepSize` of the FMUs' DefaultExperiment, and last the
 interval fmpy's simulate_fmu takes for an FMU without one (500 to 1000 steps over the run, a note
@@ -38,8 +38,8 @@ def times(flat, mds):
         return out + [("T", stop, "ssd:DefaultExperiment stopTime")]
     given = _fmu_experiments(flat, mds, "stopTime")
     if given:
-        value, name = min(given)
-        out.append(("T", value, f"the smallest DefaultExperiment stopTime of the FMUs ({name})"))
+        value, name = max(given)
+        out.append(("T", value, f"the largest DefaultExperiment stopTime of the FMUs ({name})"))
     return out
 
 

@@ -11,6 +11,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from urllib.parse import unquote, urlparse
 
+from fmpy import read_model_description
+
 from ...fmi.builtin import builtin_path
 from .units import conversion, read_units
 from .xmlfile import SSC, SSD, fail, number, q, start_line
@@ -22,13 +24,15 @@ SOURCE_KINDS, SINK_KINDS = ("output", "calculatedParameter"), ("input", "paramet
 
 @dataclass
 class Component:
-    """One FMU component: its scenario name, resolved file, connectors {name: element} and the
-    parameter scopes [(owner element, hierarchical prefix)] from the component outward."""
+    """One FMU component: its scenario name, resolved file, connectors {name: element}, the parameter
+    scopes [(owner element, hierarchical prefix)] from the component outward and its modelDescription.
+    A component that declares no connectors has its FMU's inputs, outputs and parameters as connectors."""
     name: str
     element: object
     fmu: Path
     connectors: dict
     scopes: list
+    md: object = None
 
 
 @dataclass
@@ -118,9 +122,21 @@ def _component(flat, el, system_key, scopes):
     if kind == TABLE_TYPE:
         flat.tables[key] = Table(name, el, source, connectors(el) or _columns(flat, el, source))
         return flat.tables[key].connectors
-    flat.components[key] = Component(
-        name=name, element=el, fmu=source, connectors=connectors(el), scopes=[(el, "")] + scopes[::-1])
-    return connectors(el)
+    try:
+        md = read_model_description(str(source), validate=False)
+    except Exception as exc:               # fmpy raises bare exceptions for bad archives
+        fail(flat.path, el, f"cannot read the FMU's modelDescription.xml: {exc}")
+    declared = connectors(el) or {v.name: _connector(v.name, v.causality) for v in md.modelVariables
+                                  if v.causality in SOURCE_KINDS + SINK_KINDS}
+    flat.components[key] = Component(name=name, element=el, fmu=source, connectors=declared,
+                                     scopes=[(el, "")] + scopes[::-1], md=md)
+    return declared
+
+
+def _connector(name, kind):
+    """An ssd:Connector element made for a connector the SSD does not declare."""
+    from lxml import etree
+    return etree.Element(q(SSD, "Connector"), name=name, kind=kind)
 
 
 def _columns(flat, el, csv_path):
@@ -132,7 +148,7 @@ def _columns(flat, el, csv_path):
         header = next(csv.reader(f), [])
     out = {}
     for column in [h.strip().strip('"') for h in header[1:]]:
-        out[column] = etree.Element(q(SSD, "Connector"), name=column, kind="output")
+        out[column] = _connector(column, "output")
         etree.SubElement(out[column], q(SSC, "Real"))
     return out
 
