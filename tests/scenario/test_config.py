@@ -87,8 +87,6 @@ EQ = {"type": "equal_effort_opposite_flow", "ports": ["A", "B"]}
 
 # (id, change to BASE, fragments the one error line must contain)
 CASES = [
-    ("missing-dt", _drop(["dt"]), ["dt: missing required key"]),
-    ("missing-T", _drop(["T"]), ["T: missing required key"]),
     ("missing-subsystems", _drop(["subsystems"]), ["subsystems: missing required key"]),
     ("couplings-mapping", _couplings({"type": "dirac"}), ["couplings: must be a list of couplings"]),
     ("dr-without-couplings", _drop(["couplings"]),
@@ -325,7 +323,7 @@ def test_extraction_folders_are_removed_after_a_run(tmp_path, monkeypatch):
 
 # ---- through the installed executable: exit code and stderr of the real process ----
 
-@pytest.mark.parametrize("case_id", ["missing-dt", "coupling-not-lossless", "fmu-path-missing", "parameter-name-missing"])
+@pytest.mark.parametrize("case_id", ["dt-zero", "coupling-not-lossless", "fmu-path-missing", "parameter-name-missing"])
 def test_executable(case_id, tmp_path):
     change, needles = next((c[1], c[2]) for c in CASES if c[0] == case_id)
     bad = write_yaml(tmp_path / f"{case_id}.yaml", mutate(change))
@@ -335,3 +333,12 @@ def test_executable(case_id, tmp_path):
     assert_one_line_error(proc.returncode, proc.stderr, str(bad), *needles)
     assert proc.stdout == ""
     assert not list(tmp_path.glob("wavecosim-fmu-*"))
+
+
+def test_gamma_is_auto_where_there_is_a_power_bond_and_none_without():
+    from wavecosim.scenario.config import parse_scenario
+    raw = mutate(_drop(["gamma"]))
+    assert parse_scenario(raw, "base").gamma == "auto"
+    alone = {"dt": 0.01, "T": 0.05, "subsystems": {"B": {"fmu": "LinearSide"}}}
+    sc = parse_scenario(alone, "alone")
+    assert sc.gamma is None and sc.master.algorithm == "explicit" and sc.subsystems == []

@@ -181,7 +181,7 @@ def test_not_xml_a_missing_dt_and_a_portless_ssd(tmp_path, capsys, built_fmus):
     assert code == 2 and "bad.ssd line 1: not well-formed XML" in err
     bare = table_i_copy(tmp_path, [('dt="0.01" ', "")], "bare.ssd")
     imported = import_ssp(bare)
-    assert imported.raw["dt"] == 0.01 and imported.origins["dt"].startswith("the smallest DefaultExperiment stepSize")
+    assert imported.raw["dt"] == 0.01 and imported.origins["dt"].startswith("the DefaultExperiment stepSize of")
     code, _, err = run_cli(capsys, "run", bare, "--dt", "0.02", "--T", "0.06", "--quiet", "--no-certificates",
                            "--out", tmp_path / "o")
     assert code == 0, err
@@ -471,3 +471,14 @@ def test_power_bonds_of_an_osp_system_structure_stand_for_their_connections(tmp_
     with pytest.raises(ConfigError, match=r"OspSystemStructure.xml line \d+: .*B.v is driven by A.x in "
                                           r"SystemStructure.ssd line \d+"):
         import_ssp(tmp_path)
+
+
+def test_an_ssd_with_power_bonds_and_no_gamma_runs_without_asking_for_one(tmp_path, capsys, built_fmus):
+    """gamma is auto where there is a power bond and none is given; the explicit master has no
+    waves, so it runs without any."""
+    from wavecosim.api import load
+    no_gamma = table_i_copy(tmp_path, [(' gamma="0.4"', "")], "no_gamma.ssd")
+    assert load(no_gamma, warn=lambda m: None).gamma == "auto"
+    code, _, err = run_cli(capsys, "run", no_gamma, "--master", "explicit", "--T", "0.05", "--quiet",
+                           "--no-certificates", "--out", tmp_path / "o")
+    assert code == 0 and "gamma" not in err, err

@@ -114,7 +114,7 @@ def test_a_signal_only_ssd_runs_with_no_flag_on_the_explicit_master_as_a_plain_l
     path = pair(tmp_path, lt='<ssc:LinearTransformation factor="0.5" offset="0.25"/>')
     scenario, imported = load_ssp(path)
     assert (scenario.master.algorithm, scenario.gamma, scenario.couplings, scenario.dt) == ("explicit", None, [], DT)
-    assert imported.origins["dt"] == "the smallest DefaultExperiment stepSize of the FMUs (mass)"
+    assert imported.origins["dt"] == "the DefaultExperiment stepSize of mass"
     got, expected = simulate(scenario), plain_loop(tmp_path, 0.5, 0.25)
     assert np.array_equal(got["xm"], expected[:, 0]) and np.array_equal(got["xs"], expected[:, 1])
     code, out, err = run_cli(capsys, "run", path, "--quiet", "--out", tmp_path / "out")
@@ -315,7 +315,7 @@ def test_the_step_size_comes_from_osp_then_omsimulator_then_the_fmus_and_the_sto
                                                                                                     built_fmus):
     path = pair(tmp_path, tail="")                              # no DefaultExperiment: T from the FMUs'
     raw, origins = import_ssp(path).raw, import_ssp(path).origins
-    assert (raw["dt"], raw["T"]) == (0.01, 10.0) and "largest DefaultExperiment stopTime of the FMUs" in origins["T"]
+    assert (raw["dt"], raw["T"]) == (0.01, 10.0) and origins["T"] == "the DefaultExperiment stopTime of spring"
     path.write_text(path.read_text().replace("</ssd:System>", OMS_STEP, 1))
     assert import_ssp(path).raw["dt"] == 0.005
     (tmp_path / "OspSystemStructure.xml").write_text(OSP)
@@ -377,7 +377,7 @@ def test_the_draft_of_a_signal_only_ssd_loads_as_the_same_scenario(tmp_path, cap
     code, _, err = run_cli(capsys, "import-ssp", path, "-o", tmp_path / "draft.yaml")
     assert code == 0, err
     text = (tmp_path / "draft.yaml").read_text()
-    assert "# from the smallest DefaultExperiment stepSize of the FMUs (mass)" in text
+    assert "# from the DefaultExperiment stepSize of mass" in text
     assert "couplings: []   # no power bond: the explicit master runs it" in text and "gamma" not in text
     ours = wc.load(tmp_path / "draft.yaml")
     theirs = load_ssp(path)[0]

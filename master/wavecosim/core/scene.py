@@ -10,7 +10,8 @@ from ..fmi.fmu import Fmu
 from .frozen_port_map import PortSpec, Subsystem
 from .gamma import choose_relaxation, initial_gammas
 from .ports import probe_signs
-from .signals import Signals
+from .recording import output_columns
+from .signals import Signals, table_inputs
 
 
 def resolve_fmu(sub, source="<scenario>") -> str:
@@ -87,6 +88,7 @@ class Scene:
     port_signs: dict = field(default_factory=dict)   # {subsystem: {"sign": [...], "probed": bool}}
     signal_only: list = field(default_factory=list)  # Subsystems without a port (signals only)
     signals: Signals = None                          # the held signal inputs (None: the scenario has none)
+    outputs: dict = field(default_factory=dict)      # the recorded columns {column: SUBSYSTEM.variable}
 
     @property
     def n_channels(self):
@@ -186,8 +188,8 @@ class Scene:
     def signal_info(self, fast_note=None):
         """Summary fields when signals drive inputs: which subsystems, and why their energy is not a
         violation; the kernel runs one macro-step per call (the signals are set between calls)."""
-        if self.signals is None:
-            return {}
+        if self.signals is None or not self.n_channels:      # no port: no energy to account for
+            return {"signals": len(self.scenario.signals)} if self.signals is not None else {}
         driven = ", ".join(self.signals.driven)
         out = {"signals": len(self.scenario.signals), "signal_driven_subsystems": self.signals.driven,
                "signal_note": f"signals and sources drive inputs of {driven}: the energy they bring in is "
@@ -272,7 +274,8 @@ def _open_fmu(scenario, sub, path, gamma, wave, pool=None):
     reals = {**sub.parameters, **sub.start, "gamma": gamma}
     integers = {**sub.integers, "port_mode": 0 if wave else 1}
     try:
-        return Fmu(path, sub.name, reals, integers, optional=("gamma", "port_mode"), pool=pool)
+        return Fmu(path, sub.name, reals, integers, optional=("gamma", "port_mode"), pool=pool,
+                   start_time=scenario.start_time, tolerance=sub.tolerance, initialize=table_inputs(scenario, sub.name))
     except FmuError as exc:
         key = next((f"{k}.{exc.variable}" for k in ("parameters", "start", "integers")
                     if exc.variable in getattr(sub, k)), "fmu")
@@ -301,7 +304,8 @@ def _orient(scenario, subsystem, notes):
                           f"{subsystem.fmu.path.name} cannot restore its state for the orientation probe; give the sign")
     if not probed:
         return {"sign": list(port.sign), "probed": probed}
-    signs, slopes, steps = probe_signs(subsystem, f"{scenario.source}: subsystems.{subsystem.name}.port")
+    signs, slopes, steps = probe_signs(subsystem, f"{scenario.source}: subsystems.{subsystem.name}.port",
+                                       scenario.start_time)
     subsystem.orient(signs)
     for j, (sign, slope, step) in enumerate(zip(signs, slopes, steps)):
         notes.append(f"{scenario.source}: subsystems.{subsystem.name}.port.sign not given: one doStep from the "
@@ -336,22 +340,15 @@ def _signals(scenario, opened):
     return signals
 
 
-def _check_outputs(scenario, subsystems):
-    by_name = {s.name: s for s in subsystems}
-    for col, ref in scenario.outputs.items():
-        name, var = ref.split(".", 1)
-        if var not in by_name[name].fmu.variables:
-            raise ConfigError(f"{scenario.source}: outputs.{col}: subsystem {name} has no variable {var!r}")
-
-
 def build_scene(scenario, wave=True, needs_rollback=True) -> Scene:
     """Instantiate every subsystem (wave or physical port mode) at its initial gamma and compile the coupling."""
     gammas = initial_gammas(scenario)
-    opened, notes, signs, pool = [], [], {}, {}
+    opened, signs, pool = [], {}, {}
     try:
         for sub in scenario.subsystems + scenario.signal_subsystems:
             opened.append(_subsystem(scenario, sub, gammas.get(sub.name, 1.0), wave, needs_rollback, pool))
-        _check_outputs(scenario, opened)
+        outputs, notes = output_columns(scenario, opened)
+        notes[:0] = list(dict.fromkeys(note for s in opened for note in s.fmu.notes))
         signals = _signals(scenario, opened)
         subsystems = opened[:len(scenario.subsystems)]
         for subsystem in subsystems:
@@ -360,7 +357,7 @@ def build_scene(scenario, wave=True, needs_rollback=True) -> Scene:
                 signs[subsystem.name] = sign
         E, F, offsets = coupling_structure(scenario, [s.m for s in subsystems])
         scene = Scene(scenario, subsystems, offsets, E, F, wave, gammas, notes, signs,
-                      opened[len(subsystems):], signals)
+                      opened[len(subsystems):], signals, outputs)
         if wave and scene.n_channels:
             scene.wave_map()
         return scene

@@ -1,7 +1,7 @@
 """An FMI 2.0 model-exchange FMU stepped as a co-simulation one (for FMUs that only have model
 exchange, as OMSimulator runs them): `fmi2DoStep(t, h)` integrates the FMU from t to t + h with its
-inputs held, with fmpy's CVode (BDF, relative tolerance from the FMU's DefaultExperiment, else
-1e-4), and handles time, state and step events as fmpy's simulate_fmu does. Everything else (get
+inputs held, with fmpy's CVode (BDF, relative tolerance the set-up one: the FMU's DefaultExperiment
+tolerance unless the scenario gives one, else 1e-4), and handles time, state and step events as fmpy's simulate_fmu does. Everything else (get
 and set, state save and restore where the FMU offers it) is the FMU's own fmi2 function, so the
 masters and the recorder see the same calls as for a co-simulation FMU: fmu.py's ModelExchange2
 is this side over its FMI 2 one (Fmi2)."""
@@ -50,16 +50,14 @@ class ModelExchange:
         self.slave = FMU2ModelSettled(self, guid=fmu.description.guid, unzipDirectory=str(fmu.folder),
                             modelIdentifier=model_identifier, instanceName=fmu.name)
         fmu.checked(self.slave.instantiate, "fmi2Instantiate", callbacks=self._callbacks)
-        self.component = self.slave.component
-        experiment = fmu.description.defaultExperiment
-        self.tolerance = float(experiment.tolerance) if experiment is not None and experiment.tolerance else \
-            DEFAULT_TOLERANCE
+        self.component, self.tolerance = self.slave.component, DEFAULT_TOLERANCE
         self.needs_completed = bool(fmu.description.modelExchange.needsCompletedIntegratorStep)
         self._c_do_step = DO_STEP(lambda comp, t, h, flag: self.do_step(comp, t, h, flag))
 
-    def setup_experiment(self, fmu, start_time):
-        self.start = start_time
-        super().setup_experiment(fmu, start_time)
+    def setup_experiment(self, fmu, start_time, tolerance):
+        """The start time and the tolerance (the FMU's DefaultExperiment one, else 1e-4) of the solver too."""
+        self.start, self.tolerance = start_time, tolerance or DEFAULT_TOLERANCE
+        super().setup_experiment(fmu, start_time, tolerance)
 
     def settle(self, model):
         """After initialization: the event iteration, continuous-time mode, a solver at the start time."""

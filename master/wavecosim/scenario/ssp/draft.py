@@ -6,7 +6,7 @@ from pathlib import Path
 
 import yaml
 
-ORDER = ("name", "description", "dt", "T", "gamma", "subsystems", "couplings", "sources", "signals", "master",
+ORDER = ("name", "description", "start_time", "dt", "T", "gamma", "subsystems", "couplings", "sources", "signals", "master",
          "certificates", "outputs", "error", "fne_watch")
 NEEDED = {"dt": "0.001"}
 

@@ -51,7 +51,7 @@ def import_ssp(path, ports=None, parameter_set=None, settings=None) -> Imported:
     for name, port in declared.items():
         subsystems[name]["port"] = _with_signs(name, port, signs, origins[name])
         out.origins[f"subsystems.{name}.port"] = "; ".join(origins[name])
-    out.raw = _settings(flat, mds, overlay, settings or {}, out)
+    out.raw = _settings(flat, overlay, settings or {}, out)
     out.raw.update(subsystems=_ordered(subsystems, coupled), couplings=coupled)
     if flat.tables:
         out.raw["sources"] = {t.name: {"csv": str(t.csv), "interpolation": "linear"} for t in flat.tables.values()}
@@ -162,12 +162,12 @@ def _with_signs(name, port, signs, origins):
     return port
 
 
-def _settings(flat, mds, overlay, cli, out):
+def _settings(flat, overlay, cli, out):
     """name, description, start and stop time from the files, then our annotation, then the overlay,
     then the command line; then dt from the files when none of them gave it (the scenario's defaults
     do the rest: without power bonds the explicit master, with them gamma auto)."""
     raw = {"name": flat.root.get("name", flat.path.stem), "description": flat.top.get("description", "")}
-    for key, value, origin in experiment.times(flat, mds):
+    for key, value, origin in experiment.times(flat):
         raw[key], out.origins[key] = value, origin
     layers = [(annotated_settings(flat.path, flat.root), "annotation org.wavecosim.scenario"),
               ({k: overlay[k] for k in SETTINGS if k in overlay}, "the overlay (--ports)"),
@@ -176,7 +176,7 @@ def _settings(flat, mds, overlay, cli, out):
         raw.update(layer)
         out.origins.update({key: origin for key in layer})
     if "dt" not in raw:
-        raw["dt"], out.origins["dt"], note = experiment.step(flat, mds, raw)
+        raw["dt"], out.origins["dt"], note = experiment.step(flat, raw)
         out.notes.extend([note] if note else [])
     if not raw["description"]:
         del raw["description"]
