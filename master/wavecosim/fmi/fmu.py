@@ -247,7 +247,7 @@ class Fmu:
             binding = ModelExchange2
         cs = getattr(self.description, binding.interface)
         if cs is not None:
-            provide_binary(self.path, self.folder, cs, binding.platform)
+            provide_binary(self.path, self.folder, self.description, cs, binding.platform)
         check_runnable(self.path, self.folder, self.description, binding.platform, binding.interface)
         if cs.canBeInstantiatedOnlyOncePerProcess:       # its own copy of the binary for each instance
             release_folder(pool, self._key, self.folder)

@@ -45,7 +45,10 @@ class ModelExchange:
     interface = "modelExchange"
 
     def __init__(self, fmu, model_identifier):
-        self._fmu, self.solver, self.start, self.next_event = fmu, None, 0.0, math.inf
+        self._fmu, self.solver, self.start, self.next_event, self.at = fmu, None, 0.0, math.inf, None
+        self.inputs = [v.valueReference for v in fmu.description.modelVariables
+                       if v.causality == "input" and v.type == "Real"]
+        self.held = None
         self._callbacks = self._make_callbacks(fmu.messages)
         self.slave = FMU2ModelSettled(self, guid=fmu.description.guid, unzipDirectory=str(fmu.folder),
                             modelIdentifier=model_identifier, instanceName=fmu.name)
@@ -92,9 +95,15 @@ class ModelExchange:
             return ERROR
 
     def _integrate(self, time, end):
+        """CVode from `time` to `end`; restarted at `time` when the inputs changed since the last step
+        (the right-hand side jumps there) or the step does not begin where the last one ended (a
+        restored state), and after an event."""
         model, solver = self.slave, self.solver
         eps = 1e-12 * max(1.0, abs(end))
-        solver.reset(time)                  # the inputs set since the last step change the right-hand side
+        held = list(model.getReal(self.inputs)) if self.inputs else []
+        if self.at is None or abs(self.at - time) > eps or held != self.held:
+            solver.reset(time)
+        self.held = held
         while time < end - eps:
             target = min(end, self.next_event)
             state_event, _, time = solver.step(time, target)
@@ -104,6 +113,7 @@ class ModelExchange:
                 model.enterEventMode()
                 self._events(model)
                 solver.reset(time)
+        self.at = time
 
     def raw_function(self, fname):
         """The FMU's own fmi2 function, or for fmi2DoStep the integration above (same signature)."""

@@ -18,13 +18,14 @@ from ..kernel.build import BuildError, fmi_headers, place, run, target
 BUILD_TIMEOUT_S = 900
 
 
-def provide_binary(path, folder, interface, platform):
-    """Make folder/binaries/<platform>/<modelIdentifier> from the FMU's sources when it is missing
-    and sources are there; nothing otherwise (check_runnable then names what is missing)."""
+def provide_binary(path, folder, description, interface, platform):
+    """Make folder/binaries/<platform>/<modelIdentifier> from the FMU's sources when it has no library
+    for this platform and sources are there; nothing otherwise (check_runnable then says what is
+    wrong, also a library there under another name)."""
     name = f"{interface.modelIdentifier}{sharedLibraryExtension}"
     binary = Path(folder) / "binaries" / platform / name
     sources = Path(folder) / "sources"
-    if binary.exists() or not sources.is_dir():
+    if not sources.is_dir() or (binary.parent.is_dir() and any(binary.parent.glob(f"*{sharedLibraryExtension}"))):
         return
     key = hashlib.sha256(Path(path).read_bytes()).hexdigest()[:20]
     built = target("source-fmus", f"{key}-{platform}", name)
@@ -32,7 +33,7 @@ def provide_binary(path, folder, interface, platform):
         print(f"wavecosim: {Path(path).name} has no binary for {platform}; building it from its sources "
               f"(once, into {built.parent})", file=sys.stderr)
         try:
-            place(lambda out: _build(sources, interface, name, out), built)
+            place(lambda out: _build(sources, _source_files(description, interface), name, out), built)
         except BuildError as exc:
             raise FmuError(f"{Path(path).name} has no binary for this platform ({platform}) and its sources did "
                            f"not build: {str(exc).splitlines()[-1]}") from None
@@ -40,13 +41,19 @@ def provide_binary(path, folder, interface, platform):
     shutil.copy2(built, binary)
 
 
-def _build(sources, interface, name, out):
+def _source_files(description, interface):
+    """The C files the FMU lists for its interface (FMI 2 <SourceFiles>, FMI 3 buildDescription.xml)."""
+    return [f for config in description.buildConfigurations if config.modelIdentifier == interface.modelIdentifier
+            for files in config.sourceFileSets for f in files.sourceFiles]
+
+
+def _build(sources, listed, name, out):
     """Compile the sources into the shared library `out`."""
     with tempfile.TemporaryDirectory(prefix="wavecosim-source-fmu-") as tmp:
         if (sources / "CMakeLists.txt").exists():
             made = _cmake(sources, Path(tmp), name)
         else:
-            files = [sources / f for f in interface.sourceFiles]
+            files = [sources / f for f in listed]
             if not files:
                 raise BuildError(f"the FMU lists no <SourceFiles> and has no sources/CMakeLists.txt")
             made = Path(tmp) / name

@@ -33,6 +33,9 @@ def _subsystems(imported, folder):
     for name, sub in imported.raw["subsystems"].items():
         lines += _comment(imported.origins, f"subsystems.{name}", "  ") + [f"  {name}:"]
         lines.append(f"    fmu: {_flow(_fmu(sub['fmu'], folder))}")
+        if "tolerance" in sub:
+            lines += _comment(imported.origins, f"subsystems.{name}.tolerance", "    ")
+            lines.append(f"    tolerance: {_flow(sub['tolerance'])}")
         if "parameters" in sub or "start" in sub:
             lines += _comment(imported.origins, f"subsystems.{name}.values", "    ")
         lines += [f"    {key}: {_flow(sub[key])}" for key in ("parameters", "start") if key in sub]

@@ -41,6 +41,10 @@ def import_ssp(path, ports=None, parameter_set=None, settings=None) -> Imported:
     wired, values = wire(flat, mds, bindings, out.notes)
     subsystems = _subsystems(flat, mds, fmus, bindings, values, out)
     _check_overlay_names(ports, overlay, subsystems)
+    if overlay.get("tolerance") is not None:
+        for name, sub in subsystems.items():
+            sub["tolerance"] = overlay["tolerance"]
+            out.origins[f"subsystems.{name}.tolerance"] = "the overlay (--ports)"
     declared, origins, groups = declared_ports(ssd, flat.components, mds, overlay.get("ports", {}))
     signals = _with_osp_bonds(flat, wired, groups, mds)
     halves, rest = find_bonds(ssd, declared, signals)

@@ -1,5 +1,6 @@
 """What a run of an SSP system records, the first that applies: the overlay's `outputs`, the signal
-filter OMSimulator names on ssd:DefaultExperiment (columns `<component>.<variable>`), the output
+filter OMSimulator names on ssd:DefaultExperiment (columns `<component>.<variable>`, a comma in a name
+as ';'), the output
 connectors of the top system (column = connector name), else nothing here: the run records every
 output and connected input of every component (the scenario's default)."""
 from . import oms, structure
@@ -54,13 +55,19 @@ def _filtered(flat, mds, filter_path, out):
             left.append(name)
             continue
         column = ref[0] if ref[1] is None else f"{flat.components[ref[1]].name}.{ref[0]}"
-        outputs.setdefault(column, ref[3])
+        outputs.setdefault(_column(column), ref[3])
     out.origins["outputs"] = f"the signal filter {filter_path.name}"
     if left:
         shown = ", ".join(left[:5]) + (f" and {len(left) - 5} more" if len(left) > 5 else "")
         out.notes.append(f"{filter_path.name}: not recorded (strings, or nothing drives them, or no such "
                          f"variable): {shown}")
     return outputs
+
+
+def _column(name):
+    """A variable's name as a column name: a comma (array elements such as table[1,1]) becomes ';',
+    quotes and line breaks go (a named column holds none of them)."""
+    return name.replace(",", ";").replace('"', "").replace("\n", " ").replace("\r", " ")
 
 
 def _component_variable(paths, name, flat):

@@ -8,7 +8,7 @@ from .xmlfile import SSD, number, q
 
 SCENARIO_ANNOTATION = "org.wavecosim.scenario"
 SETTINGS = ("name", "description", "dt", "T", "gamma", "master", "certificates", "outputs", "error", "fne_watch")
-OVERLAY_KEYS = ("ports", *SETTINGS)
+OVERLAY_KEYS = ("ports", "tolerance", *SETTINGS)     # tolerance: every FMU's set-up tolerance
 
 
 def read_overlay(path) -> dict:
