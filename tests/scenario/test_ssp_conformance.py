@@ -365,6 +365,10 @@ def test_a_csv_table_component_drives_inputs_and_the_signal_filter_names_what_is
     got = simulate(scenario)
     held = np.interp(got["time"], [0, 0.1, 0.2, 0.3], [0, 1, 3, 3])     # at t_n, held over the step to t_n+1
     assert np.allclose(got["mass.F"][1:], held[:-1], rtol=0, atol=1e-12) and got["mass.F"][0] == 0.0
+    (tmp_path / "filter.xml").unlink()
+    imported = import_ssp(path)
+    assert "outputs" not in imported.raw and any("filter.xml is not there; recording without it" in n
+                                                 for n in imported.notes)
     bad = path.read_text().replace('source="bc.csv"', 'source="bc.mat"')
     (tmp_path / "bc.mat").write_text("")
     (tmp_path / "bad.ssd").write_text(bad)

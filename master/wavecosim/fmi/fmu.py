@@ -106,7 +106,9 @@ def check_runnable(path, folder, description, platform=fmpy_platform, interface=
     linux64 in FMI 2, x86_64-linux in 3), or a binary for it whose name is not the modelIdentifier's."""
     cs = getattr(description, interface)
     if cs is None:
-        raise FmuError(f"{path}: the FMU has no co-simulation interface")
+        others = [k for k in ("modelExchange", "scheduledExecution") if getattr(description, k, None) is not None]
+        raise FmuError(f"{path}: the FMU has no co-simulation interface" + (f" (it has {', '.join(others)} only)"
+                                                                               if others else ""))
     name = f"{cs.modelIdentifier}{sharedLibraryExtension}"
     binary = folder / "binaries" / platform / name
     if binary.exists():

@@ -14,7 +14,9 @@ def recorded(flat, mds, overlay, out):
     if overlay.get("outputs"):
         return overlay["outputs"]
     filter_path = oms.signal_filter(flat.path, flat.root)
-    if filter_path is not None:
+    if filter_path is not None and not filter_path.exists():
+        out.notes.append(f"{flat.path.name}: the signal filter {filter_path} is not there; recording without it")
+    elif filter_path is not None:
         return _filtered(flat, mds, filter_path, out)
     return _top_outputs(flat, out) or None
 
