@@ -256,11 +256,26 @@ def fmpy_loop(path, dt, n_steps, names, start_time=None, tolerance=None, signals
     for n in range(n_steps):
         t = start_time + n * dt
         inputs.apply(t, after_event=True)
-        fmu.doStep(t, dt)
+        if not _step_goes_on(fmu, t, dt):           # the FMU ended the simulation with this step
+            read()
+            break
         read()
     fmu.terminate()
     fmu.freeInstance()
     return rows
+
+
+def _step_goes_on(fmu, t, dt):
+    """doStep(t, dt); False when the FMU asks to end the simulation (fmpy's simulate then stops)."""
+    from fmpy.fmi1 import FMICallException
+    from fmpy.fmi2 import fmi2Terminated
+    try:
+        out = fmu.doStep(t, dt)
+    except FMICallException as exc:
+        if exc.status == 2 and fmu.getBooleanStatus(fmi2Terminated):
+            return False
+        raise
+    return not (isinstance(out, tuple) and out[1])          # FMI 3: terminateSimulation
 
 
 def same_bits(result, component, rows):

@@ -192,6 +192,8 @@ def _report_run(scenario, result, out):
                                   "total_time_s", "energy_guard_steps") if f in s])
     if "signal_note" in s:
         click.echo(f"note: {s['signal_note']}")
+    if s["status"] == "finished" and s.get("message"):
+        click.echo(f"note: {s['message']}")
 
 
 # sweep: the common options with --K a list, plus those of general sweeps

@@ -79,7 +79,7 @@ def plain_loop(built_fmus, tmp_path):
 
 
 def test_every_type_through_a_signal_only_pair_equals_a_plain_fmpy_loop(built_fmus, tmp_path):
-    result = run(pair(), tmp_path / "out", file_suffix=False)
+    result = run(pair(), tmp_path / "out", file_suffix=False, formats=("csv", "mat"))
     expected = plain_loop(built_fmus, tmp_path)
     traj = result.trajectory
     assert list(traj.dtype.names[1:]) == list(expected)          # every output and connected input
@@ -96,6 +96,9 @@ def test_every_type_through_a_signal_only_pair_equals_a_plain_fmpy_loop(built_fm
     assert written["sink.shifted"][:3] == ["10", "10", "11"] and set(written["src.flag"]) == {"0", "1"}
     assert written["src.label"] == list(traj["src.label"])          # the csv module reads the text back
     assert 'high, ""on""' in (tmp_path / "out" / "trajectory.csv").read_text()
+    from scipy.io import loadmat
+    mat = loadmat(str(tmp_path / "out" / "trajectory.mat"))
+    assert [str(v[0]) for v in mat["src_label"].ravel()] == list(traj["src.label"])     # texts as a cell array
 
 
 def test_integer_and_boolean_outputs_pass_validate_and_run(tmp_path):

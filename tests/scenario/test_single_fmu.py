@@ -12,7 +12,7 @@ from paths import CLI
 import wavecosim as wc
 
 INPUT = ('"time", "u", "n", "on"\n'          # quoted names, spaces after the commas
-         '0, 0, 1, false\n0.3, 1, 2, false\n0.3, 4, 3, true\n'    # an event at 0.3 s: the time given twice
+         '0, 0, 1, false\n0.5, 1, 2, false\n0.5, 4, 3, true\n'    # an event at 0.5 s: the time given twice
          '0.75, -2, 5, TRUE\n2, 0, 7, false\n')
 
 
@@ -32,7 +32,8 @@ def test_an_fmu_with_an_input_file_equals_a_plain_fmpy_loop(built_fmus, tmp_path
     names = ["u", "integral", "scaled", "n", "shifted", "length", "on", "off", "echo"]
     expected = fmpy_loop(path, 0.1, 20, names, signals=input_signals(tmp_path / "in.csv"), unzipdir=str(tmp_path / "s"))
     assert same_bits(result, "SignalSink", expected)
-    assert result.trajectory["SignalSink.n"][4] == 3 and result.trajectory["SignalSink.on"][4] == 1   # after the event
+    n, on = result.trajectory["SignalSink.n"], result.trajectory["SignalSink.on"]
+    assert (n[5], on[5], n[6], on[6]) == (1, 0, 3, 1)         # held over the step at 0.5 s: after the event
     assert (tmp_path / "o" / "trajectory.csv").read_text().splitlines()[0] == \
         "time,SignalSink.u,SignalSink.integral,SignalSink.scaled,SignalSink.n,SignalSink.shifted,SignalSink.length," \
         "SignalSink.on,SignalSink.off,SignalSink.echo"

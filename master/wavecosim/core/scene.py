@@ -5,7 +5,7 @@ import numpy as np
 
 from . import interconnection as ic
 from ..fmi.builtin import builtin_fmus
-from ..errors import ConfigError, CouplingError, FmuError
+from ..errors import ConfigError, CouplingError, FmuError, SimulationEnded
 from ..fmi.fmu import Fmu
 from .frozen_port_map import PortSpec, Subsystem
 from .gamma import choose_relaxation, initial_gammas
@@ -89,6 +89,7 @@ class Scene:
     signal_only: list = field(default_factory=list)  # Subsystems without a port (signals only)
     signals: Signals = None                          # the held signal inputs (None: the scenario has none)
     outputs: dict = field(default_factory=dict)      # the recorded columns {column: SUBSYSTEM.variable}
+    ended: Exception = None                          # an FMU ended the simulation after the step just made
 
     @property
     def n_channels(self):
@@ -121,7 +122,12 @@ class Scene:
         if self.signals is not None:
             self.signals.hold(n)
         for s in self.signal_only:
-            s.step_alone(n, t)
+            try:
+                s.step_alone(n, t)
+            except SimulationEnded as exc:          # the step done: the run ends after it (runner)
+                if not exc.step_done:
+                    raise
+                self.ended = exc
 
     @property
     def steps_in_python(self):

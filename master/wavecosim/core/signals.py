@@ -198,12 +198,12 @@ def table_inputs(scenario, name):
     def set_inputs(fmu):
         groups = {}
         for k, sig in mine:
-            where, (source, column), var = f"{scenario.source}: signals[{k}]", sig.source.split(".", 1), \
-                sig.target.split(".", 1)[1]
+            where, var = f"{scenario.source}: signals[{k}]", sig.target.split(".", 1)[1]
+            source, column = sig.source.split(".", 1)
             fmi_type = _target(f"{where}.to", fmu, name, var)
-            linear = _linear(tables[source], fmi_type, fmu.variables[var])
-            kind = tables[source].kind(column, category(fmi_type))
-            value = _converter(where, sig, kind, fmi_type)(tables[source].value(column, scenario.start_time, linear))
+            table = tables[source]
+            raw = table.value(column, scenario.start_time, _linear(table, fmi_type, fmu.variables[var]))
+            value = _converter(where, sig, table.kind(column, category(fmi_type)), fmi_type)(raw)
             vrs, values = groups.setdefault(fmi_type, ([], []))
             vrs.append(fmu.vr(var))
             values.append(value)

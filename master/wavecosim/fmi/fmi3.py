@@ -130,6 +130,10 @@ class Fmi3:
         """The fmi3 function called for an fmi2 name."""
         return FUNCTIONS.get(fname, (fname,))[0]
 
+    def asked_to_end(self, fmu, status):
+        """The lastSuccessfulTime of a doStep that set terminateSimulation, else None."""
+        return self.shim.lastSuccessfulTime if self.shim.terminateSimulation else None
+
     def failure(self, fname, status_text):
         """(function name, what happened) for a call in fmi2 form that returned an error status."""
         name, shim = self.name(fname), self.shim

@@ -18,7 +18,8 @@ from fmpy import platform as fmpy_platform
 from fmpy import read_model_description, sharedLibraryExtension
 from fmpy.model_description import ValidationError
 from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
-from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, fmi2StepFinishedTYPE
+from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, fmi2StepFinishedTYPE, fmi2Terminated
+from fmpy.fmi2 import fmi2LastSuccessfulTime
 
 from ..errors import FmuError
 from .me import ModelExchange
@@ -216,6 +217,18 @@ class Fmi2:
         """(function name, what happened) for a call that returned an error status."""
         return fname, f"returned {status_text}"
 
+    def asked_to_end(self, fmu, status):
+        """fmi2Discard with fmi2GetBooleanStatus(fmi2Terminated) true: the fmi2LastSuccessfulTime."""
+        try:
+            if status != 2 or not self.slave.getBooleanStatus(fmi2Terminated):
+                return None
+        except Exception:                  # an FMU without the call: an ordinary Discard
+            return None
+        try:
+            return float(self.slave.getRealStatus(fmi2LastSuccessfulTime))
+        except Exception:
+            return math.nan
+
 
 class ModelExchange2(ModelExchange, Fmi2):
     """An FMI 2.0 FMU with model exchange only, stepped as co-simulation (wavecosim/fmi/me.py)."""
@@ -398,6 +411,11 @@ class Fmu:
     def function_name(self, fname):
         """The FMU's own function behind an fmi2 name (fmi3SetFloat64 for fmi2SetReal in FMI 3)."""
         return self._fmi.name(fname)
+
+    def asked_to_end(self, status):
+        """None, or the time the FMU reached when a doStep that returned `status` is the FMU asking to
+        end the simulation (its last successful time; NaN when it cannot say)."""
+        return self._fmi.asked_to_end(self, status)
 
     def status_error(self, fname, status, step=None, time=None):
         """The FmuError for a call in fmi2 form (`fname`) that returned `status`."""

@@ -305,4 +305,6 @@ def write_mat(path: Path, table: Table):
     data = table.array()
     names = [re.sub(r"\W", "_", c) if re.match(r"[A-Za-z]", c) else f"v_{re.sub(r'[^0-9A-Za-z]', '_', c)}"
              for c in table.columns]
-    savemat(str(path), {n: data[:, j] for j, n in enumerate(names)}, oned_as="column")
+    columns = [np.array([fmt.texts[int(v)] for v in data[:, j]], dtype=object) if isinstance(fmt, Texts)
+               else data[:, j] for j, fmt in enumerate(table.formats)]          # texts as cell arrays
+    savemat(str(path), dict(zip(names, columns)), oned_as="column")

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ..kernel import blocks
-from ..errors import ConfigError, Interrupted, NumericalError, RunFailed, WavecosimError
+from ..errors import ConfigError, Interrupted, NumericalError, RunFailed, SimulationEnded, WavecosimError
 from ..fmi.values import BOOLEAN, INTEGER, category
 from ..kernel.drkernel import REASONS as KERNEL_REASONS
 from ..core.gamma import GammaTuner
@@ -311,7 +311,10 @@ class LiveRun:
         t0 = time.perf_counter()
         log = self.master.step(n, t)
         self.master_time += time.perf_counter() - t0
-        return self._after_master(n, t, log)
+        reading = self._after_master(n, t, log)
+        if self.scene.ended is not None:            # an FMU ended the simulation with this step
+            raise self.scene.ended
+        return reading
 
     def _after_master(self, n, t, log):
         """After the master made step n: read the FMUs, the guard (it may redo), the observers, one row."""
@@ -603,6 +606,8 @@ def _loop(live, ref, progress):
                 n += done
         except KeyboardInterrupt:
             return "interrupted", None
+        except SimulationEnded as exc:              # an FMU ended it: finished, with the steps before
+            return "finished", exc
         except WavecosimError as exc:
             return "failed", exc
     return "finished", None

@@ -390,7 +390,7 @@ _SafeLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _map
 
 def load_scenario(path=None, settings=None) -> Scenario:
     """Read and validate a scenario file (the built-in default when path is None); `settings` (the
-    command line's dt, T, start_time, ...) replace the file's values before they are checked."""
+    command line's dt, T, start_time) stand for the values the file leaves out."""
     path = Path(path) if path else DEFAULT_CONFIG
     return parse_scenario(load_raw(path), str(path), path.parent, settings)
 
@@ -573,13 +573,15 @@ def _substitute(node, var, i):
 
 def parse_scenario(raw, source="<scenario>", base_dir=Path("."), settings=None) -> Scenario:
     """Check a parsed scenario mapping key by key; the first problem is a ConfigError naming the key.
-    `settings` ({key: value}, None values ignored) replace top-level values first (the command line)."""
+    `settings` ({key: value}, None values ignored; the command line's dt, T, start_time) stand for
+    top-level values the file leaves out, before the FMUs' DefaultExperiment is asked (the values
+    the file gives are replaced afterwards, by api.with_overrides)."""
     ck = _Checker(source)
     raw = expand_repeats(raw, ck)
     top = ("name", "description", "start_time", "dt", "T", "gamma", "subsystems", "couplings", "master",
            "certificates", "outputs", "error", "fne_watch", "sources", "signals")
     ck.mapping(raw, "", top, required=("subsystems",))
-    raw = {**raw, **{k: v for k, v in (settings or {}).items() if v is not None}}
+    raw = {**raw, **{k: v for k, v in (settings or {}).items() if v is not None and raw.get(k) is None}}
     subs = raw["subsystems"]
     ck.mapping(subs, "subsystems", list(subs) if isinstance(subs, dict) else [])
     if len(subs) < 1:
