@@ -39,12 +39,8 @@ def import_ssp(path, ports=None, parameter_set=None, settings=None) -> Imported:
     mds, fmus = _descriptions(flat)
     bindings = Bindings(flat, parameter_set)
     wired, values = wire(flat, mds, bindings, out.notes)
-    subsystems = _subsystems(flat, mds, fmus, bindings, values, out)
+    subsystems = _subsystems(flat, mds, fmus, bindings, values, overlay.get("tolerance"), out)
     _check_overlay_names(ports, overlay, subsystems)
-    if overlay.get("tolerance") is not None:
-        for name, sub in subsystems.items():
-            sub["tolerance"] = overlay["tolerance"]
-            out.origins[f"subsystems.{name}.tolerance"] = "the overlay (--ports)"
     declared, origins, groups = declared_ports(ssd, flat.components, mds, overlay.get("ports", {}))
     signals = _with_osp_bonds(flat, wired, groups, mds)
     halves, rest = find_bonds(ssd, declared, signals)
@@ -94,9 +90,9 @@ def _check_connectors(flat, comp, md):
                                 f"{causality[name]}")
 
 
-def _subsystems(flat, mds, fmus, bindings, values, out):
-    """{name: subsystem mapping}: its FMU, and its values from the bindings, those coming through
-    system connectors (`values`, wire()) over them."""
+def _subsystems(flat, mds, fmus, bindings, values, tolerance, out):
+    """{name: subsystem mapping}: its FMU, the overlay's tolerance, and its values from the bindings,
+    those coming through system connectors (`values`, wire()) over them."""
     subsystems = {}
     for key, comp in flat.components.items():
         own, origins = bindings.values(comp, mds[key])
@@ -104,6 +100,9 @@ def _subsystems(flat, mds, fmus, bindings, values, out):
         for k, v in through.items():
             own[k].update(v)
         subsystems[comp.name] = {"fmu": fmus[key], **{k: v for k, v in own.items() if v}}
+        if tolerance is not None:
+            subsystems[comp.name]["tolerance"] = tolerance
+            out.origins[f"subsystems.{comp.name}.tolerance"] = "the overlay (--ports)"
         asked = comp.element.get("implementation", "any")
         out.origins[f"subsystems.{comp.name}"] = (
             f"component {comp.element.get('name')!r} ({at(flat.path, comp.element)}), {comp.fmu}"
