@@ -68,6 +68,7 @@ def print_table(rows, fields):
 
 
 config_argument = click.argument("config", required=False, type=click.Path(dir_okay=False, path_type=Path))
+system_argument = click.argument("config", required=False, type=click.Path(path_type=Path))   # also an SSP folder
 common = [
     click.option("--K", "K", type=click.IntRange(min=0), help="Inner-iteration budget K per macro-step."),
     click.option("--eps", type=click.FloatRange(min=0, min_open=True), help="Inner tolerance: stop when |u_new - u| <= eps."),
@@ -295,7 +296,7 @@ def _sweep_progress(total, skipped):
 
 
 @cli.command("compare")
-@config_argument
+@system_argument
 @with_common
 @experiment_options
 @ssp_options
@@ -342,7 +343,7 @@ def compare_cmd(config, K, eps, gamma, dt, T, quiet, start_time, ports, paramete
 
 
 @cli.command("validate")
-@click.argument("config", required=False, type=click.Path(path_type=Path))
+@system_argument
 @ssp_options
 @click.option("--input", "input_csv", type=click.Path(dir_okay=False, path_type=Path), help="FMU input: a CSV file.")
 @options([opt for opt in common if opt in (common[3], common[4])])
