@@ -6,7 +6,8 @@ subsystem stepped alone and from a port subsystem, physical ports, when ../share
 blocks of macro-steps per kernel call (`fast_path: true`, every step in a block), and the
 trajectories, per-step logs and FMU call counts equal the Python reference's (`fast: false`) bit
 for bit; a scene with a source table and a subsystem stepped alone does too, for a physical and a
-wave master; Integer and Boolean signals (FMI 2) too; a non-finite signal inside a block fails as the
+wave master; Integer and Boolean signals (FMI 2) too; systems of signals alone (the in-repo signal
+pair, OMSimulator's LinearTransformation SSD) run on the explicit master in blocks, bit for bit; a non-finite signal inside a block fails as the
 reference does, after the same rows.
 """
 import copy
@@ -19,6 +20,7 @@ from paths import CONFIGS, THIRD_PARTY
 from wavecosim.errors import RunFailed
 from wavecosim.run.runner import LiveRun, _loop, run
 from wavecosim.scenario.config import load_scenario, parse_scenario
+from wavecosim.scenario.ssp import load_ssp
 
 MASTERS = ("explicit", "gauss-seidel", "jacobi-iter", "gauss-seidel-iter", "dr")
 
@@ -141,3 +143,19 @@ def test_integer_and_boolean_signals_are_held_in_the_blocks(built_fmus):
     assert results[0].summary["fast_path"] and results[0].summary["block_steps"] == 40
     assert results[1].summary["block_steps"] == 0 and ends[0] == ends[1] and ends[0][0][0] > 10
     assert results[0].trajectory_table.array().tobytes() == results[1].trajectory_table.array().tobytes()
+
+
+def test_the_in_repo_signal_pair_runs_in_blocks_bit_for_bit(built_fmus):
+    sc = dataclasses.replace(load_scenario(CONFIGS / "signal_pair.yaml"), T=0.2)
+    fast, ref = both_routes(sc)
+    identical(fast, ref, sc.n_steps)
+
+
+@pytest.mark.skipif(not (THIRD_PARTY / "omsimulator" / "LinearTransformation").is_dir(),
+                    reason="../shared/third_party is not here")
+def test_a_signal_only_ssd_runs_in_blocks_bit_for_bit():
+    """OMSimulator's LinearTransformation (two FMUs, one signal scaled by the SSD): explicit in blocks."""
+    sc = load_ssp(THIRD_PARTY / "omsimulator" / "LinearTransformation")[0]
+    fast, ref = both_routes(sc)
+    identical(fast, ref, sc.n_steps)
+    assert fast.summary["master"] == "explicit"
