@@ -3,7 +3,8 @@ of scripts/fixed_tax.py: the tables with the floor column, the machine and the d
 
     wavecosim bench --only real_fmus --json bench.json
     python scripts/fixed_tax.py > tax.json
-    python scripts/speed_doc.py bench.json --fixed-tax tax.json [--out docs/speed.md]
+    wavecosim run configs/chain_512.yaml --quiet --out chain
+    python scripts/speed_doc.py bench.json --fixed-tax tax.json --chain chain [--out docs/speed.md]
 """
 import argparse
 import json
@@ -22,7 +23,8 @@ rerun them on your machine with
 
     wavecosim bench --only real_fmus --json bench.json
     python scripts/fixed_tax.py > tax.json
-    python scripts/speed_doc.py bench.json --fixed-tax tax.json
+    wavecosim run configs/chain_512.yaml --quiet --out chain
+    python scripts/speed_doc.py bench.json --fixed-tax tax.json --chain chain
 
 ## Where the time goes
 
@@ -91,10 +93,21 @@ def fixed_tax_table(tax):
             "", f"Best of {tax['rounds']} rounds, load average {tax['load_average_1min']:.2f}."]
 
 
+def chain_table(folder):
+    """The chain of 512 subsystems: the master's and its lockstep monolithic reference's times."""
+    master, ref = (json.loads((folder / f"summary{s}.json").read_text()) for s in ("", "_monolithic"))
+    return ["| configs/chain_512.yaml, 100 steps | master (dr) | monolithic reference (newton) |", "|---|---|---|",
+            f"| seconds in the master | {master['wall_time_s']:.2f} | {ref['wall_time_s']:.2f} |",
+            f"| seconds stepping, with readings and rows | {master['loop_time_s']:.2f} | {ref['loop_time_s']:.2f} |",
+            "", f"The reference takes {ref['wall_time_s'] / master['wall_time_s']:.2f} times the master's time "
+                f"(both run in lockstep in one `wavecosim run`)."]
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("bench", type=Path)
     parser.add_argument("--fixed-tax", type=Path)
+    parser.add_argument("--chain", type=Path, help="the --out folder of `wavecosim run configs/chain_512.yaml`")
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "speed.md")
     args = parser.parse_args()
     result = json.loads(args.bench.read_text())
@@ -110,6 +123,8 @@ def main():
              ""]
     if args.fixed_tax:
         lines += ["## The fixed tax of a short run", "", *fixed_tax_table(json.loads(args.fixed_tax.read_text())), ""]
+    if args.chain:
+        lines += ["## The monolithic reference on a chain of 512 FMUs", "", *chain_table(args.chain), ""]
     args.out.write_text("\n".join(lines))
     print(f"wrote {args.out}")
 
