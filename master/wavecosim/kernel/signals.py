@@ -8,6 +8,7 @@ import ctypes
 
 import numpy as np
 
+from .abi import mirrors
 from ..errors import FmuError, NumericalError
 
 _ip, _up, _dp = ctypes.POINTER(ctypes.c_int), ctypes.POINTER(ctypes.c_uint), ctypes.POINTER(ctypes.c_double)
@@ -18,18 +19,21 @@ FMU_FUNCTIONS = ("fmi2GetReal", "fmi2SetReal", "fmi2DoStep", "fmi2GetInteger", "
                  "fmi2SetBoolean")
 
 
+@mirrors("drkernel", "SGFmu")
 class SGFmu(ctypes.Structure):
     """signals.h: one FMU's functions and instance."""
     _fields_ = [(name, ctypes.c_void_p) for name in ("getReal", "setReal", "doStep", "getInteger", "setInteger",
                                                       "getBoolean", "setBoolean", "comp")]
 
 
+@mirrors("drkernel", "SGSignal")
 class SGSignal(ctypes.Structure):
     """signals.h: one signal's source column, input category, scaling and range."""
     _fields_ = [("column", ctypes.c_int), ("to", ctypes.c_int), *[(name, ctypes.c_double) for name in
                                                                    ("factor", "offset", "lo", "hi")]]
 
 
+@mirrors("drkernel", "SGFailure")
 class SGFailure(ctypes.Structure):
     """signals.h: why the last step's signals failed."""
     _fields_ = [(name, ctypes.c_int) for name in ("kind", "index", "function", "status", "step", "alone_done")] + \
@@ -48,15 +52,8 @@ def _library(lib):
         lib.sg_attach.restype = None
         lib.sg_failure.argtypes = [p]
         lib.sg_failure.restype = ctypes.POINTER(SGFailure)
-        lib.sg_sizes.argtypes = [ctypes.POINTER(ctypes.c_size_t)]
-        lib.sg_sizes.restype = None
         lib.sg_destroy.argtypes = [p]
         lib.sg_destroy.restype = None
-        sizes, ours = (ctypes.c_size_t * 3)(), [ctypes.sizeof(t) for t in (SGFmu, SGFailure, SGSignal)]
-        lib.sg_sizes(sizes)
-        if list(sizes) != ours:
-            raise FmuError(f"signals.c: SGFmu, SGFailure, SGSignal have {list(sizes)} bytes, wavecosim.kernel.signals "
-                           f"{ours} (the layouts differ)")
         lib._signals_ready = True
     return lib
 

@@ -6,6 +6,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "abi.h"
 #include "floor.h"
 
 enum { OP_GET_STATE, OP_SET_STATE, OP_FREE_STATE, OP_SET_REAL, OP_DO_STEP, OP_GET_REAL };
@@ -222,3 +223,5 @@ double fl_replay(const FLRecorder *r, const fmi2Component *comps, const FLFuncti
         if (slots[k]) fns[r->slot_fmu[k]].freeFMUstate(comps[r->slot_fmu[k]], &slots[k]);
     return elapsed;
 }
+
+MIRRORED(DRFunctions)

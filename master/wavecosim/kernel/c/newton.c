@@ -10,6 +10,7 @@
 
 #include "kernel_internal.h"
 #include "newton.h"
+#include "abi.h"
 
 /* One row of the sparse Newton matrix (entries in no order) and the rows holding a column. */
 typedef struct {
@@ -356,3 +357,5 @@ void nt_destroy(NTKernel *c) {
     free(c->J);
     free(c);
 }
+
+MIRRORED(NTSettings)

@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "abi.h"
 #include "signals.h"
 
 typedef struct {
@@ -217,8 +218,6 @@ void sg_destroy(SGPlan *p) {
     free(p);
 }
 
-void sg_sizes(size_t *out) {
-    out[0] = sizeof(SGFmu);
-    out[1] = sizeof(SGFailure);
-    out[2] = sizeof(SGSignal);
-}
+MIRRORED(SGFmu)
+MIRRORED(SGSignal)
+MIRRORED(SGFailure)

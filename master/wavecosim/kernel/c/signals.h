@@ -72,9 +72,6 @@ void sg_attach(SGPlan *p);
 
 const SGFailure *sg_failure(const SGPlan *p);
 
-/* sizeof(SGFmu), sizeof(SGFailure), sizeof(SGSignal): for the caller to check its copy of the layouts. */
-void sg_sizes(size_t *out);
-
 void sg_destroy(SGPlan *p);
 
 #endif
