@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from paths import CONFIGS
-from wavecosim.bench.real_fmus import _floor, _recorded, _rows, real_fmus_rows
+from wavecosim.bench.real_fmus import _floor, _recorded, _rows, signal_pair
 from wavecosim.fmi.fmu import set_pointer_hook
 from wavecosim.kernel.floor import FloorRecorder
 from wavecosim.run.runner import open_parts, run
@@ -41,7 +41,8 @@ def replayed_outputs(sc, recorder):
                                                             ("foreign_pair", "dr", None),
                                                             ("signal_pair", "explicit", 8)])
 def test_the_floor_makes_the_runs_fmu_calls_again(config, master, calls_per_step, built_fmus):
-    sc = dataclasses.replace(load_scenario(CONFIGS / f"{config}.yaml"), T=0.05).with_master(algorithm=master, K=3)
+    loaded = signal_pair() if config == "signal_pair" else load_scenario(CONFIGS / f"{config}.yaml")
+    sc = dataclasses.replace(loaded, T=0.05).with_master(algorithm=master, K=3)
     recorder = _recorded(sc)
     try:
         result = run(sc, certificates=False, warn=quiet)
@@ -70,7 +71,7 @@ def test_without_the_hook_nothing_is_recorded(built_fmus):
 
 def test_rows_name_every_system_and_master(built_fmus):
     systems = [("foreign_pair", load_scenario(CONFIGS / "foreign_pair.yaml"), None, None),
-               ("signal_pair", load_scenario(CONFIGS / "signal_pair.yaml"), None, None),
+               ("signal_pair", signal_pair(), None, None),
                ("absent", None, None, "not here")]
     rows = _rows(systems, steps=10)
     assert [(r["name"], r["master"]) for r in rows] == [("foreign_pair", "explicit"), ("foreign_pair", "gauss-seidel"),

@@ -18,6 +18,7 @@ import pytest
 
 from paths import CONFIGS, THIRD_PARTY
 from wavecosim.errors import RunFailed
+from wavecosim.bench.real_fmus import signal_pair
 from wavecosim.run.runner import LiveRun, _loop, run
 from wavecosim.scenario.config import load_scenario, parse_scenario
 from wavecosim.scenario.ssp import load_ssp
@@ -146,7 +147,7 @@ def test_integer_and_boolean_signals_are_held_in_the_blocks(built_fmus):
 
 
 def test_the_in_repo_signal_pair_runs_in_blocks_bit_for_bit(built_fmus):
-    sc = dataclasses.replace(load_scenario(CONFIGS / "signal_pair.yaml"), T=0.2)
+    sc = dataclasses.replace(signal_pair(), T=0.2)
     fast, ref = both_routes(sc)
     identical(fast, ref, sc.n_steps)
 

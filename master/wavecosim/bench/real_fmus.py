@@ -2,8 +2,8 @@
 the floor of its FMU calls, and libcosim on the same SSD where libcosimpy is installed.
 
 Systems: the in-repo foreign pair (configs/foreign_pair.yaml: physical ports, the wave adapter for
-DR), a signal-only system (../shared/third_party/omsimulator/LinearTransformation, else the in-repo
-configs/signal_pair.yaml) and the dcmotor SSD with its ports (../shared/third_party/dcmotor), each
+DR), a signal-only system (../shared/third_party/omsimulator/LinearTransformation, else SIGNAL_PAIR
+built here) and the dcmotor SSD with its ports (../shared/third_party/dcmotor), each
 with the masters of MASTERS it can run. Per row, side by side in one process:
   run_us_per_step    the whole run per macro-step (`run()` as `wavecosim run --no-certificates
                      --no-reference` makes it, rows kept in memory: loop_time_s / steps), best of
@@ -24,11 +24,24 @@ from ..errors import WavecosimError
 from ..fmi.fmu import set_pointer_hook
 from ..kernel.floor import FloorRecorder
 from ..run.runner import open_parts, run
-from ..scenario.config import load_scenario
+from ..scenario.config import load_scenario, parse_scenario
 from ..scenario.ssp import load_ssp
 
 MASTERS = (("explicit", {}), ("gauss-seidel", {}), ("dr", {"K": 5, "threads": "1"}))
 TARGET_FLOOR = 1.3        # whole run <= this times the floor on every row
+SIGNAL_PAIR = {           # two of our LinearSides joined by signal connections alone (no power bond)
+    "name": "signal_pair", "dt": 0.001, "T": 1.0,
+    "subsystems": {"A": {"fmu": "LinearSide", "parameters": {"m2": 1.0, "k2": 10.0}, "start": {"q2": 0.1}},
+                   "B": {"fmu": "LinearSide", "parameters": {"m2": 2.0, "k2": 5.0}}},
+    "signals": [{"from": "A.q2", "to": "B.F", "factor": 3.0}, {"from": "B.q2", "to": "A.F", "factor": -1.0,
+                                                                "offset": 0.5}],
+    "outputs": {"qA": "A.q2", "qB": "B.q2"},
+}
+
+
+def signal_pair():
+    """The signal-only system built from our own FMUs (SIGNAL_PAIR)."""
+    return parse_scenario(SIGNAL_PAIR, "signal_pair")
 
 
 def quiet(message):
@@ -39,12 +52,11 @@ def _systems():
     """[(name, scenario or None, SSD path or None, why it is missing)] of the systems here."""
     out = [("foreign_pair", load_scenario(example("foreign_pair")), None, None)]
     shared = third_party() or Path("/nonexistent")
-    lt, pair = shared / "omsimulator" / "LinearTransformation", example("foreign_pair").with_name("signal_pair.yaml")
+    lt = shared / "omsimulator" / "LinearTransformation"
     try:
         out.append(("LinearTransformation", load_ssp(lt)[0], lt / "SystemStructure.ssd", None))
-    except WavecosimError as exc:               # absent, or not readable here: the in-repo signal pair
-        out.append(("signal_pair", load_scenario(pair), None, None) if pair.exists() else
-                   ("LinearTransformation", None, None, str(exc)))
+    except WavecosimError:                      # absent, or not readable here: our own signal pair
+        out.append(("signal_pair", signal_pair(), None, None))
     dc = shared / "dcmotor" / "SystemStructure.ssd"
     if dc.exists():
         out.append(("dcmotor", load_ssp(dc, example("dcmotor_ports"))[0], dc, None))
