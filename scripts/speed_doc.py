@@ -57,6 +57,13 @@ rerun them on your machine with
   made again from C alone on fresh instances (`kernel/c/floor.c`);
 - *libcosim*: libcosim's fixed-step master on the same SSD (`pip install 'wavecosim[bench]'`), in the
   same process; `-` where libcosimpy is missing or refuses the file (the note says why).
+
+Reading the ratios: where an FMU call costs a tenth of a microsecond (our own foreign pair: a whole
+explicit step is 0.5 µs of calls), the run's own work between blocks (the first reading, the
+observers' pass over each block, the rows) shows as a few tenths of a microsecond per step; with
+FMUs exported by other tools (the dcmotor) the run is the floor within the machine's noise. On a
+shared machine single figures move by tens of percent between rounds, so a run can come out below
+its floor.
 """
 
 
