@@ -55,7 +55,8 @@ def test_the_foreign_pair_runs_in_blocks_bit_for_bit(master, built_fmus):
 
 
 @pytest.mark.skipif(not (THIRD_PARTY / "dcmotor").is_dir(), reason="../shared/third_party is not here")
-@pytest.mark.parametrize("master", ["explicit", "jacobi-iter", "dr"])
+@pytest.mark.parametrize("master", ["explicit", pytest.param("jacobi-iter", marks=pytest.mark.slow),
+                                    pytest.param("dr", marks=pytest.mark.slow)])
 def test_the_dcmotor_runs_in_blocks_bit_for_bit(master):
     sc = dataclasses.replace(load_scenario(CONFIGS / "dcmotor.yaml"), T=0.2).with_master(algorithm=master, K=5,
                                                                                           threads=1)
