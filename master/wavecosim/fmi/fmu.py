@@ -22,6 +22,8 @@ from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE
 from fmpy.fmi2 import fmi2LastSuccessfulTime
 
 from ..errors import FmuError
+from .me import ModelExchange
+from .sources import provide_binary
 from .values import BOOLEAN, REAL, as_python, category, integer_range, is_number, is_whole
 
 _STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
@@ -99,13 +101,15 @@ def check_version(path, folder) -> str:
     return version
 
 
-def check_runnable(path, folder, description, platform=fmpy_platform):
+def check_runnable(path, folder, description, platform=fmpy_platform, interface="coSimulation"):
     """One line naming the FMU and the reason when this build cannot run it: no co-simulation
-    interface, no binary for this platform (binaries/<platform>: linux64 in FMI 2, x86_64-linux in 3),
-    or a binary for it whose name is not the modelIdentifier's."""
-    cs = description.coSimulation
+    interface (nor, in FMI 2, a model-exchange one), no binary for this platform (binaries/<platform>:
+    linux64 in FMI 2, x86_64-linux in 3), or a binary for it whose name is not the modelIdentifier's."""
+    cs = getattr(description, interface)
     if cs is None:
-        raise FmuError(f"{path}: the FMU has no co-simulation interface")
+        others = [k for k in ("modelExchange", "scheduledExecution") if getattr(description, k, None) is not None]
+        raise FmuError(f"{path}: the FMU has no co-simulation interface" + (f" (it has {', '.join(others)} only)"
+                                                                               if others else ""))
     name = f"{cs.modelIdentifier}{sharedLibraryExtension}"
     binary = folder / "binaries" / platform / name
     if binary.exists():
@@ -153,6 +157,7 @@ SETTERS = {
 
 class Fmi2:
     """The FMI 2.0 side of one Fmu: its FMU2Slave; the calls are the FMU's own fmi2 functions."""
+    interface = "coSimulation"
     prefix = "fmi2"
     real = "Real"
     platform = fmpy_platform
@@ -225,6 +230,22 @@ class Fmi2:
             return math.nan
 
 
+class ModelExchange2(ModelExchange, Fmi2):
+    """An FMI 2.0 FMU with model exchange only, stepped as co-simulation (wavecosim/fmi/me.py)."""
+
+
+_pointer_hook = None       # hook(fmu, fname, lookup) -> the address function_pointer gives (see set_pointer_hook)
+
+
+def set_pointer_hook(hook):
+    """Route every Fmu.function_pointer through hook(fmu, fname, lookup), lookup(fname) being the
+    FMU's own address (the bench's floor records the kernel's FMU calls so); None: no hook. Returns
+    the hook it replaced."""
+    global _pointer_hook
+    previous, _pointer_hook = _pointer_hook, hook
+    return previous
+
+
 class Fmu:
     """One instantiated, initialized FMU (FMI 2.0 or 3.0); `name` is the subsystem name used in messages."""
 
@@ -249,8 +270,12 @@ class Fmu:
         binding = Fmi2
         if self.fmi_version != "2.0":
             from .fmi3 import Fmi3 as binding
-        cs = self.description.coSimulation
-        check_runnable(self.path, self.folder, self.description, binding.platform)
+        elif self.description.coSimulation is None and self.description.modelExchange is not None:
+            binding = ModelExchange2
+        cs = getattr(self.description, binding.interface)
+        if cs is not None:
+            provide_binary(self.path, self.folder, self.description, cs, binding.platform)
+        check_runnable(self.path, self.folder, self.description, binding.platform, binding.interface)
         if cs.canBeInstantiatedOnlyOncePerProcess:       # its own copy of the binary for each instance
             release_folder(pool, self._key, self.folder)
             self._key, self.folder = None, extract_fmu(self.path)
@@ -392,7 +417,9 @@ class Fmu:
 
     def function_pointer(self, fname) -> int:
         """Address of a C function with the fmi2 signature of `fname` taking `component`, for the C fast
-        path: the FMU's own for FMI 2, kernel/c/fmi3shim.c's for FMI 3."""
+        path: the FMU's own for FMI 2, kernel/c/fmi3shim.c's for FMI 3 (or what a pointer hook gives)."""
+        if _pointer_hook is not None:
+            return _pointer_hook(self, fname, self._fmi.function_pointer)
         return self._fmi.function_pointer(fname)
 
     def function_name(self, fname):

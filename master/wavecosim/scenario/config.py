@@ -137,8 +137,9 @@ class MasterConfig:
         "the C kernel route: `auto` where it can run, `true`, `false` (the Python reference)",
         type="auto | true | false"))
     threads: str = field(default="auto", metadata=key(
-        "threads evaluating the subsystems on the kernel route: `auto` measures the first steps and keeps a "
-        "second thread only when it pays", type="auto | 1 | 2"))
+        "threads evaluating the subsystems side by side (DR and the Jacobi family on the kernel route): N puts "
+        "them on up to min(N, CPUs, subsystems) threads; `auto` adds threads only where they pay",
+        type="auto or an integer >= 1"))
     energy_guard: str = field(default=None, metadata=key(
         "what keeps the run from gaining energy through the interface: `ledger` (the interface energy ledger), "
         "`monolithic` (redo as the monolithic step), `off` (Algorithm 1 as in the paper); true/false mean "
@@ -551,9 +552,22 @@ def _master(ck, m, couplings) -> MasterConfig:
     if "energy_guard" in m:
         master.energy_guard = _energy_guard(ck, m["energy_guard"])
     if "threads" in m:
-        master.threads = ck.string(str(m["threads"]), "master.threads", ("auto", "1", "2"))
+        master.threads = _threads(ck, m["threads"])
     _dr_options(ck, m, master)
     return master
+
+
+def _threads(ck, value, path="master.threads"):
+    """master.threads: `auto`, or a number of threads N >= 1 (kept as its text, like `auto`)."""
+    text = str(value).strip()
+    if text != "auto" and (isinstance(value, bool) or not text.isdigit() or int(text) < 1):
+        ck.fail(path, f"must be auto or a number of threads >= 1, got {value!r}")
+    return text if text == "auto" else str(int(text))
+
+
+def threads_option(value, option="--threads"):
+    """A command line's threads (auto or N), checked as master.threads."""
+    return _threads(_Checker(option), value, "")
 
 
 def _dr_options(ck, m, master):
