@@ -337,21 +337,30 @@ def dual_mass_oscillator(tp, folder):
     return verdict(parts + [same_as_plain_loop(scenario, result)]), s
 
 
+def md_outputs(md):
+    return [v for v in md.modelVariables if v.causality == "output"]
+
+
 def single_fmu(path):
-    """`wavecosim run X.fmu` (with --dt 0.01 and --T 1 where its DefaultExperiment gives none, as the
-    issue runs fmizoo's IO.fmu); an FMU with no co-simulation interface is refused in one line."""
+    """`wavecosim run X.fmu` (with --dt 0.01 and 1 s from its start time where its DefaultExperiment
+    gives no step size, as one runs fmizoo's IO.fmu); an FMU with no co-simulation interface is
+    refused in one line."""
     md = read_model_description(str(path), validate=False)
     experiment, given = md.defaultExperiment, {}
     if experiment is None or experiment.stepSize is None:
-        given["dt"] = 0.01
-    if experiment is None or experiment.stopTime is None:
-        given["T"] = 1.0
+        start = float(experiment.startTime) if experiment is not None and experiment.startTime else 0.0
+        given.update(dt=0.01, T=start + 1.0)
     if md.coSimulation is None:
         try:
             simulate(load(path, **given)[0])
         except WavecosimError as exc:
             return (True, f"refused in one line, as it has no co-simulation interface: {exc}"), math.nan
     scenario, _ = load(path, **given)
+    name = scenario.signal_subsystems[0].name
+    states = {f"{name}.{d.variable.derivative.name}": f"{name}.{d.variable.derivative.name}"
+              for d in md.derivatives if d.variable.derivative is not None}
+    if states and not md_outputs(md):                  # nothing to record by default: its states
+        scenario = dataclasses.replace(scenario, outputs=states)
     result, s = simulate(scenario)
     options = " ".join(f"--{k} {v:g}" for k, v in given.items())
     return verdict([(True, f"{scenario.n_steps} steps of {scenario.dt:g} s" + (f" ({options})" if options else "")),
