@@ -2,6 +2,7 @@
 
 Every WavecosimError becomes one line on stderr and its class's exit code (2 for bad input)."""
 import sys
+import time
 from pathlib import Path
 
 import click
@@ -16,19 +17,28 @@ from .run.recorder import write_json
 
 
 def _progress(label, quiet):
-    """A progress callback printing about 20 updates per run to stderr."""
+    """A progress callback (n steps done of total) on stderr: on a terminal click's progress bar with
+    the steps, the percentage, the time since the run began and the time left at the pace so far;
+    elsewhere one line when the run is done."""
     if quiet:
         return None
-    state = {"last": -1}
-    tty = sys.stderr.isatty()
+    started, tty, bar, first = time.perf_counter(), sys.stderr.isatty(), None, None
 
     def report(n, total):
-        pct = (20 * n) // total
+        nonlocal bar, first
+        now = time.perf_counter()
+        if not tty:
+            if n == total:
+                click.echo(f"  {label}: {n}/{total} steps done in {now - started:.1f} s", err=True)
+            return
+        if bar is None:
+            bar, first = click.progressbar(length=total, label=f"  {label}", file=sys.stderr, show_pos=True,
+                                           show_percent=True, show_eta=False, item_show_func=str), (now, n)
+        pace = (now - first[0]) / (n - first[1]) if n > first[1] else None        # seconds per step since the first
+        left = f", ETA {pace * (total - n):.1f} s" if pace and n < total else ""
+        bar.update(n - bar.pos, f"{now - started:.1f} s elapsed{left}")
         if n == total:
-            click.echo(f"\r  {label}: {n}/{total} steps done", err=True)
-        elif tty and pct != state["last"]:
-            state["last"] = pct
-            click.echo(f"\r  {label}: {n}/{total} steps ({100 * n // total}%)", err=True, nl=False)
+            bar.render_finish()
     return report
 
 
@@ -153,19 +163,25 @@ def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None, star
 @click.option("--outputs", "outputs", multiple=True, metavar="PATTERN",
               help="Record only the columns matching this glob (e.g. 'IO.y_*'; repeat for more); default: every "
                    "output and connected input, named COMPONENT.variable (or the file's outputs).")
-@click.option("--master", "algorithm", type=click.Choice(ALGORITHMS), help="Master algorithm (default: from CONFIG).")
+@click.option("--master", "algorithm", type=click.Choice(ALGORITHMS),
+              help="Master algorithm (default: from CONFIG; else dr where there are power bonds, explicit without).")
 @click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("out/run"), show_default=True,
               help="Output folder for trajectory.csv, steps.csv, summary.json and metadata.json.")
 @click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and the Condition 1 watch (faster).")
 @click.option("--no-reference", is_flag=True, help="Skip the monolithic reference run (no error figures).")
 @click.option("--plots", is_flag=True, help="Also write PNG figures into the output folder.")
+@click.option("--threads", help="Threads evaluating the subsystems: auto, or N (up to min(N, CPUs, subsystems)); "
+                                "the numbers are the same for any N.")
 def run_cmd(config, K, eps, gamma, dt, T, quiet, start_time, output_interval, formats, ports, parameter_set, input_csv,
-            outputs, algorithm, out, no_certificates, no_reference, plots):
+            outputs, algorithm, out, no_certificates, no_reference, plots, threads):
     """Run one scenario (with the monolithic reference alongside where there are power bonds) and
     write its trajectory, per-step certificates, summary and metadata. CONFIG is a scenario file,
     an SSP system (.ssd, .ssp, folder) or one FMU (.fmu), run as fmpy's simulate runs it."""
     scenario = _apply_overrides(_read_config(config, ports, parameter_set, dt, T, gamma, start_time, input_csv), K, eps,
                                 gamma, dt, T, algorithm, start_time, outputs)
+    if threads is not None:
+        from .scenario.config import threads_option
+        scenario = scenario.with_master(threads=threads_option(threads))
     result = simulate(scenario, out_dir=out, progress=_progress("run", quiet) or False,
                       certificates=not no_certificates, reference=not no_reference,
                       output_interval=output_interval, formats=("csv", *formats))
@@ -194,6 +210,8 @@ def _report_run(scenario, result, out):
         click.echo(f"note: {s['signal_note']}")
     if s["status"] == "finished" and s.get("message"):
         click.echo(f"note: {s['message']}")
+    if s.get("threads", 1) > 1 or scenario.master.threads not in ("auto", "1"):
+        click.echo(f"threads: {s.get('thread_note', 'serial')}")
 
 
 # sweep: the common options with --K a list, plus those of general sweeps
@@ -407,11 +425,17 @@ def examples_cmd(name):
 @cli.command("bench")
 @click.option("--quick", is_flag=True, help="Fewer steps and repeats (a few seconds instead of about a minute).")
 @click.option("--json", "json_file", type=click.Path(dir_okay=False, path_type=Path), help="Also write the figures here.")
-def bench_cmd(quick, json_file):
+@click.option("--only", type=click.Choice(["parallel_threads"]), help="Measure this part alone.")
+def bench_cmd(quick, json_file, only):
     """Time the inner iteration: plain fmpy loop, Python reference, C fast path and the C floor; the deadline bound."""
-    from .bench.main import report, run_bench
-    result = run_bench(quick=quick, progress=lambda msg: click.echo(msg, err=True))
-    for line in report(result):
+    from .bench.main import report, run_bench, run_part
+    progress = lambda msg: click.echo(msg, err=True)      # noqa: E731
+    if only:
+        result, lines = run_part(only, quick, progress)
+    else:
+        result = run_bench(quick=quick, progress=progress)
+        lines = report(result)
+    for line in lines:
         click.echo(line)
     if json_file:
         write_json(json_file, result)

@@ -33,6 +33,7 @@ import time
 import numpy as np
 
 from .adapter import adapter_bench, report_lines
+from .threads import parallel_threads, report_threads
 from .common import TABLE_I, make_steps, master_seconds, slope
 from ..examples import path as example
 from ..scenario.config import load_scenario
@@ -296,6 +297,16 @@ def with_scale_and_classical(result, scenario, quick, progress):
     return result
 
 
+PARTS = {"parallel_threads": (parallel_threads, report_threads)}     # `wavecosim bench --only NAME`
+
+
+def run_part(name, quick=False, progress=print):
+    """One part of the bench alone: ({name: its figures}, its printed lines)."""
+    measure, lines = PARTS[name]
+    figures = measure(quick, progress)
+    return {name: figures, "quick": quick}, lines(figures)
+
+
 def run_bench(quick=False, progress=print):
     """All measurements; returns the JSON-ready result."""
     n_steps, repeats = (200, 3) if quick else (1000, 3)
@@ -306,6 +317,7 @@ def run_bench(quick=False, progress=print):
     progress("  Table I sweep K = 0..50 through the runner")
     sweep_s, sweep_alone_s = sweep_master_time(scenario)
     par = parallel(load_scenario(HEAVY), heavy_steps, heavy_repeats, progress)
+    threads = parallel_threads(quick, progress)
     whole = run_overhead(scenario.with_changes(T=n_steps * scenario.dt), 3 * repeats,   # runs of ~1-30 ms: more repeats
                          10_000 if quick else 100_000, progress)
     over = {k: v["run_over_master"] for k, v in whole.items()}
@@ -326,6 +338,7 @@ def run_bench(quick=False, progress=print):
                   "master_alone_s": sweep_alone_s},
         "parallel": par,
         "parallel_speedup": par["speedup"],
+        "parallel_threads": threads,
         "whole_run": whole,
         **run_ratios(whole),
         "wave_adapter": adapter_bench(quick, 1 if quick else repeats, progress),
@@ -336,6 +349,7 @@ def run_bench(quick=False, progress=print):
             "naive_over_fast >= 10": ratios["naive_over_fast"] >= TARGETS["naive_over_fast_min"],
             "sweep master time < 1 s": sweep_s < TARGETS["sweep_master_s_max"],
             "parallel speedup >= 1.6": par["speedup"] >= TARGETS["parallel_speedup_min"],
+            "parallel_threads speedup >= 0.8 x min(threads, CPUs)": threads["target_met"],
             **run_targets(over),
         },
     }, scenario, quick, progress)
@@ -387,6 +401,7 @@ def report(result):
                  f"{p['load_average_1min']:.2f}): threads=1 {p['serial_s']:.3f} s, threads=2 {p['parallel_s']:.3f} s, "
                  f"speedup {p['speedup']:.2f}x")
     lines.append(f"  threads: auto -> {p['auto']}")
+    lines.extend(report_threads(result["parallel_threads"]))
     lines.append(f"{'whole run':<24}{'µs/step run':>13}{'its master':>12}{'master alone':>14}{'run / master alone':>20}")
     for key, w in result["whole_run"].items():
         lines.append(f"{key:<24}{w['run_us_per_step']:>13.2f}{w['master_us_per_step']:>12.2f}"

@@ -16,12 +16,15 @@ import time
 
 import numpy as np
 
+from .abi import LayoutError, mirrors
 from .build import kernel_library
 from ..errors import ConfigError, FmuError
 from .adapter import load_library as load_adapter_library
 from .linalg import Sparse
 
-PARALLEL_MIN_US = 150.0
+PARALLEL_MIN_US = 150.0   # a thread pays only when it takes over at least this much work per evaluation round
+DR_MAX_THREADS = 64       # drkernel.h
+CPUS_ENV = "WAVECOSIM_CPUS"
 REASONS = ("budget", "tolerance", "deadline", "explicit", "converged", "energy-guard")  # as masters/base.py (the
 #                                                  runner asserts it); the kernel never gives "converged"
 LEDGER_LOG = ("supplied", "ledger", "traffic", "scale", "action", "rounds", "step_s", "round_s", "cpu_s")  # drkernel.h
@@ -58,12 +61,14 @@ class Trace:
         return arr.reshape(self._count, 2, self._n)
 
 
+@mirrors("drkernel", "queries", "DRFunctions")
 class DRFunctions(ctypes.Structure):
     """drkernel.h: the FMU functions the kernel calls."""
     _fields_ = [(name, ctypes.c_void_p) for name in
                 ("getFMUstate", "setFMUstate", "freeFMUstate", "setReal", "doStep", "getReal")]
 
 
+@mirrors("drkernel", "DRStep")
 class DRStep(ctypes.Structure):
     """drkernel.h: inputs and results of one macro-step."""
     _fields_ = [("t", ctypes.c_double), ("dt", ctypes.c_double), ("K", ctypes.c_int), ("eps", ctypes.c_double),
@@ -89,6 +94,7 @@ def load_library():
         lib.dr_set_subsystem.argtypes = [p, i, ctypes.POINTER(DRFunctions), p, p, ctypes.POINTER(ctypes.c_uint),
                                          ctypes.POINTER(ctypes.c_uint), i, i]
         lib.dr_set_threads.argtypes = [p, i, ctypes.POINTER(ctypes.c_int)]
+        lib.dr_thread_plan.argtypes = [p, ctypes.POINTER(ctypes.c_int)]
         lib.dr_costs.argtypes = [p, d]
         lib.dr_costs.restype = None
         lib.dr_counts.argtypes = [p, ctypes.POINTER(ctypes.c_long)]
@@ -138,7 +144,8 @@ class BlockLog:
 
 
 def unusable(scene):
-    """Why the kernel cannot run this scene, or None if it can."""
+    """Why the kernel cannot run this scene, or None if it can; a library whose structs differ from
+    their mirrors is no reason to fall back but an error (abi.LayoutError)."""
     if not scene.subsystems:
         return "no subsystem has a port (signals only)"
     for s in scene.subsystems:
@@ -149,12 +156,16 @@ def unusable(scene):
                 s.fmu.function_pointer(name)      # FMI 3: kernel/c/fmi3shim.c's, in fmi2 form
             except AttributeError:
                 return f"subsystem {s.name}: the FMU does not export {s.fmu.function_name(name)}"
+            except LayoutError:
+                raise
             except FmuError as exc:
                 return str(exc)
     try:
         load_library()
         if any(s.adapter for s in scene.subsystems):
             load_adapter_library()
+    except LayoutError:
+        raise
     except FmuError as exc:
         return str(exc)
     return None
@@ -172,6 +183,13 @@ def kernel_refusal(scene, mode):
 
 
 def available_cpus():
+    """The cores this process may run on, or $WAVECOSIM_CPUS when set (e.g. a container's CPU quota,
+    which the affinity mask does not show)."""
+    value = os.environ.get(CPUS_ENV, "").strip()
+    if value:
+        if not value.isdigit() or int(value) < 1:
+            raise ConfigError(f"{CPUS_ENV} must be a positive integer, got {value!r}")
+        return int(value)
     try:
         return len(os.sched_getaffinity(0))
     except AttributeError:
@@ -395,6 +413,12 @@ class Kernel:
         ok = self.lib.dr_set_threads(self.handle, n_threads, (ctypes.c_int * len(plan))(*plan)) == 0
         self.threads = n_threads if ok else 1
         return ok
+
+    def thread_plan(self):
+        """The plan in force in the kernel: [thread of subsystem i]."""
+        out = (ctypes.c_int * len(self.subsystems))()
+        self.lib.dr_thread_plan(self.handle, out)
+        return list(out)
 
     def close(self):
         if self.handle:

@@ -14,6 +14,7 @@
 #include "kernel_internal.h"
 #include "linalg.h"
 #include "dr_options.h"
+#include "abi.h"
 
 /* A thread waiting for the other spins this long, then sleeps on a condition variable: spinning
  * answers within a microsecond when both have a core, sleeping leaves the core to the other
@@ -68,7 +69,7 @@ struct DRKernel {
     const double *task_in;
     double *task_out;
     double task_t, task_h;
-    int task_commit, task_measure;
+    int task_how, task_measure;    /* DR_QUERY, DR_COMMIT or DR_FORWARD (kernel_internal.h) */
     DROptions *opt;                /* the DR master's named options, or NULL (the paper's Algorithm 1) */
     DRHookFn hook_before, hook_after; /* around each step of dr_run_steps_of (certs.c), or NULL */
     void *hook_ctx;
@@ -193,12 +194,15 @@ static int evaluate(Sub *s, const double *in, double *out, double t, double h, i
     return 0;
 }
 
-/* Every subsystem of one thread on the current task; the first that failed, or -1. */
+/* Every subsystem of one thread on the current task; the first that failed, or -1. DR_FORWARD steps
+ * from the current state with nothing saved (dr_advance). */
 static int run_group(DRKernel *k, int thread) {
+    int forward = k->task_how == DR_FORWARD;
     for (int i = 0; i < k->n_sub; i++) {
         Sub *s = &k->sub[i];
-        if (s->thread == thread &&
-            evaluate(s, k->task_in, k->task_out, k->task_t, k->task_h, k->task_commit, k->task_measure))
+        if (s->thread != thread) continue;
+        if (forward) s->frozen = 1, s->dirty = 0;
+        if (evaluate(s, k->task_in, k->task_out, k->task_t, k->task_h, k->task_how != DR_QUERY, k->task_measure))
             return i;
     }
     return -1;
@@ -280,14 +284,14 @@ static void stop_workers(DRKernel *k) {
     for (int i = 0; i < k->n_sub; i++) k->sub[i].thread = 0;
 }
 
-/* Evaluate every subsystem at in -> out (line 10 when commit = 0, lines 20-22 when commit = 1);
- * the first failing subsystem in subsystem order, or -1. */
-static int evaluate_all(DRKernel *k, const double *in, double *out, double t, double h, int commit, int measure) {
+/* Evaluate every subsystem at in -> out (line 10 when how = DR_QUERY, lines 20-22 when DR_COMMIT),
+ * each on its thread; the first failing subsystem in subsystem order, or -1. */
+static int evaluate_all(DRKernel *k, const double *in, double *out, double t, double h, int how, int measure) {
     k->task_in = in;
     k->task_out = out;
     k->task_t = t;
     k->task_h = h;
-    k->task_commit = commit;
+    k->task_how = how;
     k->task_measure = measure;
     if (k->n_threads == 1) return run_group(k, 0);
     unsigned g = ++k->generation;
@@ -783,10 +787,15 @@ void dr_set_trace(DRKernel *k, double *trace, int capacity) {
 }
 
 int dr_set_threads(DRKernel *k, int n_threads, const int *thread_of) {
+    int valid = n_threads >= 1 && n_threads <= DR_MAX_THREADS;
+    for (int i = 0; valid && n_threads > 1 && i < k->n_sub; i++)
+        valid = thread_of[i] >= 0 && thread_of[i] < n_threads;
+    if (valid && n_threads > 1 && n_threads == k->n_threads) {   /* the workers idle between tasks: re-plan only */
+        for (int i = 0; i < k->n_sub; i++) k->sub[i].thread = thread_of[i];
+        return 0;
+    }
     stop_workers(k);
-    if (n_threads < 1 || n_threads > DR_MAX_THREADS) return -1;
-    for (int i = 0; i < k->n_sub; i++)
-        if (n_threads > 1 && (thread_of[i] < 0 || thread_of[i] >= n_threads)) return -1;
+    if (!valid) return -1;
     if (n_threads == 1) return 0;
     for (int id = 1; id < n_threads; id++) {
         Worker *w = &k->worker[id];
@@ -810,6 +819,11 @@ int dr_set_threads(DRKernel *k, int n_threads, const int *thread_of) {
     for (int i = 0; i < k->n_sub; i++) k->sub[i].thread = thread_of[i];
     k->n_threads = n_threads;
     return 0;
+}
+
+int dr_thread_plan(const DRKernel *k, int *thread_of) {
+    for (int i = 0; i < k->n_sub; i++) thread_of[i] = k->sub[i].thread;
+    return k->n_threads;
 }
 
 static int compare_doubles(const void *a, const void *b) {
@@ -870,6 +884,10 @@ void dr_span(const DRKernel *k, int i, size_t *offset, size_t *m) {
 
 void dr_begin(DRKernel *k, DRStep *io) { begin_macro_step(k, io); }
 
+int dr_evaluate_all(DRKernel *k, const double *in, double *out, double t, double h, int how, int measure) {
+    return evaluate_all(k, in, out, t, h, how, measure);
+}
+
 int dr_evaluate(DRKernel *k, int i, const double *in, double *out, double t, double h, int commit) {
     return evaluate(&k->sub[i], in, out, t, h, commit, 0);
 }
@@ -911,3 +929,6 @@ double dr_now_ns(void) { return now_ns(); }
 double *dr_outputs(DRKernel *k) { return k->b; }
 
 double *dr_inputs(DRKernel *k) { return k->a_hat; }
+
+MIRRORED(DRFunctions)
+MIRRORED(DRStep)

@@ -19,7 +19,7 @@
 #include <stddef.h>
 #include "fmi2FunctionTypes.h"
 
-#define DR_MAX_THREADS 8
+#define DR_MAX_THREADS 64
 
 /* Termination reasons (StepLog.reason in Python). */
 enum { DR_BUDGET = 0, DR_TOLERANCE = 1, DR_DEADLINE = 2, DR_EXPLICIT = 3, DR_ENERGY_GUARD = 5 };
@@ -94,9 +94,12 @@ int dr_set_maps(DRKernel *k, const int *P_start, const int *P_col, const double 
 void dr_set_trace(DRKernel *k, double *trace, int capacity);
 
 /* Evaluate subsystem i on thread thread_of[i] of n_threads (0 = the caller); starts or stops the
- * persistent worker threads as needed. Returns 0, or -1 if a thread cannot be started (the kernel
- * then stays serial). */
+ * persistent worker threads as needed (the same count keeps them and only moves subsystems). Returns
+ * 0, or -1 on a bad plan or if a thread cannot be started (the kernel then stays serial). */
 int dr_set_threads(DRKernel *k, int n_threads, const int *thread_of);
+
+/* The plan in force: thread_of[i] for each subsystem (n_sub values); returns the number of threads. */
+int dr_thread_plan(const DRKernel *k, int *thread_of);
 
 /* The DR master's named options (wavecosim/masters/dr_options.py): relaxation lambda in (0, 2) of
  * line 12, Anderson window (0: off, at most 16), warm start of u^0 from b^n and b^{n-1}. Each call

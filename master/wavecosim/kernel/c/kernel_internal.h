@@ -28,6 +28,15 @@ void dr_span(const DRKernel *k, int i, size_t *offset, size_t *m);
 /* A new macro-step: the first evaluation of each subsystem saves x_i^n; failures cleared. */
 void dr_begin(DRKernel *k, DRStep *io);
 
+/* How an evaluation round treats each subsystem: a query from x_i^n (state discarded), the commit from
+ * x_i^n, or a step forward from the current state with nothing saved (dr_advance). */
+enum { DR_QUERY = 0, DR_COMMIT = 1, DR_FORWARD = 2 };
+
+/* Every subsystem at in -> out on its channels, each on the thread of the plan (dr_set_threads), in
+ * one round; measure times each evaluation (dr_costs). The first failing subsystem in subsystem
+ * order, or -1. */
+int dr_evaluate_all(DRKernel *k, const double *in, double *out, double t, double h, int how, int measure);
+
 /* Subsystem i at in -> out on its channels (commit = 0: from x_i^n, state discarded; 1: kept);
  * nonzero when an FMU call failed. */
 int dr_evaluate(DRKernel *k, int i, const double *in, double *out, double t, double h, int commit);
