@@ -141,7 +141,7 @@ def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None, star
     its input file; the command line's times go in before the file's are checked; import notes
     are warnings."""
     from .scenario.fmu import is_fmu
-    from .scenario.ssp import is_ssp
+    from .scenario.ssp.archive import is_ssp           # the archive module alone: a scenario file needs no more
     times = {"dt": dt, "T": T, "start_time": start_time}
     warn = lambda note: click.echo(f"warning: {note}", err=True)        # noqa: E731
     if ports or parameter_set or (config is not None and is_ssp(config)):
@@ -425,9 +425,12 @@ def examples_cmd(name):
 @cli.command("bench")
 @click.option("--quick", is_flag=True, help="Fewer steps and repeats (a few seconds instead of about a minute).")
 @click.option("--json", "json_file", type=click.Path(dir_okay=False, path_type=Path), help="Also write the figures here.")
-@click.option("--only", type=click.Choice(["parallel_threads"]), help="Measure this part alone.")
+@click.option("--only", type=click.Choice(["parallel_threads", "real_fmus"]),
+              help="Measure this part alone (real_fmus: systems of real FMUs against the floor of their FMU "
+                   "calls and libcosim).")
 def bench_cmd(quick, json_file, only):
-    """Time the inner iteration: plain fmpy loop, Python reference, C fast path and the C floor; the deadline bound."""
+    """Time the inner iteration: plain fmpy loop, Python reference, C fast path and the C floor; the deadline
+    bound; threads; real FMUs against their floor and libcosim."""
     from .bench.main import report, run_bench, run_part
     progress = lambda msg: click.echo(msg, err=True)      # noqa: E731
     if only:

@@ -3,7 +3,7 @@
 For each master with a kernel route (ROUTED), `master.fast: true` (the C kernel) runs against
 `master.fast: false` (the Python reference) on the scenes that exercise what the route does: wave
 ports (Table I), the stiff scene, several channels per port (chain), a physical port through the
-wave adapter (foreign_pair), an FMI 3 FMU and Dymola FMUs whose queries stall (when the third-party
+wave adapter (foreign_pair; the classical masters over its signed physical ports), an FMI 3 FMU and Dymola FMUs whose queries stall (when the third-party
 FMUs are present), the certificates inside the blocks, the energy ledger acting, a deadline, two
 threads, a change of gamma, and failures. Compared step by step (every StepLog field, the committed
 waves or outputs, the inner loop's trace, FMU calls, an undo and recommit), through the Route
@@ -143,7 +143,9 @@ STEPPED = {
     "newton-adapter": ("newton", "foreign_pair", {}),
     "newton-fmi3": ("newton", "fmi3_damper", {}),
     "explicit-stiff": ("explicit", "two_oscillators_stiff", {}),
+    "explicit-physical": ("explicit", "foreign_pair", {}),
     "gauss-seidel-stiff": ("gauss-seidel", "two_oscillators_stiff", {}),
+    "jacobi-iter-physical": ("jacobi-iter", "foreign_pair", dict(K=3)),
     "jacobi-iter-stiff": ("jacobi-iter", "two_oscillators_stiff", dict(K=3)),
     "gauss-seidel-iter-chain": ("gauss-seidel-iter", "chain", dict(K=10, eps=1e-9)),
     "aitken-stiff": ("aitken", "two_oscillators_stiff", dict(K=3)),
@@ -261,6 +263,8 @@ RUNS = {
     "newton-adapter": ("newton", "foreign_pair", 0.05, {}, {}, "adapter"),
     "newton-fmi3": ("newton", "fmi3_damper", 0.1, {}, {}, "adapter"),
     "explicit-stiff": ("explicit", "two_oscillators_stiff", 1.0, {}, dict(output_interval=7), "blocks"),
+    "explicit-physical": ("explicit", "foreign_pair", 0.3, {}, {}, "blocks"),
+    "gauss-seidel-iter-physical": ("gauss-seidel-iter", "foreign_pair", 0.3, dict(K=3, eps=1e-12), {}, "blocks"),
     "gauss-seidel-chain": ("gauss-seidel", "chain", 0.5, {}, {}, "blocks"),
     "jacobi-iter-table1-K0": ("jacobi-iter", "two_oscillators", 0.5, dict(K=0, energy_guard="off"), {}, "blocks"),
     "jacobi-iter-stiff": ("jacobi-iter", "two_oscillators_stiff", 1.0, dict(K=3), {}, "blocks"),
@@ -372,13 +376,3 @@ def test_fast_true_where_the_kernel_cannot_run_is_a_config_error(scenario, name)
         fallback.close()
     finally:
         scene.close()
-
-
-def test_declared_physical_ports_keep_the_classical_masters_on_the_reference(scenario):
-    sc = scenario("foreign_pair", 0.05, algorithm="jacobi-iter", K=2)
-    result = run(sc, certificates=False, warn=lambda note: None)
-    assert result.summary["fast_path"] is False and "physical port" in result.summary["fast_note"]
-    with pytest.raises(ConfigError) as info:
-        run(sc.with_master(fast="true"), certificates=False, warn=lambda note: None)
-    assert "\n" not in str(info.value)
-    assert "master.fast: true, but subsystem A has a declared physical port" in str(info.value)

@@ -23,7 +23,9 @@ the heavy scene (configs/heavy_chain.yaml): master time with threads = 1 over th
 the wave adapter's cost per query on its Python and C routes (wavecosim/bench/adapter.py), and
 the deadline bound: DR with the energy ledger under master.deadline_us (light FMUs: the star at
 30 µs; heavy: heavy_chain at γ = 600, 1500 µs), realised step times against deadline + one
-evaluation round.
+evaluation round; and real FMUs (wavecosim/bench/real_fmus.py: the foreign pair, a signal-only
+system, the dcmotor) whole runs against the floor of their own FMU calls and libcosim
+(`--only real_fmus` times that part alone).
 """
 import dataclasses
 import os
@@ -282,6 +284,18 @@ def deadline_bound(quick=False, progress=print):
     return out
 
 
+def with_real_fmus(result, quick, progress):
+    """The result with the real_fmus rows (bench/real_fmus.py) and their targets added."""
+    from .real_fmus import TARGET_FLOOR, real_fmus_rows
+    rows = real_fmus_rows(quick, progress)
+    result["real_fmus"] = rows
+    result["targets"][f"real FMUs: whole run <= {TARGET_FLOOR} x the floor on every row"] = rows["within_floor"]
+    if rows["explicit_not_slower_than_libcosim"] is not None:
+        result["targets"]["real FMUs: wavecosim explicit <= libcosim per macro-step"] = \
+            rows["explicit_not_slower_than_libcosim"]
+    return result
+
+
 def with_scale_and_classical(result, scenario, quick, progress):
     """The result with the scale rows (bench_scale.py) and the classical masters' kernel route
     (bench_classical.py) added, and their targets."""
@@ -291,13 +305,26 @@ def with_scale_and_classical(result, scenario, quick, progress):
     add_newton_rows(result, quick, progress)       # the newton rows (bench_newton.py)
     scale, classical = scale_rows(quick, progress), classical_rows(scenario, quick, progress)
     result.update(us_per_subsystem_iter=scale["us_per_subsystem_iter"], scale=scale, classical_kernel=classical)
+    with_real_fmus(result, quick, progress)
     result["targets"].update({"N = 512 within 1.5x of N = 8 per subsystem and iteration": scale["target_met"],
                               "classical masters on the kernel >= 10x faster than their Python loops":
                               classical["target_met"]})
     return result
 
 
-PARTS = {"parallel_threads": (parallel_threads, report_threads)}     # `wavecosim bench --only NAME`
+def real_fmus(quick, progress):
+    """The real_fmus rows alone (bench/real_fmus.py)."""
+    from .real_fmus import real_fmus_rows
+    return real_fmus_rows(quick, progress)
+
+
+def report_real(rows):
+    from .real_fmus import report_real_fmus
+    return report_real_fmus(rows)
+
+
+PARTS = {"parallel_threads": (parallel_threads, report_threads),      # `wavecosim bench --only NAME`
+         "real_fmus": (real_fmus, report_real)}
 
 
 def run_part(name, quick=False, progress=print):
@@ -421,5 +448,6 @@ def report(result):
     lines.extend(report_classical(result["classical_kernel"]))
     from .newton import report_newton
     lines.extend(report_newton(result["newton_kernel"]))
+    lines.extend(report_real(result["real_fmus"]))
     lines.append("targets: " + ", ".join(f"{k}: {'met' if v else 'MISSED'}" for k, v in result["targets"].items()))
     return lines

@@ -235,6 +235,18 @@ class ModelExchange2(ModelExchange, Fmi2):
     """An FMI 2.0 FMU with model exchange only, stepped as co-simulation (wavecosim/fmi/me.py)."""
 
 
+_pointer_hook = None       # hook(fmu, fname, lookup) -> the address function_pointer gives (see set_pointer_hook)
+
+
+def set_pointer_hook(hook):
+    """Route every Fmu.function_pointer through hook(fmu, fname, lookup), lookup(fname) being the
+    FMU's own address (the bench's floor records the kernel's FMU calls so); None: no hook. Returns
+    the hook it replaced."""
+    global _pointer_hook
+    previous, _pointer_hook = _pointer_hook, hook
+    return previous
+
+
 class Fmu:
     """One instantiated, initialized FMU (FMI 2.0 or 3.0); `name` is the subsystem name used in messages."""
 
@@ -410,7 +422,9 @@ class Fmu:
 
     def function_pointer(self, fname) -> int:
         """Address of a C function with the fmi2 signature of `fname` taking `component`, for the C fast
-        path: the FMU's own for FMI 2, kernel/c/fmi3shim.c's for FMI 3."""
+        path: the FMU's own for FMI 2, kernel/c/fmi3shim.c's for FMI 3 (or what a pointer hook gives)."""
+        if _pointer_hook is not None:
+            return _pointer_hook(self, fname, self._fmi.function_pointer)
         return self._fmi.function_pointer(fname)
 
     def function_name(self, fname):

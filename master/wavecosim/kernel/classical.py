@@ -40,9 +40,6 @@ def refusal(scene, mode):
     if mode == "false":
         return "master.fast is false"
     why = unusable(scene)
-    if why is None:
-        physical = [s.name for s in scene.subsystems if s.port.physical]
-        why = f"subsystem {physical[0]} has a declared physical port (Python only for now)" if physical else None
     if why is not None and mode == "true":
         raise ConfigError(f"{scene.scenario.source}: master.fast: true, but {why}")
     return why

@@ -39,9 +39,8 @@ class FastDRMaster(DRMaster):
         self._guarding = False    # keep_ledger was called: step() makes iteration, commit and redo in one call
         self._newton = None       # the certificates' interface Newton in C (newton_path.NewtonKernel), when asked
         self._certs = None        # the certificates inside the blocks (certs_path.KernelCertificates), when asked
-        # blocks of steps (run_steps) read the observed values in C; a physical port's b is computed
-        # from them in Python (readings.py), so scenes with wave adapters run one step per call
-        self._blocks = not any(s.adapter for s in scene.subsystems)
+        # the certificates' C passes need every port to be the FMU's own wave map (no wave adapter)
+        self._exact = not any(s.adapter for s in scene.subsystems)
         self.fast_note = self._kernel_refusal(scene, str(settings.fast).lower())
         if self.fast_note is not None:
             return
@@ -51,6 +50,7 @@ class FastDRMaster(DRMaster):
         self.fast, self.fast_note = True, "C kernel"
         self.planner = ThreadPlanner(self.kernel, settings.threads, len(self.subsystems))
         self._step_s = 0.0        # seconds per macro-step of the last run_steps call
+        self._redo_seen = 0       # the kernel's count of redo doSteps when redo_doSteps last looked
 
     def _send_options(self):
         """The named options to the kernel (it forgets b^{n-1} and the Anderson differences)."""
@@ -77,7 +77,7 @@ class FastDRMaster(DRMaster):
     def fixed_point(self, n, t):
         """b* in C (newton.c: nt_solve, the reference's Newton to the last bit) when the kernel runs a
         scene without wave adapters (their Python maps keep figures the C route would not book)."""
-        if self.kernel is None or not self._blocks:
+        if self.kernel is None or not self._exact:
             return super().fixed_point(n, t)
         return self._newton_kernel().solve(n, t, self._b)
 
@@ -89,7 +89,7 @@ class FastDRMaster(DRMaster):
     def kernel_certificates(self, floor):
         """The certificates inside this master's blocks (certs_path.KernelCertificates; the watch keeps
         pairs above `floor`), made on the first ask; None where the blocks cannot compute them."""
-        if self._certs is None and self.kernel is not None and self._blocks and supports(self.scene):
+        if self._certs is None and self.kernel is not None and self._exact and supports(self.scene):
             self._certs = KernelCertificates(self.kernel, self._newton_kernel(), self.scene, floor)
         return self._certs
 
@@ -160,18 +160,17 @@ class FastDRMaster(DRMaster):
     def can_run_steps(self, n):
         """Whether run_steps may make macro-step n: the kernel runs and no thread plan is on trial
         (threads=auto times each on one macro-step, alone)."""
-        return self.kernel is not None and self._blocks and not self.planner.on_trial
+        return self.kernel is not None and not self.planner.on_trial
 
     def observe(self, names, steps=0):
         """The variables of each subsystem run_steps reads after every commit (names[i], H_i first),
-        with room for blocks of `steps` steps made now; returns an empty BlockLog of the blocks' layout
-        (None without blocks)."""
-        return self.kernel.observe(names, steps) if self._blocks else None
+        with room for blocks of `steps` steps made now; returns an empty BlockLog of the blocks' layout."""
+        return self.kernel.observe(names, steps)
 
     def guards_steps(self):
-        """Whether step() can keep the energy ledger in the kernel (keep_ledger): the kernel runs and no
-        wave adapter's accuracy (the ledger's tol) moves within a step."""
-        return self.kernel is not None and self._blocks
+        """Whether step() can keep the energy ledger in the kernel (keep_ledger): whenever the kernel runs
+        (it reads the wave adapters' accuracy, the ledger's tol, at each step)."""
+        return self.kernel is not None
 
     def keep_ledger(self, ledger, traffic, rtol):
         """The energy ledger's state for the kernel's next steps and blocks, which it keeps within
@@ -217,6 +216,12 @@ class FastDRMaster(DRMaster):
             self.planner.end(measure, self._step_s / rounds)
         self._book(n0, done, log)
         return done, log, error
+
+    def redo_doSteps(self):
+        """doSteps of the FMUs in the ledger's redos since the last ask (the kernel counts them: a wave
+        adapter's query takes a varying number)."""
+        made, self._redo_seen = self._redo_seen, self.kernel.redo_do_steps()
+        return self._redo_seen - made
 
     def _book(self, n0, done, log):
         """Book macro-steps n0 .. n0 + done - 1 of the kernel: calls and step on the Subsystems, b^n, b^{n+1}."""

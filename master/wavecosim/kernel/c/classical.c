@@ -25,7 +25,7 @@ CLKernel *cl_create(DRKernel *k, const int *G_start, const int *G_col, const dou
     size_t n = dr_channels(k);
     c->k = k;
     c->G = dr_csr_copy(G_start, G_col, G_val, n);
-    c->y = calloc(4 * n, sizeof(double));
+    c->y = calloc(4 * n + 1, sizeof(double));                  /* n = 0: signals only */
     if (!c->G || !c->y) {
         cl_destroy(c);
         return NULL;

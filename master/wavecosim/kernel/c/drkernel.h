@@ -30,6 +30,9 @@ enum { DR_BUDGET = 0, DR_TOLERANCE = 1, DR_DEADLINE = 2, DR_EXPLICIT = 3, DR_ENE
  * calling thread (s; else NaN). Without the ledger: NaN, NaN, NaN, 1, 0, 0, wall time, round, NaN. */
 #define DR_LEDGER_COLUMNS 9
 
+/* DRStep.failed_subsystem when the held signals or a subsystem stepped alone failed (signals.c). */
+#define DR_FAILED_EXTRA (-2)
+
 /* FMU functions, as reported in DRStep.failed_function. */
 enum { DR_FN_NONE = 0, DR_FN_GET_STATE, DR_FN_SET_STATE, DR_FN_SET_REAL, DR_FN_DO_STEP, DR_FN_GET_REAL };
 
@@ -60,7 +63,8 @@ typedef struct {
     int ledger_on;       /* in (dr_run_steps): keep the interface energy ledger (wavecosim/run/observers/energy_ledger.py) */
     double ledger;       /* in/out: L, the energy the interface supplied so far (steps accepted) */
     double traffic;      /* in/out: the interface's cumulative traffic 1/2 (|a|^2 + |b|^2) */
-    double ledger_rtol;  /* in: a step with L + I^n > rtol (traffic + its own) is redone with its inputs scaled */
+    double ledger_rtol;  /* in: a step with L + I^n > (rtol + the adapters' noise, dr_set_adapter) (traffic + its
+                          * own) is redone with its inputs scaled */
     double step_deadline_s; /* in (dr_run_steps, ledger): wall-clock budget of a step, redo included; <= 0 = none */
     double round_s;      /* in/out (dr_run_steps, ledger): running time of one evaluation round (all subsystems) */
     double tail_s;       /* in/out (dr_run_steps, ledger): running time a step takes past its inner loop's deadline */
@@ -117,7 +121,21 @@ int dr_macro_step(DRKernel *k, DRStep *io);
  * the first is its stored energy H_i. Returns 0, or -1 on bad arguments or no memory. */
 int dr_set_observed(DRKernel *k, int i, const fmi2ValueReference *vrs, int count);
 
-/* Doubles per row of dr_run_steps' log: 3 + 2 n + every subsystem's observed count + DR_LEDGER_COLUMNS. */
+/* Observed values of subsystem i read by get(comp, ...) instead of its FMU's getReal (a port view:
+ * portview.c); no_H: its first value is no stored energy (NaN), left out of dr_run_steps' checks.
+ * Call after dr_set_observed. Returns 0, or -1 on bad arguments. */
+int dr_set_observed_view(DRKernel *k, int i, fmi2GetRealTYPE *get, fmi2Component comp, int no_H);
+
+/* Where subsystem i's wave adapter keeps the worst relative residual it accepted (read at each step:
+ * the ledger's tolerance is (io->ledger_rtol + the largest of them) times the traffic) and its count
+ * of the FMU's doSteps, or NULLs. Returns 0, or -1 on bad arguments. */
+int dr_set_adapter(DRKernel *k, int i, const double *worst, const long *do_steps);
+
+/* doSteps of the FMUs in the ledger's redos (dr_run_steps) so far. */
+long dr_redo_do_steps(const DRKernel *k);
+
+/* Doubles per row of dr_run_steps' log: 3 + 2 n + every subsystem's observed count + the values
+ * observed by signals.c (subsystems stepped alone) + DR_LEDGER_COLUMNS. */
 size_t dr_log_width(const DRKernel *k);
 
 /* Macro-steps n0 .. n0 + count - 1, each exactly dr_macro_step at t = (double)n dt, logged

@@ -76,6 +76,18 @@ typedef int (*DRStepFn)(void *ctx, DRStep *io);
 int dr_run_steps_of(DRKernel *k, DRStep *io, int n0, int count, double *rows, long ld, double H_cap, DRStepFn step,
                     void *ctx);
 
+/* What a route adds around each step of dr_run_steps_of (signals.c): before(ctx, io, n) first, at
+ * t_n (nonzero: it failed, and the call ends before step n with failed_subsystem DR_FAILED_EXTRA);
+ * observe(ctx, out, ld) writes `rows` more observed values after the subsystems' (value j at
+ * out[j ld]; nonzero: it failed, as before). */
+typedef struct {
+    int (*before)(void *ctx, DRStep *io, int n);
+    int (*observe)(void *ctx, double *out, size_t ld);
+    size_t rows;
+    void *ctx;
+} DRExtra;
+void dr_set_extra(DRKernel *k, const DRExtra *extra);
+
 /* The caller's buffers the log reads: b (outputs) and a_hat (inputs), n each. */
 double *dr_outputs(DRKernel *k);
 double *dr_inputs(DRKernel *k);
