@@ -20,7 +20,8 @@ from pathlib import Path
 import fmpy
 import numpy as np
 from fmpy import extract, read_model_description
-from fmpy.fmi2 import FMU2Slave
+from fmpy.fmi1 import FMICallException
+from fmpy.fmi2 import FMU2Slave, fmi2LastSuccessfulTime, fmi2Terminated
 from fmpy.fmi3 import FMU3Slave
 
 import wavecosim as wc
@@ -82,7 +83,19 @@ class Plain:
         getattr(self.slave, f"set{call}")([self.vars[name].valueReference], [cast(value)])
 
     def step(self, t, dt):
-        self.slave.doStep(t, dt)
+        """One doStep; None, or where the FMU asked to end the simulation: "last" when it completed the
+        step (recorded, then the run ends), "before" when it did not (as fmpy's simulate ends)."""
+        if self.fmi3:
+            _, terminate, _, last = self.slave.doStep(t, dt)
+        else:
+            try:
+                self.slave.doStep(t, dt)
+                return None
+            except FMICallException as exc:
+                if exc.status != 2 or not self.slave.getBooleanStatus(fmi2Terminated):
+                    raise
+                terminate, last = True, self.slave.getRealStatus(fmi2LastSuccessfulTime)
+        return ("last" if math.isclose(last, t + dt) else "before") if terminate else None
 
     def close(self):
         self.slave.terminate()
@@ -124,9 +137,11 @@ def plain_loop(scenario, columns):
         for n in range(scenario.n_steps):
             t = t0 + n * scenario.dt
             hold(t)
-            for fmu in fmus.values():
-                fmu.step(t, scenario.dt)
-            record()
+            ends = {fmu.step(t, scenario.dt) for fmu in fmus.values()}
+            if "before" not in ends:
+                record()
+            if ends - {None}:
+                break
         for fmu in fmus.values():
             fmu.close()
     return {col: np.array([row[j] for row in rows]) for j, col in enumerate(columns)}
@@ -154,10 +169,12 @@ def same_as_plain_loop(scenario, result):
     columns = recorded(scenario, result)
     expected = plain_loop(scenario, columns)
     traj = result.trajectory
+    if len(traj) != len(next(iter(expected.values()), traj)):
+        return False, f"{len(traj)} rows, a plain fmpy loop has {len(next(iter(expected.values())))}"
     worst = [(col, float(np.max(np.abs(traj[col] - expected[col]))) if traj[col].dtype.kind == "f" else math.nan)
              for col in columns if not np.array_equal(traj[col], expected[col])]
     if not worst:
-        return True, f"equal to a plain fmpy loop, bit for bit ({len(columns)} columns, {scenario.n_steps + 1} rows)"
+        return True, f"equal to a plain fmpy loop, bit for bit ({len(columns)} columns, {len(traj)} rows)"
     col, diff = max(worst, key=lambda w: w[1])
     return False, f"differs from a plain fmpy loop in {len(worst)} columns (worst {col}: {diff:.3g})"
 
@@ -337,24 +354,35 @@ def dual_mass_oscillator(tp, folder):
     return verdict(parts + [same_as_plain_loop(scenario, result)]), s
 
 
+def md_outputs(md):
+    return [v for v in md.modelVariables if v.causality == "output"]
+
+
 def single_fmu(path):
-    """`wavecosim run X.fmu` (with --dt 0.01 and --T 1 where its DefaultExperiment gives none, as the
-    issue runs fmizoo's IO.fmu); an FMU with no co-simulation interface is refused in one line."""
+    """`wavecosim run X.fmu` (with --dt 0.01 and 1 s from its start time where its DefaultExperiment
+    gives no step size, as one runs fmizoo's IO.fmu); an FMU with no co-simulation interface is
+    refused in one line."""
     md = read_model_description(str(path), validate=False)
     experiment, given = md.defaultExperiment, {}
     if experiment is None or experiment.stepSize is None:
-        given["dt"] = 0.01
-    if experiment is None or experiment.stopTime is None:
-        given["T"] = 1.0
+        start = float(experiment.startTime) if experiment is not None and experiment.startTime else 0.0
+        given.update(dt=0.01, T=start + 1.0)
     if md.coSimulation is None:
         try:
             simulate(load(path, **given)[0])
         except WavecosimError as exc:
             return (True, f"refused in one line, as it has no co-simulation interface: {exc}"), math.nan
     scenario, _ = load(path, **given)
+    name = scenario.signal_subsystems[0].name
+    states = {f"{name}.{d.variable.derivative.name}": f"{name}.{d.variable.derivative.name}"
+              for d in md.derivatives if d.variable.derivative is not None}
+    if states and not md_outputs(md):                  # nothing to record by default: its states
+        scenario = dataclasses.replace(scenario, outputs=states)
     result, s = simulate(scenario)
     options = " ".join(f"--{k} {v:g}" for k, v in given.items())
-    return verdict([(True, f"{scenario.n_steps} steps of {scenario.dt:g} s" + (f" ({options})" if options else "")),
+    made, traj = len(result.trajectory) - 1, result.trajectory
+    ended = f", the FMU ended the run at t = {traj['time'][-1]:g}" if made < scenario.n_steps else ""
+    return verdict([(True, f"{made} steps of {scenario.dt:g} s" + (f" ({options})" if options else "") + ended),
                     same_as_plain_loop(scenario, result)]), s
 
 

@@ -76,13 +76,15 @@ def test_an_integer_parameter_can_be_given_with_the_others(built_fmus):
         fmu.close()
 
 
-def rewritten(source, target, rename=None, description=None):
-    """A copy of a built FMU with members renamed (rename: old prefix -> new) or its
-    modelDescription.xml changed (description: text -> text)."""
+def rewritten(source, target, rename=None, description=None, drop=None):
+    """A copy of a built FMU with members renamed (rename: old prefix -> new), left out (drop: a
+    prefix) or its modelDescription.xml changed (description: text -> text)."""
     with zipfile.ZipFile(source) as src, zipfile.ZipFile(target, "w") as dst:
         for item in src.infolist():
             data = src.read(item.filename)
             name = item.filename
+            if drop and name.startswith(drop):
+                continue
             if rename and name.startswith(rename[0]):
                 name = rename[1] + name[len(rename[0]):]
             if description and name == "modelDescription.xml":
@@ -94,7 +96,7 @@ def rewritten(source, target, rename=None, description=None):
 @pytest.mark.parametrize("change, words", [
     ({"description": ('fmiVersion="2.0"', 'fmiVersion="1.0"')},
      "LinearSide.fmu is an FMI 1.0 FMU; wavecosim runs FMI 2.0 and 3.0 co-simulation FMUs"),
-    ({"rename": ("binaries/linux64/", "binaries/win64/")},
+    ({"rename": ("binaries/linux64/", "binaries/win64/"), "drop": "sources/"},     # with sources it is built
      "LinearSide.fmu has no binary for this platform (linux64; it has: win64)"),
 ])
 def test_an_fmu_this_build_cannot_run_is_one_line_and_exit_2(built_fmus, tmp_path, capsys, change, words):

@@ -56,8 +56,8 @@ def test_an_fmu_without_a_binary_for_this_platform_is_built_from_its_sources_onc
 def test_sources_that_do_not_build_are_one_line(built_fmus, tmp_path, monkeypatch):
     monkeypatch.setenv("WAVECOSIM_CACHE", str(tmp_path / "cache"))
     broken = copy_fmu(built_fmus["ForeignMass"], tmp_path / "Broken.fmu", drop=r"binaries/|sources/model\.c")
-    with pytest.raises(wc.FmuError, match=r"^Broken.fmu has no binary for this platform \(linux64\) and its sources "
-                                          r"did not build: "):
+    with pytest.raises(wc.FmuError, match=r"^Broken.fmu has no binary for this platform \(linux64; it has: none\), and "
+                                          r"its sources did not build: .*model.c: No such file"):
         Fmu(broken, "broken")
 
 
@@ -92,3 +92,17 @@ def test_a_failing_model_exchange_step_is_an_fmu_error(tmp_path):
     with pytest.raises(wc.RunFailed) as exc:
         wc.simulate(parse_scenario(raw, "vdp.yaml"), reference=False, certificates=False)
     assert "model exchange step from t = " in str(exc.value) or "non-finite" in str(exc.value)
+
+
+@needs_reference
+def test_sources_whose_library_lacks_fmi_functions_are_refused_in_one_line(tmp_path, monkeypatch):
+    """The FMI 3 Feedthrough's sources, compiled as its buildDescription.xml lists them, export none of
+    the fmi3 functions (its own build adds what they need): refused, not cached, naming what is missing."""
+    monkeypatch.setenv("WAVECOSIM_CACHE", str(tmp_path / "cache"))
+    fmu = copy_fmu(THIRD_PARTY / "reference_fmus" / "fmi3" / "Feedthrough.fmu", tmp_path / "Feedthrough.fmu",
+                   drop=r"binaries/")
+    with pytest.raises(wc.FmuError, match=r"^Feedthrough.fmu has no binary for this platform \(x86_64-linux; it has: "
+                                          r"none\), and its sources did not build: the library built from them lacks "
+                                          r"fmi3\w+"):
+        Fmu(fmu, "feedthrough")
+    assert not list((tmp_path / "cache").rglob("Feedthrough.so"))

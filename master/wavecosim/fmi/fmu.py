@@ -158,6 +158,7 @@ SETTERS = {
 class Fmi2:
     """The FMI 2.0 side of one Fmu: its FMU2Slave; the calls are the FMU's own fmi2 functions."""
     interface = "coSimulation"
+    slave_class = FMU2Slave
     prefix = "fmi2"
     real = "Real"
     platform = fmpy_platform
@@ -274,7 +275,8 @@ class Fmu:
             binding = ModelExchange2
         cs = getattr(self.description, binding.interface)
         if cs is not None:
-            provide_binary(self.path, self.folder, self.description, cs, binding.platform)
+            needed = [f for f in dir(binding.slave_class) if f.startswith(binding.prefix)]     # what fmpy loads
+            provide_binary(self.path, self.folder, self.description, cs, binding.platform, needed)
         check_runnable(self.path, self.folder, self.description, binding.platform, binding.interface)
         if cs.canBeInstantiatedOnlyOncePerProcess:       # its own copy of the binary for each instance
             release_folder(pool, self._key, self.folder)
@@ -282,7 +284,10 @@ class Fmu:
         self.can_save_state = bool(cs.canGetAndSetFMUstate)
         self.variables = {v.name: v for v in self.description.modelVariables}
         self.messages = []
-        self._fmi = binding(self, cs.modelIdentifier)
+        try:
+            self._fmi = binding(self, cs.modelIdentifier)
+        except AttributeError as exc:                 # the library lacks an FMI function fmpy loads
+            raise FmuError(f"{self.path.name}: its binary cannot be used: {exc}") from None
         self.component = self._fmi.component
         drop = [k for k in optional if k not in self.variables]
         given = {k: v for k, v in {**(values or {}), **(integer_values or {})}.items() if k not in drop}

@@ -43,6 +43,7 @@ class ModelExchange:
     """The model-exchange side of one Fmu over its FMI 2 binding (a mixin before Fmi2): its
     FMU2Model, its solver, doStep in fmi2 form."""
     interface = "modelExchange"
+    slave_class = FMU2ModelSettled
 
     def __init__(self, fmu, model_identifier):
         self._fmu, self.solver, self.start, self.next_event, self.at = fmu, None, 0.0, math.inf, None

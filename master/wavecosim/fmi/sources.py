@@ -3,6 +3,7 @@ exports them beside a Windows binary): its binary is built once into the per-use
 the FMU's hash, and put where the FMU would have had it. With `sources/CMakeLists.txt` it is the
 FMU's own CMake build (CMake from the `cmake` package fmpy depends on, else PATH); without, gcc over
 the `<SourceFiles>` its interface lists, with the FMI headers fmpy ships."""
+import ctypes
 import hashlib
 import shutil
 import subprocess
@@ -18,10 +19,11 @@ from ..kernel.build import BuildError, fmi_headers, place, run, target
 BUILD_TIMEOUT_S = 900
 
 
-def provide_binary(path, folder, description, interface, platform):
+def provide_binary(path, folder, description, interface, platform, needed=()):
     """Make folder/binaries/<platform>/<modelIdentifier> from the FMU's sources when it has no library
     for this platform and sources are there; nothing otherwise (check_runnable then says what is
-    wrong, also a library there under another name)."""
+    wrong, also a library there under another name). `needed`: the functions the library must
+    export (those fmpy loads for the interface)."""
     name = f"{interface.modelIdentifier}{sharedLibraryExtension}"
     binary = Path(folder) / "binaries" / platform / name
     sources = Path(folder) / "sources"
@@ -33,32 +35,51 @@ def provide_binary(path, folder, description, interface, platform):
         print(f"wavecosim: {Path(path).name} has no binary for {platform}; building it from its sources "
               f"(once, into {built.parent})", file=sys.stderr)
         try:
-            place(lambda out: _build(sources, _source_files(description, interface), name, out), built)
+            place(lambda out: _build(sources, _source_sets(description, interface), name, out, needed), built)
         except BuildError as exc:
-            raise FmuError(f"{Path(path).name} has no binary for this platform ({platform}) and its sources did "
-                           f"not build: {str(exc).splitlines()[-1]}") from None
+            have = sorted(p.name for p in (Path(folder) / "binaries").iterdir()) if binary.parent.parent.is_dir() else []
+            raise FmuError(f"{Path(path).name} has no binary for this platform ({platform}; it has: "
+                           f"{', '.join(have) or 'none'}), and its sources did not build: {_reason(str(exc))}") from None
     binary.parent.mkdir(parents=True, exist_ok=True)
     shutil.copy2(built, binary)
 
 
-def _source_files(description, interface):
-    """The C files the FMU lists for its interface (FMI 2 <SourceFiles>, FMI 3 buildDescription.xml)."""
-    return [f for config in description.buildConfigurations if config.modelIdentifier == interface.modelIdentifier
-            for files in config.sourceFileSets for f in files.sourceFiles]
+def _reason(text):
+    """The line of a build's output that says why it failed: the first error, else the last line."""
+    lines = [line.strip() for line in text.splitlines() if line.strip()]
+    return next((line for line in lines if "error" in line.lower()), lines[-1] if lines else "no output")
 
 
-def _build(sources, listed, name, out):
-    """Compile the sources into the shared library `out`."""
+def _source_sets(description, interface):
+    """The source file sets the FMU lists for its interface (FMI 2 <SourceFiles>, FMI 3 buildDescription.xml)."""
+    return [files for config in description.buildConfigurations
+            if config.modelIdentifier == interface.modelIdentifier for files in config.sourceFileSets]
+
+
+def _gcc(sources, sets, made):
+    """gcc over the listed files, with their include folders and preprocessor definitions."""
+    files = [sources / f for s in sets for f in s.sourceFiles]
+    if not files:
+        raise BuildError("the FMU lists no source files and has no sources/CMakeLists.txt")
+    flags = [f"-I{sources / d}" for s in sets for d in s.includeDirectories]
+    flags += [f"-D{d.name}" + (f"={d.value}" if d.value is not None else "") for s in sets for d in s.preprocessorDefinitions]
+    run(["gcc", "-shared", "-fPIC", "-O2", f"-I{sources}", f"-I{fmi_headers()}", *flags, *files, "-o", made, "-lm"],
+        made.name)
+
+
+def _build(sources, sets, name, out, needed):
+    """Compile the sources into the shared library `out`, which must export the functions `needed`."""
     with tempfile.TemporaryDirectory(prefix="wavecosim-source-fmu-") as tmp:
         if (sources / "CMakeLists.txt").exists():
             made = _cmake(sources, Path(tmp), name)
         else:
-            files = [sources / f for f in listed]
-            if not files:
-                raise BuildError("the FMU lists no <SourceFiles> and has no sources/CMakeLists.txt")
             made = Path(tmp) / name
-            run(["gcc", "-shared", "-fPIC", "-O2", f"-I{sources}", f"-I{fmi_headers()}", *files, "-o", made, "-lm"],
-                name)
+            _gcc(sources, sets, made)
+        library = ctypes.CDLL(str(made))
+        missing = [f for f in needed if not hasattr(library, f)]
+        if missing:
+            raise BuildError(f"the library built from them lacks {', '.join(missing[:3])}"
+                             + (f" and {len(missing) - 3} more" if len(missing) > 3 else ""))
         shutil.copyfile(made, out)
 
 
