@@ -69,6 +69,11 @@ class Subsystem:
         self._m = ctypes.c_size_t(m)
         self._state = ctypes.c_void_p()
         self._dirty = False
+        # noSetFMUStatePriorToCurrentPoint of the doSteps whose state may be restored after: 0 (the
+        # standard's choice for a master that rolls back), or 1 where the FMU freezes with 0
+        # (core/quirks.py). Either is by the book here: x_i^n is only ever restored at t_n, the
+        # doSteps' own communication point, never before it.
+        self.no_prior = 0
         self._batch = None                   # (queries library or None, its DRFunctions), on first raw_queries
         self.t = 0.0
         self._t = ctypes.c_double(0.0)
@@ -140,9 +145,7 @@ class Subsystem:
         for j in range(self.m):
             self._in_val[j] = a[j]
         self._call(self._set_real, "fmi2SetReal", self._comp, self._in_vr, self._m, self._in_val)
-        # noSetFMUStatePriorToCurrentPoint = false: a later query, or the energy guard's undo after the
-        # commit, restores x_i^n at t, a point before the t + dt this doStep reaches (FMI 2.0.x, 4.2.2)
-        self._call(self._do_step, "fmi2DoStep", self._comp, self._t, self._h, 0)
+        self._call(self._do_step, "fmi2DoStep", self._comp, self._t, self._h, self.no_prior)
         self.calls["doStep"] += 1
         self._call(self._get_real, "fmi2GetReal", self._comp, self._out_vr, self._m, self._out_val)
         return self._out_val[:]
@@ -196,7 +199,7 @@ class Subsystem:
         out, failed, p = np.empty_like(inputs), (ctypes.c_int * 2)(), ctypes.c_void_p
         done = lib.fq_queries(ctypes.byref(fns), self._comp, ctypes.byref(self._state), self._in_vr, self._out_vr,
                               self.m, self._t, self._h, p(inputs.ctypes.data), len(inputs), p(out.ctypes.data),
-                              int(self._dirty), failed)
+                              int(self._dirty), self.no_prior, failed)
         fn = failed[0] if done < len(inputs) else 0
         restore_fn = FUNCTIONS.index("fmi2SetFMUstate")
         self.calls["restore"] += max(0, done + (fn > 0) - (not self._dirty)) - (fn == restore_fn)
@@ -263,9 +266,11 @@ class Subsystem:
         self._dirty = False
 
     def release(self):
-        if self._state.value:
+        """Free the saved x_i^n (not after the FMU reported fatal). The handle object stays the same
+        (the C kernels hold its address); it is NULL afterwards."""
+        if self._state.value and self.fmu.free_state_allowed():
             self.fmu.free_state_handle(self._state)
-            self._state = ctypes.c_void_p()
+        self._state.value = None
 
     def close(self):
         try:

@@ -124,6 +124,13 @@ class Fmi3:
         """The fmi3 function called for an fmi2 name."""
         return FUNCTIONS.get(fname, (fname,))[0]
 
+    def fmu_status(self, fname, status):
+        """The status the FMU itself returned: a doStep the shim reports as Error because it asked to
+        terminate or returned early was OK or Warning in the FMU (it may still be terminated)."""
+        if fname == "fmi2DoStep" and status == 3 and (self.shim.terminateSimulation or self.shim.earlyReturn):
+            return 1
+        return status
+
     def failure(self, fname, status_text):
         """(function name, what happened) for a call in fmi2 form that returned an error status."""
         name, shim = self.name(fname), self.shim

@@ -178,24 +178,33 @@ class Fmi2:
         """(function name, what happened) for a call that returned an error status."""
         return fname, f"returned {status_text}"
 
+    def fmu_status(self, fname, status):
+        """The status the FMU itself returned for a call in fmi2 form that gave `status` (itself)."""
+        return status
+
 
 class Fmu:
     """One instantiated, initialized FMU (FMI 2.0 or 3.0); `name` is the subsystem name used in messages."""
 
-    def __init__(self, path, name, values=None, integer_values=None, start_time=0.0, optional=(), pool=None):
+    def __init__(self, path, name, values=None, integer_values=None, start_time=0.0, optional=(), pool=None,
+                 like=None):
         """Load, instantiate and initialize; `values` (and `integer_values`) are start values and
         parameters by name, each set with the FMI type its variable declares (Real, Integer,
         Enumeration, Boolean, String; in FMI 3 also Float32 and every IntN/UIntN); names in
         `optional` are skipped when the FMU lacks them. Instances opened with one `pool` share the
-        extracted FMU (see shared_folder)."""
+        extracted FMU (see shared_folder); `like`, an Fmu of the same file, lends its parsed
+        modelDescription (see twin)."""
         self.path, self.name = Path(path), name
         self._pool = pool
         self._key, self.folder = shared_folder(self.path, pool)
-        self.fmi_version = check_version(self.path, self.folder)
-        try:
-            self.description = read_model_description(str(self.folder), validate=False)
-        except Exception as exc:  # fmpy raises bare exceptions for malformed XML
-            raise FmuError(f"{self.path}: cannot read modelDescription.xml: {exc}") from None
+        if like is not None:
+            self.fmi_version, self.description = like.fmi_version, like.description
+        else:
+            self.fmi_version = check_version(self.path, self.folder)
+            try:
+                self.description = read_model_description(str(self.folder), validate=False)
+            except Exception as exc:  # fmpy raises bare exceptions for malformed XML
+                raise FmuError(f"{self.path}: cannot read modelDescription.xml: {exc}") from None
         binding = Fmi2
         if self.fmi_version != "2.0":
             from .fmi3 import Fmi3 as binding
@@ -207,11 +216,39 @@ class Fmu:
         self.can_save_state = bool(cs.canGetAndSetFMUstate)
         self.variables = {v.name: v for v in self.description.modelVariables}
         self.messages = []
-        self._fmi = binding(self, cs.modelIdentifier)
+        self.phase = "instantiated"        # of the FMI state machine: instantiated, step, error, fatal
+        try:
+            self._fmi = binding(self, cs.modelIdentifier)
+        except FmuError:
+            self.close()
+            raise
         self.component = self._fmi.component
         drop = [k for k in optional if k not in self.variables]
-        given = {k: v for k, v in {**(values or {}), **(integer_values or {})}.items() if k not in drop}
-        self._setup(given, start_time)
+        self.given = {k: v for k, v in {**(values or {}), **(integer_values or {})}.items() if k not in drop}
+        self.start_time = start_time
+        try:
+            self._setup(self.given, start_time)
+        except BaseException:
+            self.close()                   # an instance that failed to initialize is freed, not leaked
+            raise
+        self.phase = "step"
+
+    @property
+    def real_type(self):
+        """The FMI type of the values ports and readings exchange: Real (FMI 2) or Float64 (FMI 3)."""
+        return self._fmi.real
+
+    @property
+    def once_per_process(self):
+        """The FMU allows one instance per process: each instance gets its own copy of the binary."""
+        return bool(self.description.coSimulation.canBeInstantiatedOnlyOncePerProcess)
+
+    def twin(self, name, own_copy=False):
+        """Another instance of this FMU with the same start values and parameters, in the same loaded
+        binary (this one's pool), or in a copy of its own (own_copy, or no pool), for probes
+        (core/quirks.py)."""
+        pool = {} if own_copy or self._pool is None else self._pool
+        return Fmu(self.path, name, self.given, start_time=self.start_time, pool=pool, like=self)
 
     def last_message(self) -> str:
         return self.messages[-1][1] if self.messages else "no message from the FMU"
@@ -221,7 +258,16 @@ class Fmu:
         try:
             return call(*args, **kwargs)
         except Exception as exc:
+            self.note_status(getattr(exc, "status", 3))
             raise FmuError(f"{self.name}: {fname} failed: {self.last_message()}", subsystem=self.name) from exc
+
+    def note_status(self, status):
+        """An error status moves the instance out of the state machine's step phase: after fmi2Error
+        only state, get, reset and free calls are allowed, after fmi2Fatal none (close() obeys)."""
+        if status >= 4:
+            self.phase = "fatal"
+        elif status == 3 and self.phase != "fatal":
+            self.phase = "error"
 
     def _setup(self, given, start_time):
         fmi = self._fmi
@@ -309,13 +355,22 @@ class Fmu:
     def status_error(self, fname, status, step=None, time=None):
         """The FmuError for a call in fmi2 form (`fname`) that returned `status`."""
         where = "" if step is None else f" at step {step} (t = {time:.6g})"
+        self.note_status(self._fmi.fmu_status(fname, status))
         shown, what = self._fmi.failure(fname, _STATUS.get(status, status))
         return FmuError(f"subsystem {self.name}: {shown} {what}{where}: {self.last_message()}",
                         subsystem=self.name, step=step, time=time)
 
+    def free_state_allowed(self):
+        """Whether fmi2FreeFMUstate may still be called (not after fmi2Fatal)."""
+        return getattr(self, "phase", "fatal") != "fatal"
+
     def close(self):
+        """Terminate (only from the step phase: not after an error) and free the instance (not after
+        fatal), as the FMI state machine allows; then release the extracted folder."""
         slave, self._fmi = getattr(getattr(self, "_fmi", None), "slave", None), None
-        for call in (slave.terminate, slave.freeInstance) if slave is not None else ():
+        phase = getattr(self, "phase", "fatal")
+        calls = ([slave.terminate] if phase == "step" else []) + ([slave.freeInstance] if phase != "fatal" else [])
+        for call in calls if slave is not None else ():
             try:
                 call()
             except Exception:
