@@ -29,7 +29,7 @@ class KernelAdapter(ports.AdapterPort):
         st = self.struct = AdapterC()
         self._ref = ctypes.byref(st)
         ctypes.memmove(st.fn, ctypes.addressof(fns), ctypes.sizeof(st.fn))
-        st.comp, st.state, st.m = comp, sub.state_handle_address(), m
+        st.comp, st.state, st.m, st.no_prior = comp, sub.state_handle_address(), m, sub.no_prior
         st.in_vr, st.out_vr = sub._in_vr, sub._out_vr        # the Subsystem's physical input and output
         # arrays assigned to the struct's pointers stay alive with it (ctypes keeps them)
         st.effort_in, st.sign = (ctypes.c_int * m)(*self.effort_in), _doubles(self.sign)

@@ -88,6 +88,7 @@ def load_library():
         lib.dr_create.argtypes = [i, i, d, d, d, d, d, d]
         lib.dr_set_subsystem.argtypes = [p, i, ctypes.POINTER(DRFunctions), p, p, ctypes.POINTER(ctypes.c_uint),
                                          ctypes.POINTER(ctypes.c_uint), i, i]
+        lib.dr_set_no_prior.argtypes = [p, i, i]
         lib.dr_set_threads.argtypes = [p, i, ctypes.POINTER(ctypes.c_int)]
         lib.dr_costs.argtypes = [p, d]
         lib.dr_costs.restype = None
@@ -234,7 +235,7 @@ class Kernel:
             # Subsystem holds x_i^n exactly as after the reference one (restore_frozen, thaw work)
             state = s.state_handle_address()
             if lib.dr_set_subsystem(self.handle, i, ctypes.byref(fns), comp, state, vr_in, vr_out, s.m,
-                                    int(off)):
+                                    int(off)) or lib.dr_set_no_prior(self.handle, i, s.no_prior):
                 self.close()
                 raise FmuError(f"subsystem {s.name}: the DR kernel refused its port")
         self.io = DRStep(measure=0, eps=-1.0, deadline_s=0.0)

@@ -27,6 +27,7 @@ from ..kernel.drkernel import REASONS as KERNEL_REASONS
 from ..core.gamma import GammaTuner
 from ..masters import MASTERS
 from ..masters.base import REASONS, WaveMaster, require_wave_tuning
+from .bounds import Bounds
 from .metadata import run_metadata
 from .observers import Observer
 from ..core.certificates import sampling
@@ -159,10 +160,12 @@ def _once(warn):
     return once
 
 
-def open_parts(scenario, warn):
-    """Scene, master and gamma tuner of a run; whatever was opened is closed if set-up fails."""
+def open_parts(scenario, warn, share=None):
+    """Scene, master and gamma tuner of a run; whatever was opened is closed if set-up fails. A run
+    alongside another (the lockstep reference) shares the other scene's FMU binaries and quirks."""
     cls = MASTERS[scenario.master.algorithm]
-    scene = build_scene(scenario, wave=cls.wave, needs_rollback=cls.needs_rollback)
+    scene = build_scene(scenario, wave=cls.wave, needs_rollback=cls.needs_rollback,
+                        pool=share.pool if share else None, quirks=share.quirks if share else None)
     for note in scene.notes:
         warn(note)
     master = None
@@ -214,11 +217,11 @@ class LiveRun:
     """One run while it runs; it owns its parts and closes them."""
 
     def __init__(self, scenario, out_dir=None, label=None, certificates=True, warn=None, file_suffix=True,
-                 output_interval=1, formats=("csv",)):
+                 output_interval=1, formats=("csv",), share=None):
         self.scenario, self.warn = scenario, warn or _warn_stderr
         settings = scenario.master
         self.label = label or f"{settings.algorithm}_K{settings.K}"
-        self.scene, self.master, tuner = open_parts(scenario, self.warn)
+        self.scene, self.master, tuner = open_parts(scenario, self.warn, share)
         self.observers = make_observers(scenario, self.scene, self.master, tuner, certificates, self.warn)
         self.guard_mode = (settings.energy_guard or self.master.default_guard) if self.master.guardable else "n/a"
         if any(o.needs_trace for o in self.observers):
@@ -227,6 +230,7 @@ class LiveRun:
         self.suffix = f"_{self.label}" if file_suffix else ""
         self.every, self.n_steps, self.dt = output_interval, scenario.n_steps, scenario.dt
         self.sampler = Sampler(self.scene, scenario.outputs)
+        self.bounds = Bounds(self.scene, scenario.outputs, scenario.growth_bound, scenario.dt)
         self.columns = list(scenario.outputs)
         self.master_time, self.steps_done, self.started = 0.0, 0, time.perf_counter()
         self.iterations = [0, 0]                       # sum and max of the inner iterations per step
@@ -258,10 +262,11 @@ class LiveRun:
     def start(self):
         """Read the FMUs at t = 0, start the observers, record the first trajectory row."""
         self._tables()
+        self.calls_at_start, self.excluded = self._totals(), {k: 0 for k in ("doStep", "save", "restore")}
         first = self.sampler.read()
         for o in self.observers:
             o.start(first)
-        self._check_finite(first, -1)
+        self.bounds.start(first)
         row = self.trajectory.next_row()
         row[0], row[1:] = 0.0, first.outputs
         self.trajectory.commit_row()
@@ -274,7 +279,7 @@ class LiveRun:
         self.recent = {0: first.outputs}
         self._plan_blocks()
         self.loop_started = time.perf_counter()
-        self.calls_at_start, self.excluded = self._totals(), {k: 0 for k in ("doStep", "save", "restore")}
+        self.calls_at_start = self._totals()
 
     def step(self, n):
         """Macro-step n: observers before, the master, observers after (the guard may redo), one row;
@@ -306,7 +311,7 @@ class LiveRun:
         for o, row in self.after:
             o.after_step(n, t, log, reading, row)
         self._record(n, log, reading)
-        self._check_finite(reading, n)
+        self.bounds.check(reading, n)
         self.loop_time = time.perf_counter() - self.loop_started
         return reading
 
@@ -370,13 +375,18 @@ class LiveRun:
         self.master_time += time.perf_counter() - t0
         self.block_steps += done
         whole = done - 1 if log.stopped and not self.ledger else done      # the ledger's kernel books every step
+        outputs = self.sampler.block(log.observed).outputs
+        grown = self.bounds.first_grown(outputs[:whole])
+        if grown is not None:                  # rows up to the step that grew past the bound, then stop
+            self._after_block(n0, log.first(grown + 1))
+            raise self.bounds.grown_error(outputs, grown, n0 + grown)
         if whole:
             self._after_block(n0, log.first(whole))
         if whole < done:
             n = n0 + whole
             self._after_master(n, n * self.dt, self.master.step_log(log, whole))
         elif log.stopped:
-            self._check_finite(self.sampler.read(), n0 + done - 1)
+            self.bounds.check(self.sampler.read(), n0 + done - 1)
         self.loop_time = time.perf_counter() - self.loop_started
         if error is not None:
             raise error
@@ -456,13 +466,6 @@ class LiveRun:
         row[0], row[1:] = self.time_of(n + 1), reading.outputs
         self.trajectory.commit_row()
 
-    def _check_finite(self, reading, n):
-        H = [h for s, h in zip(self.scene.subsystems, reading.H) if s.port.energy is not None]
-        if not all(map(math.isfinite, reading.outputs)) or not all(map(math.isfinite, H)):
-            bad = next((s.name for s, h in zip(self.scene.subsystems, reading.H)
-                        if s.port.energy is not None and not math.isfinite(h)), "an output")
-            raise NumericalError(f"non-finite value in {bad} at step {n} (t = {(n + 1) * self.dt:.6g})")
-
     def fmu_calls(self):
         """doStep, save and restore calls the master made (observers' probes excluded)."""
         now = self._totals()
@@ -537,7 +540,7 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
         if reference == "lockstep":
             try:
                 ref = LiveRun(reference_scenario(scenario), out_dir, "monolithic", False, warn, True,
-                              output_interval, formats)
+                              output_interval, formats, share=live.scene)
             except ConfigError as exc:     # e.g. an FMU without state save that only the reference rolls back
                 raise type(exc)(f"{exc} (needed by the monolithic reference; --no-reference runs without it)") from None
             reference = lambda k: ref.recent.get(k)          # noqa: E731  (ref steps first)

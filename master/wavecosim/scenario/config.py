@@ -14,10 +14,12 @@ from ..errors import ConfigError
 from ..examples import DEFAULT
 from ..core.gamma import MODES as GAMMA_MODES
 from ..core.interconnection import COUPLINGS, TAKES_RATIO
+from ..core.quirks import KEYS as QUIRK_KEYS
 from ..masters import ALGORITHMS
 from ..masters.dr_options import ANDERSON_MAX
 
 DEFAULT_CONFIG = DEFAULT
+GROWTH_BOUND = 1e12
 COUPLING_TYPES = tuple(COUPLINGS)
 
 
@@ -31,6 +33,7 @@ class SubsystemConfig:
     port: dict
     fmu_path: Path = None
     gamma: float = None
+    quirks: dict = None                # overrides of the set-up quirk probes (core/quirks.py), by key
 
     @property
     def signal_only(self):
@@ -109,6 +112,7 @@ class Scenario:
     signal_subsystems: list = field(default_factory=list)     # subsystems without a port (signals only)
     sources: list = field(default_factory=list)               # SourceConfig
     signals: list = field(default_factory=list)               # SignalConfig
+    growth_bound: float = GROWTH_BOUND  # a recorded output beyond this times the outputs' initial scale stops the run
 
     @property
     def n_steps(self):
@@ -271,7 +275,7 @@ def _port(ck, path, port):
 
 def _subsystem(ck, name, raw, base_dir):
     path = f"subsystems.{name}"
-    ck.mapping(raw, path, ("fmu", "parameters", "start", "integers", "port", "gamma"), required=("fmu",))
+    ck.mapping(raw, path, ("fmu", "parameters", "start", "integers", "port", "gamma", "quirks"), required=("fmu",))
     fmu = ck.string(raw["fmu"], f"{path}.fmu")
     spec = None                        # no port key: a signal-only subsystem unless a coupling names it
     if "port" in raw:
@@ -282,10 +286,12 @@ def _subsystem(ck, name, raw, base_dir):
     fmu_path = None
     if fmu.endswith(".fmu") or "/" in fmu:
         fmu_path = (base_dir / fmu).resolve()
+    quirks = ck.mapping(raw.get("quirks") or {}, f"{path}.quirks", QUIRK_KEYS)
     return SubsystemConfig(name=name, fmu=fmu, parameters=ck.values(raw.get("parameters"), f"{path}.parameters"),
                            start=ck.values(raw.get("start"), f"{path}.start"), integers=integers, port=spec,
                            fmu_path=fmu_path,
-                           gamma=ck.number(raw["gamma"], f"{path}.gamma", positive=True) if "gamma" in raw else None)
+                           gamma=ck.number(raw["gamma"], f"{path}.gamma", positive=True) if "gamma" in raw else None,
+                           quirks={k: ck.boolean(v, f"{path}.quirks.{k}") for k, v in quirks.items()} or None)
 
 
 ENERGY_GUARDS = ("ledger", "monolithic", "off")
@@ -528,7 +534,7 @@ def parse_scenario(raw, source="<scenario>", base_dir=Path(".")) -> Scenario:
     ck = _Checker(source)
     raw = expand_repeats(raw, ck)
     top = ("name", "description", "dt", "T", "gamma", "subsystems", "couplings", "master", "certificates",
-           "outputs", "error", "fne_watch", "sources", "signals")
+           "outputs", "error", "fne_watch", "sources", "signals", "growth_bound")
     ck.mapping(raw, "", top, required=("dt", "T", "gamma", "subsystems", "couplings"))
     dt = ck.number(raw["dt"], "dt", positive=True)
     T = ck.number(raw["T"], "T", positive=True)
@@ -557,7 +563,18 @@ def parse_scenario(raw, source="<scenario>", base_dir=Path(".")) -> Scenario:
                     subsystems=subsystems, couplings=couplings, master=master, certificates=certs,
                     outputs=outputs, error=error, description=str(raw.get("description", "")),
                     fne_watch=ck.boolean(raw.get("fne_watch", True), "fne_watch"),
-                    signal_subsystems=signal_subsystems, sources=sources, signals=signals)
+                    signal_subsystems=signal_subsystems, sources=sources, signals=signals,
+                    growth_bound=_growth_bound(ck, raw.get("growth_bound", GROWTH_BOUND)))
+
+
+def _growth_bound(ck, value):
+    """growth_bound: a number > 1, or null (no bound on growth; non-finite values still stop a run)."""
+    if value is None:
+        return math.inf
+    bound = ck.number(value, "growth_bound", positive=True)
+    if bound <= 1:
+        ck.fail("growth_bound", f"must be > 1 (a factor over the outputs' initial scale) or null, got {value!r}")
+    return bound
 
 
 def _split_signal_only(ck, subsystems, couplings, raw_signals):

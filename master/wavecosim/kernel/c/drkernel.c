@@ -33,6 +33,7 @@ typedef struct {
     size_t m, offset, n_obs;
     int thread;
     int frozen, dirty;             /* x_i^n saved this macro-step / instance moved away from it */
+    int no_prior;                  /* noSetFMUStatePriorToCurrentPoint of its doSteps (dr_set_no_prior) */
     int failed_function, failed_status;
     long n_do_step, n_save, n_restore;
     double sample_ns[MAX_SAMPLES];
@@ -184,9 +185,9 @@ static int evaluate(Sub *s, const double *in, double *out, double t, double h, i
     }
     s->dirty = !commit;
     if (failed(s, DR_FN_SET_REAL, s->fn.setReal(s->comp, s->in_vr, s->m, in + s->offset))) return 1;
-    /* noSetFMUStatePriorToCurrentPoint = false, as in the reference: the next query, or an undo of
-     * the commit, restores x_i^n at t, before the point t + h this doStep reaches. */
-    if (failed(s, DR_FN_DO_STEP, s->fn.doStep(s->comp, t, h, fmi2False))) return 1;
+    /* noSetFMUStatePriorToCurrentPoint as in the reference (Subsystem.no_prior): x_i^n is restored
+     * only at t, this doStep's own communication point. */
+    if (failed(s, DR_FN_DO_STEP, s->fn.doStep(s->comp, t, h, s->no_prior ? fmi2True : fmi2False))) return 1;
     s->n_do_step++;
     if (failed(s, DR_FN_GET_REAL, s->fn.getReal(s->comp, s->out_vr, s->m, out + s->offset))) return 1;
     if (measure && s->n_samples < MAX_SAMPLES) s->sample_ns[s->n_samples++] = now_ns() - t0;
@@ -759,6 +760,12 @@ int dr_set_subsystem(DRKernel *k, int i, const DRFunctions *fn, fmi2Component co
     s->state = state ? state : &s->own_state;
     s->m = (size_t)m;
     s->offset = (size_t)offset;
+    return 0;
+}
+
+int dr_set_no_prior(DRKernel *k, int i, int no_prior) {
+    if (i < 0 || i >= k->n_sub) return -1;
+    k->sub[i].no_prior = no_prior != 0;
     return 0;
 }
 

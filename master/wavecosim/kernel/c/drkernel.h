@@ -81,6 +81,10 @@ DRKernel *dr_create(int n_sub, int n, const double *P, const double *J_L, double
 int dr_set_subsystem(DRKernel *k, int i, const DRFunctions *fn, fmi2Component comp, fmi2FMUstate *state,
                      const fmi2ValueReference *in_vr, const fmi2ValueReference *out_vr, int m, int offset);
 
+/* noSetFMUStatePriorToCurrentPoint for subsystem i's doSteps (0 unless set; frozen_port_map.py,
+ * Subsystem.no_prior). Returns 0, or -1 for a bad index. */
+int dr_set_no_prior(DRKernel *k, int i, int no_prior);
+
 /* New P and J_L (copied), e.g. after gamma was re-tuned between macro-steps, in compressed rows:
  * row i of P holds the columns P_col[P_start[i] .. P_start[i+1]) (ascending, for the order of the
  * sums) with values P_val, P_start[0] = 0; J_L alike. Returns 0, or -1 on malformed rows or no

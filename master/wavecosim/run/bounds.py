@@ -1,0 +1,59 @@
+"""Honest status: a run stops with a NumericalError naming the subsystem, the variable and the step
+when a recorded output or a subsystem's stored energy is not finite, or when a recorded output
+has grown past `growth_bound` (scenario key, default 1e12) times the outputs' initial scale: the
+largest magnitude among them at t = 0 (1 when all are zero). The rows up to that step are kept."""
+import math
+
+import numpy as np
+
+from ..errors import NumericalError
+
+
+class Bounds:
+    """The checks of one run, set from its first reading (t = 0)."""
+
+    def __init__(self, scene, outputs, growth, dt):
+        self.refs = [ref.split(".", 1) for ref in outputs.values()]
+        self.energy = [(s.name, s.port.energy) for s in scene.subsystems]
+        self.growth, self.dt = growth, dt
+        self.scale, self.limit = 1.0, math.inf
+
+    def start(self, reading):
+        """Take the initial scale from the outputs at t = 0 and check them."""
+        finite = [abs(x) for x in reading.outputs if math.isfinite(x)]
+        self.scale = max(finite, default=0.0) or 1.0
+        self.limit = self.growth * self.scale
+        self.check(reading, -1)
+
+    def _where(self, n):
+        return "at t = 0 (the initial values)" if n < 0 else f"at step {n} (t = {(n + 1) * self.dt:.6g})"
+
+    def check(self, reading, n):
+        """Raise the NumericalError of the first bad value after step n (-1: the initial values)."""
+        for (sub, var), x in zip(self.refs, reading.outputs):
+            if not math.isfinite(x):
+                raise NumericalError(f"subsystem {sub}: {var} = {x} is not finite {self._where(n)}")
+        for (sub, var), h in zip(self.energy, reading.H):
+            if var is not None and not math.isfinite(h):
+                raise NumericalError(f"subsystem {sub}: its stored energy {var} = {h} is not finite {self._where(n)}")
+        for (sub, var), x in zip(self.refs, reading.outputs):
+            if abs(x) > self.limit:
+                raise self._grown(sub, var, x, n)
+
+    def _grown(self, sub, var, x, n):
+        return NumericalError(f"subsystem {sub}: {var} = {x:.6g} {self._where(n)} has grown past {self.limit:.3g} "
+                              f"(growth_bound {self.growth:g} times the outputs' initial scale {self.scale:.3g})")
+
+    def first_grown(self, outputs):
+        """Row index of the first step of a block (outputs: steps x columns) whose outputs grew past
+        the bound, or None (the kernel already stops at a non-finite value)."""
+        if not math.isfinite(self.limit) or not outputs.size:
+            return None
+        rows = np.flatnonzero((np.abs(outputs) > self.limit).any(axis=1))
+        return int(rows[0]) if rows.size else None
+
+    def grown_error(self, outputs, k, n):
+        """The NumericalError of row k of a block's outputs, step n."""
+        j = int(np.flatnonzero(np.abs(outputs[k]) > self.limit)[0])
+        sub, var = self.refs[j]
+        return self._grown(sub, var, float(outputs[k, j]), n)
