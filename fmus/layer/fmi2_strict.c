@@ -20,7 +20,9 @@
  *   QUIRK_SHARED (an integer VRI_): 1: instances keep their variables in one block shared by every
  *     instance in this copy of the binary (an FMU that is not reentrant; each keeps its own clock);
  *     2: one block for the whole process, every copy of the binary (process-wide data, as a runtime
- *     library the copies share would hold).
+ *     library the copies share would hold);
+ *   QUIRK_RESTORE (a real VR_): fmi2SetFMUstate leaves every STATE variable off by this relative
+ *     error (an FMU that restores its state only approximately).
  */
 #define _POSIX_C_SOURCE 200809L
 #include <math.h>
@@ -236,6 +238,9 @@ static int quirk(const Instance *c, int which) {
 #ifndef QUIRK_SHARED
 #define QUIRK_SHARED (-1)
 #endif
+#ifndef QUIRK_RESTORE
+#define QUIRK_RESTORE (-1)
+#endif
 
 /* ---- the FMI 2.0 functions ---- */
 
@@ -407,6 +412,8 @@ fmi2Status fmi2SetFMUstate(fmi2Component comp, fmi2FMUstate state) {
         die("fmi2SetFMUstate", c->name, "the state at t = %.17g is before %.17g, where a doStep was given "
             "noSetFMUStatePriorToCurrentPoint = true", s->time, c->restore_floor);
     *c->d = *s->data;
+    for (int k = 0; QUIRK_RESTORE >= 0 && k < N_REALS; k++)
+        if (real_kind[k] == STATE) c->d->r[k] *= 1.0 + c->d->r[QUIRK_RESTORE];
     c->phase = s->phase;
     c->steps = s->steps;
     c->time = s->time;

@@ -1,7 +1,8 @@
 """Honest status: a run stops with a NumericalError naming the subsystem, the variable and the step
 when a recorded output or a subsystem's stored energy is not finite, or when a recorded output
 has grown past `growth_bound` (scenario key, default 1e12) times the outputs' initial scale: the
-largest magnitude among them at t = 0 (1 when all are zero). The rows up to that step are kept."""
+largest magnitude among them at t = 0, or 1 when that is smaller (outputs that start at rest). The
+rows up to that step are kept."""
 import math
 
 import numpy as np
@@ -21,7 +22,7 @@ class Bounds:
     def start(self, reading):
         """Take the initial scale from the outputs at t = 0 and check them."""
         finite = [abs(x) for x in reading.outputs if math.isfinite(x)]
-        self.scale = max(finite, default=0.0) or 1.0
+        self.scale = max(finite + [1.0])
         self.limit = self.growth * self.scale
         self.check(reading, -1)
 

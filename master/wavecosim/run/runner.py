@@ -266,10 +266,10 @@ class LiveRun:
         first = self.sampler.read()
         for o in self.observers:
             o.start(first)
-        self.bounds.start(first)
         row = self.trajectory.next_row()
         row[0], row[1:] = 0.0, first.outputs
         self.trajectory.commit_row()
+        self.bounds.start(first)
         self.first = {"H": sum(first.H), "error": next((o.first for o in self.observers
                                                         if isinstance(o, ErrorTracker)), math.nan)}
         self.bracket = any(type(o).before_step is not Observer.before_step for o in self.observers)
