@@ -57,11 +57,14 @@ class Fmi3:
     platform = PLATFORM
     setters = setters(is_number)
 
-    def __init__(self, fmu, model_identifier):
+    def __init__(self, fmu, model_identifier, slave=None):
+        """A new instance through fmpy's FMU3Slave, or through `slave`, a copy of another instance's
+        (the binary already loaded: `borrowed`)."""
         def log(env, status, category, message):
             fmu.messages.append((status, message.decode("utf-8", "replace") if message else ""))
-        self.slave = FMU3Slave(guid=fmu.description.guid, unzipDirectory=str(fmu.folder),
-                               modelIdentifier=model_identifier, instanceName=fmu.name)
+        self.borrowed = slave is not None
+        self.slave = slave or FMU3Slave(guid=fmu.description.guid, unzipDirectory=str(fmu.folder),
+                                        modelIdentifier=model_identifier, instanceName=fmu.name)
         fmu.checked(self.slave.instantiate, "fmi3InstantiateCoSimulation", logMessage=log)
         self.shim = Shim(self.slave.component, *[self.address(FUNCTIONS[k][0]) for k in FUNCTIONS])
         self.component = ctypes.addressof(self.shim)

@@ -6,6 +6,7 @@ FMI 3 specifics (instantiation, typed setters, the fmi2-signature shim) live in 
 Nothing above this module imports ctypes except the hot paths (frozen_port_map.py, fast_path.py).
 """
 import atexit
+import copy
 import ctypes
 import math
 import shutil
@@ -127,10 +128,13 @@ class Fmi2:
     platform = fmpy_platform
     setters = SETTERS
 
-    def __init__(self, fmu, model_identifier):
+    def __init__(self, fmu, model_identifier, slave=None):
+        """A new instance through fmpy's FMU2Slave, or through `slave`, a copy of another instance's
+        (the binary already loaded, its functions looked up: `borrowed`)."""
         self._callbacks = self._make_callbacks(fmu.messages)
-        self.slave = FMU2Slave(guid=fmu.description.guid, unzipDirectory=str(fmu.folder),
-                               modelIdentifier=model_identifier, instanceName=fmu.name)
+        self.borrowed = slave is not None
+        self.slave = slave or FMU2Slave(guid=fmu.description.guid, unzipDirectory=str(fmu.folder),
+                                        modelIdentifier=model_identifier, instanceName=fmu.name)
         fmu.checked(self.slave.instantiate, "fmi2Instantiate", callbacks=self._callbacks)
         self.component = self.slave.component
 
@@ -193,7 +197,7 @@ class Fmu:
         Enumeration, Boolean, String; in FMI 3 also Float32 and every IntN/UIntN); names in
         `optional` are skipped when the FMU lacks them. Instances opened with one `pool` share the
         extracted FMU (see shared_folder); `like`, an Fmu of the same file, lends its parsed
-        modelDescription (see twin)."""
+        modelDescription, and its loaded binary when both are in one folder (see twin)."""
         self.path, self.name = Path(path), name
         self._pool = pool
         self._key, self.folder = shared_folder(self.path, pool)
@@ -218,7 +222,8 @@ class Fmu:
         self.messages = []
         self.phase = "instantiated"        # of the FMI state machine: instantiated, step, error, fatal
         try:
-            self._fmi = binding(self, cs.modelIdentifier)
+            sibling = like is not None and like.folder == self.folder and like._fmi is not None
+            self._fmi = binding(self, cs.modelIdentifier, self._sibling_slave(like) if sibling else None)
         except FmuError:
             self.close()
             raise
@@ -232,6 +237,12 @@ class Fmu:
             self.close()                   # an instance that failed to initialize is freed, not leaked
             raise
         self.phase = "step"
+
+    def _sibling_slave(self, like):
+        """A copy of `like`'s fmpy slave for a new instance of the same loaded binary."""
+        slave = copy.copy(like._fmi.slave)
+        slave.instanceName, slave.component = self.name, None
+        return slave
 
     @property
     def real_type(self):
@@ -367,9 +378,12 @@ class Fmu:
     def close(self):
         """Terminate (only from the step phase: not after an error) and free the instance (not after
         fatal), as the FMI state machine allows; then release the extracted folder."""
-        slave, self._fmi = getattr(getattr(self, "_fmi", None), "slave", None), None
+        fmi, self._fmi = getattr(self, "_fmi", None), None
+        slave = getattr(fmi, "slave", None)
         phase = getattr(self, "phase", "fatal")
-        calls = ([slave.terminate] if phase == "step" else []) + ([slave.freeInstance] if phase != "fatal" else [])
+        free = slave.freeInstance if slave is not None and not fmi.borrowed else (    # a borrowed binary stays loaded
+            lambda: getattr(slave, f"{fmi.prefix}FreeInstance")(slave.component))
+        calls = ([slave.terminate] if phase == "step" else []) + ([free] if phase != "fatal" else [])
         for call in calls if slave is not None else ():
             try:
                 call()
