@@ -1,22 +1,25 @@
-"""Quirks of real FMUs, found at set-up by a few doSteps from the initial state, reported in
-metadata.json (`quirks`) and in one warning line each. Each FMU file is probed once, at its first
-instance (what the probes find belongs to the binary); a subsystem's `quirks:` keys override them.
+"""Quirks of real FMUs, found at set-up by a few doSteps of fresh instances from the initial state,
+reported in metadata.json (`quirks`) and in one warning line each. Each FMU file is probed once, at
+its first instance (what the probes find belongs to the binary), with two extra instances of it in
+the same loaded binary; the subsystem's own instance is never stepped by a probe. A subsystem's
+`quirks:` keys override the probes.
 
 - `no_set_fmu_state_prior`: the noSetFMUStatePriorToCurrentPoint a master that rolls back passes
   to doStep. False is the standard's choice, but some FMUs stay where they are with false (status
-  OK, outputs constant after the first step). Two steps with false from the saved initial state
-  are compared with two steps with true on a fresh instance: an FMU that stays put with false and
-  moves with true gets true. Either flag is by the book here, as x_i^n is only ever restored at
-  t_n, the doSteps' own communication point. Masters that never roll back pass true to every FMU.
+  OK, outputs constant after the first step). Two steps with false from a saved state are compared
+  with two steps with true on the other instance: an FMU that stays put with false and moves with
+  true gets true. Either flag is by the book here, as x_i^n is only ever restored at t_n, the
+  doSteps' own communication point. Masters that never roll back pass true to every FMU.
 - `restore`: the two steps with false are made again after fmi2SetFMUstate; the largest relative
   difference of the outputs (0: the FMU restores its state exactly).
-- `reentrant`: the fresh instance makes a step between the first instance's input and its step;
-  when that changes the first one's outputs, the instances share data in the binary. Then every
+- `reentrant`: the second instance makes a step between the first one's input and its step; when
+  that changes the first one's outputs, the instances share data in the binary. Then every
   further instance of the file (the lockstep reference's too) gets its own copy of the binary,
-  after a second probe with such a copy; when even a copy disturbs the first instance, a second
-  instance is refused in one line.
+  after a second probe with such a copy; when even a copy disturbs, a second instance is refused
+  in one line.
 - `responds`: whether the port's outputs move when its inputs do (over the two steps): a port that
   does not cannot be coupled, and a master would return a frozen trajectory for it.
+An FMU that refuses a probe's step (its error is kept in `probe_error`) is left as if unprobed.
 """
 import ctypes
 import math
@@ -41,6 +44,7 @@ class FmuQuirks:
     reentrant_copies: bool = None          # a second instance in its own copy of the binary does
     interference: float = None             # relative output difference a second instance caused
     responds: bool = None                  # the port's outputs move when its inputs do
+    probe_error: str = None                # why the probes stopped (an instance refused a step)
 
     @property
     def needs_flag(self):
@@ -131,7 +135,8 @@ def _twin(sub, own_copy=False):
 
 
 def _interferes(a, b, hx, u1, u_other, t0, h, alone, noise):
-    """Relative change of a's first-step outputs when b sets its input and steps in between."""
+    """Relative change of a's first-step outputs (from the state in hx) when b sets its input and
+    steps in between; 0 when within the restore's noise."""
     a.restore(hx)
     a.set(u1)
     b.set(u_other)
@@ -144,62 +149,68 @@ def _interferes(a, b, hx, u1, u_other, t0, h, alone, noise):
 
 
 def probe(sub):
-    """The quirks of sub's FMU, from its instance at the initial state, which it is left at."""
+    """The quirks of sub's FMU, found with fresh instances of it: the subsystem's own instance is
+    never stepped, so a probe that fails (the FMU refuses the perturbed input) leaves the run as it
+    would be without it."""
     found = FmuQuirks(sub.fmu.path.name)
-    if not sub.fmu.can_save_state:
+    if not sub.fmu.can_save_state or sub.fmu.once_per_process:
         return found
-    out_vr, m_out = _outputs(sub)
-    a = _Calls(sub.fmu, sub.port_vrs()[0], out_vr)
-    t0, h = sub.fmu.start_time, sub.dt
-    u0 = a.inputs()
-    du = [PERTURB * (1.0 + abs(x)) for x in u0]
-    u1, u_other = [x + d for x, d in zip(u0, du)], [x - d for x, d in zip(u0, du)]
-    hx = ctypes.c_void_p()
-    a.save(hx)
+    own, kept = _Calls(sub.fmu, *sub.port_vrs()), ctypes.c_void_p()
+    own.save(kept)                       # a non-reentrant FMU's probes move it: put back below
+    twins = []
     try:
-        moved = a.run(u1, t0, h, (False, False))
-        a.restore(hx)
-        rest = a.run(u0, t0, h, (False, False))
-        a.restore(hx)
-        found.restore_difference = _relative(moved, a.run(u1, t0, h, (False, False)))
-        a.restore(hx)
-        found.responds = [r[:m_out] for r in moved] != [r[:m_out] for r in rest] if m_out else None
-        _with_twin(found, sub, a, hx, (u1, u_other, t0, h), moved)
-        a.restore(hx)
-        a.set(u0)
+        _probe_twins(found, sub, twins)
+    except FmuError as exc:
+        found.probe_error = str(exc)
     finally:
-        a.free(hx)
+        for twin in reversed(twins):
+            twin.close()
+        if found.reentrant is False:
+            own.restore(kept)
+        own.free(kept)
     return found
 
 
-def _with_twin(found, sub, a, hx, args, moved):
-    """The flag and reentrancy probes, made with fresh instances (skipped where none opens)."""
-    if sub.fmu.once_per_process:
-        return
-    b_fmu = _twin(sub)
-    if b_fmu is None:
-        return
-    u1, u_other, t0, h = args
+def _open(sub, twins, own_copy=False):
+    """A fresh instance and its calls (kept in twins, to be closed); FmuError when none opens."""
+    fmu = _twin(sub, own_copy)
+    if fmu is None:
+        raise FmuError(f"subsystem {sub.name}: a second instance of {sub.fmu.path.name} could not be opened")
+    twins.append(fmu)
+    out_vr, m_out = _outputs(sub)
+    return _Calls(fmu, sub.port_vrs()[0], out_vr), m_out
+
+
+def _probe_twins(found, sub, twins):
+    """B steps with false from a saved state (restore and input response), C with true (the flag);
+    C then steps between B's input and B's step (reentrancy), and if it disturbs, D from its own
+    copy of the binary does the same."""
+    b, m_out = _open(sub, twins)
+    t0, h = sub.fmu.start_time, sub.dt
+    u0 = b.inputs()
+    du = [PERTURB * (1.0 + abs(x)) for x in u0]
+    u1, u_other = [x + d for x, d in zip(u0, du)], [x - d for x, d in zip(u0, du)]
+    hx = ctypes.c_void_p()
+    b.save(hx)
+    moved = b.run(u1, t0, h, (False, False))
+    b.restore(hx)
+    rest = b.run(u0, t0, h, (False, False))
+    b.restore(hx)
+    found.restore_difference = _relative(moved, b.run(u1, t0, h, (False, False)))
+    found.responds = [r[:m_out] for r in moved] != [r[:m_out] for r in rest] if m_out else None
+    c, _ = _open(sub, twins)
+    stepped = c.run(u1, t0, h, (True, True))                    # never restored: true is by the book
+    c.t = t0 + 2 * h
+    found.flag_difference = _relative(moved, stepped)
+    found.frozen_without_flag = moved[1] == moved[0] and stepped[1] != stepped[0]
     noise = NOISE * found.restore_difference
-    try:
-        b = _Calls(b_fmu, a.in_vr, a.out_vr)
-        stepped = b.run(u1, t0, h, (True, True))                # never restored: true is by the book
-        b.t = t0 + 2 * h
-        found.flag_difference = _relative(moved, stepped)
-        found.frozen_without_flag = moved[1] == moved[0] and stepped[1] != stepped[0]
-        found.interference = _interferes(a, b, hx, u1, u_other, t0, h, moved[0], noise)
-        found.reentrant = found.interference == 0.0
-    finally:
-        b_fmu.close()
+    found.interference = _interferes(b, c, hx, u1, u_other, t0, h, moved[0], noise)
+    found.reentrant = found.interference == 0.0
     if not found.reentrant:
-        copy = _twin(sub, own_copy=True)
-        if copy is not None:
-            try:
-                c = _Calls(copy, a.in_vr, a.out_vr)
-                c.t = t0
-                found.reentrant_copies = _interferes(a, c, hx, u1, u_other, t0, h, moved[0], noise) == 0.0
-            finally:
-                copy.close()
+        d, _ = _open(sub, twins, own_copy=True)
+        d.t = t0
+        found.reentrant_copies = _interferes(b, d, hx, u1, u_other, t0, h, moved[0], noise) == 0.0
+    b.free(hx)
 
 
 @dataclass

@@ -110,6 +110,10 @@ class Sampler:
         cols["outputs"] = [starts[i] + self.parts[i][2] + j for i, j in order]
         return cols
 
+    def rows(self, key):
+        """Which of the observed values (all subsystems', concatenated) hold `key` (H, E, F, B or outputs)."""
+        return BlockReading([None] * sum(map(len, self.observed)), self._columns).rows(key)
+
     def block(self, observed) -> BlockReading:
         """The BlockReading of observed values (the subsystems' `observed` names concatenated, one
         row per name, one column per step)."""

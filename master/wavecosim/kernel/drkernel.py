@@ -102,6 +102,7 @@ def load_library():
         lib.dr_set_trace.argtypes = [p, d, i]
         lib.dr_set_trace.restype = None
         lib.dr_set_observed.argtypes = [p, i, ctypes.POINTER(ctypes.c_uint), i]
+        lib.dr_set_bound.argtypes = [p, ctypes.c_double, ctypes.POINTER(ctypes.c_int), i]
         lib.dr_log_width.argtypes = [p]
         lib.dr_log_width.restype = ctypes.c_size_t
         lib.dr_run_steps.argtypes = [p, ctypes.POINTER(DRStep), i, i, p, ctypes.c_long, ctypes.c_double]
@@ -247,14 +248,18 @@ class Kernel:
         self.width, self.log = lib.dr_log_width(self._handle), np.empty((0, 0))
         self._run_steps = lib.dr_run_steps
 
-    def observe(self, names, steps=0):
+    def observe(self, names, steps=0, bound=None):
         """Read these variables of each subsystem (names[i], H_i first) after every commit of run_steps,
         with a log of room for `steps` steps made now; returns an empty BlockLog of the blocks' layout
-        (what the runner prepares its passes with)."""
+        (what the runner prepares its passes with). bound: (limit, indices of the observed values
+        over all subsystems): run_steps also stops after a step where one is above the limit."""
         for i, (s, vars_i) in enumerate(zip(self.subsystems, names)):
             vrs = (ctypes.c_uint * len(vars_i))(*s.fmu.real_vrs(vars_i))
             if self.lib.dr_set_observed(self._handle, i, vrs, len(vars_i)):
                 raise FmuError(f"subsystem {s.name}: the DR kernel could not keep {len(vars_i)} observed values")
+        limit, rows = bound or (math.inf, [])
+        if self.lib.dr_set_bound(self._handle, limit, (ctypes.c_int * len(rows))(*rows), len(rows)):
+            raise FmuError("the DR kernel could not keep the growth bound (out of memory)")
         self.width = self.lib.dr_log_width(self._handle)
         self._log_room(0, steps)
         return BlockLog(self.log[:, :0], self.n)

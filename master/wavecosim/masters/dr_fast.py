@@ -178,11 +178,11 @@ class FastDRMaster(DRMaster):
         return self.kernel is not None and self._blocks and not self._on_trial \
             and (self._choose_after is None or n > self._choose_after)
 
-    def observe(self, names, steps=0):
+    def observe(self, names, steps=0, bound=None):
         """The variables of each subsystem run_steps reads after every commit (names[i], H_i first),
-        with room for blocks of `steps` steps made now; returns an empty BlockLog of the blocks' layout
-        (None without blocks)."""
-        return self.kernel.observe(names, steps) if self._blocks else None
+        with room for blocks of `steps` steps made now, and the growth bound on some of them; returns
+        an empty BlockLog of the blocks' layout (None without blocks)."""
+        return self.kernel.observe(names, steps, bound) if self._blocks else None
 
     def guards_steps(self):
         """Whether step() can keep the energy ledger in the kernel (keep_ledger): the kernel runs and no

@@ -334,7 +334,8 @@ class LiveRun:
         self.rows_call = None                    # block_rows' arguments, from the blocks' layout
         self.paced = [o for o in self.observers if o.paced]          # blocks stop before their steps
         if self.blocks:
-            layout = self.master.observe(self.sampler.observed, BLOCK_STEPS)
+            layout = self.master.observe(self.sampler.observed, BLOCK_STEPS,
+                                         (self.bounds.limit, self.sampler.rows("outputs")))
             self.block_observers = [(o, self.spans[id(o)]) for o in ([guard] if self.ledger else [])
                                     + [o for o, _ in self.after]]
             if layout is not None:

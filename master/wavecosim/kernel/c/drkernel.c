@@ -72,6 +72,8 @@ struct DRKernel {
     int task_commit, task_measure;
     DROptions *opt;                /* the DR master's named options, or NULL (the paper's Algorithm 1) */
     DRHookFn hook_before, hook_after; /* around each step of dr_run_steps_of (certs.c), or NULL */
+    int *bounded, n_bounded;       /* observed values (index over all subsystems') bounded by `bound` */
+    double bound;                  /* run/bounds.py's growth limit: |value| above it stops run_steps */
     void *hook_ctx;
 };
 
@@ -434,6 +436,17 @@ int dr_set_observed(DRKernel *k, int i, const fmi2ValueReference *vrs, int count
     return 0;
 }
 
+int dr_set_bound(DRKernel *k, double bound, const int *indices, int count) {
+    int *copy = count > 0 ? malloc((size_t)count * sizeof *copy) : NULL;
+    if (count < 0 || (count > 0 && !copy)) return -1;
+    if (count > 0) memcpy(copy, indices, (size_t)count * sizeof *indices);
+    free(k->bounded);
+    k->bounded = copy;
+    k->n_bounded = count;
+    k->bound = bound;
+    return 0;
+}
+
 size_t dr_log_width(const DRKernel *k) {
     size_t width = 3 + 2 * k->n;
     for (int i = 0; i < k->n_sub; i++) width += k->sub[i].n_obs;
@@ -461,11 +474,13 @@ static int log_step(DRKernel *k, const DRStep *io, double *rows, size_t ld, size
 }
 
 /* Stop after this step? When an observed value (obs: the step's column of them, stride ld) is
- * not finite, or when the stored energy (the sum of every subsystem's first observed value) may
- * exceed H_cap: the bound 4 n_sub eps sum|H_i| covers any order of summation, so the caller's exact
- * test never sees a step above the cap go by. */
+ * not finite, when a bounded one is above the bound (dr_set_bound), or when the stored energy (the
+ * sum of every subsystem's first observed value) may exceed H_cap: the bound 4 n_sub eps sum|H_i|
+ * covers any order of summation, so the caller's exact test never sees a step above the cap go by. */
 static int stop_after(const DRKernel *k, const double *obs, size_t ld, double H_cap) {
     double sum = 0.0, magnitude = 0.0;
+    for (int b = 0; b < k->n_bounded; b++)
+        if (fabs(obs[(size_t)k->bounded[b] * ld]) > k->bound) return 1;
     for (int i = 0; i < k->n_sub; i++) {
         const Sub *s = &k->sub[i];
         for (size_t j = 0; j < s->n_obs; j++)
@@ -860,6 +875,7 @@ void dr_destroy(DRKernel *k) {
     free(k->u);
     free(k->obs);
     free(k->redo);
+    free(k->bounded);
     options_free(k->opt);
     free(k);
 }

@@ -118,6 +118,11 @@ int dr_macro_step(DRKernel *k, DRStep *io);
 int dr_set_observed(DRKernel *k, int i, const fmi2ValueReference *vrs, int count);
 
 /* Doubles per row of dr_run_steps' log: 3 + 2 n + every subsystem's observed count + DR_LEDGER_COLUMNS. */
+/* run_steps also stops after a step where an observed value of `indices` (0-based over every
+ * subsystem's observed values, in order) is above `bound` in magnitude (run/bounds.py). Returns 0, or
+ * -1 on bad arguments or no memory. */
+int dr_set_bound(DRKernel *k, double bound, const int *indices, int count);
+
 size_t dr_log_width(const DRKernel *k);
 
 /* Macro-steps n0 .. n0 + count - 1, each exactly dr_macro_step at t = (double)n dt, logged
