@@ -213,12 +213,13 @@ class Fmu:
         if self.fmi_version != "2.0":
             from .fmi3 import Fmi3 as binding
         cs = self.description.coSimulation
-        check_runnable(self.path, self.folder, self.description, binding.platform)
+        if like is None:
+            check_runnable(self.path, self.folder, self.description, binding.platform)
         if cs.canBeInstantiatedOnlyOncePerProcess:       # its own copy of the binary for each instance
             release_folder(pool, self._key, self.folder)
             self._key, self.folder = None, extract_fmu(self.path)
         self.can_save_state = bool(cs.canGetAndSetFMUstate)
-        self.variables = {v.name: v for v in self.description.modelVariables}
+        self.variables = like.variables if like is not None else {v.name: v for v in self.description.modelVariables}
         self.messages = []
         self.phase = "instantiated"        # of the FMI state machine: instantiated, step, error, fatal
         try:

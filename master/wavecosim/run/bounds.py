@@ -2,10 +2,9 @@
 when a recorded output or a subsystem's stored energy is not finite, or when a recorded output
 has grown past `growth_bound` (scenario key, default 1e12) times the outputs' initial scale: the
 largest magnitude among them at t = 0, or 1 when that is smaller (outputs that start at rest). The
-rows up to that step are kept."""
+rows up to that step are kept. The C kernel's blocks stop after such a step too (Route.observe's
+bound), so both routes make the same steps and FMU calls."""
 import math
-
-import numpy as np
 
 from ..errors import NumericalError
 
@@ -39,22 +38,6 @@ class Bounds:
                 raise NumericalError(f"subsystem {sub}: its stored energy {var} = {h} is not finite {self._where(n)}")
         for (sub, var), x in zip(self.refs, reading.outputs):
             if abs(x) > self.limit:
-                raise self._grown(sub, var, x, n)
-
-    def _grown(self, sub, var, x, n):
-        return NumericalError(f"subsystem {sub}: {var} = {x:.6g} {self._where(n)} has grown past {self.limit:.3g} "
-                              f"(growth_bound {self.growth:g} times the outputs' initial scale {self.scale:.3g})")
-
-    def first_grown(self, outputs):
-        """Row index of the first step of a block (outputs: steps x columns) whose outputs grew past
-        the bound, or None (the kernel already stops at a non-finite value)."""
-        if not math.isfinite(self.limit) or not outputs.size:
-            return None
-        rows = np.flatnonzero((np.abs(outputs) > self.limit).any(axis=1))
-        return int(rows[0]) if rows.size else None
-
-    def grown_error(self, outputs, k, n):
-        """The NumericalError of row k of a block's outputs, step n."""
-        j = int(np.flatnonzero(np.abs(outputs[k]) > self.limit)[0])
-        sub, var = self.refs[j]
-        return self._grown(sub, var, float(outputs[k, j]), n)
+                raise NumericalError(f"subsystem {sub}: {var} = {x:.6g} {self._where(n)} has grown past "
+                                     f"{self.limit:.3g} (growth_bound {self.growth:g} times the outputs' initial "
+                                     f"scale {self.scale:.3g})")

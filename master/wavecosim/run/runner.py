@@ -376,11 +376,6 @@ class LiveRun:
         self.master_time += time.perf_counter() - t0
         self.block_steps += done
         whole = done - 1 if log.stopped and not self.ledger else done      # the ledger's kernel books every step
-        outputs = self.sampler.block(log.observed).outputs
-        grown = self.bounds.first_grown(outputs[:whole])
-        if grown is not None:                  # rows up to the step that grew past the bound, then stop
-            self._after_block(n0, log.first(grown + 1))
-            raise self.bounds.grown_error(outputs, grown, n0 + grown)
         if whole:
             self._after_block(n0, log.first(whole))
         if whole < done:
