@@ -21,11 +21,11 @@ the same loaded binary; the subsystem's own instance is never stepped by a probe
   does not cannot be coupled, and a master would return a frozen trajectory for it.
 An FMU that refuses a probe's step (its error is kept in `probe_error`) is left as if unprobed.
 """
-import ctypes
 import math
 from dataclasses import asdict, dataclass
 
 from ..errors import ConfigError, FmuError
+from ..kernel import cvalues
 
 KEYS = ("no_set_fmu_state_prior", "reentrant", "probe")     # a subsystem's `quirks:` keys
 PERTURB = 1e-3           # the probe's input step, relative to 1 + |u|
@@ -70,13 +70,13 @@ class _Calls:
     """Status-checked raw fmi2-form calls on one instance, with the probe's inputs and outputs."""
 
     def __init__(self, fmu, in_vr, out_vr):
-        self.fmu, self.comp = fmu, ctypes.c_void_p(fmu.component)
+        self.fmu, self.comp = fmu, cvalues.pointer(fmu.component)
         self.fn = {name: fmu.raw_function(name) for name in
                    ("fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate", "fmi2SetReal", "fmi2DoStep",
                     "fmi2GetReal")}
         self.in_vr, self.out_vr = in_vr, out_vr
-        self.u = (ctypes.c_double * len(in_vr))()
-        self.y = (ctypes.c_double * len(out_vr))()
+        self.u = cvalues.doubles(len(in_vr))
+        self.y = cvalues.doubles(len(out_vr))
         self.t = 0.0                       # where a fresh instance's next step starts (_interferes)
 
     def call(self, name, *args):
@@ -89,8 +89,8 @@ class _Calls:
         rows = []
         for k, flag in enumerate(flags):
             self.set(u)
-            self.call("fmi2DoStep", ctypes.c_double(t0 + k * h), ctypes.c_double(h), int(flag))
-            self.call("fmi2GetReal", self.out_vr, ctypes.c_size_t(len(self.out_vr)), self.y)
+            self.call("fmi2DoStep", cvalues.double(t0 + k * h), cvalues.double(h), int(flag))
+            self.call("fmi2GetReal", self.out_vr, cvalues.size(len(self.out_vr)), self.y)
             rows.append(list(self.y))
         return rows
 
@@ -98,22 +98,22 @@ class _Calls:
         for j, x in enumerate(u):
             self.u[j] = x
         if len(u):
-            self.call("fmi2SetReal", self.in_vr, ctypes.c_size_t(len(u)), self.u)
+            self.call("fmi2SetReal", self.in_vr, cvalues.size(len(u)), self.u)
 
     def inputs(self):
         if not len(self.in_vr):
             return []
-        self.call("fmi2GetReal", self.in_vr, ctypes.c_size_t(len(self.in_vr)), self.u)
+        self.call("fmi2GetReal", self.in_vr, cvalues.size(len(self.in_vr)), self.u)
         return list(self.u)
 
     def save(self, handle):
-        self.call("fmi2GetFMUstate", ctypes.byref(handle))
+        self.call("fmi2GetFMUstate", cvalues.ref(handle))
 
     def restore(self, handle):
         self.call("fmi2SetFMUstate", handle)
 
     def free(self, handle):
-        self.call("fmi2FreeFMUstate", ctypes.byref(handle))
+        self.call("fmi2FreeFMUstate", cvalues.ref(handle))
 
 
 def _outputs(sub):
@@ -123,7 +123,7 @@ def _outputs(sub):
              if v.causality == "output" and v.type == fmu.real_type and not getattr(v, "dimensions", None)]
     port = list(sub.port_vrs()[1])
     rest = [vr for vr in fmu.real_vrs(names[:MAX_OUTPUTS]) if vr not in port]
-    return (ctypes.c_uint * (len(port) + len(rest)))(*port, *rest), len(port)
+    return cvalues.uints(port + rest), len(port)
 
 
 def _twin(sub, own_copy=False):
@@ -140,10 +140,10 @@ def _interferes(a, b, hx, u1, u_other, t0, h, alone, noise):
     a.restore(hx)
     a.set(u1)
     b.set(u_other)
-    a.call("fmi2DoStep", ctypes.c_double(t0), ctypes.c_double(h), 0)
-    b.call("fmi2DoStep", ctypes.c_double(b.t), ctypes.c_double(h), 1)
+    a.call("fmi2DoStep", cvalues.double(t0), cvalues.double(h), 0)
+    b.call("fmi2DoStep", cvalues.double(b.t), cvalues.double(h), 1)
     b.t += h
-    a.call("fmi2GetReal", a.out_vr, ctypes.c_size_t(len(a.out_vr)), a.y)
+    a.call("fmi2GetReal", a.out_vr, cvalues.size(len(a.out_vr)), a.y)
     diff = _relative([list(a.y)], [alone])
     return diff if diff > noise else 0.0
 
@@ -155,7 +155,7 @@ def probe(sub):
     found = FmuQuirks(sub.fmu.path.name)
     if not sub.fmu.can_save_state or sub.fmu.once_per_process:
         return found
-    own, kept = _Calls(sub.fmu, *sub.port_vrs()), ctypes.c_void_p()
+    own, kept = _Calls(sub.fmu, *sub.port_vrs()), cvalues.pointer()
     own.save(kept)                       # a non-reentrant FMU's probes move it: put back below
     twins = []
     try:
@@ -190,7 +190,7 @@ def _probe_twins(found, sub, twins):
     u0 = b.inputs()
     du = [PERTURB * (1.0 + abs(x)) for x in u0]
     u1, u_other = [x + d for x, d in zip(u0, du)], [x - d for x, d in zip(u0, du)]
-    hx = ctypes.c_void_p()
+    hx = cvalues.pointer()
     b.save(hx)
     moved = b.run(u1, t0, h, (False, False))
     b.restore(hx)
