@@ -30,7 +30,7 @@ class BlockRows(ctypes.Structure):
                 ("inverse", ctypes.c_double), ("dt", ctypes.c_double), ("log", ctypes.c_void_p), ("ld", ctypes.c_long),
                 ("outputs", _int_p), ("steps", ctypes.c_void_p), ("lds", ctypes.c_long),
                 ("trajectory", ctypes.c_void_p), ("ldt", ctypes.c_long),
-                ("iterations_sum", ctypes.c_double), ("iterations_max", ctypes.c_double)]
+                ("iterations_sum", ctypes.c_double), ("iterations_max", ctypes.c_double), ("t0", ctypes.c_double)]
 
 
 @mirrors("blocks", "SampledBlock")

@@ -75,7 +75,7 @@ class DRStep(ctypes.Structure):
                 ("failed_function", ctypes.c_int), ("failed_status", ctypes.c_int), ("stopped", ctypes.c_int),
                 ("ledger_on", ctypes.c_int), ("ledger", ctypes.c_double), ("traffic", ctypes.c_double),
                 ("ledger_rtol", ctypes.c_double), ("step_deadline_s", ctypes.c_double), ("round_s", ctypes.c_double),
-                ("tail_s", ctypes.c_double)]
+                ("tail_s", ctypes.c_double), ("t0", ctypes.c_double)]
 
 
 _lib = None
@@ -145,6 +145,8 @@ class BlockLog:
 def unusable(scene):
     """Why the kernel cannot run this scene, or None if it can; a library whose structs differ from
     their mirrors is no reason to fall back but an error (abi.LayoutError)."""
+    if not scene.subsystems:
+        return "no subsystem has a port (signals only)"
     for s in scene.subsystems:
         if not s.fmu.can_save_state:
             return f"subsystem {s.name} cannot get and set its FMU state"
@@ -247,7 +249,7 @@ class Kernel:
                                     int(off)) or lib.dr_set_no_prior(self.handle, i, s.no_prior):
                 self.close()
                 raise FmuError(f"subsystem {s.name}: the DR kernel refused its port")
-        self.io = DRStep(measure=0, eps=-1.0, deadline_s=0.0)
+        self.io = DRStep(measure=0, eps=-1.0, deadline_s=0.0, t0=scene.scenario.start_time)
         self.at = (None, None)                     # (n, t) of the last macro_step
         self._io = ctypes.byref(self.io)
         self._macro_step = lib.dr_macro_step       # called with pre-converted arguments
