@@ -78,6 +78,7 @@ def print_table(rows, fields):
 
 
 config_argument = click.argument("config", required=False, type=click.Path(dir_okay=False, path_type=Path))
+system_argument = click.argument("config", required=False, type=click.Path(path_type=Path))   # also an SSP folder
 common = [
     click.option("--K", "K", type=click.IntRange(min=0), help="Inner-iteration budget K per macro-step."),
     click.option("--eps", type=click.FloatRange(min=0, min_open=True), help="Inner tolerance: stop when |u_new - u| <= eps."),
@@ -140,7 +141,7 @@ def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None, star
     its input file; the command line's times go in before the file's are checked; import notes
     are warnings."""
     from .scenario.fmu import is_fmu
-    from .scenario.ssp import is_ssp
+    from .scenario.ssp.archive import is_ssp           # the archive module alone: a scenario file needs no more
     times = {"dt": dt, "T": T, "start_time": start_time}
     warn = lambda note: click.echo(f"warning: {note}", err=True)        # noqa: E731
     if ports or parameter_set or (config is not None and is_ssp(config)):
@@ -169,13 +170,18 @@ def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None, star
 @click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and the Condition 1 watch (faster).")
 @click.option("--no-reference", is_flag=True, help="Skip the monolithic reference run (no error figures).")
 @click.option("--plots", is_flag=True, help="Also write PNG figures into the output folder.")
+@click.option("--threads", help="Threads evaluating the subsystems: auto, or N (up to min(N, CPUs, subsystems)); "
+                                "the numbers are the same for any N.")
 def run_cmd(config, K, eps, gamma, dt, T, quiet, start_time, output_interval, formats, ports, parameter_set, input_csv,
-            outputs, algorithm, out, no_certificates, no_reference, plots):
+            outputs, algorithm, out, no_certificates, no_reference, plots, threads):
     """Run one scenario (with the monolithic reference alongside where there are power bonds) and
     write its trajectory, per-step certificates, summary and metadata. CONFIG is a scenario file,
     an SSP system (.ssd, .ssp, folder) or one FMU (.fmu), run as fmpy's simulate runs it."""
     scenario = _apply_overrides(_read_config(config, ports, parameter_set, dt, T, gamma, start_time, input_csv), K, eps,
                                 gamma, dt, T, algorithm, start_time, outputs)
+    if threads is not None:
+        from .scenario.config import threads_option
+        scenario = scenario.with_master(threads=threads_option(threads))
     result = simulate(scenario, out_dir=out, progress=_progress("run", quiet) or False,
                       certificates=not no_certificates, reference=not no_reference,
                       output_interval=output_interval, formats=("csv", *formats))
@@ -204,6 +210,8 @@ def _report_run(scenario, result, out):
         click.echo(f"note: {s['signal_note']}")
     if s["status"] == "finished" and s.get("message"):
         click.echo(f"note: {s['message']}")
+    if s.get("threads", 1) > 1 or scenario.master.threads not in ("auto", "1"):
+        click.echo(f"threads: {s.get('thread_note', 'serial')}")
 
 
 # sweep: the common options with --K a list, plus those of general sweeps
@@ -305,7 +313,7 @@ def _sweep_progress(total, skipped):
 
 
 @cli.command("compare")
-@config_argument
+@system_argument
 @with_common
 @experiment_options
 @ssp_options
@@ -352,7 +360,7 @@ def compare_cmd(config, K, eps, gamma, dt, T, quiet, start_time, ports, paramete
 
 
 @cli.command("validate")
-@click.argument("config", required=False, type=click.Path(path_type=Path))
+@system_argument
 @ssp_options
 @click.option("--input", "input_csv", type=click.Path(dir_okay=False, path_type=Path), help="FMU input: a CSV file.")
 @options([opt for opt in common if opt in (common[3], common[4])])
@@ -417,11 +425,20 @@ def examples_cmd(name):
 @cli.command("bench")
 @click.option("--quick", is_flag=True, help="Fewer steps and repeats (a few seconds instead of about a minute).")
 @click.option("--json", "json_file", type=click.Path(dir_okay=False, path_type=Path), help="Also write the figures here.")
-def bench_cmd(quick, json_file):
-    """Time the inner iteration: plain fmpy loop, Python reference, C fast path and the C floor; the deadline bound."""
-    from .bench.main import report, run_bench
-    result = run_bench(quick=quick, progress=lambda msg: click.echo(msg, err=True))
-    for line in report(result):
+@click.option("--only", type=click.Choice(["parallel_threads", "real_fmus"]),
+              help="Measure this part alone (real_fmus: systems of real FMUs against the floor of their FMU "
+                   "calls and libcosim).")
+def bench_cmd(quick, json_file, only):
+    """Time the inner iteration: plain fmpy loop, Python reference, C fast path and the C floor; the deadline
+    bound; threads; real FMUs against their floor and libcosim."""
+    from .bench.main import report, run_bench, run_part
+    progress = lambda msg: click.echo(msg, err=True)      # noqa: E731
+    if only:
+        result, lines = run_part(only, quick, progress)
+    else:
+        result = run_bench(quick=quick, progress=progress)
+        lines = report(result)
+    for line in lines:
         click.echo(line)
     if json_file:
         write_json(json_file, result)

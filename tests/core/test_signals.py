@@ -86,12 +86,12 @@ def test_linear_interpolation_between_table_rows(folder):
 
 
 def test_fast_path_equals_the_python_reference_with_signals(folder):
-    """The kernel makes one macro-step per call (the signals are set from Python in between); every
-    number equals the Python reference's, and the summary says why blocks are not used."""
+    """The kernel holds the signals itself in its blocks of steps (kernel/c/signals.c); every number
+    equals the Python reference's."""
     fast = run(scenario(folder), reference="lockstep", warn=quiet)
     slow = run(scenario(folder, lambda r: r["master"].update(fast=False)), reference="lockstep", warn=quiet)
     assert fast.summary["fast_path"] and not slow.summary["fast_path"]
-    assert "signals are set from Python" in fast.summary["fast_note"] and fast.summary["block_steps"] == 0
+    assert fast.summary["fast_note"] == "C kernel" and fast.summary["block_steps"] > 0
     for name in ("trajectory", "steps"):
         a, b = getattr(fast, name), getattr(slow, name)
         for field in a.dtype.names:

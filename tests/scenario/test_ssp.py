@@ -15,7 +15,7 @@ import pytest
 from paths import ROOT
 import wavecosim as wc
 from wavecosim.cli import main
-from wavecosim.scenario.config import load_raw, load_scenario, parse_scenario
+from wavecosim.scenario.config import load_raw, load_scenario
 from wavecosim.errors import ConfigError
 from wavecosim.fmi.builtin import builtin_fmus
 from wavecosim.scenario.ssp import import_ssp, load_ssp
@@ -172,15 +172,17 @@ def test_a_broken_ssd_is_one_line_naming_file_element_and_line(tmp_path, capsys,
         assert f"broken.ssd line {lines[-1] if what == 'input driven twice' else lines[0]}: " in err, err
 
 
-def test_not_xml_and_missing_settings_are_one_line(tmp_path, capsys, built_fmus):
+def test_not_xml_a_missing_dt_and_a_portless_ssd(tmp_path, capsys, built_fmus):
+    """Not XML: one line. No dt in the annotation: the FMUs' DefaultExperiment stepSize. Without
+    the port annotations the connections are signals, so the annotation's DR is refused in one line."""
     bad = tmp_path / "bad.ssd"
     bad.write_text("<ssd:SystemStructureDescription")
     code, _, err = run_cli(capsys, "run", bad, "--quiet")
     assert code == 2 and "bad.ssd line 1: not well-formed XML" in err
     bare = table_i_copy(tmp_path, [('dt="0.01" ', "")], "bare.ssd")
-    code, _, err = run_cli(capsys, "run", bare, "--quiet")
-    assert code == 2 and "dt: an SSD has none; give it in the overlay (--ports FILE)" in err
-    code, _, err = run_cli(capsys, "run", bare, "--dt", "0.01", "--T", "0.05", "--quiet", "--no-certificates",
+    imported = import_ssp(bare)
+    assert imported.raw["dt"] == 0.01 and imported.origins["dt"].startswith("the DefaultExperiment stepSize of")
+    code, _, err = run_cli(capsys, "run", bare, "--dt", "0.02", "--T", "0.06", "--quiet", "--no-certificates",
                            "--out", tmp_path / "o")
     assert code == 0, err
     code, _, err = run_cli(capsys, "run", TABLE_I_YAML, "--ports", TABLE_I_YAML, "--quiet")
@@ -188,7 +190,7 @@ def test_not_xml_and_missing_settings_are_one_line(tmp_path, capsys, built_fmus)
     portless = table_i_copy(tmp_path, [('<ssc:Annotation type="org.wavecosim.port">', '<ssc:Annotation type="x.y">')] * 2,
                             "portless.ssd")
     code, _, err = run_cli(capsys, "run", portless, "--quiet")
-    assert code == 2 and "couplings: no power bond found; declare which connectors form ports" in err
+    assert code == 2 and "master.algorithm: dr couples power bonds, and this system has none" in err, err
 
 
 # --- parameters ---------------------------------------------------------------------------------
@@ -363,15 +365,11 @@ def test_dcmotor_imports_its_bindings_signals_bond_and_outputs():
 @pytest.mark.parametrize("master", wc.ALGORITHMS)
 def test_dcmotor_from_the_ssd_runs_as_configs_dcmotor_yaml(master):
     """Every master on the SSD with the overlay gives configs/dcmotor.yaml's numbers, column by column
-    (both at the FMUs' DefaultExperiment tolerance: the file's `tolerance:` keys left out)."""
+    (both set the FMUs up with tolerance 1e-5)."""
     yaml_file = ROOT / "configs" / "dcmotor.yaml"
     ssd = dcmotor_scenario(T=0.01)
-    raw = load_raw(yaml_file)
-    for sub in raw["subsystems"].values():
-        sub.pop("tolerance", None)
     ours = trajectory(ssd.with_master(algorithm=master))
-    theirs = trajectory(parse_scenario(raw, str(yaml_file), yaml_file.parent).with_changes(T=0.01)
-                        .with_master(algorithm=master))
+    theirs = trajectory(load_scenario(yaml_file).with_changes(T=0.01).with_master(algorithm=master))
     assert ours.dtype.names == theirs.dtype.names
     assert all(np.array_equal(ours[n], theirs[n]) for n in ours.dtype.names)
 

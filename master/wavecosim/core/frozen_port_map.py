@@ -186,6 +186,13 @@ class Subsystem:
             self.map = KernelAdapter(self.map, fns, comp, functions)
         return self.map.shim()
 
+    def port_scales(self):
+        """(in_scale, out_scale) of a signed physical port (ports.DirectPort), or None: the kernel then
+        calls the FMU through portview.c's signed shim, making the same products."""
+        if isinstance(self.map, DirectPort) and self.map.in_scale is not None:
+            return self.map.in_scale, self.map.out_scale
+        return None
+
     def plain_wave_port(self):
         """Whether the port is the FMU's own wave map: no adapter, no input scaling."""
         return not self.adapter and isinstance(self.map, DirectPort) and self.map.in_scale is None

@@ -9,6 +9,7 @@ import numpy as np
 
 from ..fmi.values import BINARY, STRING, category
 from ..kernel.linalg import DOT_EXACT
+from ..kernel.portview import ObservedPort
 
 
 @dataclass
@@ -45,13 +46,11 @@ class BlockReading:
 
 
 def row_sums(X):
-    """The builtin sum() of each row of X, to the last bit: left to right from 0 (Python < 3.12)."""
+    """linalg.total of each row of X, to the last bit: left to right from 0."""
     acc = 0.0 + X[:, 0]
     for j in range(1, X.shape[1]):
         acc = acc + X[:, j]
     return acc
-
-
 
 
 def row_dots(A, B):
@@ -78,7 +77,9 @@ class Sampler:
     call each and recorded as numbers (texts as the index of the text in `texts`)."""
 
     def __init__(self, scene, outputs):
-        self.parts, self.observed = [], []        # observed: per subsystem the names read, H_i first
+        # observed: per subsystem the names read (H_i first; a physical port's ObservedPort), then per
+        # subsystem stepped alone its outputs: what the kernel logs after each step of a block
+        self.parts, self.observed = [], []
         everyone = scene.subsystems + scene.signal_only
         by_name = {s.name: s for s in everyone}
         refs = [ref.split(".", 1) for ref in outputs.values()]
@@ -89,13 +90,19 @@ class Sampler:
             cols = [var for (name, var), r in zip(refs, raw) if name == s.name and r]
             if s.port.physical:
                 self.parts.append(self._physical_part(s, cols))
+                self.observed.append(self._observed_port(s, cols))
+                continue
+            if s.port.physical:
+                self.parts.append(self._physical_part(s, cols))
+                self.observed.append(self._observed_port(s, cols))
                 continue
             names = [s.port.energy, *s.port.effort, *s.port.flow, *(s.port.wave_out if scene.wave else [])]
             read, buf = s.reader(names + cols)
             self.parts.append((read, s.m, len(names)))
             self.observed.append(names + cols)
-        self.alone = [s.reader([var for (name, var), r in zip(refs, raw) if name == s.name and r])[0]
-                      for s in scene.signal_only]
+        alone = [[var for (name, var), r in zip(refs, raw) if name == s.name and r] for s in scene.signal_only]
+        self.observed.extend(alone)
+        self.alone = [s.reader(names)[0] for s, names in zip(scene.signal_only, alone)]
         index = {s.name: i for i, s in enumerate(everyone)}
         seen = {}                                  # per subsystem, its raw columns so far
         order = []
@@ -106,13 +113,14 @@ class Sampler:
             else:
                 order.append((-1, self.typed.slot[k]))
         self._order = order
-        self.whole = len(self.observed) == len(self.parts) and not self.alone and not self.typed.groups
+        self.whole = not self.typed.groups            # outputs of other types are read in Python: no blocks
         self._columns = ({key: as_index(cols) for key, cols in self._block_columns(order).items()}
-                         if self.whole else None)      # no kernel blocks without them
+                         if self.whole else None)
         self.units = {col: by_name[name].fmu.variable(var).unit or "" for col, (name, var) in zip(outputs, refs)}
 
     def _block_columns(self, order):
-        """Where H, E, F, B and the outputs sit in the concatenated observed values of all subsystems."""
+        """Where H, E, F, B and the outputs sit in the concatenated observed values of all subsystems
+        (those stepped alone: outputs only, last)."""
         at, starts, cols = 0, [], {"H": [], "E": [], "F": [], "B": []}
         for (_, m, k), names in zip(self.parts, self.observed):
             starts.append(at)
@@ -120,17 +128,31 @@ class Sampler:
             for key, first, last in (("E", 1, 1 + m), ("F", 1 + m, 1 + 2 * m), ("B", 1 + 2 * m, k)):
                 cols[key].extend(range(at + first, at + last))
             at += len(names)
-        cols["outputs"] = [starts[i] + self.parts[i][2] + j for i, j in order]
+        heads = [k for _, _, k in self.parts]
+        for names in self.observed[len(self.parts):]:
+            starts.append(at)
+            heads.append(0)
+            at += len(names)
+        cols["outputs"] = [starts[i] + heads[i] + j for i, j in order]
         return cols
 
     def rows(self, key):
-        """Which of the observed values (all subsystems', concatenated) hold `key` (H, E, F, B or outputs)."""
+        """Which of the observed values (all subsystems', concatenated) hold `key` (H, E, F, B or outputs);
+        none when the outputs are not all read with them (no blocks)."""
+        if self._columns is None:
+            return []
         return BlockReading([None] * sum(map(len, self.observed)), self._columns).rows(key)
 
     def block(self, observed) -> BlockReading:
         """The BlockReading of observed values (the subsystems' `observed` names concatenated, one
         row per name, one column per step)."""
         return BlockReading(observed, self._columns)
+
+    @staticmethod
+    def _observed_port(s, cols):
+        """What the kernel reads of a physical port for _physical_part's values (kernel/portview.py)."""
+        names = [*([s.port.energy] if s.port.energy else []), *s.port.effort, *s.port.flow]
+        return ObservedPort(names + cols, bool(s.port.energy), s.m, list(s.port.sign), bool(s.adapter), len(cols))
 
     @staticmethod
     def _physical_part(s, cols):

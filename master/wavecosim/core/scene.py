@@ -136,9 +136,25 @@ class Scene:
 
     @property
     def steps_in_python(self):
-        """Whether Python acts between the macro-steps (held signals, signal-only subsystems), so a
-        master cannot make many of them in one kernel call."""
-        return self.signals is not None or bool(self.signal_only)
+        """Whether Python must act between the macro-steps (a held signal of another type than Real), so
+        a master cannot make many of them in one kernel call; the kernel holds Real signals and steps
+        the signal-only subsystems itself (kernel_signals)."""
+        return (self.signals is not None or bool(self.signal_only)) and self.kernel_signals() is None
+
+    def kernel_signals(self):
+        """begin_step as plain data for the kernel's blocks (wavecosim/kernel/signals.py: the FMUs, port
+        subsystems first, the signals, the subsystems stepped alone); None without signals and
+        signal-only subsystems, or when Python must hold a signal (Signals.plan)."""
+        if self.signals is None and not self.signal_only:
+            return None
+        everyone = self.subsystems + self.signal_only
+        index = {id(s): j for j, s in enumerate(everyone)}
+        plan = self.signals.plan(index) if self.signals is not None else \
+            {"signals": [], "reads": [], "writes": [], "tables": None, "nonfinite": None}
+        if plan is None:
+            return None
+        return {**plan, "subsystems": everyone, "alone": [index[id(s)] for s in self.signal_only],
+                "t0": self.scenario.start_time, "dt": self.scenario.dt}
 
     def freeze(self, n, t):
         """Save every x_i^n (Algorithm 1, line 3)."""
@@ -196,9 +212,9 @@ class Scene:
         adapters = {s.name: s.map.info() for s in self.subsystems if s.adapter}
         return {"port_signs": self.port_signs, **({"wave_adapter": adapters} if adapters else {})}
 
-    def signal_info(self, fast_note=None):
+    def signal_info(self):
         """Summary fields when signals drive inputs: which subsystems, and why their energy is not a
-        violation; the kernel runs one macro-step per call (the signals are set between calls)."""
+        violation."""
         if self.signals is None or not self.n_channels:      # no port: no energy to account for
             return {"signals": len(self.scenario.signals)} if self.signals is not None else {}
         driven = ", ".join(self.signals.driven)
@@ -207,8 +223,6 @@ class Scene:
                               f"legitimate; the energy ledger watches only the interface, and a Condition 2 "
                               f"residual or H growth of {driven} includes that work, so it is not a passivity "
                               f"violation"}
-        if fast_note == "C kernel":
-            out["fast_note"] = "C kernel, one macro-step per call (the signals are set from Python before each step)"
         return out
 
     def map_noise(self):
@@ -390,6 +404,22 @@ def build_scene(scenario, wave=True, needs_rollback=True, pool=None, quirks=None
         if wave and scene.n_channels:
             scene.wave_map()
         return scene
+    except BaseException:
+        for s in opened:
+            s.close()
+        raise
+
+
+def open_subsystems(scenario, names, wave=True):
+    """The named subsystems alone, opened and oriented as build_scene opens them (a process that hosts
+    part of a scene: its FMUs are loaded where they run). Signals are not held here."""
+    gammas, opened, notes = initial_gammas(scenario), [], []
+    try:
+        for sub in scenario.subsystems:
+            if sub.name in names:
+                opened.append(_subsystem(scenario, sub, gammas[sub.name], wave, True))
+                _orient(scenario, opened[-1], notes)
+        return opened
     except BaseException:
         for s in opened:
             s.close()

@@ -141,6 +141,7 @@ class Signals:
             self.types[k] = fmi_type
             _group(self.writes, sub, fmi_type, sub.fmu.vr(var), k)
         self.targets = [sig.target for sig in scenario.signals]
+        self.signals = list(scenario.signals)
         self.driven = sorted({s.name for s in self.writes})
 
     def _source(self, where, sig, subsystems, tables, k, target, fmi_type):
@@ -179,10 +180,49 @@ class Signals:
         for k, v in enumerate(values):
             lo_hi = self.bounds[k]
             if (isinstance(v, float) and not math.isfinite(v)) or (lo_hi and not lo_hi[0] <= v <= lo_hi[1]):
-                what = (f", outside the range {lo_hi[0]}..{lo_hi[1]} of the {self.types[k]} input {self.targets[k]}"
-                        if lo_hi else "")
-                raise NumericalError(f"{self.where}: signals[{k}]: {self.refs[k]} gave {v}{what} at step {n} "
-                                     f"(t = {t:.6g})")
+                raise NumericalError(self._message(k, v, n))
+
+    def _message(self, k, v, n):
+        """What a signal that gave a value its input cannot take says, at step n."""
+        lo_hi, t = self.bounds[k], self.t0 + n * self.dt
+        what = f", outside the range {lo_hi[0]}..{lo_hi[1]} of the {self.types[k]} input {self.targets[k]}" if lo_hi else ""
+        return f"{self.where}: signals[{k}]: {self.refs[k]} gave {v}{what} at step {n} (t = {t:.6g})"
+
+    def plan(self, index):
+        """The signals as plain data for the kernel's blocks (wavecosim/kernel/signals.py), FMUs named by
+        index[id(Subsystem)]: per signal (its table column or -1, its input's category, factor, offset,
+        integer range), the get and set calls (FMU, category, value references, signals),
+        tables(n0, count) (each table signal's value at t_n as a number, one row each) and the message
+        of a value its input cannot take; None when a signal reads or drives a type the kernel does not
+        carry (String, Float32, an FMI 3 integer or Boolean): Python holds those (hold)."""
+        calls = []
+        for part in (self.reads, self.writes):
+            calls.append([(index[id(sub)], _carried_in_c(sub.fmu, fmi_type), list(vrs), list(ks))
+                          for sub, by_type in part.items() for fmi_type, (vrs, ks) in by_type.items()])
+        if any(kind is None for part in calls for _, kind, _, _ in part):
+            return None
+        column = {k: j for j, (k, _, _, _) in enumerate(self.tables)}
+        signals = [(column.get(k, -1), category(self.types[k]), float(sig.factor), float(sig.offset),
+                    *(self.bounds[k] or (-math.inf, math.inf))) for k, sig in enumerate(self.signals)]
+
+        def tables(n0, count):
+            return [[float(table.value(c, self.t0 + n * self.dt, linear)) for n in range(n0, n0 + count)]
+                    for _, table, c, linear in self.tables]
+
+        def message(k, value, n):
+            return self._message(k, int(value) if category(self.types[k]) == INTEGER else value, n)
+        return {"signals": signals, "reads": calls[0], "writes": calls[1], "tables": tables if self.tables else None,
+                "nonfinite": message}
+
+
+def _carried_in_c(fmu, fmi_type):
+    """The category the kernel's signals (kernel/c/signals.c) read or set fmi_type in, or None:
+    Real (Float64) always, Integer, Enumeration and Boolean of an FMI 2 FMU."""
+    if fmi_type == fmu.real_type:
+        return REAL
+    if fmu.fmi_version == "2.0" and fmi_type in ("Integer", "Enumeration", "Boolean"):
+        return category(fmi_type)
+    return None
 
 
 def table_inputs(scenario, name):

@@ -54,6 +54,7 @@ def setters(is_number):
 
 class Fmi3:
     """The FMI 3.0 side of one Fmu: its FMU3Slave, its shim, and the calls in fmi2 form."""
+    interface = "coSimulation"
     prefix = "fmi3"
     real = "Float64"
     platform = PLATFORM

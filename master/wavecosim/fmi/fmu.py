@@ -23,6 +23,8 @@ from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE
 from fmpy.fmi2 import fmi2LastSuccessfulTime
 
 from ..errors import FmuError
+from .me import ModelExchange
+from .sources import provide_binary
 from .values import BOOLEAN, REAL, as_python, category, integer_range, is_number, is_whole
 
 _STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
@@ -100,13 +102,15 @@ def check_version(path, folder) -> str:
     return version
 
 
-def check_runnable(path, folder, description, platform=fmpy_platform):
+def check_runnable(path, folder, description, platform=fmpy_platform, interface="coSimulation"):
     """One line naming the FMU and the reason when this build cannot run it: no co-simulation
-    interface, no binary for this platform (binaries/<platform>: linux64 in FMI 2, x86_64-linux in 3),
-    or a binary for it whose name is not the modelIdentifier's."""
-    cs = description.coSimulation
+    interface (nor, in FMI 2, a model-exchange one), no binary for this platform (binaries/<platform>:
+    linux64 in FMI 2, x86_64-linux in 3), or a binary for it whose name is not the modelIdentifier's."""
+    cs = getattr(description, interface)
     if cs is None:
-        raise FmuError(f"{path}: the FMU has no co-simulation interface")
+        others = [k for k in ("modelExchange", "scheduledExecution") if getattr(description, k, None) is not None]
+        raise FmuError(f"{path}: the FMU has no co-simulation interface" + (f" (it has {', '.join(others)} only)"
+                                                                               if others else ""))
     name = f"{cs.modelIdentifier}{sharedLibraryExtension}"
     binary = folder / "binaries" / platform / name
     if binary.exists():
@@ -154,6 +158,7 @@ SETTERS = {
 
 class Fmi2:
     """The FMI 2.0 side of one Fmu: its FMU2Slave; the calls are the FMU's own fmi2 functions."""
+    interface = "coSimulation"
     prefix = "fmi2"
     real = "Real"
     platform = fmpy_platform
@@ -233,6 +238,22 @@ class Fmi2:
             return math.nan
 
 
+class ModelExchange2(ModelExchange, Fmi2):
+    """An FMI 2.0 FMU with model exchange only, stepped as co-simulation (wavecosim/fmi/me.py)."""
+
+
+_pointer_hook = None       # hook(fmu, fname, lookup) -> the address function_pointer gives (see set_pointer_hook)
+
+
+def set_pointer_hook(hook):
+    """Route every Fmu.function_pointer through hook(fmu, fname, lookup), lookup(fname) being the
+    FMU's own address (the bench's floor records the kernel's FMU calls so); None: no hook. Returns
+    the hook it replaced."""
+    global _pointer_hook
+    previous, _pointer_hook = _pointer_hook, hook
+    return previous
+
+
 class Fmu:
     """One instantiated, initialized FMU (FMI 2.0 or 3.0); `name` is the subsystem name used in messages."""
 
@@ -257,9 +278,14 @@ class Fmu:
         binding = Fmi2
         if self.fmi_version != "2.0":
             from .fmi3 import Fmi3 as binding
-        cs = self.description.coSimulation
-        if like is None:
-            check_runnable(self.path, self.folder, self.description, binding.platform)
+        elif self.description.coSimulation is None and self.description.modelExchange is not None:
+            binding = ModelExchange2
+        cs = getattr(self.description, binding.interface)
+        if cs is not None and like is None:
+            provide_binary(self.path, self.folder, self.description, cs, binding.platform)
+            check_runnable(self.path, self.folder, self.description, binding.platform, binding.interface)
+        elif like is None:
+            check_runnable(self.path, self.folder, self.description, binding.platform, binding.interface)
         if cs.canBeInstantiatedOnlyOncePerProcess:       # its own copy of the binary for each instance
             release_folder(pool, self._key, self.folder)
             self._key, self.folder = None, extract_fmu(self.path)
@@ -268,8 +294,7 @@ class Fmu:
         self.messages = []
         self.phase = "instantiated"        # of the FMI state machine: instantiated, step, error, fatal
         try:
-            sibling = like is not None and like.folder == self.folder and like._fmi is not None
-            self._fmi = binding(self, cs.modelIdentifier, self._sibling_slave(like) if sibling else None)
+            self._fmi = self._bind(binding, cs.modelIdentifier, like)
         except FmuError:
             self.close()
             raise
@@ -296,16 +321,19 @@ class Fmu:
             raise FmuError(f"{self.path}: cannot read modelDescription.xml: {exc}") from None
         self.notes = [note] if (note := schema_note(self.path, self.folder, self.fmi_version)) else []
 
-    def _sibling_slave(self, like):
-        """A copy of `like`'s fmpy slave for a new instance of the same loaded binary."""
+    def _bind(self, binding, model_identifier, like):
+        """The binding of a new instance: through a copy of `like`'s fmpy slave when both are
+        co-simulation instances in one folder (the binary already loaded), else its own."""
+        if like is None or like.folder != self.folder or like._fmi is None or binding.interface != "coSimulation":
+            return binding(self, model_identifier)
         slave = copy.copy(like._fmi.slave)
         slave.instanceName, slave.component = self.name, None
-        return slave
+        return binding(self, model_identifier, slave)
 
     @property
     def once_per_process(self):
         """The FMU allows one instance per process: each instance gets its own copy of the binary."""
-        return bool(self.description.coSimulation.canBeInstantiatedOnlyOncePerProcess)
+        return bool(getattr(self.description, self._fmi.interface).canBeInstantiatedOnlyOncePerProcess)
 
     def twin(self, name, own_copy=False):
         """Another instance of this FMU with the same start values, parameters and experiment, in the
@@ -449,7 +477,9 @@ class Fmu:
 
     def function_pointer(self, fname) -> int:
         """Address of a C function with the fmi2 signature of `fname` taking `component`, for the C fast
-        path: the FMU's own for FMI 2, kernel/c/fmi3shim.c's for FMI 3."""
+        path: the FMU's own for FMI 2, kernel/c/fmi3shim.c's for FMI 3 (or what a pointer hook gives)."""
+        if _pointer_hook is not None:
+            return _pointer_hook(self, fname, self._fmi.function_pointer)
         return self._fmi.function_pointer(fname)
 
     def function_name(self, fname):
@@ -479,8 +509,8 @@ class Fmu:
         fmi, self._fmi = getattr(self, "_fmi", None), None
         slave = getattr(fmi, "slave", None)
         phase = getattr(self, "phase", "fatal")
-        free = slave.freeInstance if slave is not None and not fmi.borrowed else (    # a borrowed binary stays loaded
-            lambda: getattr(slave, f"{fmi.prefix}FreeInstance")(slave.component))
+        free = slave.freeInstance if slave is not None and not getattr(fmi, "borrowed", False) else (
+            lambda: getattr(slave, f"{fmi.prefix}FreeInstance")(slave.component))    # a borrowed binary stays loaded
         calls = ([slave.terminate] if phase == "step" else []) + ([free] if phase != "fatal" else [])
         for call in calls if slave is not None else ():
             try:

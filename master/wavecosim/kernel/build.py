@@ -29,7 +29,8 @@ CFLAGS = ["-O2", "-std=c99", "-fPIC", "-ffp-contract=off", "-Wall", "-Wextra", "
           *_sanitizer_flags(os.environ.get("WAVECOSIM_SANITIZE", ""))]
 # C files compiled into another file's library: the routes built on the DR kernel's subsystem
 # evaluation (classical.c, newton.c, certs.c) go into libdrkernel.so.
-PART_OF_LIBRARY = {"classical.c": "drkernel", "newton.c": "drkernel", "certs.c": "drkernel"}
+PART_OF_LIBRARY = {"classical.c": "drkernel", "newton.c": "drkernel", "certs.c": "drkernel", "portview.c": "drkernel",
+                   "signals.c": "drkernel"}
 _loaded = {}
 
 

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from typing import Optional, Protocol, runtime_checkable
 
 from ..errors import ConfigError
-from ..kernel.linalg import matvec
+from ..kernel.linalg import dot, matvec
 from .monolithic import solve_interface
 
 
@@ -204,7 +204,7 @@ class WaveMaster(Master):
     def supply(inputs, outputs):
         """Energy the interface supplies over a step, 1/2 (|a|^2 - |b|^2) (eq. 5), and its traffic
         1/2 (|a|^2 + |b|^2), the scale of its roundoff."""
-        aa, bb = sum(x * x for x in inputs), sum(x * x for x in outputs)
+        aa, bb = dot(inputs, inputs), dot(outputs, outputs)
         return 0.5 * (aa - bb), 0.5 * (aa + bb)
 
 

@@ -24,6 +24,7 @@ from ..kernel import blocks, cvalues
 from ..errors import ConfigError, Interrupted, NumericalError, RunFailed, SimulationEnded, WavecosimError
 from ..fmi.values import BOOLEAN, INTEGER, category
 from ..kernel.drkernel import REASONS as KERNEL_REASONS
+from ..kernel.linalg import total
 from ..core.gamma import GammaTuner
 from ..masters import MASTERS
 from ..masters.base import REASONS, WaveMaster, require_wave_tuning
@@ -288,7 +289,7 @@ class LiveRun:
         row[0], row[1:] = self.t0, first.outputs
         self.trajectory.commit_row()
         self.bounds.start(first, self.time_of)
-        self.first = {"H": sum(first.H), "error": next((o.first for o in self.observers
+        self.first = {"H": total(first.H), "error": next((o.first for o in self.observers
                                                         if isinstance(o, ErrorTracker)), math.nan)}
         self.bracket = any(type(o).before_step is not Observer.before_step for o in self.observers)
         self.guard, self.guard_row = next(((o, row) for o, row in zip(self.observers, self.slices) if o.redoes),
@@ -337,9 +338,8 @@ class LiveRun:
         return reading
 
     def _plan_blocks(self):
-        """Blocks when the master can make them, every observer takes them, nothing acts before a
-        step (a paced observer: before the steps it names; blocks stop before them), and builtin sum()
-        adds left to right (Python < 3.12: the blocks' sums are written so)."""
+        """Blocks when the master can make them, every observer takes them and nothing acts before a
+        step (a paced observer: before the steps it names; blocks stop before them)."""
         guard = self.guard
         self.cap = guard.cap if isinstance(guard, EnergyGuard) else math.inf
         self.ledger = isinstance(guard, EnergyLedger)
@@ -350,8 +350,7 @@ class LiveRun:
                        and all(o.blocks for o, _ in self.after)
                        and (guard is None or isinstance(guard, EnergyGuard)
                             or (self.ledger and route.keeps_ledger))          # classical: step by step
-                       and not self.scene.steps_in_python and self.sampler.whole and blocks.library() is not None
-                       and sys.version_info < (3, 12))
+                       and not self.scene.steps_in_python and self.sampler.whole and blocks.library() is not None)
         self.rows_call = None                    # block_rows' arguments, from the blocks' layout
         self.paced = [o for o in self.observers if o.paced]          # blocks stop before their steps
         if self.blocks:
@@ -505,7 +504,7 @@ class LiveRun:
         if self.master is not None:
             out.update(self.master.run_info())
             out.update(self.scene.port_info())
-            out.update(self.scene.signal_info(out.get("fast_note")))
+            out.update(self.scene.signal_info())
         return out
 
     def finish(self, status, message):
@@ -548,9 +547,12 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
     """Run `scenario` with its master; stream trajectory.csv and steps.csv into out_dir when given.
 
     reference: None (no errors), a RunResult of the monolithic reference, or "lockstep" (run the
-    monolithic reference alongside, writing its files with the label "monolithic"). Raises
+    monolithic reference alongside, writing its files with the label "monolithic"; only where the
+    scene has power bonds: without them there is no interface to solve monolithically). Raises
     RunFailed (with .result) on a failure, Interrupted (with .result) on Ctrl-C."""
     warn = _once(warn or _warn_stderr)                 # the lockstep reference repeats set-up notes
+    if reference == "lockstep" and not scenario.couplings:
+        reference = None
     live = LiveRun(scenario, out_dir, label, certificates, warn, file_suffix, output_interval, formats)
     ref = None
     try:

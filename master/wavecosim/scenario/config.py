@@ -79,7 +79,7 @@ class MasterConfig:
     eps: float = None
     deadline_us: float = None
     fast: str = "auto"
-    threads: str = "auto"
+    threads: str = "auto"              # auto, or N: the subsystems on up to min(N, CPUs, subsystems) threads
     energy_guard: str = None           # ledger | monolithic | off (true/false of old files); None: the master's default
     relaxation: object = 1.0           # DR: lambda in (0, 2) of line 12, or "auto" (masters/dr_options.py)
     anderson: int = 0                  # DR: Anderson window m (0: off)
@@ -437,9 +437,22 @@ def _master(ck, m, couplings) -> MasterConfig:
     if "energy_guard" in m:
         master.energy_guard = _energy_guard(ck, m["energy_guard"])
     if "threads" in m:
-        master.threads = ck.string(str(m["threads"]), "master.threads", ("auto", "1", "2"))
+        master.threads = _threads(ck, m["threads"])
     _dr_options(ck, m, master)
     return master
+
+
+def _threads(ck, value, path="master.threads"):
+    """master.threads: `auto`, or a number of threads N >= 1 (kept as its text, like `auto`)."""
+    text = str(value).strip()
+    if text != "auto" and (isinstance(value, bool) or not text.isdigit() or int(text) < 1):
+        ck.fail(path, f"must be auto or a number of threads >= 1, got {value!r}")
+    return text if text == "auto" else str(int(text))
+
+
+def threads_option(value, option="--threads"):
+    """A command line's threads (auto or N), checked as master.threads."""
+    return _threads(_Checker(option), value, "")
 
 
 def _dr_options(ck, m, master):
