@@ -365,12 +365,12 @@ def _signals(scenario, opened):
     return signals
 
 
-def _open_all(scenario, gammas, wave, needs_rollback, pool, quirks, opened, notes):
-    """Open every subsystem, each FMU file's first instance probed for its quirks (core/quirks.py)
-    before the next is opened, which then shares its binary or gets a copy of its own; the
-    subsystems' quirk decisions."""
+def _open_all(scenario, subs, gammas, wave, needs_rollback, pool, quirks, opened, notes):
+    """Open the subsystems `subs`, each FMU file's first instance probed for its quirks
+    (core/quirks.py) before the next is opened, which then shares its binary or gets a copy of its
+    own; the subsystems' quirk decisions."""
     decisions = {}
-    for sub in scenario.subsystems + scenario.signal_subsystems:
+    for sub in subs:
         path, where = resolve_fmu(sub, scenario.source), f"{scenario.source}: subsystems.{sub.name}"
         own = quirks.own_copy(sub, path, f"{where}.fmu")
         opened.append(_subsystem(scenario, sub, path, gammas.get(sub.name, 1.0), wave, needs_rollback,
@@ -387,7 +387,8 @@ def build_scene(scenario, wave=True, needs_rollback=True, pool=None, quirks=None
     opened, notes, signs = [], [], {}
     pool, quirks = ({} if pool is None else pool), (QuirkTable() if quirks is None else quirks)
     try:
-        decisions = _open_all(scenario, gammas, wave, needs_rollback, pool, quirks, opened, notes)
+        decisions = _open_all(scenario, scenario.subsystems + scenario.signal_subsystems, gammas, wave, needs_rollback,
+                              pool, quirks, opened, notes)
         outputs, more = output_columns(scenario, opened)
         notes[:0] = list(dict.fromkeys(note for s in opened for note in s.fmu.notes))
         notes.extend(more)
@@ -411,14 +412,15 @@ def build_scene(scenario, wave=True, needs_rollback=True, pool=None, quirks=None
 
 
 def open_subsystems(scenario, names, wave=True):
-    """The named subsystems alone, opened and oriented as build_scene opens them (a process that hosts
-    part of a scene: its FMUs are loaded where they run). Signals are not held here."""
+    """The named subsystems alone, opened (their FMUs probed for quirks in this process) and oriented
+    as build_scene opens them (a process that hosts part of a scene: its FMUs are loaded where they
+    run). Signals are not held here."""
     gammas, opened, notes = initial_gammas(scenario), [], []
     try:
-        for sub in scenario.subsystems:
-            if sub.name in names:
-                opened.append(_subsystem(scenario, sub, gammas[sub.name], wave, True))
-                _orient(scenario, opened[-1], notes)
+        _open_all(scenario, [s for s in scenario.subsystems if s.name in names], gammas, wave, True, {}, QuirkTable(),
+                  opened, notes)
+        for subsystem in opened:
+            _orient(scenario, subsystem, notes)
         return opened
     except BaseException:
         for s in opened:
