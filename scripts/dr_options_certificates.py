@@ -1,4 +1,4 @@
-"""The certificates under each DR option (README, "Faster DR"): a table, about a minute.
+"""The certificates under each DR option (docs/masters.md, "Faster DR"): a table, about a minute.
 
     .venv/bin/python scripts/dr_options_certificates.py [OPTION,OPTION K,K,K]
 
@@ -36,7 +36,7 @@ def main(names=None, budgets=None):
     for name, (config, Ks) in SCENES.items():
         base = load_scenario(ROOT / "configs" / config)
         if name == "stiff":
-            base = base.with_changes(gamma="auto")        # gamma = 0.4 barely contracts there (README)
+            base = base.with_changes(gamma="auto")        # gamma = 0.4 barely contracts there (docs/gamma.md)
         reference = reference_run(base)
         for option, (gamma, changes, _) in options.items():
             sc = base if gamma is None else base.with_changes(gamma=gamma)

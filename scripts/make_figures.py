@@ -1,4 +1,5 @@
-"""Regenerate the README's Table I sweep figures, docs/figures/table1_*.png, from the real FMUs.
+"""Regenerate the Table I sweep figures of the docs, docs/figures/table1_*.png, from the real FMUs
+(`make figures` runs this and the other figure scripts).
 
     .venv/bin/python scripts/make_figures.py
 

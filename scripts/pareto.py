@@ -1,4 +1,4 @@
-"""The Pareto figures and the targets table of the README (a few minutes):
+"""The Pareto figures and the targets table of the docs (a few minutes; `make figures`):
 
     .venv/bin/python scripts/pareto.py
 

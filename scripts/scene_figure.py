@@ -1,4 +1,4 @@
-"""The README figure of the scenes beyond the benchmark, docs/figures/scenes.png (about 30 s).
+"""The figure of the scenes beyond the benchmark, docs/figures/scenes.png (about 30 s; `make figures`).
 
     .venv/bin/python scripts/scene_figure.py
 

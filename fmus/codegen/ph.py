@@ -488,10 +488,11 @@ def _real_rows(spec):
     rows += [_real(k, "STATE", *v) for k, v in spec.states.items()]
     for p in spec.ports:
         unit = p["effort_unit"] if p["effort_in"] else p["flow_unit"]
-        rows.append(_real(f"a{p['suffix']}", "INPUT", 0.0, "", "incident wave (wave mode), scaled by sqrt(dt)"))
+        rows.append(_real(f"a{p['suffix']}", "INPUT", 0.0, "sqrt(J)",
+                          "incident wave (wave mode), scaled by sqrt(dt)"))
         rows.append(_real(p["input"], "INPUT", 0.0, unit, "physical port input (physical mode)"))
     for p in spec.ports:
-        rows.append(_real(f"b{p['suffix']}", "OUTPUT", 0.0, "", "outgoing wave, scaled by sqrt(dt)"))
+        rows.append(_real(f"b{p['suffix']}", "OUTPUT", 0.0, "sqrt(J)", "outgoing wave, scaled by sqrt(dt)"))
         rows.append(_real(f"e{p['suffix']}", "OUTPUT", 0.0, p["effort_unit"], "port effort at the stage"))
         rows.append(_real(f"f{p['suffix']}", "OUTPUT", 0.0, p["flow_unit"], "port flow at the stage"))
     rows += [_real(k, "OUTPUT", 0.0, v[1], v[2]) for k, v in spec.outputs.items()]

@@ -125,7 +125,7 @@ with_output = options(output_options)
 
 ssp_options = options([
     click.option("--ports", type=click.Path(dir_okay=False, path_type=Path),
-                 help="SSP input: a YAML overlay with the power ports and the run's settings (README, \"SSP in\")."),
+                 help="SSP input: a YAML overlay with the power ports and the run's settings (docs/your-fmus.md)."),
     click.option("--parameter-set", help="SSP input: use only the parameter sets of this name."),
 ])
 
@@ -348,7 +348,8 @@ def compare_cmd(config, K, eps, gamma, dt, T, quiet, start_time, ports, paramete
     table = api.compare(scenario, names, Ks, out_dir=out, progress=(lambda label: _progress(label, quiet)),
                         certificates=not no_certificates, options=options)
     reference, results, rows = table.reference, table.results, table.rows
-    click.echo(f"{scenario.name}: {len(rows)} runs of {len(names)} masters -> {out / 'compare.json'}")
+    click.echo(f"{scenario.name}: {len(rows)} runs of {len(names)} masters -> {out / 'compare.json'} (the runs' "
+               f"files: one folder per master in {out})")
     print_table(rows, list(COMPARE_FIELDS))
     for r in rows:
         if r["status"] != "finished":

@@ -26,14 +26,14 @@
     X(q, STATE, 0.0, "m", "position of the mass") \
     X(v, STATE, 0.0, "m/s", "velocity of the mass") \
     X(d, STATE, 0.0, "m", "elongation of the right spring: q_next - q, minus the rest length") \
-    X(a_left, INPUT, 0.0, "", "left incident wave (wave mode), scaled by sqrt(dt)") \
+    X(a_left, INPUT, 0.0, "sqrt(J)", "left incident wave (wave mode), scaled by sqrt(dt)") \
     X(F_left, INPUT, 0.0, "N", "left effort input: tension pulling the mass towards -x (physical mode)") \
-    X(a_right, INPUT, 0.0, "", "right incident wave (wave mode), scaled by sqrt(dt)") \
+    X(a_right, INPUT, 0.0, "sqrt(J)", "right incident wave (wave mode), scaled by sqrt(dt)") \
     X(u_right, INPUT, 0.0, "m/s", "right flow input: velocity of the next mass (physical mode)") \
-    X(b_left, OUTPUT, 0.0, "", "left outgoing wave, scaled by sqrt(dt)") \
+    X(b_left, OUTPUT, 0.0, "sqrt(J)", "left outgoing wave, scaled by sqrt(dt)") \
     X(e_left, OUTPUT, 0.0, "N", "left effort held over the step") \
     X(f_left, OUTPUT, 0.0, "m/s", "left flow: -v at the stage") \
-    X(b_right, OUTPUT, 0.0, "", "right outgoing wave, scaled by sqrt(dt)") \
+    X(b_right, OUTPUT, 0.0, "sqrt(J)", "right outgoing wave, scaled by sqrt(dt)") \
     X(e_right, OUTPUT, 0.0, "N", "right effort: spring tension at the stage") \
     X(f_right, OUTPUT, 0.0, "m/s", "right flow: next mass velocity held over the step") \
     X(H, OUTPUT, 0.0, "J", "stored energy")

@@ -16,14 +16,14 @@
     X(c, PARAMETER, 0.0, "N.s/m", "damper in parallel with the spring") \
     X(gamma, TUNABLE, 1.0, "N.s/m", "scattering impedance of both wave channels") \
     X(delta, STATE, 0.0, "m", "elongation: right end minus left end, minus the rest length") \
-    X(a_left, INPUT, 0.0, "", "left incident wave (wave mode), scaled by sqrt(dt)") \
+    X(a_left, INPUT, 0.0, "sqrt(J)", "left incident wave (wave mode), scaled by sqrt(dt)") \
     X(u_left, INPUT, 0.0, "m/s", "left flow input: minus the velocity of the left end (physical mode)") \
-    X(a_right, INPUT, 0.0, "", "right incident wave (wave mode), scaled by sqrt(dt)") \
+    X(a_right, INPUT, 0.0, "sqrt(J)", "right incident wave (wave mode), scaled by sqrt(dt)") \
     X(u_right, INPUT, 0.0, "m/s", "right flow input: velocity of the right end (physical mode)") \
-    X(b_left, OUTPUT, 0.0, "", "left outgoing wave, scaled by sqrt(dt)") \
+    X(b_left, OUTPUT, 0.0, "sqrt(J)", "left outgoing wave, scaled by sqrt(dt)") \
     X(e_left, OUTPUT, 0.0, "N", "left effort: tension at the stage") \
     X(f_left, OUTPUT, 0.0, "m/s", "left flow held over the step") \
-    X(b_right, OUTPUT, 0.0, "", "right outgoing wave, scaled by sqrt(dt)") \
+    X(b_right, OUTPUT, 0.0, "sqrt(J)", "right outgoing wave, scaled by sqrt(dt)") \
     X(e_right, OUTPUT, 0.0, "N", "right effort: tension at the stage") \
     X(f_right, OUTPUT, 0.0, "m/s", "right flow held over the step") \
     X(H, OUTPUT, 0.0, "J", "stored energy")

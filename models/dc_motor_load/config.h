@@ -16,9 +16,9 @@
     X(gamma, TUNABLE, 0.01, "N.m.s/rad", "scattering impedance of the wave port") \
     X(theta, STATE, 0.0, "rad", "shaft angle") \
     X(omega, STATE, 0.0, "rad/s", "shaft angular velocity") \
-    X(a, INPUT, 0.0, "", "incident wave (wave mode), scaled by sqrt(dt)") \
+    X(a, INPUT, 0.0, "sqrt(J)", "incident wave (wave mode), scaled by sqrt(dt)") \
     X(tau, INPUT, 0.0, "N.m", "port effort input: torque on the shaft (physical mode)") \
-    X(b, OUTPUT, 0.0, "", "outgoing wave, scaled by sqrt(dt)") \
+    X(b, OUTPUT, 0.0, "sqrt(J)", "outgoing wave, scaled by sqrt(dt)") \
     X(e, OUTPUT, 0.0, "N.m", "port effort: torque held over the step") \
     X(f, OUTPUT, 0.0, "rad/s", "port flow: omega at the stage") \
     X(H, OUTPUT, 0.0, "J", "stored energy")

@@ -16,9 +16,9 @@
     X(q1, STATE, 0.4, "m", "position of mass 1") \
     X(v1, STATE, 0.0, "m/s", "velocity of mass 1") \
     X(d, STATE, -0.4, "m", "coupling spring elongation q2 - q1") \
-    X(a, INPUT, 0.0, "", "incident wave (wave mode), scaled by sqrt(dt)") \
+    X(a, INPUT, 0.0, "sqrt(J)", "incident wave (wave mode), scaled by sqrt(dt)") \
     X(u, INPUT, 0.0, "m/s", "port flow input v2 (physical mode)") \
-    X(b, OUTPUT, 0.0, "", "outgoing wave, scaled by sqrt(dt)") \
+    X(b, OUTPUT, 0.0, "sqrt(J)", "outgoing wave, scaled by sqrt(dt)") \
     X(e, OUTPUT, 0.0, "N", "port effort: coupling force (stage value)") \
     X(f, OUTPUT, 0.0, "m/s", "port flow: v2 held over the step") \
     X(H, OUTPUT, 0.0, "J", "stored energy")

@@ -25,9 +25,9 @@
     X(amplitude, PARAMETER, 0.5, "m", "height of the initial Gaussian displacement bump") \
     X(gamma, TUNABLE, 1.0, "N.s/m", "scattering impedance of the wave port") \
     X(newton_rtol, PARAMETER, 1e-12, "", "relative tolerance of the Newton step") \
-    X(a, INPUT, 0.0, "", "incident wave (wave mode), scaled by sqrt(dt)") \
+    X(a, INPUT, 0.0, "sqrt(J)", "incident wave (wave mode), scaled by sqrt(dt)") \
     X(F, INPUT, 0.0, "N", "port effort input: force the first mass applies (physical mode)") \
-    X(b, OUTPUT, 0.0, "", "outgoing wave, scaled by sqrt(dt)") \
+    X(b, OUTPUT, 0.0, "sqrt(J)", "outgoing wave, scaled by sqrt(dt)") \
     X(e, OUTPUT, 0.0, "N", "port effort held over the step") \
     X(f, OUTPUT, 0.0, "m/s", "port flow: -v of the first mass at the stage") \
     X(q_first, OUTPUT, 0.0, "m", "displacement of the first mass") \

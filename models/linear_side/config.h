@@ -11,9 +11,9 @@
     X(gamma, TUNABLE, 0.4, "N.s/m", "scattering impedance of the wave port") \
     X(q2, STATE, 0.0, "m", "position of mass 2") \
     X(v2, STATE, 0.0, "m/s", "velocity of mass 2") \
-    X(a, INPUT, 0.0, "", "incident wave (wave mode), scaled by sqrt(dt)") \
+    X(a, INPUT, 0.0, "sqrt(J)", "incident wave (wave mode), scaled by sqrt(dt)") \
     X(F, INPUT, 0.0, "N", "port effort input: coupling force (physical mode)") \
-    X(b, OUTPUT, 0.0, "", "outgoing wave, scaled by sqrt(dt)") \
+    X(b, OUTPUT, 0.0, "sqrt(J)", "outgoing wave, scaled by sqrt(dt)") \
     X(e, OUTPUT, 0.0, "N", "port effort: coupling force held over the step") \
     X(f, OUTPUT, 0.0, "m/s", "port flow: -v2 at the stage") \
     X(H, OUTPUT, 0.0, "J", "stored energy")

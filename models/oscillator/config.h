@@ -26,14 +26,14 @@
     X(gamma, TUNABLE, 1.0, "N.s/m", "scattering impedance of both wave channels") \
     X(q, STATE, 0.1, "m", "position") \
     X(v, STATE, 0.0, "m/s", "velocity") \
-    X(a_left, INPUT, 0.0, "", "left incident wave (wave mode), scaled by sqrt(dt)") \
+    X(a_left, INPUT, 0.0, "sqrt(J)", "left incident wave (wave mode), scaled by sqrt(dt)") \
     X(F_left, INPUT, 0.0, "N", "left effort input: tension pulling towards -x (physical mode)") \
-    X(a_right, INPUT, 0.0, "", "right incident wave (wave mode), scaled by sqrt(dt)") \
+    X(a_right, INPUT, 0.0, "sqrt(J)", "right incident wave (wave mode), scaled by sqrt(dt)") \
     X(F_right, INPUT, 0.0, "N", "right effort input: tension pulling towards +x (physical mode)") \
-    X(b_left, OUTPUT, 0.0, "", "left outgoing wave, scaled by sqrt(dt)") \
+    X(b_left, OUTPUT, 0.0, "sqrt(J)", "left outgoing wave, scaled by sqrt(dt)") \
     X(e_left, OUTPUT, 0.0, "N", "left effort held over the step") \
     X(f_left, OUTPUT, 0.0, "m/s", "left flow: -v at the stage") \
-    X(b_right, OUTPUT, 0.0, "", "right outgoing wave, scaled by sqrt(dt)") \
+    X(b_right, OUTPUT, 0.0, "sqrt(J)", "right outgoing wave, scaled by sqrt(dt)") \
     X(e_right, OUTPUT, 0.0, "N", "right effort held over the step") \
     X(f_right, OUTPUT, 0.0, "m/s", "right flow: +v at the stage") \
     X(H, OUTPUT, 0.0, "J", "stored energy")

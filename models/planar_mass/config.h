@@ -14,14 +14,14 @@
     X(y, STATE, 0.0, "m", "position y") \
     X(vx, STATE, 0.5, "m/s", "velocity x") \
     X(vy, STATE, 0.0, "m/s", "velocity y") \
-    X(a_x, INPUT, 0.0, "", "incident wave, x channel (wave mode), scaled by sqrt(dt)") \
+    X(a_x, INPUT, 0.0, "sqrt(J)", "incident wave, x channel (wave mode), scaled by sqrt(dt)") \
     X(F_x, INPUT, 0.0, "N", "effort input x: force the mass applies (physical mode)") \
-    X(a_y, INPUT, 0.0, "", "incident wave, y channel (wave mode), scaled by sqrt(dt)") \
+    X(a_y, INPUT, 0.0, "sqrt(J)", "incident wave, y channel (wave mode), scaled by sqrt(dt)") \
     X(F_y, INPUT, 0.0, "N", "effort input y: force the mass applies (physical mode)") \
-    X(b_x, OUTPUT, 0.0, "", "outgoing wave, x channel, scaled by sqrt(dt)") \
+    X(b_x, OUTPUT, 0.0, "sqrt(J)", "outgoing wave, x channel, scaled by sqrt(dt)") \
     X(e_x, OUTPUT, 0.0, "N", "effort x held over the step") \
     X(f_x, OUTPUT, 0.0, "m/s", "flow x: -vx at the stage") \
-    X(b_y, OUTPUT, 0.0, "", "outgoing wave, y channel, scaled by sqrt(dt)") \
+    X(b_y, OUTPUT, 0.0, "sqrt(J)", "outgoing wave, y channel, scaled by sqrt(dt)") \
     X(e_y, OUTPUT, 0.0, "N", "effort y held over the step") \
     X(f_y, OUTPUT, 0.0, "m/s", "flow y: -vy at the stage") \
     X(H, OUTPUT, 0.0, "J", "stored energy")

@@ -17,14 +17,14 @@
     X(newton_rtol, PARAMETER, 1e-12, "", "relative tolerance of the Newton step") \
     X(x, STATE, 0.2, "m", "free end position x") \
     X(y, STATE, 0.1, "m", "free end position y") \
-    X(a_x, INPUT, 0.0, "", "incident wave, x channel (wave mode), scaled by sqrt(dt)") \
+    X(a_x, INPUT, 0.0, "sqrt(J)", "incident wave, x channel (wave mode), scaled by sqrt(dt)") \
     X(u_x, INPUT, 0.0, "m/s", "flow input x: free end velocity (physical mode)") \
-    X(a_y, INPUT, 0.0, "", "incident wave, y channel (wave mode), scaled by sqrt(dt)") \
+    X(a_y, INPUT, 0.0, "sqrt(J)", "incident wave, y channel (wave mode), scaled by sqrt(dt)") \
     X(u_y, INPUT, 0.0, "m/s", "flow input y: free end velocity (physical mode)") \
-    X(b_x, OUTPUT, 0.0, "", "outgoing wave, x channel, scaled by sqrt(dt)") \
+    X(b_x, OUTPUT, 0.0, "sqrt(J)", "outgoing wave, x channel, scaled by sqrt(dt)") \
     X(e_x, OUTPUT, 0.0, "N", "effort x: force on the free end at the stage") \
     X(f_x, OUTPUT, 0.0, "m/s", "flow x held over the step") \
-    X(b_y, OUTPUT, 0.0, "", "outgoing wave, y channel, scaled by sqrt(dt)") \
+    X(b_y, OUTPUT, 0.0, "sqrt(J)", "outgoing wave, y channel, scaled by sqrt(dt)") \
     X(e_y, OUTPUT, 0.0, "N", "effort y: force on the free end at the stage") \
     X(f_y, OUTPUT, 0.0, "m/s", "flow y held over the step") \
     X(H, OUTPUT, 0.0, "J", "stored energy")

@@ -20,9 +20,9 @@
     X(gamma, TUNABLE, 1.0, "Ohm", "scattering impedance of the wave port") \
     X(q_C, STATE, 0.1, "C", "capacitor charge (0.1 C on 10 mF is 10 V)") \
     X(i_L, STATE, 0.0, "A", "loop current (inductor current)") \
-    X(a, INPUT, 0.0, "", "incident wave (wave mode), scaled by sqrt(dt)") \
+    X(a, INPUT, 0.0, "sqrt(J)", "incident wave (wave mode), scaled by sqrt(dt)") \
     X(u, INPUT, 0.0, "V", "port effort input: voltage across the port (physical mode)") \
-    X(b, OUTPUT, 0.0, "", "outgoing wave, scaled by sqrt(dt)") \
+    X(b, OUTPUT, 0.0, "sqrt(J)", "outgoing wave, scaled by sqrt(dt)") \
     X(e, OUTPUT, 0.0, "V", "port effort: voltage held over the step") \
     X(f, OUTPUT, 0.0, "A", "port flow: loop current at the stage") \
     X(H, OUTPUT, 0.0, "J", "stored energy")

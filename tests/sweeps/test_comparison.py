@@ -79,6 +79,17 @@ def test_cli_compare_prints_the_table_and_draws_the_figures(tmp_path, capsys):
         assert (tmp_path / name).read_bytes()[:8] == PNG
 
 
+def test_each_master_writes_into_a_folder_of_its_own(tmp_path):
+    compare(scenario(TABLE_I, 0.1), tmp_path, masters=["explicit", "dr"], Ks=[2, 5], certificates=False,
+            options=["relaxed"])
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["compare.json", "dr", "dr-relaxed", "explicit", "monolithic"]
+    kinds = ("trajectory", "steps", "summary", "metadata")
+    for folder, labels in (("explicit", ["explicit"]), ("dr", ["dr_K2", "dr_K5"]),
+                           ("dr-relaxed", ["dr-relaxed_K2", "dr-relaxed_K5"]), ("monolithic", ["monolithic"])):
+        expected = sorted(f"{kind}_{label}.{'csv' if kind in kinds[:2] else 'json'}" for kind in kinds for label in labels)
+        assert sorted(p.name for p in (tmp_path / folder).iterdir()) == expected
+
+
 @pytest.mark.parametrize("args, words", [(["--masters", "explicit,leapfrog"], "unknown master 'leapfrog'"),
                                          (["--K", "3", "--Ks", "1,2"], "not both")])
 def test_cli_compare_rejects_bad_options_in_one_line(tmp_path, capsys, args, words):

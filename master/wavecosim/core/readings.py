@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..fmi.values import BINARY, STRING, category
+from ..fmi.values import BINARY, STRING, category, unit_of
 from ..kernel.linalg import DOT_EXACT
 from ..kernel.portview import ObservedPort
 
@@ -116,7 +116,7 @@ class Sampler:
         self.whole = not self.typed.groups            # outputs of other types are read in Python: no blocks
         self._columns = ({key: as_index(cols) for key, cols in self._block_columns(order).items()}
                          if self.whole else None)
-        self.units = {col: by_name[name].fmu.variable(var).unit or "" for col, (name, var) in zip(outputs, refs)}
+        self.units = {col: unit_of(by_name[name].fmu.variable(var)) for col, (name, var) in zip(outputs, refs)}
 
     def _block_columns(self, order):
         """Where H, E, F, B and the outputs sit in the concatenated observed values of all subsystems

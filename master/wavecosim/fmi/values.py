@@ -17,6 +17,13 @@ def category(fmi_type):
     return CATEGORY.get(fmi_type)
 
 
+def unit_of(variable):
+    """The unit a model variable is in, as its modelDescription gives it: its own `unit`, else its
+    declaredType's; "" when neither names one."""
+    declared = getattr(variable, "declaredType", None)
+    return getattr(variable, "unit", None) or getattr(declared, "unit", None) or ""
+
+
 def integer_range(fmi_type, enumeration_bits=32):
     """(lowest, highest) value of an integer type (Integer is 32 bits; an Enumeration has the bits
     its FMI version gives it: 32 in FMI 2, 64 in FMI 3)."""

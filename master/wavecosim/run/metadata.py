@@ -32,10 +32,12 @@ def _sha256(path):
     return h.hexdigest()
 
 
-def run_metadata(scenario, scene) -> dict:
-    """Everything needed to tell two runs' set-ups apart (the scenario, software, FMU files, machine)."""
+def run_metadata(scenario, scene, units=None) -> dict:
+    """Everything needed to tell two runs' set-ups apart (the scenario, software, FMU files, machine),
+    and the unit of every recorded column."""
     return {
         "scenario": dataclasses.asdict(scenario),
+        "units": units or {},
         "gammas": dict(scene.gammas),
         "quirks": {name: dataclasses.asdict(d) for name, d in scene.decisions.items()},
         "versions": {"wavecosim": _version("wavecosim"), "python": sys.version.split()[0],

@@ -44,7 +44,18 @@ from ..core.readings import Sampler
 from ..core.scene import build_scene
 
 FORMATS = ("csv", "mat")
-STEP_COLUMNS = ("time", "iterations", "inner_residual", "reason")
+# The columns of steps.csv every run has, then the observers' (their `described`); docs/outputs.md
+# is generated from these.
+STEP_DESCRIBED = {
+    "time": ("the grid time t₀ + (n + 1)·Δt at the end of macro-step n", "s"),
+    "iterations": ("inner iterations made in the step (0 for a master that does not iterate)", "1"),
+    "inner_residual": ("the size of the last inner update, |uᵏ⁺¹ − uᵏ| (wave masters, sqrt(J)) or |yᵏ⁺¹ − yᵏ| "
+                       "(physical masters, the port variables' units: no one unit); NaN when no iteration ran", "sqrt(J)"),
+    "reason": (f"why the inner loop stopped: {', '.join(REASONS)}", "text"),
+}
+STEP_COLUMNS = tuple(STEP_DESCRIBED)
+OBSERVERS = (EnergyLedger, EnergyGuard, GammaLog, TunedGammaLog, FneWatch, CertificateSampler, CertificatePace,
+             Passivity, ErrorTracker)      # every observer, in the order they act (and their columns come)
 BLOCK_STEPS = BLOCK                    # macro-steps per call of the master, at most a table block
 assert REASONS[:len(KERNEL_REASONS)] == KERNEL_REASONS     # the kernel's reason codes are the runner's
 
@@ -526,10 +537,23 @@ class LiveRun:
             self._write_files(result)
         return result
 
+    def units(self):
+        """{"trajectory": {column: unit}, "steps": {column: unit}} of the recorded columns: the outputs'
+        from the FMUs' modelDescriptions, the steps' from their descriptions (STEP_DESCRIBED, the
+        observers'); "" where no unit is known."""
+        steps = {c: STEP_DESCRIBED[c][1] for c in STEP_COLUMNS}
+        if not MASTERS[self.scenario.master.algorithm].wave:     # a residual of port variables of any unit
+            steps["inner_residual"] = ""
+        for o in self.observers:
+            steps.update({c: o.unit(c) for c in o.columns})
+        if "error" in steps:                     # the units of the error columns (one, when they share it)
+            steps["error"] = ", ".join(dict.fromkeys(self.sampler.units.get(c, "") for c in self.scenario.error))
+        return {"trajectory": {"time": "s", **self.sampler.units}, "steps": steps}
+
     def _write_files(self, result):
         name = (lambda kind, ext: self.out_dir / f"{kind}{self.suffix}.{ext}")
         write_json(name("summary", "json"), result.summary)
-        write_json(name("metadata", "json"), run_metadata(self.scenario, self.scene))
+        write_json(name("metadata", "json"), run_metadata(self.scenario, self.scene, self.units()))
         if "mat" in self.formats:
             write_mat(name("trajectory", "mat"), self.trajectory)
             write_mat(name("steps", "mat"), self.steps)

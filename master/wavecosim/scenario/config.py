@@ -5,7 +5,7 @@ Every problem becomes a ConfigError whose one line names the file and the key pa
 import csv
 import math
 import re
-from dataclasses import dataclass, field, replace
+from dataclasses import MISSING, dataclass, field, fields, replace
 from pathlib import Path
 
 import yaml
@@ -25,18 +25,54 @@ COUPLING_TYPES = tuple(COUPLINGS)
 SIGNALS_MASTER = "explicit"            # the master of a system without power bonds
 
 
+def key(doc, unit="", type="", default=None, name=None):
+    """The metadata of a dataclass field that is a key of the scenario file: its meaning, unit and
+    type as a reader sees them, its default where the field's own does not say it, and its name in
+    the file where that differs from the field's. docs/scenario.md is generated from these
+    (scripts/docs_tables.py); the checker accepts exactly the keys declared so (`keys_of`)."""
+    return {"doc": doc, "unit": unit, "type": type, "default": default, "key": name}
+
+
+def file_keys(cls):
+    """[(key in the file, field)] of a dataclass's fields that are keys of the scenario file, in order."""
+    return [(f.metadata.get("key") or f.name, f) for f in fields(cls) if "doc" in f.metadata]
+
+
+def keys_of(cls):
+    """The keys of the scenario file a mapping of this dataclass accepts, in order."""
+    return tuple(k for k, _ in file_keys(cls))
+
+
+IMPEDANCE = "effort/flow of the port (N·s/m for force and velocity)"
+
+
 @dataclass
 class SubsystemConfig:
     name: str
-    fmu: str
-    parameters: dict
-    start: dict
-    integers: dict
-    port: dict
+    fmu: str = field(metadata=key("a built-in FMU by its model name (`DuffingSide`), or the path of any .fmu, "
+                                  "relative to the scenario file", type="text", default="required"))
+    parameters: dict = field(metadata=key(
+        "values set before initialization, by variable name (`resistor.R`), each with the setter of the type "
+        "the FMU declares for it", type="mapping NAME: number, true/false or text", default="none"))
+    start: dict = field(metadata=key("start values, by variable name, set as `parameters` are",
+                                     type="mapping NAME: number, true/false or text", default="none"))
+    integers: dict = field(metadata=key("Integer parameters, by variable name (e.g. `newton_max_iter`)",
+                                        type="mapping NAME: integer", default="none"))
+    port: dict = field(metadata=key(
+        "the power port: which variables carry the waves or the effort and flow of each channel (keys below)",
+        type="mapping", default="none; the wave port of the built-in FMUs when a coupling names the subsystem"))
     fmu_path: Path = None
-    gamma: float = None
-    quirks: dict = None                # overrides of the set-up quirk probes (core/quirks.py), by key
-    tolerance: float = None            # passed to setupExperiment; None: the FMU's DefaultExperiment tolerance
+    gamma: float = field(default=None, metadata=key(
+        "this subsystem's γ, in place of the scenario's", IMPEDANCE, "number > 0", "the scenario's `gamma`"))
+    tolerance: float = field(default=None, metadata=key(
+        "the relative tolerance given to the FMU's set-up (`fmi2SetupExperiment`, "
+        "`fmi3EnterInitializationMode`)", "1", "number > 0",
+        "the FMU's DefaultExperiment tolerance; none when it gives none"))
+    quirks: dict = field(default=None, metadata=key(
+        "overrides of the quirk probes made at set-up (docs/troubleshooting.md): `no_set_fmu_state_prior` (the "
+        "noSetFMUStatePriorToCurrentPoint its doSteps get), `reentrant` (false: its own copy of the binary), "
+        "`probe` (false: none for its FMU file)", type="mapping of true/false",
+        default="none: the probes decide"))
 
     @property
     def signal_only(self):
@@ -48,8 +84,13 @@ class SubsystemConfig:
 class SourceConfig:
     """A time table (CSV with a header, first column `time`): the value at t_n per column."""
     name: str
-    csv: str
-    interpolation: str                 # hold (the value at the last time <= t_n) | linear
+    csv: str = field(metadata=key(
+        "the CSV file, relative to the scenario file: a header whose first column is `time`, then one row per "
+        "time; numbers or true/false; times never decrease (a time given twice is an event)", "s (time column)",
+        "file", "required"))
+    interpolation: str = field(metadata=key(
+        "`hold`: the value of the last row at or before t_n; `linear`: interpolated (continuous Real inputs only)",
+        type="hold | linear", default="`hold`"))
     times: tuple                       # never decreasing; a time given twice is an event
     columns: dict                      # {column: tuple of values (floats, or bools), one per time}
 
@@ -57,66 +98,133 @@ class SourceConfig:
 @dataclass
 class SignalConfig:
     """A causal connection, held over each macro-step: to = factor * from + offset (SSP LinearTransformation)."""
-    source: str                        # SUBSYSTEM.variable or SOURCE.column
-    target: str                        # SUBSYSTEM.variable (an input)
-    factor: float = 1.0
-    offset: float = 0.0
+    source: str = field(metadata=key("where the value comes from: an FMU's output, or a column of a source",
+                                     type="SUBSYSTEM.variable or SOURCE.column", default="required", name="from"))
+    target: str = field(metadata=key("the input it drives (each input at most once; not a port variable and not "
+                                     "one with a start value)", type="SUBSYSTEM.variable", default="required",
+                                     name="to"))
+    factor: float = field(default=1.0, metadata=key("to = factor · from + offset (Real inputs only)", "1", "number"))
+    offset: float = field(default=0.0, metadata=key("to = factor · from + offset (Real inputs only)",
+                                                    "the input's unit", "number"))
 
 
 @dataclass
 class CouplingConfig:
-    type: str
-    ports: list
-    ratio: float = None
-    E: list = None
-    F: list = None
+    type: str = field(metadata=key(
+        "the lossless coupling: `equal_effort_opposite_flow` (two ports), `zero_junction` and `one_junction` "
+        "(any number), `transformer` and `gyrator` (two ports, `ratio`), `free_end` and `clamped_end` (one port), "
+        "`dirac` (any, with `E` and `F`)", type="text", default="required"))
+    ports: list = field(metadata=key(
+        "the port channels it joins: a subsystem's name (every channel of its port) or NAME[k] (channel k)",
+        type="list", default="required"))
+    ratio: float = field(default=None, metadata=key(
+        "transformer: e₁ = n e₂ and n f₁ = −f₂; gyrator: e₁ = r f₂ and e₂ = −r f₁ (non-zero)",
+        "effort₁/effort₂ (transformer), effort/flow (gyrator)", "number", "required for a transformer or gyrator"))
+    E: list = field(default=None, metadata=key(
+        "dirac: the matrix E of E e + F f = 0 over the joined channels (E Fᵀ + F Eᵀ = 0: lossless)",
+        type="matrix (list of rows)", default="required for dirac"))
+    F: list = field(default=None, metadata=key("dirac: the matrix F of E e + F f = 0", type="matrix (list of rows)",
+                                               default="required for dirac"))
 
 
 @dataclass
 class MasterConfig:
-    algorithm: str = "dr"
-    K: int = 50
-    eps: float = None
-    deadline_us: float = None
-    fast: str = "auto"
-    threads: str = "auto"              # auto, or N: the subsystems on up to min(N, CPUs, subsystems) threads
-    energy_guard: str = None           # ledger | monolithic | off (true/false of old files); None: the master's default
-    relaxation: object = 1.0           # DR: lambda in (0, 2) of line 12, or "auto" (masters/dr_options.py)
-    anderson: int = 0                  # DR: Anderson window m (0: off)
-    anderson_memory: bool = False      # DR: keep the Anderson differences across macro-steps
-    anderson_extrapolate: bool = False  # DR: b^* the Anderson combination of the responses
-    warm_start: bool = False           # DR: u^{n,0} = P (2 b^n - b^{n-1}) instead of P b^n
+    algorithm: str = field(default="dr", metadata=key(
+        "the master (Masters and DR); a system without couplings runs only on `explicit`", type="name",
+        default="`dr` where there are couplings, else `explicit`"))
+    K: int = field(default=50, metadata=key("the inner budget: iterations per macro-step (DR, the iterating "
+                                            "classical masters)", "1", "integer >= 0"))
+    eps: float = field(default=None, metadata=key(
+        "the inner tolerance: an inner loop also stops when its residual falls below eps", "sqrt(J) (waves)",
+        "number > 0 or null", "none (K iterations)"))
+    deadline_us: float = field(default=None, metadata=key(
+        "wall-clock budget per macro-step: the inner loop stops early enough to end the step by it", "µs",
+        "number > 0 or null", "none"))
+    fast: str = field(default="auto", metadata=key(
+        "the C kernel route: `auto` where it can run, `true`, `false` (the Python reference)",
+        type="auto | true | false"))
+    threads: str = field(default="auto", metadata=key(
+        "threads evaluating the subsystems side by side (DR and the Jacobi family on the kernel route): N puts "
+        "them on up to min(N, CPUs, subsystems) threads; `auto` adds threads only where they pay",
+        type="auto or an integer >= 1"))
+    energy_guard: str = field(default=None, metadata=key(
+        "what keeps the run from gaining energy through the interface: `ledger` (the interface energy ledger), "
+        "`monolithic` (redo as the monolithic step), `off` (Algorithm 1 as in the paper); true/false mean "
+        "monolithic/off", type="ledger | monolithic | off",
+        default="`ledger` for dr; `off` for the classical masters"))
+    relaxation: object = field(default=1.0, metadata=key(
+        "DR: λ of the relaxed update u ← u + λ (w − b̂), or `auto` (chosen from a probe where it helps)", "1",
+        "number in (0, 2) or auto"))
+    anderson: int = field(default=0, metadata=key("DR: Anderson acceleration window m (0: off)", "1",
+                                                  f"integer 0..{ANDERSON_MAX}"))
+    anderson_memory: bool = field(default=False, metadata=key(
+        "DR: keep the Anderson differences across macro-steps (needs `anderson` >= 1)", type="boolean"))
+    anderson_extrapolate: bool = field(default=False, metadata=key(
+        "DR: commit the Anderson combination of the responses as b* (needs `anderson` >= 1)", type="boolean"))
+    warm_start: bool = field(default=False, metadata=key(
+        "DR: start the inner loop at u = P (2 bⁿ − bⁿ⁻¹) instead of P bⁿ", type="boolean"))
 
 
 @dataclass
 class CertificateConfig:
-    augmented: bool = True
-    fne_pairs: int = 8
-    fne_seed: int = 1
-    fne_scale: float = 0.1
-    every: object = "auto"              # sample at steps n % every == 0: an integer >= 1, or "auto"
+    augmented: bool = field(default=True, metadata=key(
+        "compute Theorem 1's augmented residual at the sampled steps (needs every H)", type="boolean"))
+    fne_pairs: int = field(default=8, metadata=key(
+        "random pairs per subsystem on which Condition 1's FNE margin is sampled (0: none)", "1", "integer >= 0"))
+    fne_seed: int = field(default=1, metadata=key("seed of the random pairs", "1", "integer"))
+    fne_scale: float = field(default=0.1, metadata=key(
+        "spread of the random pairs, relative to the size of the incident wave", "1", "number > 0"))
+    every: object = field(default="auto", metadata=key(
+        "sample at the macro-steps n with n % every == 0; `auto`: as often as the master's own FMU evaluations "
+        "allow (max(1, ⌈(2 fne_pairs + 4) / (K + 1)⌉) for DR)", "steps", "integer >= 1 or auto"))
 
 
 @dataclass
 class Scenario:
-    name: str
+    name: str = field(metadata=key("the scenario's name, in summary.json and the figures", type="text",
+                                   default="the file's name without its extension"))
     source: str
-    dt: float
-    T: float
-    gamma: object                      # a number, a mode, or None (no power bond: nothing has waves)
-    subsystems: list
-    couplings: list
-    master: MasterConfig
-    certificates: CertificateConfig
-    outputs: dict
-    error: list
-    description: str = ""
-    fne_watch: bool = True
+    dt: float = field(metadata=key("the macro-step Δt", "s", "number > 0",
+                                   "the smallest DefaultExperiment stepSize of the FMUs"))
+    T: float = field(metadata=key("the stop time; the run makes (T − start_time) / dt steps, a whole number", "s",
+                                  "number > start_time", "the largest DefaultExperiment stopTime of the FMUs"))
+    gamma: object = field(metadata=key(
+        "the scattering impedance γ of the wave variables (Choosing γ); a subsystem's own `gamma` overrides it",
+        IMPEDANCE, "number > 0, or auto | auto-retune | fastest | fast-unsafe",
+        "`auto` where there is a power bond; unused without one"))
+    subsystems: list = field(metadata=key("the FMUs, one entry per subsystem (keys below)",
+                                          type="mapping NAME: subsystem", default="required"))
+    couplings: list = field(metadata=key(
+        "the power bonds, each a lossless coupling of port channels (keys below); left out: a system of "
+        "signals only", type="list", default="none"))
+    master: MasterConfig = field(metadata=key("the master and its settings (keys below)", type="mapping",
+                                              default="see below"))
+    certificates: CertificateConfig = field(metadata=key(
+        "the sampled certificates: Condition 1 margins and Theorem 1's residual (keys below)", type="mapping",
+        default="see below"))
+    outputs: dict = field(metadata=key(
+        "the columns of trajectory.csv: a mapping COLUMN: SUBSYSTEM.variable records exactly those; a list of "
+        "glob patterns (`[A.*, B.y]`) narrows the default columns", type="mapping or list",
+        default="every output and every input a signal drives, named SUBSYSTEM.variable"))
+    error: list = field(metadata=key(
+        "the output columns of the error norm against the monolithic reference (the `error` column, max_error, "
+        "...)", type="list of columns", default="none: no error figures"))
+    description: str = field(default="", metadata=key("free text", type="text"))
+    fne_watch: bool = field(default=True, metadata=key(
+        "the Condition 1 watch: estimates each frozen map's FNE margin from the inner iterates and warns once "
+        "when it goes negative", type="boolean"))
     signal_subsystems: list = field(default_factory=list)     # subsystems without a port (signals only)
-    sources: list = field(default_factory=list)               # SourceConfig
-    signals: list = field(default_factory=list)               # SignalConfig
-    growth_bound: float = GROWTH_BOUND  # a recorded output beyond this times the outputs' initial scale stops the run
-    start_time: float = 0.0                                   # t_0: the grid is t_n = t_0 + n dt; T is the stop time
+    sources: list = field(default_factory=list, metadata=key(
+        "time tables signals can read, by name (keys below)", type="mapping NAME: source", default="none"))
+    signals: list = field(default_factory=list, metadata=key(
+        "causal connections, each held over a macro-step (keys below)", type="list", default="none"))
+    start_time: float = field(default=0.0, metadata=key(
+        "t₀ of the grid t_n = t₀ + n·dt, given to every FMU's set-up", "s", "number",
+        "the start time the FMUs' DefaultExperiments agree on, else 0"))
+    growth_bound: float = field(default=GROWTH_BOUND, metadata=key(
+        "a recorded Real output beyond this many times the outputs' initial scale (their largest magnitude at "
+        "the start, at least 1) stops the run with a NumericalError; null: no bound (non-finite values still "
+        "stop it)", "1", "number > 1 or null"))
     output_patterns: list = field(default_factory=list)       # globs narrowing the recorded columns
     order: list = field(default_factory=list)                 # every subsystem's name, in the file's order
 
@@ -233,7 +341,30 @@ class _Checker:
                 else self.number(v, f"{path}.{k}") for k, v in value.items()}
 
 
-PORT_KEYS = ("wave_in", "wave_out", "effort", "flow", "physical_in", "physical_out", "input", "sign", "energy")
+# The keys of `port:` (not dataclass fields: a port is kept as a mapping of lists); docs/scenario.md
+# is generated from this table, with the dataclasses' keys.
+PORT_KEYS = {
+    "wave_in": key("wave port: the FMU's input of each channel's incident wave a", "sqrt(J)", "variable or list",
+                   "`a`"),
+    "wave_out": key("wave port: the FMU's output of each channel's outgoing wave b", "sqrt(J)", "variable or list",
+                    "`b`"),
+    "effort": key("the output holding each channel's effort e (a physical port: derived from physical_in, "
+                  "physical_out and input)", "the port's effort unit", "variable or list", "`e`"),
+    "flow": key("the output holding each channel's flow f (a physical port: derived like effort)",
+                "the port's flow unit", "variable or list", "`f`"),
+    "physical_in": key("each channel's physical input: the effort or the flow the FMU takes (a physical port, "
+                       "with physical_out; on a wave port, the input of its physical mode)", type="variable or list",
+                       default="none"),
+    "physical_out": key("each channel's physical output; giving it makes the port physical (an FMU without a "
+                        "wave mode, reached through the wave adapter)", type="variable or list", default="none"),
+    "input": key("whether each channel's physical input is the effort or the flow (the output is the other)",
+                 type="effort | flow, or a list", default="required with physical_out"),
+    "sign": key("power into the FMU = sign · effort · flow, per channel (a physical port only)", "1",
+                "1 | -1, or a list", "found by probing one doStep (a warning says which)"),
+    "energy": key("the output holding the stored energy H (optional on a physical port: without it there is "
+                  "no Condition 2 residual or Theorem 1 residual)", "J", "variable",
+                  "`H` on a wave port; none on a physical port"),
+}
 
 
 def _physical_port(ck, path, port):
@@ -300,8 +431,7 @@ def _port(ck, path, port):
 
 def _subsystem(ck, name, raw, base_dir):
     path = f"subsystems.{name}"
-    ck.mapping(raw, path, ("fmu", "parameters", "start", "integers", "port", "gamma", "tolerance", "quirks"),
-               required=("fmu",))
+    ck.mapping(raw, path, keys_of(SubsystemConfig), required=("fmu",))
     fmu = ck.string(raw["fmu"], f"{path}.fmu")
     spec = None                        # no port key: a signal-only subsystem unless a coupling names it
     if "port" in raw:
@@ -338,7 +468,7 @@ PORT_REF = re.compile(r"^([A-Za-z_][\w-]*)(?:\[(\d+)\])?$")
 
 def _coupling(ck, k, raw, subsystem_names):
     path = f"couplings[{k}]"
-    ck.mapping(raw, path, ("type", "ports", "ratio", "E", "F"), required=("type", "ports"))
+    ck.mapping(raw, path, keys_of(CouplingConfig), required=("type", "ports"))
     ctype = ck.string(raw["type"], f"{path}.type", COUPLING_TYPES)
     ports = raw["ports"]
     if not isinstance(ports, list) or not ports:
@@ -419,9 +549,7 @@ def load_raw(path) -> dict:
 
 
 def _master(ck, m, couplings) -> MasterConfig:
-    ck.mapping(m, "master", ("algorithm", "K", "eps", "deadline_us", "fast", "threads", "energy_guard",
-                             "relaxation", "anderson", "anderson_memory",
-                             "anderson_extrapolate", "warm_start"))
+    ck.mapping(m, "master", keys_of(MasterConfig))
     master = MasterConfig(algorithm=default_master(couplings))
     if "algorithm" in m:
         master.algorithm = ck.string(m["algorithm"], "master.algorithm", ALGORITHMS)
@@ -478,7 +606,7 @@ def _dr_options(ck, m, master):
 
 
 def _certificates(ck, c) -> CertificateConfig:
-    ck.mapping(c, "certificates", ("augmented", "fne_pairs", "fne_seed", "fne_scale", "every"))
+    ck.mapping(c, "certificates", keys_of(CertificateConfig))
     certs = CertificateConfig()
     if "augmented" in c:
         certs.augmented = ck.boolean(c["augmented"], "certificates.augmented")
@@ -525,6 +653,13 @@ def output_patterns(patterns, fail):
 
 
 REPEAT_SECTIONS = ("subsystems", "couplings", "outputs", "error")
+REPEAT_KEYS = {
+    "repeat": key("stands for copies of the entry, one per i = a..b, with {i}, {i+1}, {2*i-1} ... replaced in "
+                  "its key and strings (a string that is only such an expression becomes the number)",
+                  type="mapping {INDEX: a..b}", default="none"),
+    "value": key("the copy, when it is not a mapping (an output's SUBSYSTEM.variable, an error column)",
+                 type="any", default="the entry without `repeat`"),
+}
 REPEAT_RANGE = re.compile(r"^\s*(-?\d+)\s*\.\.\s*(-?\d+)\s*$")
 INDEX_EXPR = re.compile(r"\{\s*(?:(\d+)\s*\*\s*)?([A-Za-z_]\w*)\s*(?:([+-])\s*(\d+))?\s*\}")
 
@@ -598,9 +733,7 @@ def parse_scenario(raw, source="<scenario>", base_dir=Path("."), settings=None) 
     the file gives are replaced afterwards, by api.with_overrides)."""
     ck = _Checker(source)
     raw = expand_repeats(raw, ck)
-    top = ("name", "description", "start_time", "dt", "T", "gamma", "subsystems", "couplings", "master",
-           "certificates", "outputs", "error", "fne_watch", "sources", "signals", "growth_bound")
-    ck.mapping(raw, "", top, required=("subsystems",))
+    ck.mapping(raw, "", keys_of(Scenario), required=("subsystems",))
     raw = {**raw, **{k: v for k, v in (settings or {}).items() if v is not None and raw.get(k) is None}}
     subs = raw["subsystems"]
     ck.mapping(subs, "subsystems", list(subs) if isinstance(subs, dict) else [])
@@ -744,7 +877,7 @@ def _sources(ck, raw, subsystem_names, base_dir):
         path = f"sources.{name}"
         if name in subsystem_names:
             ck.fail(path, "is also the name of a subsystem")
-        ck.mapping(spec, path, ("csv", "interpolation"), required=("csv",))
+        ck.mapping(spec, path, keys_of(SourceConfig), required=("csv",))
         csv_path = (base_dir / ck.string(spec["csv"], f"{path}.csv")).resolve()
         how = ck.string(spec.get("interpolation", "hold"), f"{path}.interpolation", INTERPOLATIONS)
         times, columns = _read_table(ck, path, csv_path)
@@ -783,7 +916,7 @@ def _signals(ck, raw, subsystems, sources):
     signals, driven = [], {}
     for k, spec in enumerate(raw):
         path = f"signals[{k}]"
-        ck.mapping(spec, path, ("from", "to", "factor", "offset"), required=("from", "to"))
+        ck.mapping(spec, path, keys_of(SignalConfig), required=("from", "to"))
         _endpoint(ck, spec["from"], f"{path}.from", subsystems, sources, target=False)
         _endpoint(ck, spec["to"], f"{path}.to", subsystems, sources, target=True)
         if spec["to"] in driven:
@@ -793,3 +926,28 @@ def _signals(ck, raw, subsystems, sources):
                                     ck.number(spec.get("factor", 1.0), f"{path}.factor"),
                                     ck.number(spec.get("offset", 0.0), f"{path}.offset")))
     return signals
+
+
+# Every mapping of the scenario file and where its keys are declared (docs/scenario.md).
+SECTIONS = (("", Scenario), ("subsystems.NAME", SubsystemConfig), ("subsystems.NAME.port", PORT_KEYS),
+            ("couplings[i]", CouplingConfig), ("master", MasterConfig), ("certificates", CertificateConfig),
+            ("sources.NAME", SourceConfig), ("signals[i]", SignalConfig),
+            (f"an entry of {', '.join(REPEAT_SECTIONS)}", REPEAT_KEYS))
+
+
+def key_reference():
+    """[(section, [(key, type, default, unit, meaning)])] of every key the scenario file accepts."""
+    def default(f, meta):
+        if meta["default"] is not None or f is None:
+            return meta["default"] or ""
+        value = f.default_factory() if f.default_factory is not MISSING else f.default
+        if value is None or value == "":
+            return "none" if value is None else '`""`'
+        return f"`{str(value).lower() if isinstance(value, bool) else value}`"
+    out = []
+    for path, where in SECTIONS:
+        declared = where.items() if isinstance(where, dict) else [(k, f.metadata) for k, f in file_keys(where)]
+        found = {k: f for k, f in file_keys(where)} if not isinstance(where, dict) else {}
+        out.append((path, [(k, meta["type"], default(found.get(k), meta), meta["unit"], meta["doc"])
+                           for k, meta in declared]))
+    return out

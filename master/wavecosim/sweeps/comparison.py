@@ -25,7 +25,7 @@ DIVERGED_GROWTH = 1e3      # max H(t) / H(0) above this: the interface pumped en
 # The DR options compare can add: name -> (scenario gamma or None to keep the scenario's, master options,
 # marker in the plots). Energy-safe all: the ledger guard (the DR default) holds every one; Theorem 1's
 # per-step certificate holds for all but those with Anderson acceleration (masters/dr_options.py).
-# fastest-memory's lambda = 1.9 was found by a grid over lambda on Table I and the stiff scene (README);
+# fastest-memory's lambda = 1.9 was found by a grid over lambda on Table I and the stiff scene (docs/masters.md);
 # -eps3 / -eps5 add the inner tolerance eps = 1e-3 / 1e-5 (the exit lowers the doSteps actually made).
 DR_OPTIONS = {
     "relaxed": (None, {"relaxation": "auto"}, ("tab:cyan", "v")),
@@ -83,8 +83,13 @@ def style(name):
 
 
 def run_label(master, K, option=""):
-    name = f"{master}-{option}" if option else master
+    name = folder_name(master, option)
     return name if K is None else f"{name}_K{K}"
+
+
+def folder_name(master, option=""):
+    """The folder of a master's (or a DR option's) runs under compare's output folder: `dr`, `dr-relaxed`."""
+    return f"{master}-{option}" if option else master
 
 
 def compare_row(result, K, option=""):
@@ -128,13 +133,16 @@ def _one_run(sc, out_dir, label, progress, certificates, reference):
 
 def compare(scenario, out_dir, masters=None, Ks=None, progress=None, certificates=True, on_run=None, options=()):
     """Run each master in `masters` over its budgets, and DR with each of `options` (names of
-    DR_OPTIONS); writes DIR/compare.json after every run. Returns (reference, results, rows)."""
+    DR_OPTIONS); writes DIR/compare.json after every run, and each run's files into the folder of its
+    master (DIR/dr/, DIR/dr-relaxed/, DIR/monolithic/ for the reference). Returns (reference, results, rows)."""
     out_dir = Path(out_dir) if out_dir is not None else None
+    within = (lambda name: out_dir / name) if out_dir is not None else (lambda name: None)
     masters = list(masters or BUDGETS)
-    reference = reference_run(scenario, out_dir, progress and progress("monolithic"))
+    reference = reference_run(scenario, within("monolithic"), progress and progress("monolithic"))
     results, rows = [], []
     for master, option, K, sc in _runs(scenario, masters, Ks, options):
-        result = _one_run(sc, out_dir, run_label(master, K, option), progress, certificates, reference)
+        result = _one_run(sc, within(folder_name(master, option)), run_label(master, K, option), progress,
+                          certificates, reference)
         results.append(result)
         rows.append(compare_row(result, K, option))
         if out_dir is not None:

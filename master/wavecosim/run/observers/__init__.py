@@ -9,11 +9,25 @@ returning a new StepLog, after which the runner reads the FMUs again. When every
 `after_block` at once; its figures must equal, to the last bit, those of `after_step` called step
 by step. A `paced` observer acts before some steps only (`next_before`): blocks run between them.
 """
+import re
+
+SUBSYSTEM = "<subsystem>"     # stands for a subsystem's name in a column pattern
+
+
+def described_as(described, column):
+    """(meaning, unit) of a column from a table {name or pattern: (meaning, unit)}, where <subsystem>
+    in a pattern stands for a subsystem's name; None when the table does not describe it."""
+    for pattern, entry in described.items():
+        if re.fullmatch(re.escape(pattern).replace(re.escape(SUBSYSTEM), ".+"), column):
+            return entry
+    return None
 
 
 class Observer:
     """Base of the runtime concerns (certificates, energy guard, gamma tuner, Condition 1 watch)."""
     columns = ()          # per-step columns it fills (steps.csv), in order
+    described = {}        # every column it may fill -> (meaning, unit); docs/outputs.md is generated from it
+    when = ""             # when a run has it (docs/outputs.md)
     formats = {}          # column -> formatter for steps.csv (default: floats), e.g. recorder.Labels
     needs_trace = False   # it reads the master's inner queries (u^k, S(u^k)) of each step
     redoes = False        # an energy guard: it acts first and may redo the step
@@ -48,3 +62,8 @@ class Observer:
     def summary(self) -> dict:
         """Its figures for summary.json."""
         return {}
+
+    def unit(self, column):
+        """The unit of one of its columns (metadata.json), from `described`."""
+        entry = described_as(self.described, column)
+        return entry[1] if entry else ""

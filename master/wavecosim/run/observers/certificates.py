@@ -18,6 +18,14 @@ from . import Observer
 class CertificateSampler(Observer):
     """Columns fne_<subsystem> (when fne_pairs > 0) and augmented (when the master gives its DR iterates)."""
     blocks = paced = True
+    when = "wave masters with the certificates on (`augmented`: iterating masters, every FMU giving H)"
+    described = {
+        "fne_<subsystem>": ("Condition 1: the smallest FNE margin of the subsystem's frozen map over "
+                            "`certificates.fne_pairs` random pairs, divided by |Δa|² (≥ 0: firmly nonexpansive); "
+                            "NaN at the steps not sampled (`certificates.every`)", "1"),
+        "augmented": ("Theorem 1's augmented residual ΔH + ½‖uᴷ − u*‖² − ½‖u⁰ − u*‖² − ½(‖â‖² − ‖bⁿ⁺¹‖²) (≤ 0 "
+                      "when the theorem holds); NaN at the steps not sampled", "J"),
+    }
 
     def __init__(self, scene, master, settings, augmented, pace):
         self.scene, self.master, self.settings, self.pace = scene, master, settings, pace

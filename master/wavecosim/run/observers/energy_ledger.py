@@ -56,6 +56,16 @@ class EnergyLedger(Observer):
     redoes = True
     columns = ("interface_energy", "ledger", "scale", "ledger_action")
     formats = {"ledger_action": Labels(ACTIONS)}
+    when = "the energy ledger: `master.energy_guard: ledger` (DR's default) on a master that rolls back"
+    described = {
+        "interface_energy": ("Iⁿ, the energy the interface supplied in the step: Σᵢ ½(‖âᵢ‖² − ‖bᵢⁿ⁺¹‖²) on the "
+                             "wave masters, Δt Σ e·f on the physical ones (after a redo: the redone step's)", "J"),
+        "ledger": ("Lⁿ = Σ_{k≤n} Iᵏ, the energy the interface has supplied since the start; kept at or below "
+                   "roundoff (10⁻¹² of the interface's traffic)", "J"),
+        "scale": ("s, the factor the step's inputs were scaled by when it was redone; 1 when it was kept", "1"),
+        "ledger_action": (f"{', '.join(ACTIONS)}: the step as committed, redone with its inputs scaled by s, or "
+                          "redone with s = 0 (matched loads)", "text"),
+    }
 
     def __init__(self, master):
         self.master = master

@@ -11,6 +11,9 @@ class ErrorTracker(Observer):
     """Column `error`; `reference(k)` gives the reference's outputs at grid point k (None: no more)
     and `reference_rows(k, count)` those of grid points k .. k + count - 1 as rows (fewer: no more)."""
     columns = ("error",)
+    when = "a run with the monolithic reference and `error` columns"
+    described = {"error": ("‖(Δy₁, Δy₂, …)‖₂ over the scenario's `error` columns against the monolithic "
+                           "reference at the same grid point", "the error columns' units")}
     blocks = True
 
     def __init__(self, output_names, error_names, reference, reference_rows=None):

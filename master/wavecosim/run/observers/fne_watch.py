@@ -101,6 +101,11 @@ class FneWatch(Observer):
     """Online Condition 1 monitor of one run; `warn` gets one line, the first time it fails.
     Column fne_watch: the smallest margin estimated at each step (NaN when none could be)."""
     columns = ("fne_watch",)
+    when = "iterating masters, with `fne_watch: true` and the certificates on"
+    described = {"fne_watch": ("the Condition 1 watch: the smallest FNE margin estimated in the step, from the "
+                               "inner iterates (or a probe at the sampled steps when K < 2), divided by |Δa|² "
+                               "(≥ 0 when every frozen map is firmly nonexpansive); NaN when none could be",
+                               "1")}
 
     def __init__(self, scene, master, pace, warn=None, tol=TOL):
         self.scene, self.master, self.pace, self.tol = scene, master, pace, tol

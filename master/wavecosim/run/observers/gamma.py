@@ -1,5 +1,7 @@
 """The impedances in force at each step (columns gamma_<subsystem>) and, for `gamma: auto |
 auto-retune | fast-unsafe`, the tuner that chose them (wavecosim/core/gamma.py)."""
+from ...errors import FmuError
+from ...fmi.values import unit_of
 from ...core.gamma import GammaTuner
 from .fne_watch import trace_impedances
 from . import Observer
@@ -7,6 +9,8 @@ from . import Observer
 
 class GammaLog(Observer):
     """Records gamma per step (fixed gammas: nothing to do before a step)."""
+    when = "wave masters (dr, and newton for the reference)"
+    described = {"gamma_<subsystem>": ("γ of the subsystem's port over the step", "effort/flow of the port")}
 
     def __init__(self, scene, master, tuner: GammaTuner = None):
         self.scene, self.master, self.tuner = scene, master, tuner
@@ -15,6 +19,20 @@ class GammaLog(Observer):
         self.needs_trace = bool(tuner and tuner.retune)
         self.blocks = not self.needs_trace
         self.gamma_min = {}
+
+    def unit(self, column):
+        """The port's effort unit over its flow unit (N/(m/s)), from its FMU's modelDescription, when
+        every channel gives the same; else the generic description."""
+        sub = next(s for s in self.scene.subsystems if f"gamma_{s.name}" == column)
+        try:
+            units = {(unit_of(sub.fmu.variable(e)), unit_of(sub.fmu.variable(f)))
+                     for e, f in zip(sub.port.effort, sub.port.flow)}
+        except FmuError:                  # a port variable the FMU does not list (read another way)
+            units = set()
+        if len(units) != 1 or "" in next(iter(units)):
+            return super().unit(column)
+        effort, flow = units.pop()
+        return f"{effort}/({flow})" if set(flow) & set("/. *") else f"{effort}/{flow}"
 
     def after_step(self, n, t, log, reading, row):
         if self.needs_trace and self.master.trace:

@@ -24,6 +24,16 @@ class Passivity(Observer):
     """Per step: r_<subsystem> (Condition 2) or the port ledger without H, interface_supply and
     H_total (when every H is known); running maxima for the summary. `unavailable` names further
     certificates the run could not compute (from the runner)."""
+    when = "every run of a scene with ports (`r_`: FMUs giving H, `port_energy_`: those without)"
+    described = {
+        "r_<subsystem>": ("Condition 2: ΔHᵢ minus the energy into the subsystem's port in the step "
+                          "(≤ 0 up to roundoff for a passive step; a source inside the FMU adds its work)", "J"),
+        "port_energy_cum_<subsystem>": ("the energy into the port since the start (a subsystem without H)", "J"),
+        "port_energy_<subsystem>": ("the energy into the subsystem's port in the step: ½(‖âᵢ‖² − ‖bᵢ‖²) or "
+                                    "Δt eᵢ·fᵢ (a subsystem without H, in place of r_<subsystem>)", "J"),
+        "interface_supply": ("the energy into all ports in the step (the sum over the subsystems)", "J"),
+        "H_total": ("Σᵢ Hᵢ, the energy stored in every subsystem after the step (when every FMU gives H)", "J"),
+    }
 
     def __init__(self, scene, unavailable=()):
         self.scene, self.wave, self.dt = scene, scene.wave, scene.scenario.dt

@@ -51,7 +51,7 @@ def draft_text(imported, folder) -> str:
     """The draft as text; `folder` is where it will be written (relative FMU paths)."""
     raw = imported.raw
     lines = [f"# Drafted by `wavecosim import-ssp` from {imported.ssd.name} ({imported.ssd.parent}).",
-             "# Edit freely; every key is checked when the file is run (README, \"The scenario file\")."]
+             "# Edit freely; every key is checked when the file is run (docs/scenario.md)."]
     lines += [f"# note: {note}" for note in imported.notes]
     for key in ORDER:
         if key == "subsystems":
@@ -60,7 +60,7 @@ def draft_text(imported, folder) -> str:
             lines += _comment(imported.origins, key) + [f"{key}:"] + [f"  - {_flow(item)}" for item in raw[key]]
             if key == "couplings" and not raw[key]:
                 lines[-1] = ("couplings: []   # no power bond: the explicit master runs it; declare ports "
-                             "with --ports for DR (README, \"SSP in\")")
+                             "with --ports for DR (docs/your-fmus.md)")
         elif key in raw:
             lines += _comment(imported.origins, key) + [f"{key}: {_flow(raw[key])}"]
         elif key in NEEDED:
