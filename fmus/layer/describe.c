@@ -106,7 +106,13 @@ static void print_typed(const char *type, const char *name, int vr, int kind, co
 
 /* The C files fmus/build.py compiles into the binary; sources/ in the FMU holds them and every
  * header they include, so `fmpy compile` can rebuild the binary on another platform. */
-static const char *source_files[] = {"fmi2_cosim.c", "model.c"};
+#ifndef FMI_LAYER_SOURCE
+#define FMI_LAYER_SOURCE "fmi2_cosim.c"
+#endif
+#ifndef CAN_SERIALIZE_FMU_STATE
+#define CAN_SERIALIZE_FMU_STATE "true"
+#endif
+static const char *source_files[] = {FMI_LAYER_SOURCE, "model.c"};
 
 static void print_source_files(void) {
     printf("    <SourceFiles>\n");
@@ -134,8 +140,8 @@ int main(void) {
            "generationTool=\"wavecosim fmus/layer\" variableNamingConvention=\"flat\" numberOfEventIndicators=\"0\">\n",
            MODEL_IDENTIFIER_STR, MODEL_GUID, MODEL_DESCRIPTION);
     printf("  <CoSimulation modelIdentifier=\"%s\" canHandleVariableCommunicationStepSize=\"true\" "
-           "canGetAndSetFMUstate=\"true\" canSerializeFMUstate=\"true\" canNotUseMemoryManagementFunctions=\"true\">\n",
-           MODEL_IDENTIFIER_STR);
+           "canGetAndSetFMUstate=\"true\" canSerializeFMUstate=\"%s\" canNotUseMemoryManagementFunctions=\"true\">\n",
+           MODEL_IDENTIFIER_STR, CAN_SERIALIZE_FMU_STATE);
     print_source_files();
     printf("  </CoSimulation>\n");
     REAL_VARIABLES(UNIT_DEF)

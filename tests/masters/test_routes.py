@@ -15,6 +15,7 @@ import contextlib
 import copy
 import dataclasses
 import json
+import math
 
 import numpy as np
 import pytest
@@ -325,11 +326,18 @@ def test_an_fmu_error_is_the_references(scenario, name, threads, newton_max_iter
     assert str(error).startswith(f"subsystem A: fmi2DoStep returned Error at step {step} ")
 
 
-def test_a_run_that_blows_up_fails_alike_in_blocks(scenario):
-    """Explicit coupling pumps the stiff scene up until an FMU fails: the same failure at the same step
-    and the same rows before it (output interval 7), the kernel's in blocks."""
-    error = failing(scenario("two_oscillators_stiff", 20.0, algorithm="explicit"), output_interval=7)
-    assert "fmi2DoStep returned Error" in str(error) and error.result.summary["block_steps"] > 0
+@pytest.mark.parametrize("bound, why", [(1e12, "has grown past 1e+12"), (math.inf, "fmi2DoStep returned Error")])
+def test_a_run_that_blows_up_fails_alike_in_blocks(scenario, bound, why):
+    """Explicit coupling pumps the stiff scene up until its outputs pass the growth bound (without
+    one: until an FMU fails): the same failure at the same step, the same rows before it (output
+    interval 7) and the same FMU calls, the kernel's in blocks that stop at the bound too."""
+    sc = dataclasses.replace(scenario("two_oscillators_stiff", 20.0, algorithm="explicit"), growth_bound=bound)
+    error = failing(sc, output_interval=7)
+    assert why in str(error) and error.result.summary["block_steps"] > 0
+    if bound < math.inf:                   # the kernel stops where the reference does: the same FMU calls
+        with pytest.raises(RunFailed) as reference:
+            run(sc.with_master(fast="false"), certificates=False, warn=lambda note: None, output_interval=7)
+        assert reference.value.result.summary["fmu_calls"] == error.result.summary["fmu_calls"]
 
 
 def test_a_newton_that_does_not_converge_is_the_references(scenario):

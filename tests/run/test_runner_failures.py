@@ -15,7 +15,7 @@ import time
 import pytest
 import yaml
 
-from paths import CLI
+from paths import CLI, CONFIGS
 from wavecosim.cli import main
 from wavecosim.scenario.config import DEFAULT_CONFIG, parse_scenario
 from wavecosim.run.runner import RunFailed, run
@@ -91,8 +91,31 @@ def test_failing_reference_keeps_its_rows(tmp_path, capsys):
     assert json.loads((out / "summary_monolithic.json").read_text())["status"] == "failed"
 
 
+@pytest.mark.parametrize("fast", ["false", "true"], ids=["python-path", "c-kernel"])
+def test_growth_past_the_bound_stops_the_run_with_the_rows_computed(fast, tmp_path, capsys):
+    """The negative spring's v2 passes growth_bound (1e12) times the outputs' initial scale (1) at
+    step 14: NumericalError (exit 4) naming subsystem, variable and step; the rows up to that step
+    are on disk, the same from the step-by-step route and the kernel's blocks."""
+    raw = nan_failure()
+    raw["master"]["fast"] = fast
+    code, err, out = run_cli(tmp_path, raw, capsys, "--no-reference")
+    assert code == 4
+    assert err.strip().splitlines()[-1] == ("error: subsystem B: v2 = 3.44937e+12 at step 14 (t = 0.15) has grown "
+                                            "past 1e+12 (growth_bound 1e+12 times the outputs' initial scale 1)")
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "failed" and summary["steps"] == 15
+    assert len(rows(out / "trajectory.csv")) == 16 and len(rows(out / "steps.csv")) == 15
+    with open(out / "trajectory.csv", newline="") as f:
+        table = list(csv.reader(f))
+    v2 = [abs(float(row[table[0].index("v2")])) for row in table[1:]]
+    assert v2[-1] > 1e12 > max(v2[:-1])
+
+
 def test_non_finite_state_stops_the_run(tmp_path, capsys):
-    code, err, out = run_cli(tmp_path, nan_failure(), capsys, "--no-reference")
+    """Without a growth bound (growth_bound: null) the state grows until the FMU itself refuses."""
+    raw = nan_failure()
+    raw["growth_bound"] = None
+    code, err, out = run_cli(tmp_path, raw, capsys, "--no-reference")
     line = err.strip().splitlines()[-1]
     assert code == 3
     assert line.startswith("error: subsystem B: fmi2DoStep returned Error at step 166 (t = 1.66): ")
@@ -143,3 +166,30 @@ def test_ctrl_c_stops_cleanly_with_everything_on_disk(tmp_path):
     traj, steps = rows(out / "trajectory.csv"), rows(out / "steps.csv")
     assert len(steps) == n and len(traj) == n + 1
     assert float(traj[-1][0]) == pytest.approx(n * 0.01) and all(len(r) == len(traj[0]) for r in traj)
+
+
+def test_explicit_master_on_an_unstable_stiff_scene_fails_instead_of_finishing(tmp_path, capsys):
+    """configs/two_oscillators_stiff.yaml with m1 = -8 under the explicit master used to reach
+    q1 = 2.4e25 and report "finished": now it stops where its outputs pass the growth bound."""
+    raw = yaml.safe_load((CONFIGS / "two_oscillators_stiff.yaml").read_text())
+    raw["subsystems"]["A"]["parameters"]["m1"] = -8.0
+    code, err, out = run_cli(tmp_path, raw, capsys, "--no-reference", "--master", "explicit")
+    summary = json.loads((out / "summary.json").read_text())
+    assert code == 4 and summary["status"] == "failed" and summary["steps"] < raw["T"] / raw["dt"]
+    assert err.strip().splitlines()[-1] == ("error: subsystem A: b = 1.18557e+12 at step 117 (t = 1.18) has grown "
+                                            "past 1e+12 (growth_bound 1e+12 times the outputs' initial scale 1)")
+    assert len(rows(out / "trajectory.csv")) == summary["steps"] + 1
+
+
+def test_a_non_finite_value_at_t0_is_one_line(tmp_path, capsys):
+    """An FMU whose stored energy is infinite at t = 0 (StrictMass with m = 1e308, v = 1e10), with a
+    fixed gamma: one line naming subsystem and variable (exit 4), the first row kept, a summary."""
+    raw = yaml.safe_load((CONFIGS / "foreign_pair.yaml").read_text())
+    raw["gamma"] = 0.5
+    raw["subsystems"]["A"].update(fmu="StrictMass", parameters={"m": 1e308}, start={"v": 1e10})
+    code, err, out = run_cli(tmp_path, raw, capsys, "--no-reference")
+    assert code == 4
+    assert err.strip().splitlines()[-1] == ("error: subsystem A: its stored energy H = inf is not finite at t = 0 "
+                                            "(the initial values)")
+    assert json.loads((out / "summary.json").read_text())["status"] == "failed"
+    assert len(rows(out / "trajectory.csv")) == 1

@@ -28,6 +28,7 @@ class KernelAdapter(ports.AdapterPort):
         self.lib, self.struct, self._ref = new_adapter(fns, comp, sub.state_handle_address(), sub._in_vr,
                                                        sub._out_vr, self.effort_in, self.sign, memory)
         st = self.struct
+        st.no_prior = sub.no_prior                            # the doStep flag of its FMU calls
         st.tol, st.accept, st.slope_rel = ports.TOL, ports.ACCEPT, ports.SLOPE_REL
         st.max_iter, st.stall = ports.MAX_ITER, ports.STALL
         self._set_weights(port.gamma)

@@ -69,6 +69,11 @@ class Subsystem:
         self._m = cvalues.size(m)
         self._state = cvalues.pointer()
         self._dirty = False
+        # noSetFMUStatePriorToCurrentPoint of the doSteps whose state may be restored after: 0 (the
+        # standard's choice for a master that rolls back), or 1 where the FMU freezes with 0
+        # (core/quirks.py). Either is by the book here: x_i^n is only ever restored at t_n, the
+        # doSteps' own communication point, never before it.
+        self.no_prior = 0
         self._batch = None                   # kernel.queries.Queries (False without it), on first raw_queries
         self.t = 0.0
         self._t = cvalues.double(0.0)
@@ -150,9 +155,7 @@ class Subsystem:
         for j in range(self.m):
             self._in_val[j] = a[j]
         self._call(self._set_real, "fmi2SetReal", self._comp, self._in_vr, self._m, self._in_val)
-        # noSetFMUStatePriorToCurrentPoint = false: a later query, or the energy guard's undo after the
-        # commit, restores x_i^n at t, a point before the t + dt this doStep reaches (FMI 2.0.x, 4.2.2)
-        self._call(self._do_step, "fmi2DoStep", self._comp, self._t, self._h, 0)
+        self._call(self._do_step, "fmi2DoStep", self._comp, self._t, self._h, self.no_prior)
         self.calls["doStep"] += 1
         self._call(self._get_real, "fmi2GetReal", self._comp, self._out_vr, self._m, self._out_val)
         return self._out_val[:]
@@ -208,7 +211,7 @@ class Subsystem:
         if not self._batch:
             return np.array([self.raw_query(list(r)) for r in rows], float).reshape(len(rows), self.m)
         out, done, fn, status = self._batch(self._comp, self._state, self._in_vr, self._out_vr, self.m, self._t,
-                                            self._h, rows, self._dirty)
+                                            self._h, rows, self._dirty, self.no_prior)
         restore_fn = FUNCTIONS.index("fmi2SetFMUstate")
         self.calls["restore"] += max(0, done + (fn > 0) - (not self._dirty)) - (fn == restore_fn)
         self.calls["doStep"] += done + (fn == FUNCTIONS.index("fmi2GetReal"))
@@ -274,9 +277,11 @@ class Subsystem:
         self._dirty = False
 
     def release(self):
-        if self._state.value:
+        """Free the saved x_i^n (not after the FMU reported fatal). The handle object stays the same
+        (the C kernels hold its address); it is NULL afterwards."""
+        if self._state.value and self.fmu.free_state_allowed():
             self.fmu.free_state_handle(self._state)
-            self._state = cvalues.pointer()
+        self._state.value = None
 
     def close(self):
         try:

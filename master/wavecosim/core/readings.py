@@ -136,6 +136,13 @@ class Sampler:
         cols["outputs"] = [starts[i] + heads[i] + j for i, j in order]
         return cols
 
+    def rows(self, key):
+        """Which of the observed values (all subsystems', concatenated) hold `key` (H, E, F, B or outputs);
+        none when the outputs are not all read with them (no blocks)."""
+        if self._columns is None:
+            return []
+        return BlockReading([None] * sum(map(len, self.observed)), self._columns).rows(key)
+
     def block(self, observed) -> BlockReading:
         """The BlockReading of observed values (the subsystems' `observed` names concatenated, one
         row per name, one column per step)."""

@@ -1,5 +1,6 @@
 """A scenario made concrete: FMU instances as Subsystems, stacked channels, the compiled coupling."""
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -10,6 +11,7 @@ from ..fmi.fmu import Fmu
 from .frozen_port_map import PortSpec, Subsystem
 from .gamma import choose_relaxation, initial_gammas
 from .ports import probe_signs
+from .quirks import QuirkTable
 from .recording import output_columns
 from .signals import Signals, table_inputs
 
@@ -88,6 +90,9 @@ class Scene:
     port_signs: dict = field(default_factory=dict)   # {subsystem: {"sign": [...], "probed": bool}}
     signal_only: list = field(default_factory=list)  # Subsystems without a port (signals only)
     signals: Signals = None                          # the held signal inputs (None: the scenario has none)
+    pool: dict = field(default_factory=dict)         # the extracted FMUs its instances share (fmi/fmu.py)
+    quirks: QuirkTable = None                        # what the set-up probes found, per FMU file
+    decisions: dict = field(default_factory=dict)    # {subsystem: quirks.Decision}: its doStep flag and why
     outputs: dict = field(default_factory=dict)      # the recorded columns {column: SUBSYSTEM.variable}
     ended: Exception = None                          # an FMU ended the simulation after the step just made
 
@@ -335,9 +340,9 @@ def _orient(scenario, subsystem, notes):
     return {"sign": list(port.sign), "probed": probed, "probe": steps}
 
 
-def _subsystem(scenario, sub, gamma, wave, needs_rollback, pool=None):
+def _subsystem(scenario, sub, path, gamma, wave, needs_rollback, pool=None):
     """One opened subsystem with its port (not yet oriented), or a signal-only one (no port)."""
-    fmu = _open_fmu(scenario, sub, resolve_fmu(sub, scenario.source), gamma, wave and not sub.signal_only, pool)
+    fmu = _open_fmu(scenario, sub, path, gamma, wave and not sub.signal_only, pool)
     try:
         if sub.signal_only:
             return Subsystem(sub.name, fmu, PortSpec([], [], [], [], energy=None), scenario.dt, wave=False)
@@ -360,15 +365,33 @@ def _signals(scenario, opened):
     return signals
 
 
-def build_scene(scenario, wave=True, needs_rollback=True) -> Scene:
-    """Instantiate every subsystem (wave or physical port mode) at its initial gamma and compile the coupling."""
+def _open_all(scenario, subs, gammas, wave, needs_rollback, pool, quirks, opened, notes):
+    """Open the subsystems `subs`, each FMU file's first instance probed for its quirks
+    (core/quirks.py) before the next is opened, which then shares its binary or gets a copy of its
+    own; the subsystems' quirk decisions."""
+    decisions = {}
+    for sub in subs:
+        path, where = resolve_fmu(sub, scenario.source), f"{scenario.source}: subsystems.{sub.name}"
+        own = quirks.own_copy(sub, path, f"{where}.fmu")
+        opened.append(_subsystem(scenario, sub, path, gammas.get(sub.name, 1.0), wave, needs_rollback,
+                                 None if own else pool))
+        decisions[sub.name] = quirks.settle(opened[-1], sub, Path(path), needs_rollback, where, own, notes)
+    return decisions
+
+
+def build_scene(scenario, wave=True, needs_rollback=True, pool=None, quirks=None) -> Scene:
+    """Instantiate every subsystem (wave or physical port mode) at its initial gamma and compile the
+    coupling. A scene built alongside another (the lockstep reference) shares its `pool` of extracted
+    FMUs (one binary per FMU file in the process) and its table of `quirks`."""
     gammas = initial_gammas(scenario)
-    opened, signs, pool = [], {}, {}
+    opened, notes, signs = [], [], {}
+    pool, quirks = ({} if pool is None else pool), (QuirkTable() if quirks is None else quirks)
     try:
-        for sub in scenario.subsystems + scenario.signal_subsystems:
-            opened.append(_subsystem(scenario, sub, gammas.get(sub.name, 1.0), wave, needs_rollback, pool))
-        outputs, notes = output_columns(scenario, opened)
+        decisions = _open_all(scenario, scenario.subsystems + scenario.signal_subsystems, gammas, wave, needs_rollback,
+                              pool, quirks, opened, notes)
+        outputs, more = output_columns(scenario, opened)
         notes[:0] = list(dict.fromkeys(note for s in opened for note in s.fmu.notes))
+        notes.extend(more)
         signals = _signals(scenario, opened)
         subsystems = opened[:len(scenario.subsystems)]
         for subsystem in subsystems:
@@ -377,7 +400,8 @@ def build_scene(scenario, wave=True, needs_rollback=True) -> Scene:
                 signs[subsystem.name] = sign
         E, F, offsets = coupling_structure(scenario, [s.m for s in subsystems])
         scene = Scene(scenario, subsystems, offsets, E, F, wave, gammas, notes, signs,
-                      opened[len(subsystems):], signals, outputs)
+                      opened[len(subsystems):], signals, pool=pool, quirks=quirks, decisions=decisions,
+                      outputs=outputs)
         if wave and scene.n_channels:
             scene.wave_map()
         return scene
@@ -388,14 +412,15 @@ def build_scene(scenario, wave=True, needs_rollback=True) -> Scene:
 
 
 def open_subsystems(scenario, names, wave=True):
-    """The named subsystems alone, opened and oriented as build_scene opens them (a process that hosts
-    part of a scene: its FMUs are loaded where they run). Signals are not held here."""
+    """The named subsystems alone, opened (their FMUs probed for quirks in this process) and oriented
+    as build_scene opens them (a process that hosts part of a scene: its FMUs are loaded where they
+    run). Signals are not held here."""
     gammas, opened, notes = initial_gammas(scenario), [], []
     try:
-        for sub in scenario.subsystems:
-            if sub.name in names:
-                opened.append(_subsystem(scenario, sub, gammas[sub.name], wave, True))
-                _orient(scenario, opened[-1], notes)
+        _open_all(scenario, [s for s in scenario.subsystems if s.name in names], gammas, wave, True, {}, QuirkTable(),
+                  opened, notes)
+        for subsystem in opened:
+            _orient(scenario, subsystem, notes)
         return opened
     except BaseException:
         for s in opened:

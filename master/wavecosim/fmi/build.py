@@ -23,9 +23,17 @@ SPECS = DATA / "specs"
 PLATFORM = "linux64"
 
 
+def layer_source(model_dir: Path) -> Path:
+    """The FMI layer a model is built with: fmus/layer/fmi2_cosim.c, or the file its config.h names
+    in FMI_LAYER_SOURCE (fmi2_strict.c: the strict layer of test models)."""
+    m = re.search(r'#define\s+FMI_LAYER_SOURCE\s+"(\w+\.c)"', (model_dir / "config.h").read_text())
+    return LAYER / (m.group(1) if m else "fmi2_cosim.c")
+
+
 def _sources(model_dir: Path):
-    return [p for p in LAYER.iterdir() if p.suffix in (".c", ".h")] + \
-           [p for p in model_dir.iterdir() if p.suffix in (".c", ".h")]
+    """The layer's headers, describe.c, the model's layer and the model's own files."""
+    layer = [p for p in LAYER.iterdir() if p.suffix == ".h" or p.name == "describe.c"]
+    return layer + [layer_source(model_dir)] + [p for p in model_dir.iterdir() if p.suffix in (".c", ".h")]
 
 
 def _packed_sources(model_dir: Path):
@@ -54,8 +62,8 @@ def build_model(model_dir: Path, force=False, log=print) -> Path:
         describe, so = Path(tmp) / "describe", Path(tmp) / f"{ident}.so"
         run(["gcc", *CFLAGS, *includes, LAYER / "describe.c", "-o", describe], f"{ident} description")
         xml = run([describe], f"{ident} description")
-        run(["gcc", *CFLAGS, "-shared", *includes, LAYER / "fmi2_cosim.c", model_dir / "model.c", "-o", so, "-lm"],
-            ident)
+        run(["gcc", *CFLAGS, "-shared", *includes, layer_source(model_dir), model_dir / "model.c", "-o", so, "-lm",
+             "-lpthread"], ident)
 
         members = [("modelDescription.xml", xml.encode()), (f"binaries/{PLATFORM}/{ident}.so", so.read_bytes())]
         members += [(f"sources/{src.name}", src.read_bytes()) for src in _packed_sources(model_dir)]

@@ -65,11 +65,14 @@ class Fmi3:
               "Enumeration": "Int64"}     # FMI type -> the get/set pair of FMU3Slave that carries it
     enumeration_bits = 64
 
-    def __init__(self, fmu, model_identifier):
+    def __init__(self, fmu, model_identifier, slave=None):
+        """A new instance through fmpy's FMU3Slave, or through `slave`, a copy of another instance's
+        (the binary already loaded: `borrowed`)."""
         def log(env, status, category, message):
             fmu.messages.append((status, message.decode("utf-8", "replace") if message else ""))
-        self.slave = FMU3Slave(guid=fmu.description.guid, unzipDirectory=str(fmu.folder),
-                               modelIdentifier=model_identifier, instanceName=fmu.name)
+        self.borrowed = slave is not None
+        self.slave = slave or FMU3Slave(guid=fmu.description.guid, unzipDirectory=str(fmu.folder),
+                                        modelIdentifier=model_identifier, instanceName=fmu.name)
         fmu.checked(self.slave.instantiate, "fmi3InstantiateCoSimulation", logMessage=log)
         self.shim = Shim(self.slave.component, *[self.address(FUNCTIONS[k][0]) for k in FUNCTIONS])
         self.component = ctypes.addressof(self.shim)
@@ -132,6 +135,13 @@ class Fmi3:
     def name(fname):
         """The fmi3 function called for an fmi2 name."""
         return FUNCTIONS.get(fname, (fname,))[0]
+
+    def fmu_status(self, fname, status):
+        """The status the FMU itself returned: a doStep the shim reports as Error because it asked to
+        terminate or returned early was OK or Warning in the FMU (it may still be terminated)."""
+        if fname == "fmi2DoStep" and status == 3 and (self.shim.terminateSimulation or self.shim.earlyReturn):
+            return 1
+        return status
 
     def asked_to_end(self, fmu, status):
         """The lastSuccessfulTime of a doStep that set terminateSimulation, else None."""

@@ -6,6 +6,7 @@ FMI 3 specifics (instantiation, typed setters, the fmi2-signature shim) live in 
 Only kernel/ and fmi/ import ctypes; the parts above pass C values made by wavecosim.kernel.cvalues.
 """
 import atexit
+import copy
 import ctypes
 import math
 import shutil
@@ -167,10 +168,13 @@ class Fmi2:
               "String": "String"}             # FMI type -> the get/set pair of FMU2Slave that carries it
     enumeration_bits = 32
 
-    def __init__(self, fmu, model_identifier):
+    def __init__(self, fmu, model_identifier, slave=None):
+        """A new instance through fmpy's FMU2Slave, or through `slave`, a copy of another instance's
+        (the binary already loaded, its functions looked up: `borrowed`)."""
         self._callbacks = self._make_callbacks(fmu.messages)
-        self.slave = FMU2Slave(guid=fmu.description.guid, unzipDirectory=str(fmu.folder),
-                               modelIdentifier=model_identifier, instanceName=fmu.name)
+        self.borrowed = slave is not None
+        self.slave = slave or FMU2Slave(guid=fmu.description.guid, unzipDirectory=str(fmu.folder),
+                                        modelIdentifier=model_identifier, instanceName=fmu.name)
         fmu.checked(self.slave.instantiate, "fmi2Instantiate", callbacks=self._callbacks)
         self.component = self.slave.component
 
@@ -218,6 +222,10 @@ class Fmi2:
         """(function name, what happened) for a call that returned an error status."""
         return fname, f"returned {status_text}"
 
+    def fmu_status(self, fname, status):
+        """The status the FMU itself returned for a call in fmi2 form that gave `status` (itself)."""
+        return status
+
     def asked_to_end(self, fmu, status):
         """fmi2Discard with fmi2GetBooleanStatus(fmi2Terminated) true: the fmi2LastSuccessfulTime."""
         try:
@@ -251,51 +259,93 @@ class Fmu:
     """One instantiated, initialized FMU (FMI 2.0 or 3.0); `name` is the subsystem name used in messages."""
 
     def __init__(self, path, name, values=None, integer_values=None, start_time=0.0, optional=(), pool=None,
-                 tolerance=None, initialize=None):
+                 tolerance=None, initialize=None, like=None):
         """Load, instantiate and initialize; `values` (and `integer_values`) are start values and
         parameters by name, each set with the FMI type its variable declares (Real, Integer,
         Enumeration, Boolean, String; in FMI 3 also Float32 and every IntN/UIntN); names in
         `optional` are skipped when the FMU lacks them. Instances opened with one `pool` share the
         extracted FMU (see shared_folder). The experiment starts at `start_time` with `tolerance`
         (None: the DefaultExperiment's, or none when it gives none), as fmpy sets it up;
-        `initialize(fmu)`, when given, runs in initialization mode (e.g. to set inputs)."""
+        `initialize(fmu)`, when given, runs in initialization mode (e.g. to set inputs). `like`, an Fmu
+        of the same file, lends its parsed modelDescription, and its loaded binary when both are in one
+        folder (see twin)."""
         self.path, self.name = Path(path), name
         self._pool = pool
         self._key, self.folder = shared_folder(self.path, pool)
-        self.fmi_version = check_version(self.path, self.folder)
-        try:
-            self.description = read_model_description(str(self.folder), validate=False)
-        except Exception as exc:  # fmpy raises bare exceptions for malformed XML
-            raise FmuError(f"{self.path}: cannot read modelDescription.xml: {exc}") from None
-        self.notes = [note] if (note := schema_note(self.path, self.folder, self.fmi_version)) else []
+        if like is not None:
+            self.fmi_version, self.description, self.notes = like.fmi_version, like.description, []
+        else:
+            self._read_description()
         binding = Fmi2
         if self.fmi_version != "2.0":
             from .fmi3 import Fmi3 as binding
         elif self.description.coSimulation is None and self.description.modelExchange is not None:
             binding = ModelExchange2
         cs = getattr(self.description, binding.interface)
-        if cs is not None:
+        if cs is not None and like is None:
             needed = [f for f in dir(binding.slave_class) if f.startswith(binding.prefix)]     # what fmpy loads
             provide_binary(self.path, self.folder, self.description, cs, binding.platform, needed)
-        check_runnable(self.path, self.folder, self.description, binding.platform, binding.interface)
+        if like is None:
+            check_runnable(self.path, self.folder, self.description, binding.platform, binding.interface)
         if cs.canBeInstantiatedOnlyOncePerProcess:       # its own copy of the binary for each instance
             release_folder(pool, self._key, self.folder)
             self._key, self.folder = None, extract_fmu(self.path)
         self.can_save_state = bool(cs.canGetAndSetFMUstate)
-        self.variables = {v.name: v for v in self.description.modelVariables}
+        self.variables = like.variables if like is not None else {v.name: v for v in self.description.modelVariables}
         self.messages = []
+        self.phase = "instantiated"        # of the FMI state machine: instantiated, step, error, fatal
         try:
-            self._fmi = binding(self, cs.modelIdentifier)
+            self._fmi = self._bind(binding, cs.modelIdentifier, like)
         except AttributeError as exc:                 # the library lacks an FMI function fmpy loads
+            self.close()
             raise FmuError(f"{self.path.name}: its binary cannot be used: {exc}") from None
+        except FmuError:
+            self.close()
+            raise
         self.component = self._fmi.component
         drop = [k for k in optional if k not in self.variables]
-        given = {k: v for k, v in {**(values or {}), **(integer_values or {})}.items() if k not in drop}
+        self.given = {k: v for k, v in {**(values or {}), **(integer_values or {})}.items() if k not in drop}
         experiment = self.description.defaultExperiment
         if tolerance is None and experiment is not None and experiment.tolerance is not None:
             tolerance = float(experiment.tolerance)
-        self.start_time, self.tolerance = start_time, tolerance
-        self._setup(given, initialize)
+        self.start_time, self.tolerance, self.initialize = start_time, tolerance, initialize
+        try:
+            self._setup(self.given, initialize)
+        except BaseException:
+            self.close()                   # an instance that failed to initialize is freed, not leaked
+            raise
+        self.phase = "step"
+
+    def _read_description(self):
+        """fmiVersion, the parsed modelDescription.xml and the notes on it."""
+        self.fmi_version = check_version(self.path, self.folder)
+        try:
+            self.description = read_model_description(str(self.folder), validate=False)
+        except Exception as exc:  # fmpy raises bare exceptions for malformed XML
+            raise FmuError(f"{self.path}: cannot read modelDescription.xml: {exc}") from None
+        self.notes = [note] if (note := schema_note(self.path, self.folder, self.fmi_version)) else []
+
+    def _bind(self, binding, model_identifier, like):
+        """The binding of a new instance: through a copy of `like`'s fmpy slave when both are
+        co-simulation instances in one folder (the binary already loaded), else its own."""
+        if like is None or like.folder != self.folder or like._fmi is None or binding.interface != "coSimulation":
+            return binding(self, model_identifier)
+        slave = copy.copy(like._fmi.slave)
+        slave.instanceName, slave.component = self.name, None
+        return binding(self, model_identifier, slave)
+
+    @property
+    def once_per_process(self):
+        """The FMU allows one instance per process: each instance gets its own copy of the binary."""
+        return bool(getattr(self.description, self._fmi.interface).canBeInstantiatedOnlyOncePerProcess)
+
+    def twin(self, name, own_copy=False):
+        """Another instance of this FMU with the same start values, parameters and experiment, in the
+        same loaded binary (this one's pool), or in a copy of its own (own_copy, or no pool), for probes
+        (core/quirks.py)."""
+        pool = {} if own_copy or self._pool is None else self._pool
+        return Fmu(self.path, name, self.given, start_time=self.start_time, pool=pool, tolerance=self.tolerance,
+                   initialize=self.initialize, like=self)
 
     def last_message(self) -> str:
         return self.messages[-1][1] if self.messages else "no message from the FMU"
@@ -305,7 +355,16 @@ class Fmu:
         try:
             return call(*args, **kwargs)
         except Exception as exc:
+            self.note_status(getattr(exc, "status", 3))
             raise FmuError(f"{self.name}: {fname} failed: {self.last_message()}", subsystem=self.name) from exc
+
+    def note_status(self, status):
+        """An error status moves the instance out of the state machine's step phase: after fmi2Error
+        only state, get, reset and free calls are allowed, after fmi2Fatal none (close() obeys)."""
+        if status >= 4:
+            self.phase = "fatal"
+        elif status == 3 and self.phase != "fatal":
+            self.phase = "error"
 
     def _setup(self, given, initialize):
         fmi, start_time = self._fmi, self.start_time
@@ -439,13 +498,25 @@ class Fmu:
     def status_error(self, fname, status, step=None, time=None):
         """The FmuError for a call in fmi2 form (`fname`) that returned `status`."""
         where = "" if step is None else f" at step {step} (t = {time:.6g})"
+        self.note_status(self._fmi.fmu_status(fname, status))
         shown, what = self._fmi.failure(fname, _STATUS.get(status, status))
         return FmuError(f"subsystem {self.name}: {shown} {what}{where}: {self.last_message()}",
                         subsystem=self.name, step=step, time=time)
 
+    def free_state_allowed(self):
+        """Whether fmi2FreeFMUstate may still be called (not after fmi2Fatal)."""
+        return getattr(self, "phase", "fatal") != "fatal"
+
     def close(self):
-        slave, self._fmi = getattr(getattr(self, "_fmi", None), "slave", None), None
-        for call in (slave.terminate, slave.freeInstance) if slave is not None else ():
+        """Terminate (only from the step phase: not after an error) and free the instance (not after
+        fatal), as the FMI state machine allows; then release the extracted folder."""
+        fmi, self._fmi = getattr(self, "_fmi", None), None
+        slave = getattr(fmi, "slave", None)
+        phase = getattr(self, "phase", "fatal")
+        free = slave.freeInstance if slave is not None and not getattr(fmi, "borrowed", False) else (
+            lambda: getattr(slave, f"{fmi.prefix}FreeInstance")(slave.component))    # a borrowed binary stays loaded
+        calls = ([slave.terminate] if phase == "step" else []) + ([free] if phase != "fatal" else [])
+        for call in calls if slave is not None else ():
             try:
                 call()
             except Exception:

@@ -18,7 +18,8 @@ class AdapterC(ctypes.Structure):
     """adapter.h: WaveAdapterC, field for field."""
     _fields_ = [("fn", ctypes.c_void_p * len(SHIM)), ("comp", ctypes.c_void_p), ("state", ctypes.c_void_p),
                 ("in_vr", ctypes.POINTER(ctypes.c_uint)), ("out_vr", ctypes.POINTER(ctypes.c_uint)),
-                ("m", ctypes.c_int), ("effort_in", ctypes.POINTER(ctypes.c_int)), ("sign", _D),
+                ("m", ctypes.c_int), ("no_prior", ctypes.c_int), ("effort_in", ctypes.POINTER(ctypes.c_int)),
+                ("sign", _D),
                 ("gamma", ctypes.c_double), ("c", ctypes.c_double), ("k", ctypes.c_double), ("wu", _D), ("wy", _D),
                 ("tol", ctypes.c_double), ("accept", ctypes.c_double), ("slope_rel", ctypes.c_double),
                 ("max_iter", ctypes.c_int), ("stall", ctypes.c_int), ("dirty", ctypes.c_int),

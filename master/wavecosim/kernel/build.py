@@ -13,7 +13,20 @@ from . import abi
 from ..errors import FmuError
 
 SOURCES = Path(__file__).resolve().parent / "c"
-CFLAGS = ["-O2", "-std=c99", "-fPIC", "-ffp-contract=off", "-Wall", "-Wextra", "-Werror"]
+
+
+def _sanitizer_flags(value):
+    """$WAVECOSIM_SANITIZE (e.g. `address`): compile the kernel and the FMUs with that sanitizer, for a
+    test run with its runtime preloaded (docs/troubleshooting.md); empty: none."""
+    if not value:
+        return []
+    if not all(part.isalpha() for part in value.split(",")):
+        raise FmuError(f"WAVECOSIM_SANITIZE: expected sanitizer names such as address, got {value!r}")
+    return [f"-fsanitize={value}", "-fno-omit-frame-pointer", "-g"]
+
+
+CFLAGS = ["-O2", "-std=c99", "-fPIC", "-ffp-contract=off", "-Wall", "-Wextra", "-Werror",
+          *_sanitizer_flags(os.environ.get("WAVECOSIM_SANITIZE", ""))]
 # C files compiled into another file's library: the routes built on the DR kernel's subsystem
 # evaluation (classical.c, newton.c, certs.c) go into libdrkernel.so.
 PART_OF_LIBRARY = {"classical.c": "drkernel", "newton.c": "drkernel", "certs.c": "drkernel", "portview.c": "drkernel",

@@ -96,6 +96,7 @@ def load_library():
         lib.dr_create.argtypes = [i, i, d, d, d, d, d, d]
         lib.dr_set_subsystem.argtypes = [p, i, ctypes.POINTER(DRFunctions), p, p, ctypes.POINTER(ctypes.c_uint),
                                          ctypes.POINTER(ctypes.c_uint), i, i]
+        lib.dr_set_no_prior.argtypes = [p, i, i]
         lib.dr_set_threads.argtypes = [p, i, ctypes.POINTER(ctypes.c_int)]
         lib.dr_thread_plan.argtypes = [p, ctypes.POINTER(ctypes.c_int)]
         lib.dr_costs.argtypes = [p, d]
@@ -110,6 +111,7 @@ def load_library():
         lib.dr_set_trace.argtypes = [p, d, i]
         lib.dr_set_trace.restype = None
         lib.dr_set_observed.argtypes = [p, i, ctypes.POINTER(ctypes.c_uint), i]
+        lib.dr_set_bound.argtypes = [p, ctypes.c_double, ctypes.POINTER(ctypes.c_int), i]
         lib.dr_set_observed_view.argtypes = [p, i, p, p, i]
         lib.dr_set_adapter.argtypes = [p, i, p, p]
         lib.dr_redo_do_steps.argtypes = [p]
@@ -272,7 +274,7 @@ class Kernel:
             # Subsystem holds x_i^n exactly as after the reference one (restore_frozen, thaw work)
             state = s.state_handle_address()
             if lib.dr_set_subsystem(self.handle, i, ctypes.byref(fns), comp, state, vr_in, vr_out, s.m,
-                                    int(off)):
+                                    int(off)) or lib.dr_set_no_prior(self.handle, i, s.no_prior):
                 self.close()
                 raise FmuError(f"subsystem {s.name}: the DR kernel refused its port")
         self.io = DRStep(measure=0, eps=-1.0, deadline_s=0.0, t0=scene.scenario.start_time)
@@ -284,10 +286,11 @@ class Kernel:
         self.width, self.log = lib.dr_log_width(self._handle), np.empty((0, 0))
         self._run_steps = lib.dr_run_steps
 
-    def observe(self, names, steps=0):
+    def observe(self, names, steps=0, bound=None):
         """Read these variables of each subsystem (names[i], H_i first) after every commit of run_steps,
         with a log of room for `steps` steps made now; returns an empty BlockLog of the blocks' layout
-        (what the runner prepares its passes with)."""
+        (what the runner prepares its passes with). bound: (limit, indices of the observed values
+        over all subsystems): run_steps also stops after a step where one is above the limit."""
         for i, (s, vars_i) in enumerate(zip(self.subsystems, names)):
             port = vars_i if isinstance(vars_i, ObservedPort) else None
             vrs = (ctypes.c_uint * len(vars_i))(*(range(len(vars_i)) if port else s.fmu.real_vrs(vars_i)))
@@ -297,6 +300,9 @@ class Kernel:
                 self._view(i, s, port)
         if self.signals is not None:
             self._take_signals(names[len(self.subsystems):])
+        limit, rows = bound or (math.inf, [])
+        if self.lib.dr_set_bound(self._handle, limit, (ctypes.c_int * len(rows))(*rows), len(rows)):
+            raise FmuError("the DR kernel could not keep the growth bound (out of memory)")
         self.width = self.lib.dr_log_width(self._handle)
         self._log_room(0, steps)
         return BlockLog(self.log[:, :0], self.n)

@@ -16,14 +16,16 @@ class Queries:
         self.lib, self.fns = lib, DRFunctions(*[fmu.function_pointer(name) for name in FMI_NAMES])
         self.failed = (ctypes.c_int * 2)()
 
-    def __call__(self, comp, state, in_vr, out_vr, m, t, h, rows, dirty):
+    def __call__(self, comp, state, in_vr, out_vr, m, t, h, rows, dirty, no_prior=0):
         """Each row of `rows` as a query from x_i^n (held in the handle `state`; restored first only
-        when dirty): (outputs as rows, queries made, the FMU function that failed as an index into
-        drkernel.FUNCTIONS (0: none), its status)."""
+        when dirty; the doSteps get noSetFMUStatePriorToCurrentPoint = no_prior): (outputs as rows,
+        queries made, the FMU function that failed as an index into drkernel.FUNCTIONS (0: none), its
+        status)."""
         inputs = np.ascontiguousarray(rows, dtype=float)
         out, p = np.empty_like(inputs), ctypes.c_void_p
         done = self.lib.fq_queries(ctypes.byref(self.fns), comp, ctypes.byref(state), in_vr, out_vr, m, t, h,
-                                   p(inputs.ctypes.data), len(inputs), p(out.ctypes.data), int(dirty), self.failed)
+                                   p(inputs.ctypes.data), len(inputs), p(out.ctypes.data), int(dirty), int(no_prior),
+                                   self.failed)
         return out, done, self.failed[0] if done < len(inputs) else 0, self.failed[1]
 
 

@@ -54,13 +54,16 @@ class Route(Protocol):
     def can_run_steps(self, n) -> bool:
         """Whether run_steps may make macro-step n now."""
 
-    def observe(self, names, steps=0):
+    def observe(self, names, steps=0, bound=None):
         """The variables of each subsystem read after every commit (names[i], H_i first), with room
-        for blocks of `steps` steps; an empty BlockLog of the blocks' layout, or None."""
+        for blocks of `steps` steps; an empty BlockLog of the blocks' layout, or None. bound:
+        (limit, indices of observed values over all subsystems): run_steps also stops after a step
+        where one of them is above the limit in magnitude (run/bounds.py)."""
 
     def run_steps(self, n0, count, H_cap=math.inf):
         """Macro-steps n0 .. n0 + count - 1 in one call, stopping early after a step whose H may exceed
-        H_cap or whose observed values are not finite: (steps done, their BlockLog, an FmuError or None)."""
+        H_cap, whose observed values are not finite, or whose bounded ones are above the bound:
+        (steps done, their BlockLog, an FmuError or None)."""
 
     def step_log(self, log, j) -> StepLog:
         """The StepLog of row j of a BlockLog."""

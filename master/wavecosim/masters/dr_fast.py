@@ -162,10 +162,11 @@ class FastDRMaster(DRMaster):
         (threads=auto times each on one macro-step, alone)."""
         return self.kernel is not None and not self.planner.on_trial
 
-    def observe(self, names, steps=0):
+    def observe(self, names, steps=0, bound=None):
         """The variables of each subsystem run_steps reads after every commit (names[i], H_i first),
-        with room for blocks of `steps` steps made now; returns an empty BlockLog of the blocks' layout."""
-        return self.kernel.observe(names, steps)
+        with room for blocks of `steps` steps made now, and the growth bound on some of them; returns
+        an empty BlockLog of the blocks' layout."""
+        return self.kernel.observe(names, steps, bound)
 
     def guards_steps(self):
         """Whether step() can keep the energy ledger in the kernel (keep_ledger): whenever the kernel runs

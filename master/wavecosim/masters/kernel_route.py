@@ -68,10 +68,11 @@ class KernelRoute(KernelOwner):
         """The kernel runs and no thread plan is on trial (it is timed on one macro-step, alone)."""
         return self.kernel is not None and self.blocks and not self.planner.on_trial
 
-    def observe(self, names, steps=0):
+    def observe(self, names, steps=0, bound=None):
         """The variables of each subsystem run_steps reads after every commit (names[i], H_i first),
-        with room for blocks of `steps` steps made now; returns an empty BlockLog of the blocks' layout."""
-        return self.kernel.base.observe(names, steps)
+        with room for blocks of `steps` steps made now, and the growth bound on some of them; returns
+        an empty BlockLog of the blocks' layout."""
+        return self.kernel.base.observe(names, steps, bound)
 
     def run_steps(self, n0, count, H_cap=math.inf):
         """Macro-steps n0 .. n0 + count - 1 in one kernel call of at most about BLOCK_SECONDS of work,

@@ -126,6 +126,9 @@ METADATA = {
               "else its declared type's; \"\" where none is given) and `steps` (as this page gives them, "
               "γ and the error resolved from the FMUs)", "–"),
     "gammas": ("γ per subsystem at the end of the run", "effort/flow of each port"),
+    "quirks": ("per subsystem, what the quirk probes at set-up found for its FMU file (`found`) and what it ran "
+               "with: `no_set_fmu_state_prior` (the doStep flag), `chosen_by` (probe, quirks key, no rollback, "
+               "default), `own_copy` (its own copy of the binary); docs/troubleshooting.md", "–"),
     "versions": ("the versions of wavecosim, Python, numpy, scipy and fmpy", "text"),
     "fmus": ("per subsystem, its FMU's `path`, `sha256`, `fmiVersion` and `guid`", "text"),
     "host": ("the machine: `node`, `machine`, `system`, `cpus`", "text"),

@@ -39,6 +39,7 @@ def run_metadata(scenario, scene, units=None) -> dict:
         "scenario": dataclasses.asdict(scenario),
         "units": units or {},
         "gammas": dict(scene.gammas),
+        "quirks": {name: dataclasses.asdict(d) for name, d in scene.decisions.items()},
         "versions": {"wavecosim": _version("wavecosim"), "python": sys.version.split()[0],
                      **{p: _version(p) for p in ("numpy", "scipy", "fmpy")}},
         "fmus": {s.name: {"path": str(s.fmu.path), "sha256": _sha256(s.fmu.path),

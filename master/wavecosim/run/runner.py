@@ -28,6 +28,7 @@ from ..kernel.linalg import total
 from ..core.gamma import GammaTuner
 from ..masters import MASTERS
 from ..masters.base import REASONS, WaveMaster, require_wave_tuning
+from .bounds import Bounds
 from .metadata import run_metadata
 from .observers import Observer
 from ..core.certificates import sampling
@@ -178,10 +179,12 @@ def _once(warn):
     return once
 
 
-def open_parts(scenario, warn):
-    """Scene, master and gamma tuner of a run; whatever was opened is closed if set-up fails."""
+def open_parts(scenario, warn, share=None):
+    """Scene, master and gamma tuner of a run; whatever was opened is closed if set-up fails. A run
+    alongside another (the lockstep reference) shares the other scene's FMU binaries and quirks."""
     cls = MASTERS[scenario.master.algorithm]
-    scene = build_scene(scenario, wave=cls.wave, needs_rollback=cls.needs_rollback)
+    scene = build_scene(scenario, wave=cls.wave, needs_rollback=cls.needs_rollback,
+                        pool=share.pool if share else None, quirks=share.quirks if share else None)
     for note in scene.notes:
         warn(note)
     master = None
@@ -236,11 +239,11 @@ class LiveRun:
     """One run while it runs; it owns its parts and closes them."""
 
     def __init__(self, scenario, out_dir=None, label=None, certificates=True, warn=None, file_suffix=True,
-                 output_interval=1, formats=("csv",)):
+                 output_interval=1, formats=("csv",), share=None):
         self.scenario, self.warn = scenario, warn or _warn_stderr
         settings = scenario.master
         self.label = label or f"{settings.algorithm}_K{settings.K}"
-        self.scene, self.master, tuner = open_parts(scenario, self.warn)
+        self.scene, self.master, tuner = open_parts(scenario, self.warn, share)
         self.observers = make_observers(scenario, self.scene, self.master, tuner, certificates, self.warn)
         self.guard_mode = (settings.energy_guard or self.master.default_guard) if self.master.guardable else "n/a"
         if any(o.needs_trace for o in self.observers):
@@ -250,6 +253,7 @@ class LiveRun:
         self.every, self.n_steps, self.dt, self.t0 = output_interval, scenario.n_steps, scenario.dt, scenario.start_time
         self.sampler = Sampler(self.scene, self.scene.outputs)
         self.columns = list(self.scene.outputs)
+        self.bounds = Bounds(self.scene, self.scene.outputs, scenario.growth_bound, self.sampler.types)
         self.master_time, self.steps_done, self.started = 0.0, 0, time.perf_counter()
         self.iterations = [0, 0]                       # sum and max of the inner iterations per step
         self.loop_time = 0.0                           # start() to the last row written: the run's own per-step cost
@@ -288,13 +292,14 @@ class LiveRun:
     def start(self):
         """Read the FMUs at t = 0, start the observers, record the first trajectory row."""
         self._tables()
+        self.calls_at_start, self.excluded = self._totals(), {k: 0 for k in ("doStep", "save", "restore")}
         first = self.sampler.read()
         for o in self.observers:
             o.start(first)
-        self._check_finite(first, -1)
         row = self.trajectory.next_row()
         row[0], row[1:] = self.t0, first.outputs
         self.trajectory.commit_row()
+        self.bounds.start(first, self.time_of)
         self.first = {"H": total(first.H), "error": next((o.first for o in self.observers
                                                         if isinstance(o, ErrorTracker)), math.nan)}
         self.bracket = any(type(o).before_step is not Observer.before_step for o in self.observers)
@@ -304,7 +309,7 @@ class LiveRun:
         self.recent = {0: first.outputs}
         self._plan_blocks()
         self.loop_started = time.perf_counter()
-        self.calls_at_start, self.excluded = self._totals(), {k: 0 for k in ("doStep", "save", "restore")}
+        self.calls_at_start = self._totals()
 
     def step(self, n):
         """Macro-step n: observers before, the master, observers after (the guard may redo), one row;
@@ -339,7 +344,7 @@ class LiveRun:
         for o, row in self.after:
             o.after_step(n, t, log, reading, row)
         self._record(n, log, reading)
-        self._check_finite(reading, n)
+        self.bounds.check(reading, n)
         self.loop_time = time.perf_counter() - self.loop_started
         return reading
 
@@ -360,7 +365,8 @@ class LiveRun:
         self.rows_call = None                    # block_rows' arguments, from the blocks' layout
         self.paced = [o for o in self.observers if o.paced]          # blocks stop before their steps
         if self.blocks:
-            layout = self.master.observe(self.sampler.observed, BLOCK_STEPS)
+            layout = self.master.observe(self.sampler.observed, BLOCK_STEPS,
+                                         (self.bounds.limit, self.bounds.bounded(self.sampler.rows("outputs"))))
             self.block_observers = [(o, self.spans[id(o)]) for o in ([guard] if self.ledger else [])
                                     + [o for o, _ in self.after]]
             if layout is not None:
@@ -407,7 +413,7 @@ class LiveRun:
             n = n0 + whole
             self._after_master(n, self.t0 + n * self.dt, self.master.step_log(log, whole))
         elif log.stopped:
-            self._check_finite(self.sampler.read(), n0 + done - 1)
+            self.bounds.check(self.sampler.read(), n0 + done - 1)
         self.loop_time = time.perf_counter() - self.loop_started
         if error is not None:
             raise error
@@ -487,13 +493,6 @@ class LiveRun:
         row = self.trajectory.next_row()
         row[0], row[1:] = self.time_of(n + 1), reading.outputs
         self.trajectory.commit_row()
-
-    def _check_finite(self, reading, n):
-        H = [h for s, h in zip(self.scene.subsystems, reading.H) if s.port.energy is not None]
-        if not all(map(math.isfinite, reading.outputs)) or not all(map(math.isfinite, H)):
-            bad = next((s.name for s, h in zip(self.scene.subsystems, reading.H)
-                        if s.port.energy is not None and not math.isfinite(h)), "an output")
-            raise NumericalError(f"non-finite value in {bad} at step {n} (t = {self.time_of(n + 1):.6g})")
 
     def fmu_calls(self):
         """doStep, save and restore calls the master made (observers' probes excluded)."""
@@ -587,7 +586,7 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
         if reference == "lockstep":
             try:
                 ref = LiveRun(reference_scenario(scenario), out_dir, "monolithic", False, warn, True,
-                              output_interval, formats)
+                              output_interval, formats, share=live.scene)
             except ConfigError as exc:     # e.g. an FMU without state save that only the reference rolls back
                 raise type(exc)(f"{exc} (needed by the monolithic reference; --no-reference runs without it)") from None
             reference = lambda k: ref.recent.get(k)          # noqa: E731  (ref steps first)

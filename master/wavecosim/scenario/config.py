@@ -14,11 +14,13 @@ from ..errors import ConfigError
 from ..examples import DEFAULT
 from ..core.gamma import MODES as GAMMA_MODES
 from ..core.interconnection import COUPLINGS, TAKES_RATIO
+from ..core.quirks import KEYS as QUIRK_KEYS
 from ..masters import ALGORITHMS
 from ..masters.dr_options import ANDERSON_MAX
 from .experiment import from_fmus
 
 DEFAULT_CONFIG = DEFAULT
+GROWTH_BOUND = 1e12
 COUPLING_TYPES = tuple(COUPLINGS)
 SIGNALS_MASTER = "explicit"            # the master of a system without power bonds
 
@@ -66,6 +68,11 @@ class SubsystemConfig:
         "the relative tolerance given to the FMU's set-up (`fmi2SetupExperiment`, "
         "`fmi3EnterInitializationMode`)", "1", "number > 0",
         "the FMU's DefaultExperiment tolerance; none when it gives none"))
+    quirks: dict = field(default=None, metadata=key(
+        "overrides of the quirk probes made at set-up (docs/troubleshooting.md): `no_set_fmu_state_prior` (the "
+        "noSetFMUStatePriorToCurrentPoint its doSteps get), `reentrant` (false: its own copy of the binary), "
+        "`probe` (false: none for its FMU file)", type="mapping of true/false",
+        default="none: the probes decide"))
 
     @property
     def signal_only(self):
@@ -214,6 +221,10 @@ class Scenario:
     start_time: float = field(default=0.0, metadata=key(
         "t₀ of the grid t_n = t₀ + n·dt, given to every FMU's set-up", "s", "number",
         "the start time the FMUs' DefaultExperiments agree on, else 0"))
+    growth_bound: float = field(default=GROWTH_BOUND, metadata=key(
+        "a recorded Real output beyond this many times the outputs' initial scale (their largest magnitude at "
+        "the start, at least 1) stops the run with a NumericalError; null: no bound (non-finite values still "
+        "stop it)", "1", "number > 1 or null"))
     output_patterns: list = field(default_factory=list)       # globs narrowing the recorded columns
     order: list = field(default_factory=list)                 # every subsystem's name, in the file's order
 
@@ -431,12 +442,14 @@ def _subsystem(ck, name, raw, base_dir):
     fmu_path = None
     if fmu.endswith(".fmu") or "/" in fmu:
         fmu_path = (base_dir / fmu).resolve()
+    quirks = ck.mapping(raw.get("quirks") or {}, f"{path}.quirks", QUIRK_KEYS)
     return SubsystemConfig(name=name, fmu=fmu, parameters=ck.values(raw.get("parameters"), f"{path}.parameters"),
                            start=ck.values(raw.get("start"), f"{path}.start"), integers=integers, port=spec,
                            fmu_path=fmu_path,
                            gamma=ck.number(raw["gamma"], f"{path}.gamma", positive=True) if "gamma" in raw else None,
                            tolerance=(ck.number(raw["tolerance"], f"{path}.tolerance", positive=True)
-                                      if raw.get("tolerance") is not None else None))
+                                      if raw.get("tolerance") is not None else None),
+                           quirks={k: ck.boolean(v, f"{path}.quirks.{k}") for k, v in quirks.items()} or None)
 
 
 ENERGY_GUARDS = ("ledger", "monolithic", "off")
@@ -744,7 +757,18 @@ def parse_scenario(raw, source="<scenario>", base_dir=Path("."), settings=None) 
                     outputs=outputs, error=error, description=str(raw.get("description", "")),
                     fne_watch=ck.boolean(raw.get("fne_watch", True), "fne_watch"),
                     signal_subsystems=signal_subsystems, sources=sources, signals=signals,
-                    output_patterns=patterns, order=names, start_time=start_time)
+                    output_patterns=patterns, order=names, start_time=start_time,
+                    growth_bound=_growth_bound(ck, raw.get("growth_bound", GROWTH_BOUND)))
+
+
+def _growth_bound(ck, value):
+    """growth_bound: a number > 1, or null (no bound on growth; non-finite values still stop a run)."""
+    if value is None:
+        return math.inf
+    bound = ck.number(value, "growth_bound", positive=True)
+    if bound <= 1:
+        ck.fail("growth_bound", f"must be > 1 (a factor over the outputs' initial scale) or null, got {value!r}")
+    return bound
 
 
 def _times(ck, raw, subsystems):

@@ -5,9 +5,9 @@ have master `dr` and the option's name in `option`. `cheapest` reads the rows ba
 master (and option), the fewest doSteps per macro-step that reach a given max error.
 
 Each run is measured against the monolithic reference (interface Newton). A run that fails
-(non-finite values, an FMU error) is recorded with the rows it computed and marked not finite; a
-finite run whose stored energy grew past DIVERGED_GROWTH times H(0) is marked diverged. Neither
-stops the comparison.
+(non-finite values, outputs past the growth bound, an FMU error) is recorded with the rows it
+computed and marked not finite; a finite run whose stored energy grew past DIVERGED_GROWTH times
+H(0) is marked diverged. Neither stops the comparison.
 """
 from pathlib import Path
 

@@ -73,7 +73,7 @@ static int eval(WaveAdapterC *w, const double *u, double *y, double t, double h)
     }
     w->dirty = 1;
     if (fmu_failed(w, DR_FN_SET_REAL, w->fn.setReal(w->comp, w->in_vr, m, u))) return 1;
-    if (fmu_failed(w, DR_FN_DO_STEP, w->fn.doStep(w->comp, t, h, fmi2False))) return 1;
+    if (fmu_failed(w, DR_FN_DO_STEP, w->fn.doStep(w->comp, t, h, w->no_prior ? fmi2True : fmi2False))) return 1;
     w->calls[0]++;
     return fmu_failed(w, DR_FN_GET_REAL, w->fn.getReal(w->comp, w->out_vr, m, y));
 }
@@ -270,7 +270,7 @@ fmi2Status adapter_setReal(fmi2Component c, const fmi2ValueReference vr[], size_
 }
 
 fmi2Status adapter_doStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_prior) {
-    (void)no_prior;          /* the FMU's doSteps pass false: x_i^n (at t) is restored after them */
+    (void)no_prior;          /* the FMU's doSteps pass w->no_prior: x_i^n (at t) is restored after them */
     return adapter_solve((WaveAdapterC *)c, t, h);
 }
 

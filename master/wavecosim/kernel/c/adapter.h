@@ -29,6 +29,7 @@ typedef struct {
     fmi2FMUstate *state;             /* the handle x_i^n is saved in and restored from */
     const fmi2ValueReference *in_vr, *out_vr;   /* the FMU's physical input and output, m each */
     int m;
+    int no_prior;                    /* noSetFMUStatePriorToCurrentPoint of the FMU's doSteps */
     const int *effort_in;            /* channel j: the FMU's input is the effort (else the flow) */
     const double *sign;              /* power into the FMU = sign e f, per channel */
     /* the waves' impedance (set by the caller, wavecosim/core/ports.py::AdapterPort.weights) */

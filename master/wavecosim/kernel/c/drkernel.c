@@ -39,6 +39,7 @@ typedef struct {
     const long *fmu_do_steps;      /* a wave adapter's count of its FMU's doSteps, or NULL */
     int thread;
     int frozen, dirty;             /* x_i^n saved this macro-step / instance moved away from it */
+    int no_prior;                  /* noSetFMUStatePriorToCurrentPoint of its doSteps (dr_set_no_prior) */
     int failed_function, failed_status;
     long n_do_step, n_save, n_restore;
     double sample_ns[MAX_SAMPLES];
@@ -77,6 +78,8 @@ struct DRKernel {
     int task_how, task_measure;    /* DR_QUERY, DR_COMMIT or DR_FORWARD (kernel_internal.h) */
     DROptions *opt;                /* the DR master's named options, or NULL (the paper's Algorithm 1) */
     DRHookFn hook_before, hook_after; /* around each step of dr_run_steps_of (certs.c), or NULL */
+    int *bounded, n_bounded;       /* observed values (index over all subsystems') bounded by `bound` */
+    double bound;                  /* run/bounds.py's growth limit: |value| above it stops run_steps */
     void *hook_ctx;
     DRExtra extra;                 /* signals and subsystems stepped alone (signals.c), or zeros */
     long redo_do_steps;            /* the FMUs' doSteps in the ledger's redos so far */
@@ -192,9 +195,9 @@ static int evaluate(Sub *s, const double *in, double *out, double t, double h, i
     }
     s->dirty = !commit;
     if (failed(s, DR_FN_SET_REAL, s->fn.setReal(s->comp, s->in_vr, s->m, in + s->offset))) return 1;
-    /* noSetFMUStatePriorToCurrentPoint = false, as in the reference: the next query, or an undo of
-     * the commit, restores x_i^n at t, before the point t + h this doStep reaches. */
-    if (failed(s, DR_FN_DO_STEP, s->fn.doStep(s->comp, t, h, fmi2False))) return 1;
+    /* noSetFMUStatePriorToCurrentPoint as in the reference (Subsystem.no_prior): x_i^n is restored
+     * only at t, this doStep's own communication point. */
+    if (failed(s, DR_FN_DO_STEP, s->fn.doStep(s->comp, t, h, s->no_prior ? fmi2True : fmi2False))) return 1;
     s->n_do_step++;
     if (failed(s, DR_FN_GET_REAL, s->fn.getReal(s->comp, s->out_vr, s->m, out + s->offset))) return 1;
     if (measure && s->n_samples < MAX_SAMPLES) s->sample_ns[s->n_samples++] = now_ns() - t0;
@@ -447,6 +450,17 @@ int dr_set_observed(DRKernel *k, int i, const fmi2ValueReference *vrs, int count
     return 0;
 }
 
+int dr_set_bound(DRKernel *k, double bound, const int *indices, int count) {
+    int *copy = count > 0 ? malloc((size_t)count * sizeof *copy) : NULL;
+    if (count < 0 || (count > 0 && !copy)) return -1;
+    if (count > 0) memcpy(copy, indices, (size_t)count * sizeof *indices);
+    free(k->bounded);
+    k->bounded = copy;
+    k->n_bounded = count;
+    k->bound = bound;
+    return 0;
+}
+
 int dr_set_observed_view(DRKernel *k, int i, fmi2GetRealTYPE *get, fmi2Component comp, int no_H) {
     if (i < 0 || i >= k->n_sub || !get) return -1;
     k->sub[i].obs_get = get;
@@ -497,11 +511,13 @@ static int log_step(DRKernel *k, const DRStep *io, double *rows, size_t ld, size
 }
 
 /* Stop after this step? When an observed value (obs: the step's column of them, stride ld) is
- * not finite, or when the stored energy (the sum of every subsystem's first observed value) may
- * exceed H_cap: the bound 4 n_sub eps sum|H_i| covers any order of summation, so the caller's exact
- * test never sees a step above the cap go by. */
+ * not finite, when a bounded one is above the bound (dr_set_bound), or when the stored energy (the
+ * sum of every subsystem's first observed value) may exceed H_cap: the bound 4 n_sub eps sum|H_i|
+ * covers any order of summation, so the caller's exact test never sees a step above the cap go by. */
 static int stop_after(const DRKernel *k, const double *obs, size_t ld, double H_cap) {
     double sum = 0.0, magnitude = 0.0;
+    for (int b = 0; b < k->n_bounded; b++)
+        if (fabs(obs[(size_t)k->bounded[b] * ld]) > k->bound) return 1;
     for (int i = 0; i < k->n_sub; i++) {
         const Sub *s = &k->sub[i];
         for (size_t j = s->obs_no_H && s->n_obs; j < s->n_obs; j++)
@@ -826,6 +842,12 @@ int dr_set_subsystem(DRKernel *k, int i, const DRFunctions *fn, fmi2Component co
     return 0;
 }
 
+int dr_set_no_prior(DRKernel *k, int i, int no_prior) {
+    if (i < 0 || i >= k->n_sub) return -1;
+    k->sub[i].no_prior = no_prior != 0;
+    return 0;
+}
+
 int dr_set_maps(DRKernel *k, const int *P_start, const int *P_col, const double *P_val, const int *J_start,
                 const int *J_col, const double *J_val) {
     Csr *P = dr_csr_copy(P_start, P_col, P_val, k->n), *J_L = dr_csr_copy(J_start, J_col, J_val, k->n);
@@ -927,6 +949,7 @@ void dr_destroy(DRKernel *k) {
     free(k->u);
     free(k->obs);
     free(k->redo);
+    free(k->bounded);
     options_free(k->opt);
     free(k);
 }

@@ -86,6 +86,10 @@ DRKernel *dr_create(int n_sub, int n, const double *P, const double *J_L, double
 int dr_set_subsystem(DRKernel *k, int i, const DRFunctions *fn, fmi2Component comp, fmi2FMUstate *state,
                      const fmi2ValueReference *in_vr, const fmi2ValueReference *out_vr, int m, int offset);
 
+/* noSetFMUStatePriorToCurrentPoint for subsystem i's doSteps (0 unless set; frozen_port_map.py,
+ * Subsystem.no_prior). Returns 0, or -1 for a bad index. */
+int dr_set_no_prior(DRKernel *k, int i, int no_prior);
+
 /* New P and J_L (copied), e.g. after gamma was re-tuned between macro-steps, in compressed rows:
  * row i of P holds the columns P_col[P_start[i] .. P_start[i+1]) (ascending, for the order of the
  * sums) with values P_val, P_start[0] = 0; J_L alike. Returns 0, or -1 on malformed rows or no
@@ -120,6 +124,11 @@ int dr_macro_step(DRKernel *k, DRStep *io);
 /* Values to read from subsystem i after each commit of dr_run_steps (value references, copied);
  * the first is its stored energy H_i. Returns 0, or -1 on bad arguments or no memory. */
 int dr_set_observed(DRKernel *k, int i, const fmi2ValueReference *vrs, int count);
+
+/* run_steps also stops after a step where an observed value of `indices` (0-based over every
+ * subsystem's observed values, in order) is above `bound` in magnitude (run/bounds.py). Returns 0, or
+ * -1 on bad arguments or no memory. */
+int dr_set_bound(DRKernel *k, double bound, const int *indices, int count);
 
 /* Observed values of subsystem i read by get(comp, ...) instead of its FMU's getReal (a port view:
  * portview.c); no_H: its first value is no stored energy (NaN), left out of dr_run_steps' checks.

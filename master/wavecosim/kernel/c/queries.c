@@ -6,10 +6,11 @@
 
 /* Queries q = 0 .. count-1 with inputs[q m ..] into outputs[q m ..]; the first restores x_i^n (from
  * *state) only when dirty. Returns how many were made; on a failed FMU call (status worse than
- * Warning) failed[0] is its DR_FN_* and failed[1] its status, and that query is not counted. */
+ * Warning) failed[0] is its DR_FN_* and failed[1] its status, and that query is not counted. The doSteps
+ * get noSetFMUStatePriorToCurrentPoint = no_prior (Subsystem.no_prior). */
 int fq_queries(const DRFunctions *fn, fmi2Component comp, fmi2FMUstate *state, const fmi2ValueReference *in_vr,
                const fmi2ValueReference *out_vr, int m, double t, double dt, const double *inputs, int count,
-               double *outputs, int dirty, int *failed)
+               double *outputs, int dirty, int no_prior, int *failed)
 {
     size_t n = (size_t)m;
     for (int q = 0; q < count; q++) {
@@ -22,7 +23,7 @@ int fq_queries(const DRFunctions *fn, fmi2Component comp, fmi2FMUstate *state, c
             failed[0] = DR_FN_SET_REAL, failed[1] = status;
             return q;
         }
-        if ((status = fn->doStep(comp, t, dt, fmi2False)) > fmi2Warning) {
+        if ((status = fn->doStep(comp, t, dt, no_prior ? fmi2True : fmi2False)) > fmi2Warning) {
             failed[0] = DR_FN_DO_STEP, failed[1] = status;
             return q;
         }

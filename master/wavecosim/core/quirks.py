@@ -1,0 +1,292 @@
+"""Quirks of real FMUs, found at set-up by a few doSteps of fresh instances from the initial state,
+reported in metadata.json (`quirks`) and in one warning line each. Each FMU file is probed once, at
+its first instance (what the probes find belongs to the binary), with two extra instances of it in
+the same loaded binary; the subsystem's own instance is never stepped by a probe. A subsystem's
+`quirks:` keys override the probes.
+
+- `no_set_fmu_state_prior`: the noSetFMUStatePriorToCurrentPoint a master that rolls back passes
+  to doStep. False is the standard's choice, but some FMUs stay where they are with false (status
+  OK, outputs constant after the first step). Two steps with false from a saved state are compared
+  with two steps with true on the other instance: an FMU that stays put with false and moves with
+  true gets true. Either flag is by the book here, as x_i^n is only ever restored at t_n, the
+  doSteps' own communication point. Masters that never roll back pass true to every FMU.
+- `restore`: the two steps with false are made again after fmi2SetFMUstate; the largest relative
+  difference of the outputs (0: the FMU restores its state exactly).
+- `reentrant`: the second instance makes a step between the first one's input and its step; when
+  that changes the first one's outputs, the instances share data in the binary. Then every
+  further instance of the file (the lockstep reference's too) gets its own copy of the binary,
+  after a second probe with such a copy; when even a copy disturbs, a second instance is refused
+  in one line.
+- `responds`: whether the port's outputs move when its inputs do (over the two steps): a port that
+  does not cannot be coupled, and a master would return a frozen trajectory for it.
+An FMU that refuses a probe's step (its error is kept in `probe_error`) is left as if unprobed.
+"""
+import math
+from dataclasses import asdict, dataclass
+
+from ..errors import ConfigError, FmuError
+from ..kernel import cvalues
+
+KEYS = ("no_set_fmu_state_prior", "reentrant", "probe")     # a subsystem's `quirks:` keys
+PERTURB = 1e-3           # the probe's input step, relative to 1 + |u|
+MAX_OUTPUTS = 64         # FMU outputs compared, at most (beside the port's)
+NOISE = 10.0             # a difference counts when above this many times the restore's own
+
+
+@dataclass
+class FmuQuirks:
+    """What the probes found for one FMU file (None: not probed)."""
+    file: str
+    frozen_without_flag: bool = None       # stays put with noSetFMUStatePriorToCurrentPoint = false
+    flag_difference: float = None          # relative output difference of the two flags' steps
+    restore_difference: float = None       # relative output difference after fmi2SetFMUstate
+    reentrant: bool = None                 # a second instance in the same binary leaves the first alone
+    reentrant_copies: bool = None          # a second instance in its own copy of the binary does
+    interference: float = None             # relative output difference a second instance caused
+    responds: bool = None                  # the port's outputs move when its inputs do
+    probe_error: str = None                # why the probes stopped (an instance refused a step)
+
+    @property
+    def needs_flag(self):
+        return bool(self.frozen_without_flag)
+
+    def own_copies(self):
+        """Further instances get their own copy of the binary."""
+        return self.reentrant is False and self.reentrant_copies is not False
+
+
+def _relative(rows_a, rows_b):
+    """Largest |a - b| over the largest |a|, |b| of two lists of output rows (0 when equal)."""
+    a = [x for row in rows_a for x in row]
+    b = [x for row in rows_b for x in row]
+    if a == b:
+        return 0.0
+    scale = max(max(map(abs, a), default=0.0), max(map(abs, b), default=0.0))
+    worst = max(abs(x - y) for x, y in zip(a, b))
+    return worst / scale if scale > 0 and math.isfinite(worst) else math.inf
+
+
+class _Calls:
+    """Status-checked raw fmi2-form calls on one instance, with the probe's inputs and outputs."""
+
+    def __init__(self, fmu, in_vr, out_vr):
+        self.fmu, self.comp = fmu, cvalues.pointer(fmu.component)
+        self.fn = {name: fmu.raw_function(name) for name in
+                   ("fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate", "fmi2SetReal", "fmi2DoStep",
+                    "fmi2GetReal")}
+        self.in_vr, self.out_vr = in_vr, out_vr
+        self.u = cvalues.doubles(len(in_vr))
+        self.y = cvalues.doubles(len(out_vr))
+        self.t = 0.0                       # where a fresh instance's next step starts (_interferes)
+
+    def call(self, name, *args):
+        status = self.fn[name](self.comp, *args)
+        if status > 1:
+            raise self.fmu.status_error(name, status)
+
+    def run(self, u, t0, h, flags):
+        """One row of outputs per doStep, the inputs u held, from t0 on."""
+        rows = []
+        for k, flag in enumerate(flags):
+            self.set(u)
+            self.call("fmi2DoStep", cvalues.double(t0 + k * h), cvalues.double(h), int(flag))
+            self.call("fmi2GetReal", self.out_vr, cvalues.size(len(self.out_vr)), self.y)
+            rows.append(list(self.y))
+        return rows
+
+    def set(self, u):
+        for j, x in enumerate(u):
+            self.u[j] = x
+        if len(u):
+            self.call("fmi2SetReal", self.in_vr, cvalues.size(len(u)), self.u)
+
+    def inputs(self):
+        if not len(self.in_vr):
+            return []
+        self.call("fmi2GetReal", self.in_vr, cvalues.size(len(self.in_vr)), self.u)
+        return list(self.u)
+
+    def save(self, handle):
+        self.call("fmi2GetFMUstate", cvalues.ref(handle))
+
+    def restore(self, handle):
+        self.call("fmi2SetFMUstate", handle)
+
+    def free(self, handle):
+        self.call("fmi2FreeFMUstate", cvalues.ref(handle))
+
+
+def _outputs(sub):
+    """Value references the probe compares: the port's outputs, then the FMU's Real outputs."""
+    fmu = sub.fmu
+    names = [v.name for v in fmu.description.modelVariables
+             if v.causality == "output" and v.type == fmu.real_type and not getattr(v, "dimensions", None)]
+    port = list(sub.port_vrs()[1])
+    rest = [vr for vr in fmu.real_vrs(names[:MAX_OUTPUTS]) if vr not in port]
+    return cvalues.uints(port + rest), len(port)
+
+
+def _twin(sub, own_copy=False):
+    """A fresh instance of the subsystem's FMU for the probes (None when none can be opened)."""
+    try:
+        return sub.fmu.twin(f"{sub.name}~probe", own_copy)
+    except FmuError:
+        return None
+
+
+def _interferes(a, b, hx, u1, u_other, t0, h, alone, noise):
+    """Relative change of a's first-step outputs (from the state in hx) when b sets its input and
+    steps in between; 0 when within the restore's noise."""
+    a.restore(hx)
+    a.set(u1)
+    b.set(u_other)
+    a.call("fmi2DoStep", cvalues.double(t0), cvalues.double(h), 0)
+    b.call("fmi2DoStep", cvalues.double(b.t), cvalues.double(h), 1)
+    b.t += h
+    a.call("fmi2GetReal", a.out_vr, cvalues.size(len(a.out_vr)), a.y)
+    diff = _relative([list(a.y)], [alone])
+    return diff if diff > noise else 0.0
+
+
+def probe(sub):
+    """The quirks of sub's FMU, found with fresh instances of it: the subsystem's own instance is
+    never stepped, so a probe that fails (the FMU refuses the perturbed input) leaves the run as it
+    would be without it."""
+    found = FmuQuirks(sub.fmu.path.name)
+    if not sub.fmu.can_save_state or sub.fmu.once_per_process:
+        return found
+    own, kept = _Calls(sub.fmu, *sub.port_vrs()), cvalues.pointer()
+    own.save(kept)                       # a non-reentrant FMU's probes move it: put back below
+    twins = []
+    try:
+        _probe_twins(found, sub, twins)
+    except FmuError as exc:
+        found.probe_error = str(exc)
+    finally:
+        for twin in reversed(twins):
+            twin.close()
+        if found.reentrant is False:
+            own.restore(kept)
+        own.free(kept)
+    return found
+
+
+def _open(sub, twins, own_copy=False):
+    """A fresh instance and its calls (kept in twins, to be closed); FmuError when none opens."""
+    fmu = _twin(sub, own_copy)
+    if fmu is None:
+        raise FmuError(f"subsystem {sub.name}: a second instance of {sub.fmu.path.name} could not be opened")
+    twins.append(fmu)
+    out_vr, m_out = _outputs(sub)
+    return _Calls(fmu, sub.port_vrs()[0], out_vr), m_out
+
+
+def _probe_twins(found, sub, twins):
+    """B steps with false from a saved state (restore and input response), C with true (the flag);
+    C then steps between B's input and B's step (reentrancy), and if it disturbs, D from its own
+    copy of the binary does the same."""
+    b, m_out = _open(sub, twins)
+    t0, h = sub.fmu.start_time, sub.dt
+    u0 = b.inputs()
+    du = [PERTURB * (1.0 + abs(x)) for x in u0]
+    u1, u_other = [x + d for x, d in zip(u0, du)], [x - d for x, d in zip(u0, du)]
+    hx = cvalues.pointer()
+    b.save(hx)
+    moved = b.run(u1, t0, h, (False, False))
+    b.restore(hx)
+    rest = b.run(u0, t0, h, (False, False))
+    b.restore(hx)
+    found.restore_difference = _relative(moved, b.run(u1, t0, h, (False, False)))
+    found.responds = [r[:m_out] for r in moved] != [r[:m_out] for r in rest] if m_out else None
+    c, _ = _open(sub, twins)
+    stepped = c.run(u1, t0, h, (True, True))                    # never restored: true is by the book
+    c.t = t0 + 2 * h
+    found.flag_difference = _relative(moved, stepped)
+    found.frozen_without_flag = moved[1] == moved[0] and stepped[1] != stepped[0]
+    noise = NOISE * found.restore_difference
+    found.interference = _interferes(b, c, hx, u1, u_other, t0, h, moved[0], noise)
+    found.reentrant = found.interference == 0.0
+    if not found.reentrant:
+        d, _ = _open(sub, twins, own_copy=True)
+        d.t = t0
+        found.reentrant_copies = _interferes(b, d, hx, u1, u_other, t0, h, moved[0], noise) == 0.0
+    b.free(hx)
+
+
+@dataclass
+class Decision:
+    """What a subsystem runs with, and why (metadata.json's `quirks` entry)."""
+    file: str
+    no_set_fmu_state_prior: bool
+    chosen_by: str                   # probe | quirks key | no rollback | default
+    own_copy: bool
+    found: dict
+
+
+class QuirkTable:
+    """The probes' findings per FMU file, shared by the scenes of one process's run (a run and its
+    lockstep reference), so each file is probed once."""
+
+    def __init__(self):
+        self.files = {}                  # {FMU path: FmuQuirks}
+
+    def own_copy(self, sub_cfg, path, where):
+        """Whether this subsystem's instance gets its own copy of the binary; refuses an FMU found not
+        to run twice in one process in one line."""
+        key = (sub_cfg.quirks or {}).get("reentrant")
+        if key is not None:
+            return not key
+        found = self.files.get(str(path))
+        if found is None:
+            return False
+        if found.reentrant is False and found.reentrant_copies is False:
+            raise ConfigError(f"{where}: {found.file} cannot run twice in one process: a second instance, even "
+                              f"from its own copy of the binary, changes the first one's outputs (by "
+                              f"{found.interference:.3g}, relative); only one instance of it can run")
+        return found.own_copies()
+
+    def settle(self, sub, sub_cfg, path, rollback, where, own_copy, notes):
+        """Probe sub's FMU file at its first instance (unless `quirks.probe` is false; what is found
+        goes to `notes`), then set the doStep flag the subsystem runs with; returns its Decision."""
+        keys = sub_cfg.quirks or {}
+        found = self.files.get(str(path))
+        if found is None and keys.get("probe", True):
+            found = self.files[str(path)] = probe(sub)
+            notes.extend(self._notes(found, where, rollback, keys))
+        flag, how = False, "default"
+        if not rollback:
+            flag, how = True, "no rollback"
+        elif "no_set_fmu_state_prior" in keys:
+            flag, how = bool(keys["no_set_fmu_state_prior"]), "quirks key"
+        elif found is not None and found.frozen_without_flag is not None:
+            flag, how = found.needs_flag, "probe"
+        sub.no_prior = int(flag)
+        found = {k: v for k, v in asdict(found).items() if k != "file"} if found is not None else {}
+        return Decision(path.name, flag, how, own_copy, found)
+
+    @staticmethod
+    def _notes(found, where, rollback, keys):
+        """One warning line per quirk found."""
+        notes, name = [], found.file
+        if found.frozen_without_flag:
+            given = ("its doSteps get true (quirks.no_set_fmu_state_prior overrides)" if rollback
+                     and "no_set_fmu_state_prior" not in keys else "it gets true" if not rollback else
+                     f"quirks.no_set_fmu_state_prior is {keys['no_set_fmu_state_prior']}")
+            notes.append(f"{where}: {name} stays where it is when doStep gets noSetFMUStatePriorToCurrentPoint "
+                              f"= false (outputs constant after the first step, status OK) and moves with true: "
+                              f"{given}")
+        elif found.flag_difference is not None and found.flag_difference > NOISE * found.restore_difference:
+            notes.append(f"{where}: {name} gives other outputs when doStep gets noSetFMUStatePriorToCurrentPoint"
+                              f" = true than with false (relative difference {found.flag_difference:.3g})")
+        if rollback and found.restore_difference:
+            notes.append(f"{where}: {name} restores its state only to {found.restore_difference:.3g} "
+                              f"(relative, two steps after fmi2SetFMUstate): iterating masters see that noise")
+        if found.reentrant is False:
+            more = ("further instances get their own copy of the binary" if found.reentrant_copies
+                    else "a second instance in the same process is refused")
+            notes.append(f"{where}: {name} is not reentrant: a second instance changes the first one's "
+                              f"outputs (by {found.interference:.3g}, relative); {more}")
+        if found.responds is False:
+            notes.append(f"{where}: the port outputs of {name} do not move when its inputs do (two steps "
+                              f"from the initial state): the coupling cannot move it, so the run would be frozen")
+        return notes
