@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from .scenario.config import load_scenario
-from .errors import ConfigError, Interrupted, WavecosimError
+from .errors import ConfigError, Interrupted, SweepFailed, WavecosimError
 from . import api
 from .api import simulate, with_overrides
 from .core.gamma import parse_gamma
@@ -63,6 +63,12 @@ def print_table(rows, fields):
     click.echo("  ".join(f.rjust(w) for f, w in zip(fields, widths)))
     for c in cells:
         click.echo("  ".join(v.rjust(w) for v, w in zip(c, widths)))
+
+
+step_timeout_option = click.option(
+    "--step-timeout", type=click.FloatRange(min=0, min_open=True), metavar="SECONDS",
+    help="End the run when a call into an FMU does not return within SECONDS (the scenario's "
+         "step_timeout otherwise; default: no limit). Steps before it are kept.")
 
 
 config_argument = click.argument("config", required=False, type=click.Path(dir_okay=False, path_type=Path))
@@ -135,20 +141,38 @@ def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None):
 @click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and the Condition 1 watch (faster).")
 @click.option("--no-reference", is_flag=True, help="Skip the monolithic reference run (no error figures).")
 @click.option("--plots", is_flag=True, help="Also write PNG figures into the output folder.")
+@step_timeout_option
 def run_cmd(config, K, eps, gamma, dt, T, quiet, output_interval, formats, ports, parameter_set, algorithm, out,
-            no_certificates, no_reference, plots):
+            no_certificates, no_reference, plots, step_timeout):
     """Run one scenario (with the monolithic reference alongside) and write its trajectory, per-step
-    certificates, summary and metadata. CONFIG is a scenario file or an SSP system (.ssd, .ssp, folder)."""
+    certificates, summary and metadata. CONFIG is a scenario file or an SSP system (.ssd, .ssp, folder).
+
+    The steps are made in a child process: an FMU that crashes, calls exit() or (with --step-timeout)
+    does not return leaves every step before it on disk, a summary.json saying what happened, and
+    an exit code of its own (docs/troubleshooting.md)."""
     scenario = _apply_overrides(_read_config(config, ports, parameter_set, dt, T, gamma), K, eps, gamma, dt, T,
                                 algorithm)
-    result = simulate(scenario, out_dir=out, progress=_progress("run", quiet) or False,
-                      certificates=not no_certificates, reference=not no_reference,
-                      output_interval=output_interval, formats=("csv", *formats))
-    _report_run(scenario, result, out)
-    if plots:
-        from .plots import run_plots
-        for p in run_plots(result, result.reference, out):
-            click.echo(f"wrote {p}")
+
+    def work():
+        result = simulate(scenario, out_dir=out, progress=_progress("run", quiet) or False,
+                          certificates=not no_certificates, reference=not no_reference,
+                          output_interval=output_interval, formats=("csv", *formats))
+        _report_run(scenario, result, out)
+        if plots:
+            from .plots import run_plots
+            for p in run_plots(result, result.reference, out):
+                click.echo(f"wrote {p}")
+    return _supervised(work, out / "summary.json", step_timeout or scenario.step_timeout)
+
+
+def _supervised(work, summary, step_timeout):
+    """work() in a supervised child process (run/supervisor.py); its exit code, raised as ChildExit
+    when it is not 0 (the child has printed its one line)."""
+    from .run.supervisor import supervise
+    code = supervise(lambda: _exit_status(work), summary=summary, step_timeout=step_timeout)
+    if code:
+        raise ChildExit(code)
+    return 0
 
 
 def _report_run(scenario, result, out):
@@ -188,10 +212,12 @@ sweep_options = options([
                  "default: the number of CPUs; 1 runs in this process."),
     click.option("--scheduler", help="Run on Dask: a scheduler address (tcp://host:8786) or 'local' for an "
                  "embedded LocalCluster of --workers processes."),
-    click.option("--resume", is_flag=True, help="Skip runs whose folder already holds a finished run."),
+    click.option("--resume", is_flag=True, help="Skip runs whose folder already holds a finished run; run "
+                 "those that did not finish once more."),
     click.option("--no-reference", is_flag=True, help="No monolithic reference per run (no error figures)."),
     click.option("--plot-y", default="max_error", show_default=True,
                  help="Comma-separated figures to plot against the first swept key (with --plots)."),
+    step_timeout_option,
 ])
 
 
@@ -199,26 +225,32 @@ sweep_options = options([
 @config_argument
 @sweep_options
 def sweep_cmd(config, ks, eps, gamma, dt, T, quiet, out, no_certificates, plots, sets, sample, seed, workers,
-              scheduler, resume, no_reference, plot_y):
+              scheduler, resume, no_reference, plot_y, step_timeout):
     """Without --set: the paper's experiment, DR for each K against the monolithic reference
     (summary.json). With --set (or --sample, --workers, --scheduler, --resume, --no-reference):
-    a general sweep over any scenario keys, one row per run in OUT/runs.csv and OUT/runs.json."""
+    a general sweep over any scenario keys, one row per run in OUT/runs.csv and OUT/runs.json;
+    each run is made in a child process of its own, and one that crashes or times out is a row
+    saying so (the sweep then exits with code 8)."""
     if sets or sample or workers or scheduler or resume or no_reference:
         options = dict(no_certificates=no_certificates, plots=plots, sample=sample, seed=seed, workers=workers,
-                       scheduler=scheduler, resume=resume, no_reference=no_reference, plot_y=plot_y, quiet=quiet)
+                       scheduler=scheduler, resume=resume, no_reference=no_reference, plot_y=plot_y, quiet=quiet,
+                       step_timeout=step_timeout)
         return _general_sweep(config, ks, sets, (eps, gamma, dt, T), out, options)
-    from .sweeps.budget import SWEEP_FIELDS
     Ks = parse_budgets(ks or "0,3,8,20,35,50")
     scenario = _apply_overrides(load_scenario(config), None, eps, gamma, dt, T)
-    table = api.sweep(scenario, Ks, out_dir=out, progress=(lambda label: _progress(label, quiet)),
-                      certificates=not no_certificates)
-    reference, results, runs = table.reference, table.results, table.rows
-    click.echo(f"{scenario.name}: sweep over K = {Ks} -> {out / 'summary.json'}")
-    print_table(runs, list(SWEEP_FIELDS))
-    if plots:
-        from .plots import sweep_plots
-        for p in sweep_plots(results, reference, out):
-            click.echo(f"wrote {p}")
+
+    def work():
+        from .sweeps.budget import SWEEP_FIELDS
+        table = api.sweep(scenario, Ks, out_dir=out, progress=(lambda label: _progress(label, quiet)),
+                          certificates=not no_certificates)
+        reference, results, runs = table.reference, table.results, table.rows
+        click.echo(f"{scenario.name}: sweep over K = {Ks} -> {out / 'summary.json'}")
+        print_table(runs, list(SWEEP_FIELDS))
+        if plots:
+            from .plots import sweep_plots
+            for p in sweep_plots(results, reference, out):
+                click.echo(f"wrote {p}")
+    return _supervised(work, None, step_timeout or scenario.step_timeout)
 
 
 def _general_sweep(config, ks, sets, changes, out, o):
@@ -232,7 +264,8 @@ def _general_sweep(config, ks, sets, changes, out, o):
         axes.insert(0, ("master.K", parse_budgets(ks, "--K")))
     fixed = [(k, scalar(v) if k == "gamma" else v)
              for k, v in zip(("master.eps", "gamma", "dt", "T"), changes) if v is not None]
-    tasks = plan(config, axes, out, fixed, o["sample"], o["seed"], not o["no_reference"], not o["no_certificates"])
+    tasks = plan(config, axes, out, fixed, o["sample"], o["seed"], not o["no_reference"], not o["no_certificates"],
+                 step_timeout=o["step_timeout"])
     workers = o["workers"] or os.cpu_count() or 1
     meta = {"config": tasks[0].config, "axes": [[k, list(v)] for k, v in axes], "fixed": fixed,
             "sample": o["sample"], "seed": o["seed"], "executor": o["scheduler"] or f"{workers} workers"}
@@ -248,6 +281,8 @@ def _general_sweep(config, ks, sets, changes, out, o):
         from .plots import figure_plots
         for p in figure_plots(rows, keys, [y.strip() for y in o["plot_y"].split(",") if y.strip()], out):
             click.echo(f"wrote {p}")
+    if failed:
+        raise SweepFailed(f"{len(failed)} of {len(rows)} runs did not finish (their rows say why: {out / 'runs.csv'})")
 
 
 def _sweep_progress(total, skipped):
@@ -383,25 +418,40 @@ def bench_cmd(quick, json_file):
         click.echo(f"wrote {json_file}")
 
 
-def main(argv=None):
+class ChildExit(WavecosimError):
+    """A supervised child ended with this exit code, after printing its own line."""
+
+    def __init__(self, code):
+        super().__init__("")
+        self.exit_code = code
+
+
+def _exit_status(work):
+    """work(); its exit code: 0, or the code of the error it raised, after one line on stderr."""
     try:
-        cli.main(args=argv, standalone_mode=False)
+        work()
+        return 0
     except click.exceptions.Abort:
         click.echo("error: interrupted", err=True)
-        sys.exit(130)
+        return 130
     except click.ClickException as exc:
         click.echo(f"error: {exc.format_message()}", err=True)    # one line, naming the option
-        sys.exit(2)
+        return 2
+    except ChildExit as exc:
+        return exc.exit_code
     except Interrupted as exc:
         click.echo(f"interrupted: {exc}; results so far are on disk", err=True)
-        sys.exit(130)
+        return exc.exit_code
     except WavecosimError as exc:
         click.echo(f"error: {exc}", err=True)
-        sys.exit(getattr(exc, "exit_code", 1))
+        return getattr(exc, "exit_code", 1)
     except KeyboardInterrupt:
         click.echo("error: interrupted", err=True)
-        sys.exit(130)
-    sys.exit(0)
+        return 130
+
+
+def main(argv=None):
+    sys.exit(_exit_status(lambda: cli.main(args=argv, standalone_mode=False)))
 
 
 if __name__ == "__main__":

@@ -20,6 +20,7 @@ from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
 from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, fmi2StepFinishedTYPE
 
 from ..errors import FmuError
+from .messages import MessageLog, cut
 from .values import is_number, is_whole
 
 _STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
@@ -206,7 +207,7 @@ class Fmu:
             self._key, self.folder = None, extract_fmu(self.path)
         self.can_save_state = bool(cs.canGetAndSetFMUstate)
         self.variables = {v.name: v for v in self.description.modelVariables}
-        self.messages = []
+        self.messages = MessageLog(name)        # bounded: the last few, and the run's log file
         self._fmi = binding(self, cs.modelIdentifier)
         self.component = self._fmi.component
         drop = [k for k in optional if k not in self.variables]
@@ -214,7 +215,9 @@ class Fmu:
         self._setup(given, start_time)
 
     def last_message(self) -> str:
-        return self.messages[-1][1] if self.messages else "no message from the FMU"
+        """The FMU's last message, cut to a few hundred characters (for one-line errors)."""
+        last = self.messages.last()
+        return cut(last, 300) if last is not None else "no message from the FMU"
 
     def checked(self, call, fname, *args, **kwargs):
         """call(*args, **kwargs), an fmpy method; its exception becomes an FmuError with the FMU's message."""

@@ -288,6 +288,11 @@ class Kernel:
         error = self.failure(n, n * self.io.dt) if self.io.failed_subsystem >= 0 else None
         return done, BlockLog(log[:, at:at + done], self.n, bool(self.io.stopped)), error
 
+    def step_in_progress(self):
+        """The macro-step the kernel is making or made last (from t_n, which each step sets first): read
+        by another thread while run_steps runs, it tells how far the call has come."""
+        return int(round(self.io.t / self.io.dt)) if self.io.dt > 0 else 0
+
     def joined_log(self, steps, stopped):
         """The log's first `steps` columns as one BlockLog (a call and the calls it went on after)."""
         return BlockLog(self.log[:, :steps], self.n, stopped)

@@ -58,6 +58,7 @@ class FastDRMaster(DRMaster):
         self._choose_after = None if self.thread_mode != "1" and len(self.subsystems) > 1 else -1
         self._on_trial = False
         self._step_s = 0.0        # seconds per macro-step of the last run_steps call
+        self._call = 0            # n0 of the last kernel call (salvage after a fault inside it)
 
     def _send_options(self):
         """The named options to the kernel (it forgets b^{n-1} and the Anderson differences)."""
@@ -226,6 +227,7 @@ class FastDRMaster(DRMaster):
         started = time.perf_counter()
         if self._certs is not None:
             self._certs.arm(n0, count)
+        self._call = n0
         done, log, error = self.kernel.run_steps(n0, count, H_cap, measure, at)
         if self._certs is not None:
             error = self._certs.disarm(done) or error
@@ -233,6 +235,16 @@ class FastDRMaster(DRMaster):
             self._step_s = (time.perf_counter() - started) / done
         self._book(n0, done, log)
         return done, log, error
+
+    def step_in_progress(self):
+        return self.kernel.step_in_progress()
+
+    def salvage(self, n0):
+        """The steps from n0 the kernel call in progress (begun at self._call) logged before a fault."""
+        made = self.kernel.step_in_progress()
+        if self._certs is not None:
+            self._certs.disarm(made - self._call)
+        return made - n0, self.kernel.joined_log(made - n0, False)
 
     def _book(self, n0, done, log):
         """Book macro-steps n0 .. n0 + done - 1 of the kernel: calls and step on the Subsystems, b^n, b^{n+1}."""

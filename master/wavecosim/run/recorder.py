@@ -216,16 +216,19 @@ def _kind(fmt):
 
 
 class Interrupts:
-    """Holds Ctrl-C (SIGINT) until the step in progress is booked: `pending` says one came, and
-    `check()` raises KeyboardInterrupt between steps. A second Ctrl-C raises at once."""
+    """Holds Ctrl-C (SIGINT) and SIGTERM until the step in progress is booked: `pending` says one came
+    (`signal` which), and `check()` raises KeyboardInterrupt between steps. A second one raises at once."""
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
     def __enter__(self):
-        self.pending, self._old = False, None
+        self.pending, self.signal, self._old = False, None, {}
         if threading.current_thread() is threading.main_thread():
-            self._old = signal.signal(signal.SIGINT, self._hold)
+            for sig in self.SIGNALS:
+                self._old[sig] = signal.signal(sig, self._hold)
         return self
 
     def _hold(self, signum, frame):
+        self.signal = self.signal or signum
         if self.pending:
             raise KeyboardInterrupt
         self.pending = True
@@ -235,8 +238,8 @@ class Interrupts:
             raise KeyboardInterrupt
 
     def __exit__(self, *exc):
-        if self._old is not None:
-            signal.signal(signal.SIGINT, self._old)
+        for sig, old in self._old.items():
+            signal.signal(sig, old)
         return False
 
 

@@ -14,6 +14,7 @@ both runs stream and memory does not grow with the number of steps.
 """
 import ctypes
 import math
+import signal
 import sys
 import time
 from dataclasses import dataclass, field
@@ -22,11 +23,12 @@ from pathlib import Path
 import numpy as np
 
 from ..kernel import blocks
-from ..errors import ConfigError, Interrupted, NumericalError, RunFailed, WavecosimError
+from ..errors import ConfigError, Interrupted, NumericalError, RunFailed, Terminated, WavecosimError
 from ..kernel.drkernel import REASONS as KERNEL_REASONS
 from ..core.gamma import GammaTuner
 from ..masters import MASTERS
 from ..masters.base import REASONS, WaveMaster, require_wave_tuning
+from . import containment
 from .metadata import run_metadata
 from .observers import Observer
 from ..core.certificates import sampling
@@ -40,10 +42,12 @@ from .observers.passivity import Passivity
 from .recorder import BLOCK, Interrupts, Labels, Table, ints, write_json, write_mat
 from ..core.readings import Sampler
 from ..core.scene import build_scene
+from ..fmi.messages import LogFile
 
 FORMATS = ("csv", "mat")
 STEP_COLUMNS = ("time", "iterations", "inner_residual", "reason")
 BLOCK_STEPS = BLOCK                    # macro-steps per call of the master, at most a table block
+HAND_OVER_S = 1.0                      # rows booked are handed to the writer at least this often
 assert REASONS[:len(KERNEL_REASONS)] == KERNEL_REASONS     # the kernel's reason codes are the runner's
 
 
@@ -225,6 +229,9 @@ class LiveRun:
             self.master.enable_trace(True)
         self.out_dir, self.formats = (Path(out_dir) if out_dir is not None else None), formats
         self.suffix = f"_{self.label}" if file_suffix else ""
+        self.fmu_log = LogFile(self.out_dir / f"fmu_log{self.suffix}.txt") if self.out_dir is not None else None
+        for s in self.scene.subsystems + self.scene.signal_only if self.fmu_log is not None else ():
+            s.fmu.messages.attach(self.fmu_log)
         self.every, self.n_steps, self.dt = output_interval, scenario.n_steps, scenario.dt
         self.sampler = Sampler(self.scene, scenario.outputs)
         self.columns = list(scenario.outputs)
@@ -233,6 +240,7 @@ class LiveRun:
         self.loop_time = 0.0                           # start() to the last row written: the run's own per-step cost
         self.led, self.failure, self.recent = 0, None, {}   # as a lockstep reference (lead)
         self.block_steps = 0                                # macro-steps made in blocks
+        self.in_block = None                                # n0 of the kernel call in progress
 
     def add_observer(self, observer: Observer):
         """Before start(): one more observer (e.g. the error tracker), acting last."""
@@ -366,7 +374,9 @@ class LiveRun:
         if self.ledger:
             self.master.keep_ledger(*self.guard.kernel_state())
         t0 = time.perf_counter()
+        self.in_block = n0
         done, log, error = self.master.run_steps(n0, count, self.cap)
+        self.in_block = None
         self.master_time += time.perf_counter() - t0
         self.block_steps += done
         whole = done - 1 if log.stopped and not self.ledger else done      # the ledger's kernel books every step
@@ -442,6 +452,38 @@ class LiveRun:
     def _totals(self):
         return {k: sum(s.calls[k] for s in self.scene.subsystems) for k in ("doStep", "save", "restore")}
 
+    def hand_over(self):
+        """The rows booked so far to the writer threads now (the loop does every second)."""
+        for table in (getattr(self, "trajectory", None), getattr(self, "steps", None)):
+            if table is not None:
+                table.hand_over()
+
+    def step_in_progress(self):
+        """The macro-step being made now (inside a kernel call: the one the kernel is at)."""
+        if self.in_block is not None:
+            return self.master.route().step_in_progress()
+        return self.steps_done
+
+    def salvage(self):
+        """After a fault inside a kernel call (which never returned): book the steps it made before it."""
+        n0, self.in_block = self.in_block, None
+        if n0 is None:
+            return
+        done, log = self.master.route().salvage(n0)
+        if done > 0:
+            self._after_block(n0, log.first(done))
+
+    def catch_up(self, end):
+        """Make the steps up to end - 1 (after a fault in the lockstep reference, which made them)."""
+        n = self.steps_done
+        while n < end:
+            n += self.advance(n, min(self.block_size(n), end - n))
+
+    def rescue(self, error):
+        """After a fault (run/containment.py): the files written with the error's status; the FMUs are
+        left as they are (one of them faulted, and its process ends next)."""
+        self.finish(error.status, str(error), release=False)
+
     def _record(self, n, log, reading):
         self.steps_done = n + 1
         self.iterations[0] += log.iterations
@@ -487,18 +529,21 @@ class LiveRun:
             out.update(self.scene.signal_info(out.get("fast_note")))
         return out
 
-    def finish(self, status, message):
-        """Close the tables and parts, write summary.json (and metadata.json, MAT files); the RunResult.
-        The rows still to write count in the run's own time (loop_time_s)."""
+    def finish(self, status, message, release=True):
+        """Close the tables and parts (the FMUs only with release), write summary.json (and metadata.json,
+        MAT files); the RunResult. The rows still to write count in the run's own time (loop_time_s)."""
         started = time.perf_counter()
         tables = [t for t in (getattr(self, "trajectory", None), getattr(self, "steps", None)) if t is not None]
         for table in tables:           # both tables' last rows handed to the writer threads at once
             table.flush()
         for table in tables:
             table.close()
+        if self.fmu_log is not None:
+            self.fmu_log.close()
         self.loop_time += time.perf_counter() - started
         summary = self.summary(status, message)
-        self.close()
+        if release:
+            self.close()
         result = RunResult(self.label, self.scenario.master.algorithm, self.scenario.master.K, self.columns,
                            self.sampler.units, list(self.scenario.error), self.trajectory, self.steps,
                            getattr(self, "first", {}), summary, status, message)
@@ -548,41 +593,60 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
     except BaseException:
         live.close()
         raise
-    status, error = _loop(live, ref, progress)
-    result = live.finish(status, str(error) if error else "")
+    contain = containment.current()
+    if contain is not None:
+        contain.watch(live, ref)
+    status, error = _loop(live, ref, progress, contain)
+    message = str(error) if error else ""
+    if isinstance(error, Interrupted):
+        message = f"{error} after {live.steps_done} steps"
+    result = live.finish(status, message)
     if ref is not None:
-        result.reference = ref.finish(status, str(error) if error else "")
+        result.reference = ref.finish(status, message)
     if status == "interrupted":
-        raise Interrupted(f"interrupted by the user after {result.summary['steps']} steps", result)
-    if status == "failed":
+        raise type(error)(message, result)
+    if error is not None:
         raise RunFailed(error, result) from error
     return result
 
 
-def _loop(live, ref, progress):
-    """Every macro-step of the run (and of its lockstep reference); returns (status, exception)."""
+def _loop(live, ref, progress, contain=None):
+    """Every macro-step of the run (and of its lockstep reference); returns (status, exception).
+    Rows go to the writer at least every HAND_OVER_S seconds; a supervised run (contain) is told
+    which run makes the next steps."""
     every = max(1, live.n_steps // 200)
+    active = contain.active if contain is not None else (lambda part: None)
     with Interrupts() as stop:
         try:
             for part in (ref, live):
                 if part is not None:
+                    active(part)
                     part.start()
-            n = 0
+            n, handed = 0, time.perf_counter()
             while n < live.n_steps:
                 count = live.block_size(n)
                 if ref is not None:
+                    active(ref)
                     count = min(count, ref.lead(n, n + count) - n)
                     if count <= 0:
                         raise ref.failure
+                active(live)
                 done = live.advance(n, count)
                 stop.check()
                 if progress and ((n + done) // every > n // every or n + done == live.n_steps):
                     progress(n + done, live.n_steps)
                 n += done
+                if time.perf_counter() - handed > HAND_OVER_S:
+                    for part in (ref, live):
+                        if part is not None:
+                            part.hand_over()
+                    handed = time.perf_counter()
         except KeyboardInterrupt:
-            return "interrupted", None
+            error = Terminated if stop.signal == signal.SIGTERM else Interrupted
+            return "interrupted", error("stopped by SIGTERM" if stop.signal == signal.SIGTERM
+                                        else "interrupted by the user")
         except WavecosimError as exc:
-            return "failed", exc
+            return exc.status, exc
     return "finished", None
 
 

@@ -109,6 +109,7 @@ class Scenario:
     signal_subsystems: list = field(default_factory=list)     # subsystems without a port (signals only)
     sources: list = field(default_factory=list)               # SourceConfig
     signals: list = field(default_factory=list)               # SignalConfig
+    step_timeout: float = None         # seconds a call into an FMU may take (`wavecosim run`); None: no limit
 
     @property
     def n_steps(self):
@@ -528,7 +529,7 @@ def parse_scenario(raw, source="<scenario>", base_dir=Path(".")) -> Scenario:
     ck = _Checker(source)
     raw = expand_repeats(raw, ck)
     top = ("name", "description", "dt", "T", "gamma", "subsystems", "couplings", "master", "certificates",
-           "outputs", "error", "fne_watch", "sources", "signals")
+           "outputs", "error", "fne_watch", "sources", "signals", "step_timeout")
     ck.mapping(raw, "", top, required=("dt", "T", "gamma", "subsystems", "couplings"))
     dt = ck.number(raw["dt"], "dt", positive=True)
     T = ck.number(raw["T"], "T", positive=True)
@@ -557,7 +558,9 @@ def parse_scenario(raw, source="<scenario>", base_dir=Path(".")) -> Scenario:
                     subsystems=subsystems, couplings=couplings, master=master, certificates=certs,
                     outputs=outputs, error=error, description=str(raw.get("description", "")),
                     fne_watch=ck.boolean(raw.get("fne_watch", True), "fne_watch"),
-                    signal_subsystems=signal_subsystems, sources=sources, signals=signals)
+                    signal_subsystems=signal_subsystems, sources=sources, signals=signals,
+                    step_timeout=(ck.number(raw["step_timeout"], "step_timeout", positive=True)
+                                  if raw.get("step_timeout") is not None else None))
 
 
 def _split_signal_only(ck, subsystems, couplings, raw_signals):
