@@ -21,7 +21,8 @@ from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE
 
 from ..errors import FmuError
 from .messages import MessageLog, cut
-from .values import is_number, is_whole
+from .unpack import unpack
+from .values import is_int32, is_number
 
 _STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
 _libc = ctypes.CDLL(None)
@@ -31,7 +32,8 @@ _libc.free.argtypes = [ctypes.c_void_p]
 
 
 def extract_fmu(path: Path) -> Path:
-    """Extract an FMU into a fresh temporary folder, refusing members that would escape it."""
+    """Extract an FMU into a fresh temporary folder (removed at exit), refusing members that would
+    escape it and an archive that unpacks to too much (fmi/unpack.py)."""
     path = Path(path)
     if not path.exists():
         raise FmuError(f"FMU file not found: {path}")
@@ -41,15 +43,9 @@ def extract_fmu(path: Path) -> Path:
     atexit.register(shutil.rmtree, target, True)
     try:
         with zipfile.ZipFile(path) as z:
-            names = z.namelist()
-            if "modelDescription.xml" not in names:
+            if "modelDescription.xml" not in z.namelist():
                 raise FmuError(f"{path} is not an FMU (no modelDescription.xml)")
-            root = target.resolve()
-            for member in names:
-                dest = (target / member).resolve()
-                if dest != root and root not in dest.parents:
-                    raise FmuError(f"{path}: archive member {member!r} escapes the extraction folder")
-            z.extractall(target)
+        unpack(path, target, FmuError)
     except (zipfile.BadZipFile, OSError) as exc:
         shutil.rmtree(target, ignore_errors=True)
         raise FmuError(f"{path}: cannot extract FMU: {exc}") from None
@@ -114,8 +110,8 @@ def check_runnable(path, folder, description, platform=fmpy_platform):
 # FMI type -> (FMU2Slave setter, (accepts the YAML value, converts it))
 SETTERS = {
     "Real": ("setReal", (is_number, float)),
-    "Integer": ("setInteger", (is_whole, int)),
-    "Enumeration": ("setInteger", (is_whole, int)),
+    "Integer": ("setInteger", (is_int32, int)),
+    "Enumeration": ("setInteger", (is_int32, int)),
     "Boolean": ("setBoolean", (lambda v: isinstance(v, bool), bool)),
     "String": ("setString", (lambda v: isinstance(v, str), str)),
 }

@@ -19,28 +19,35 @@ class LogFile:
     """One run's FMU log file, opened at its first message, capped; shared by the run's FMUs."""
 
     def __init__(self, path):
-        self.path, self.file = path, None
+        self.path, self.file, self.error = path, None, None
         self.messages = self.bytes = self.dropped = 0
 
     def write(self, name, status, text):
-        if self.messages >= FILE_MESSAGES or self.bytes >= FILE_BYTES:
+        """One message (called from an FMU's logger callback: it never raises; a file that cannot be
+        written takes no more messages)."""
+        if self.messages >= FILE_MESSAGES or self.bytes >= FILE_BYTES or self.error is not None:
             self.dropped += 1
             return
         line = f"{name}: {STATUS.get(status, status)}: {text}\n".encode("utf-8", "replace")
-        if self.file is None:
-            self.file = open(self.path, "wb")
-        self.file.write(line)
+        try:
+            if self.file is None:
+                self.file = open(self.path, "wb")
+            self.file.write(line)
+        except OSError as exc:
+            self.error = exc
+            return
         self.messages, self.bytes = self.messages + 1, self.bytes + len(line)
 
     def close(self):
-        """Flush and close, noting the messages the caps left out."""
-        if self.file is None:
-            return
-        if self.dropped:
-            self.file.write(f"... {self.dropped} further messages not written (the log keeps {FILE_MESSAGES} "
-                            f"messages and {FILE_BYTES >> 20} MB)\n".encode())
-        self.file.close()
-        self.file = None
+        """Flush and close, noting the messages the caps left out; raises the OSError that stopped it."""
+        if self.file is not None:
+            file, self.file = self.file, None
+            with file:
+                if self.dropped and self.error is None:
+                    file.write(f"... {self.dropped} further messages not written (the log keeps {FILE_MESSAGES} "
+                               f"messages and {FILE_BYTES >> 20} MB)\n".encode())
+        if self.error is not None:
+            raise self.error
 
 
 class MessageLog:

@@ -9,3 +9,8 @@ def is_number(v):
 def is_whole(v):
     """An Integer or Enumeration value: an int, not a bool."""
     return isinstance(v, int) and not isinstance(v, bool)
+
+
+def is_int32(v):
+    """An FMI 2 Integer: a whole number that fits in 32 bits (a larger one would wrap)."""
+    return is_whole(v) and -2 ** 31 <= v < 2 ** 31
