@@ -9,6 +9,7 @@ or with repr itself when the C formatter is not built or a column has a formatte
 """
 import json
 import math
+import os
 import re
 import signal
 import threading
@@ -18,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from ..kernel.csvfmt import block_writer
+from .outputs import cannot
 from .writer import Writer
 
 BLOCK = 1024
@@ -64,9 +66,12 @@ class Table:
         self.rows = 0
         self._file, self._writer = None, None
         if path is not None:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            self._file = open(path, "wb")
-            self._file.write((",".join(self.columns) + "\r\n").encode())
+            try:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                self._file = open(path, "wb")
+                self._file.write((",".join(self.columns) + "\r\n").encode())
+            except OSError as exc:
+                raise cannot(path, exc) from None
             self._writer = Writer(self._file)
 
     def _new_slot(self):
@@ -179,9 +184,14 @@ class Table:
         failed = self._writer.wait_quietly()
         try:
             self._file.close()
-        except OSError:
+        except OSError as exc:
             if not failed:
-                raise
+                raise cannot(self.path, exc) from None
+        if failed:                      # what the failed write left of a row goes: whole rows only
+            try:
+                os.truncate(self.path, self._writer.written)
+            except OSError:
+                pass
 
     def array(self):
         """All rows as a 2-D float array (read back from the file when not kept in memory)."""
@@ -259,12 +269,20 @@ def clean_json(obj):
 
 
 def write_json(path: Path, data):
-    """Write JSON atomically (a .part file renamed), so a reader never sees half a file."""
+    """Write JSON atomically (a .part file renamed), so a reader never sees half a file; an OSError
+    (disk full, not writable) is an OutputError naming the file."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(".json.part")
-    tmp.write_text(json.dumps(clean_json(data), indent=2) + "\n")
-    tmp.replace(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp.write_text(json.dumps(clean_json(data), indent=2) + "\n")
+        tmp.replace(path)
+    except OSError as exc:
+        try:
+            tmp.unlink()
+        except OSError:
+            pass
+        raise cannot(path, exc) from None
 
 
 def write_mat(path: Path, table: Table):
