@@ -12,7 +12,9 @@ from . import api
 from .api import simulate, with_overrides
 from .core.gamma import parse_gamma
 from .masters import ALGORITHMS
+from .run.outputs import OutputFolder
 from .run.recorder import write_json
+from .run.runner import MAX_STEPS, check_steps
 
 
 def _progress(label, quiet):
@@ -67,8 +69,13 @@ def print_table(rows, fields):
 
 step_timeout_option = click.option(
     "--step-timeout", type=click.FloatRange(min=0, min_open=True), metavar="SECONDS",
-    help="End the run when a call into an FMU does not return within SECONDS (the scenario's "
-         "step_timeout otherwise; default: no limit). Steps before it are kept.")
+    help="End the run when a macro-step does not finish within SECONDS, as when a call into an FMU does not "
+         "return (the scenario's step_timeout otherwise; default: no limit). Steps before it are kept.")
+
+
+overwrite_option = click.option(
+    "--overwrite", is_flag=True, help="Write into OUT even when it holds files that are not a wavecosim run's "
+    "(they are left alone; an earlier run's files are always replaced).")
 
 
 config_argument = click.argument("config", required=False, type=click.Path(dir_okay=False, path_type=Path))
@@ -142,32 +149,42 @@ def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None):
 @click.option("--no-reference", is_flag=True, help="Skip the monolithic reference run (no error figures).")
 @click.option("--plots", is_flag=True, help="Also write PNG figures into the output folder.")
 @step_timeout_option
+@overwrite_option
+@click.option("--force", is_flag=True, help=f"Run even more than {MAX_STEPS:,} macro-steps.")
 def run_cmd(config, K, eps, gamma, dt, T, quiet, output_interval, formats, ports, parameter_set, algorithm, out,
-            no_certificates, no_reference, plots, step_timeout):
+            no_certificates, no_reference, plots, step_timeout, overwrite, force):
     """Run one scenario (with the monolithic reference alongside) and write its trajectory, per-step
     certificates, summary and metadata. CONFIG is a scenario file or an SSP system (.ssd, .ssp, folder).
 
     The steps are made in a child process: an FMU that crashes, calls exit() or (with --step-timeout)
     does not return leaves every step before it on disk, a summary.json saying what happened, and
-    an exit code of its own (docs/troubleshooting.md)."""
+    an exit code of its own (docs/troubleshooting.md). An earlier run's files in OUT are replaced."""
     scenario = _apply_overrides(_read_config(config, ports, parameter_set, dt, T, gamma), K, eps, gamma, dt, T,
                                 algorithm)
+    max_steps = None if force else MAX_STEPS
+    check_steps(scenario, max_steps)
 
     def work():
         result = simulate(scenario, out_dir=out, progress=_progress("run", quiet) or False,
                           certificates=not no_certificates, reference=not no_reference,
-                          output_interval=output_interval, formats=("csv", *formats))
+                          output_interval=output_interval, formats=("csv", *formats), max_steps=max_steps)
         _report_run(scenario, result, out)
         if plots:
             from .plots import run_plots
             for p in run_plots(result, result.reference, out):
                 click.echo(f"wrote {p}")
-    return _supervised(work, out / "summary.json", step_timeout or scenario.step_timeout)
+    with OutputFolder(out, overwrite):
+        return _supervised(work, out / "summary.json", step_timeout or scenario.step_timeout)
 
 
 def _supervised(work, summary, step_timeout):
     """work() in a supervised child process (run/supervisor.py); its exit code, raised as ChildExit
-    when it is not 0 (the child has printed its one line)."""
+    when it is not 0 (the child has printed its one line). WAVECOSIM_IN_PROCESS=1 runs it here (for a
+    debugger or a profiler; a crash then takes everything with it)."""
+    import os
+    if os.environ.get("WAVECOSIM_IN_PROCESS", "") not in ("", "0"):
+        work()
+        return 0
     from .run.supervisor import supervise
     code = supervise(lambda: _exit_status(work), summary=summary, step_timeout=step_timeout)
     if code:
@@ -218,6 +235,7 @@ sweep_options = options([
     click.option("--plot-y", default="max_error", show_default=True,
                  help="Comma-separated figures to plot against the first swept key (with --plots)."),
     step_timeout_option,
+    overwrite_option,
 ])
 
 
@@ -225,7 +243,7 @@ sweep_options = options([
 @config_argument
 @sweep_options
 def sweep_cmd(config, ks, eps, gamma, dt, T, quiet, out, no_certificates, plots, sets, sample, seed, workers,
-              scheduler, resume, no_reference, plot_y, step_timeout):
+              scheduler, resume, no_reference, plot_y, step_timeout, overwrite):
     """Without --set: the paper's experiment, DR for each K against the monolithic reference
     (summary.json). With --set (or --sample, --workers, --scheduler, --resume, --no-reference):
     a general sweep over any scenario keys, one row per run in OUT/runs.csv and OUT/runs.json;
@@ -250,7 +268,8 @@ def sweep_cmd(config, ks, eps, gamma, dt, T, quiet, out, no_certificates, plots,
             from .plots import sweep_plots
             for p in sweep_plots(results, reference, out):
                 click.echo(f"wrote {p}")
-    return _supervised(work, None, step_timeout or scenario.step_timeout)
+    with OutputFolder(out, overwrite):
+        return _supervised(work, None, step_timeout or scenario.step_timeout)
 
 
 def _general_sweep(config, ks, sets, changes, out, o):
@@ -269,8 +288,9 @@ def _general_sweep(config, ks, sets, changes, out, o):
     workers = o["workers"] or os.cpu_count() or 1
     meta = {"config": tasks[0].config, "axes": [[k, list(v)] for k, v in axes], "fixed": fixed,
             "sample": o["sample"], "seed": o["seed"], "executor": o["scheduler"] or f"{workers} workers"}
-    rows = run_sweep(tasks, out, meta, workers, o["scheduler"], o["resume"],
-                     None if o["quiet"] else _sweep_progress)
+    with OutputFolder(out, clear=False):
+        rows = run_sweep(tasks, out, meta, workers, o["scheduler"], o["resume"],
+                         None if o["quiet"] else _sweep_progress)
     keys = [k for k, _ in axes]
     failed = [r for r in rows if r.get("status") != "finished"]
     click.echo(f"{len(rows)} runs ({len(failed)} not finished) -> {out / 'runs.csv'}, {out / 'runs.json'}")
@@ -317,8 +337,10 @@ def _sweep_progress(total, skipped):
                    "warm, gamma-auto, gamma-fastest, fastest-relaxed, fastest-relaxed-anderson, "
                    "fastest-relaxed-extrapolated, fastest-relaxed-memory, fastest-memory, "
                    "fastest-memory-eps3, fastest-memory-eps5.")
+@step_timeout_option
+@overwrite_option
 def compare_cmd(config, K, eps, gamma, dt, T, quiet, ports, parameter_set, masters, ks, out, no_certificates, plots,
-                dr_options):
+                dr_options, step_timeout, overwrite):
     """Every master over a grid of budgets against the monolithic reference: error, energy, cost."""
     from .sweeps.comparison import COMPARE_FIELDS, parse_options
     options = parse_options(dr_options)
@@ -332,18 +354,22 @@ def compare_cmd(config, K, eps, gamma, dt, T, quiet, ports, parameter_set, maste
     if ks is not None:
         Ks = parse_budgets(ks)
     scenario = _apply_overrides(_read_config(config, ports, parameter_set, dt, T, gamma), None, eps, gamma, dt, T)
-    table = api.compare(scenario, names, Ks, out_dir=out, progress=(lambda label: _progress(label, quiet)),
-                        certificates=not no_certificates, options=options)
-    reference, results, rows = table.reference, table.results, table.rows
-    click.echo(f"{scenario.name}: {len(rows)} runs of {len(names)} masters -> {out / 'compare.json'}")
-    print_table(rows, list(COMPARE_FIELDS))
-    for r in rows:
-        if r["status"] != "finished":
-            click.echo(f"{r['master']} K={r['K']}: {r['status']} after {r['steps']} steps: {r['message']}")
-    if plots:
-        from .plots import compare_plots
-        for p in compare_plots(rows, results, reference, out):
-            click.echo(f"wrote {p}")
+
+    def work():
+        table = api.compare(scenario, names, Ks, out_dir=out, progress=(lambda label: _progress(label, quiet)),
+                            certificates=not no_certificates, options=options)
+        reference, results, rows = table.reference, table.results, table.rows
+        click.echo(f"{scenario.name}: {len(rows)} runs of {len(names)} masters -> {out / 'compare.json'}")
+        print_table(rows, list(COMPARE_FIELDS))
+        for r in rows:
+            if r["status"] != "finished":
+                click.echo(f"{r['master']} K={r['K']}: {r['status']} after {r['steps']} steps: {r['message']}")
+        if plots:
+            from .plots import compare_plots
+            for p in compare_plots(rows, results, reference, out):
+                click.echo(f"wrote {p}")
+    with OutputFolder(out, overwrite):
+        return _supervised(work, None, step_timeout or scenario.step_timeout)
 
 
 @cli.command("validate")

@@ -6,7 +6,7 @@
 | FmuError | 3 | an FMU could not be loaded or a call returned Error/Fatal (its own message kept) |
 | NumericalError | 4 | a non-finite value, a blow-up, an interface solve that did not converge |
 | FmuCrashed | 5 | an FMU crashed the process (a signal such as SIGSEGV) or ended it (exit()) |
-| StepTimeout | 6 | a call did not return within the step timeout (--step-timeout) |
+| StepTimeout | 6 | a macro-step did not finish within the step timeout (a call that does not return) |
 | OutputError | 7 | the output folder cannot be written (not writable, disk full, in use, holds other files) |
 | SweepFailed | 8 | a sweep ended with runs that did not finish (each one is a row saying why) |
 | Interrupted | 130 | Ctrl-C (SIGINT); the steps done so far are on disk |
@@ -14,6 +14,15 @@
 
 `status` is the word summary.json gives a run that stopped with the error.
 """
+
+
+def brief_text(text, limit=400):
+    """A message cut to about `limit` characters in its middle (a huge value quoted in it), so it stays
+    one readable line: its start names the culprit, its end what was expected."""
+    if len(text) <= limit:
+        return text
+    tail = limit // 4
+    return f"{text[:limit - tail]} ... [{len(text) - limit} characters left out] ... {text[-tail:]}"
 
 
 class WavecosimError(Exception):
@@ -52,7 +61,7 @@ class FmuCrashed(FmuError):
 
 
 class StepTimeout(FmuError):
-    """A call into an FMU did not return within the step timeout."""
+    """A macro-step did not finish within the step timeout (a call into an FMU that does not return)."""
     exit_code = 6
     status = "timed out"
 

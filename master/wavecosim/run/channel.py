@@ -137,9 +137,10 @@ def describe(fault, request, where, step, dt, step_timeout):
         cls, verb = (Terminated, "stopped by SIGTERM") if request == TERM else (Interrupted, "interrupted by the user")
         return cls(f"{verb}{at}, inside {who}{call_text}" if who else f"{verb}{at}")
     if request == TIMEOUT and kind in ("frozen", None, "none"):
-        what = call or "a call"
-        return StepTimeout(f"{who}: {what} did not return within {step_timeout:g} s (step timeout){at}"
-                           if who else f"a step did not finish within {step_timeout:g} s (step timeout){at}")
+        late = f"did not finish within {step_timeout:g} s (step timeout)" if step_timeout else "did not finish"
+        inside = f"; stopped inside {who}{call_text}" if who else ""
+        return StepTimeout(f"step {step} (t = {step * dt:.6g}) {late}{inside}" if step is not None
+                           else f"a step {late}{inside}")
     if kind == "exit":
         happened = f"the FMU ended the process with exit({fault.get('code')})"
     else:

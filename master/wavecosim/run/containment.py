@@ -18,7 +18,7 @@ import threading
 import time
 from pathlib import Path
 
-from ..errors import StepTimeout
+from ..errors import Interrupted, StepTimeout
 from ..kernel import guard
 from .channel import Channel, DONE, RESCUING, RUNNING, TIMEOUT, describe, locate
 
@@ -70,8 +70,8 @@ class Containment:
     def _layout(self):
         parts = []
         for part in self.parts:
-            files = {kind: str(t.path) for kind, t in (("trajectory", getattr(part, "trajectory", None)),
-                                                       ("steps", getattr(part, "steps", None))) if t is not None}
+            files = {kind: str(part.out_dir / f"{kind}{part.suffix}.csv") for kind in ("trajectory", "steps")
+                     if part.out_dir is not None}
             parts.append({"label": part.label, "suffix": part.suffix, "out_dir": str(part.out_dir or ""),
                           "scenario": part.scenario.name, "master": part.scenario.master.algorithm,
                           "K": part.scenario.master.K, "dt": part.dt, "T": part.scenario.T,
@@ -112,7 +112,7 @@ class Containment:
                 return
             declined += 1
             if declined >= DECLINED_TRIES:       # the main thread runs Python: stop it there
-                _raise_in_main(StepTimeout)
+                _raise_in_main(PythonTimeout)
 
     # ---- the rescue ----
     def _rescue(self):
@@ -133,7 +133,7 @@ class Containment:
                 if part is not crashed or not self.labels.get(id(crashed)):
                     part.rescue(error)
             if self.announce:
-                print(f"error: {error}", file=sys.stderr, flush=True)
+                print(announcement(error), file=sys.stderr, flush=True)
             code = error.exit_code
         except BaseException as exc:                         # the rescue must end the process anyway
             print(f"error: the run stopped ({fault.get('kind')}) and could not be written whole: "
@@ -171,6 +171,20 @@ class Containment:
 
     def _subsystems(self, part):
         return {str(s.fmu.folder): f"{s.name}{self.labels.get(id(part), '')}" for s in _fmus(part)}
+
+
+class PythonTimeout(StepTimeout):
+    """A step that ran past the step timeout in Python code (raised there by the watchdog)."""
+
+    def __init__(self):
+        super().__init__("a macro-step did not finish within the step timeout (stopped in Python code)")
+
+
+def announcement(error):
+    """The one line a stopped run prints (as the command line does for the same error)."""
+    if isinstance(error, Interrupted):
+        return f"interrupted: {error}; results so far are on disk"
+    return f"error: {error}"
 
 
 def _fmus(part):

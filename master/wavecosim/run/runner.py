@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from ..kernel import blocks
-from ..errors import ConfigError, Interrupted, NumericalError, RunFailed, Terminated, WavecosimError
+from ..errors import ConfigError, Interrupted, NumericalError, OutputError, RunFailed, Terminated, WavecosimError
 from ..kernel.drkernel import REASONS as KERNEL_REASONS
 from ..core.gamma import GammaTuner
 from ..masters import MASTERS
@@ -39,6 +39,7 @@ from .observers.errors import ErrorTracker, stored_reference, stored_rows
 from .observers.fne_watch import FneWatch
 from .observers.gamma import GammaLog, TunedGammaLog
 from .observers.passivity import Passivity
+from .outputs import cannot
 from .recorder import BLOCK, Interrupts, Labels, Table, ints, write_json, write_mat
 from ..core.readings import Sampler
 from ..core.scene import build_scene
@@ -48,6 +49,7 @@ FORMATS = ("csv", "mat")
 STEP_COLUMNS = ("time", "iterations", "inner_residual", "reason")
 BLOCK_STEPS = BLOCK                    # macro-steps per call of the master, at most a table block
 HAND_OVER_S = 1.0                      # rows booked are handed to the writer at least this often
+MAX_STEPS = 10 ** 8                    # more macro-steps than this only when asked (--force, max_steps=None)
 assert REASONS[:len(KERNEL_REASONS)] == KERNEL_REASONS     # the kernel's reason codes are the runner's
 
 
@@ -241,6 +243,7 @@ class LiveRun:
         self.led, self.failure, self.recent = 0, None, {}   # as a lockstep reference (lead)
         self.block_steps = 0                                # macro-steps made in blocks
         self.in_block = None                                # n0 of the kernel call in progress
+        self.write_error = None                             # an OutputError met while finishing
 
     def add_observer(self, observer: Observer):
         """Before start(): one more observer (e.g. the error tracker), acting last."""
@@ -533,13 +536,9 @@ class LiveRun:
         """Close the tables and parts (the FMUs only with release), write summary.json (and metadata.json,
         MAT files); the RunResult. The rows still to write count in the run's own time (loop_time_s)."""
         started = time.perf_counter()
-        tables = [t for t in (getattr(self, "trajectory", None), getattr(self, "steps", None)) if t is not None]
-        for table in tables:           # both tables' last rows handed to the writer threads at once
-            table.flush()
-        for table in tables:
-            table.close()
-        if self.fmu_log is not None:
-            self.fmu_log.close()
+        self.write_error = self._close_tables()
+        if self.write_error is not None and status == "finished":
+            status, message = self.write_error.status, str(self.write_error)
         self.loop_time += time.perf_counter() - started
         summary = self.summary(status, message)
         if release:
@@ -548,8 +547,28 @@ class LiveRun:
                            self.sampler.units, list(self.scenario.error), self.trajectory, self.steps,
                            getattr(self, "first", {}), summary, status, message)
         if self.out_dir is not None:
-            self._write_files(result)
+            try:
+                self._write_files(result)
+            except OutputError as exc:
+                self.write_error = self.write_error or exc
         return result
+
+    def _close_tables(self):
+        """Write the last rows and close the files; the first OutputError (disk full, ...) or None.
+        A table that could not write keeps its file to whole rows."""
+        tables = [t for t in (getattr(self, "trajectory", None), getattr(self, "steps", None)) if t is not None]
+        errors = []
+        for close in [t.flush for t in tables] + [t.close for t in tables]:   # both tables' last rows at once
+            try:
+                close()
+            except OutputError as exc:
+                errors.append(exc)
+        if self.fmu_log is not None:
+            try:
+                self.fmu_log.close()
+            except OSError as exc:
+                errors.append(cannot(self.fmu_log.path, exc))
+        return errors[0] if errors else None
 
     def _write_files(self, result):
         name = (lambda kind, ext: self.out_dir / f"{kind}{self.suffix}.{ext}")
@@ -568,12 +587,14 @@ class LiveRun:
 
 
 def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True, progress=None, warn=None,
-        file_suffix=True, output_interval=1, formats=("csv",)) -> RunResult:
+        file_suffix=True, output_interval=1, formats=("csv",), max_steps=MAX_STEPS) -> RunResult:
     """Run `scenario` with its master; stream trajectory.csv and steps.csv into out_dir when given.
 
     reference: None (no errors), a RunResult of the monolithic reference, or "lockstep" (run the
     monolithic reference alongside, writing its files with the label "monolithic"). Raises
-    RunFailed (with .result) on a failure, Interrupted (with .result) on Ctrl-C."""
+    RunFailed (with .result) on a failure, Interrupted (with .result) on Ctrl-C; a run of more than
+    max_steps macro-steps is refused before anything is opened or allocated."""
+    check_steps(scenario, max_steps)
     warn = _once(warn or _warn_stderr)                 # the lockstep reference repeats set-up notes
     live = LiveRun(scenario, out_dir, label, certificates, warn, file_suffix, output_interval, formats)
     ref = None
@@ -605,9 +626,17 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
         result.reference = ref.finish(status, message)
     if status == "interrupted":
         raise type(error)(message, result)
+    error = error or live.write_error or (ref.write_error if ref is not None else None)
     if error is not None:
         raise RunFailed(error, result) from error
     return result
+
+
+def check_steps(scenario, max_steps=MAX_STEPS):
+    """A ConfigError when the scenario has more than max_steps macro-steps (None: no limit)."""
+    if max_steps is not None and scenario.n_steps > max_steps:
+        raise ConfigError(f"{scenario.source}: T / dt = {scenario.n_steps:,} macro-steps, over the limit of "
+                          f"{max_steps:,} (pass --force, or max_steps=None in Python, to run it anyway)")
 
 
 def _loop(live, ref, progress, contain=None):

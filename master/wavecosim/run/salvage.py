@@ -25,8 +25,7 @@ def salvage(channel, wait_status, summary_path, step_timeout, killed):
         error = FmuCrashed(f"{error} ({killed}; the child was ended)")
     for part in parts:
         whole_rows(part["files"].get("steps"))
-        rows = kept[part["label"]]
-        steps = max(rows - 1, 0)
+        steps = max(kept[part["label"]] - 2, 0)        # the header and the row at t = 0
         message = f"{error}; {steps} steps kept"
         summary = Path(part["out_dir"]) / f"summary{part['suffix']}.json" if part["out_dir"] else None
         if summary is not None:
@@ -37,7 +36,7 @@ def salvage(channel, wait_status, summary_path, step_timeout, killed):
         write_json(summary_path, {"steps": 0, "status": error.status, "message": f"{error} (during set-up)",
                                   "fault": fault})
     main = next((p for p in parts if not p["reference"]), None)
-    tail = f"; {max(kept[main['label']] - 1, 0)} steps kept" if main is not None else " (during set-up)"
+    tail = f"; {max(kept[main['label']] - 2, 0)} steps kept" if main is not None else " (during set-up)"
     return type(error)(f"{error}{tail}")
 
 

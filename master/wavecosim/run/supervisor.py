@@ -206,11 +206,12 @@ class Child:
 
     def _fallback(self):
         """The child died without finishing: the summary from the channel, one line, the exit code."""
+        from .containment import announcement
         from .salvage import salvage
         error = salvage(self.channel, self.wait_status, self.summary_path, self.step_timeout, self.killed)
         self.error = str(error)
         if self.announce:
-            print(f"error: {error}", file=sys.stderr, flush=True)
+            print(announcement(error), file=sys.stderr, flush=True)
         return error.exit_code
 
 

@@ -20,6 +20,7 @@ import numpy as np
 
 from ..scenario.config import load_raw, parse_scenario
 from ..errors import ConfigError, Interrupted, RunFailed, Terminated, WavecosimError
+from ..run.outputs import remove_run_files
 from ..run.recorder import clean_json, write_json
 from ..scenario.overrides import apply_overrides
 
@@ -192,8 +193,7 @@ def _start_child(task):
     def body():
         run_task(task)
         return 0
-    for name in (ROW_FILE, "summary.json"):             # an earlier attempt's must not stand for this one
-        (Path(task.out_dir) / name).unlink(missing_ok=True)
+    remove_run_files(task.out_dir)                      # an earlier attempt's must not stand for this one
     timeout = task.step_timeout or task_scenario(task).step_timeout
     return Child(body, summary=Path(task.out_dir) / "summary.json", step_timeout=timeout, relay=False,
                  announce=False)
