@@ -5,9 +5,9 @@ import os
 import signal
 from pathlib import Path
 
-from ..errors import FmuCrashed, StepTimeout, Terminated, Interrupted
+from ..errors import FmuCrashed, Interrupted, StepTimeout
 from ..kernel.guard import signal_name
-from .channel import STOP, TERM, TIMEOUT, describe, locate
+from .channel import describe, locate
 from .recorder import write_json
 
 

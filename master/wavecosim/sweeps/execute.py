@@ -8,7 +8,6 @@ A local task runs in a child of its own (run/supervisor.py): one that crashes, c
 times out is a row with that status and message, and the others go on.
 """
 import json
-import os
 import selectors
 import signal
 import time
