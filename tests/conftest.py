@@ -1,7 +1,5 @@
 """The shared FMU harness: the built FMUs, one FMU instance addressed by variable names (fmpy),
 and the discrete-passivity and rollback checks every model family runs."""
-import contextlib
-import dataclasses
 import re
 
 import numpy as np
@@ -189,22 +187,3 @@ def check_rollback(inst, chans, rng):
     inst.fmu.freeFMUState(state)
     inst.fmu.freeFMUState(restored)
     assert runs[0] == runs[1] == runs[2]
-
-
-@contextlib.contextmanager
-def python_and_kernel_masters(sc, wave=True):
-    """The scenario's master twice, on its Python reference and on the kernel route, each over a
-    scene of its own; all closed afterwards."""
-    from wavecosim.masters import MASTERS
-    from wavecosim.core.scene import build_scene
-    masters, scenes = [], []
-    try:
-        for fast in ("false", "true"):
-            scenes.append(build_scene(sc, wave=wave))
-            masters.append(MASTERS[sc.master.algorithm](scenes[-1], dataclasses.replace(sc.master, fast=fast)))
-        yield masters, scenes
-    finally:
-        for m in masters:
-            m.close()
-        for s in scenes:
-            s.close()

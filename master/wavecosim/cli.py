@@ -2,6 +2,7 @@
 
 Every WavecosimError becomes one line on stderr and its class's exit code (2 for bad input)."""
 import sys
+import time
 from pathlib import Path
 
 import click
@@ -18,19 +19,28 @@ from .run.runner import MAX_STEPS, check_steps
 
 
 def _progress(label, quiet):
-    """A progress callback printing about 20 updates per run to stderr."""
+    """A progress callback (n steps done of total) on stderr: on a terminal click's progress bar with
+    the steps, the percentage, the time since the run began and the time left at the pace so far;
+    elsewhere one line when the run is done."""
     if quiet:
         return None
-    state = {"last": -1}
-    tty = sys.stderr.isatty()
+    started, tty, bar, first = time.perf_counter(), sys.stderr.isatty(), None, None
 
     def report(n, total):
-        pct = (20 * n) // total
+        nonlocal bar, first
+        now = time.perf_counter()
+        if not tty:
+            if n == total:
+                click.echo(f"  {label}: {n}/{total} steps done in {now - started:.1f} s", err=True)
+            return
+        if bar is None:
+            bar, first = click.progressbar(length=total, label=f"  {label}", file=sys.stderr, show_pos=True,
+                                           show_percent=True, show_eta=False, item_show_func=str), (now, n)
+        pace = (now - first[0]) / (n - first[1]) if n > first[1] else None        # seconds per step since the first
+        left = f", ETA {pace * (total - n):.1f} s" if pace and n < total else ""
+        bar.update(n - bar.pos, f"{now - started:.1f} s elapsed{left}")
         if n == total:
-            click.echo(f"\r  {label}: {n}/{total} steps done", err=True)
-        elif tty and pct != state["last"]:
-            state["last"] = pct
-            click.echo(f"\r  {label}: {n}/{total} steps ({100 * n // total}%)", err=True, nl=False)
+            bar.render_finish()
     return report
 
 

@@ -12,6 +12,7 @@ import ctypes
 from fmpy import platform_tuple
 from fmpy.fmi3 import FMU3Slave
 
+from ..kernel.abi import mirrors
 from ..kernel.build import kernel_library
 from .values import is_number
 
@@ -26,6 +27,7 @@ FUNCTIONS = {"fmi2GetFMUstate": ("fmi3GetFMUState", "fmi3shim_getFMUstate"),
 _OUT = ("eventHandlingNeeded", "terminateSimulation", "earlyReturn", "lastSuccessfulTime")
 
 
+@mirrors("fmi3shim", "Fmi3Shim")
 class Shim(ctypes.Structure):
     """kernel/c/fmi3shim.c, Fmi3Shim: the instance, its fmi3 functions, the last doStep's out-arguments."""
     _fields_ = [("instance", ctypes.c_void_p), *[(FUNCTIONS[k][0], ctypes.c_void_p) for k in FUNCTIONS],

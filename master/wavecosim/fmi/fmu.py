@@ -3,7 +3,7 @@
 Keeps FMI names, converts arguments, turns bad statuses into FmuError carrying the FMU's own
 log message, and exposes the raw C function pointers for the fast path, all in fmi2 form; the
 FMI 3 specifics (instantiation, typed setters, the fmi2-signature shim) live in wavecosim/fmi/fmi3.py.
-Nothing above this module imports ctypes except the hot paths (frozen_port_map.py, fast_path.py).
+Only kernel/ and fmi/ import ctypes; the parts above pass C values made by wavecosim.kernel.cvalues.
 """
 import atexit
 import ctypes

@@ -10,7 +10,6 @@ writes into (run/containment.py).
 The parent removes the folder when the child has ended, whatever ended it: nothing is left in the
 temporary folder. `locate` turns the fault's code addresses into the subsystem and the FMU call.
 """
-import ctypes
 import json
 import mmap
 import os
@@ -19,22 +18,12 @@ import tempfile
 from pathlib import Path
 
 from ..errors import FmuCrashed, Interrupted, StepTimeout, Terminated
-from ..kernel.guard import GuardFault
+from ..kernel.guard import RunStatus
 
 SETUP, RUNNING, RESCUING, DONE = range(4)          # the child's state
 NONE, TIMEOUT, STOP, TERM = range(4)               # what ended the run from outside (the parent, the watchdog)
 MAGIC = 0x57435354
 PAGE = 4096
-
-
-class Status(ctypes.Structure):
-    """The shared page (both processes map the same file)."""
-    _fields_ = [("magic", ctypes.c_uint32), ("state", ctypes.c_int32), ("exit_code", ctypes.c_int32),
-                ("request", ctypes.c_int32), ("pid", ctypes.c_int32), ("spare", ctypes.c_int32),
-                ("heartbeat", ctypes.c_double), ("fault", GuardFault)]
-
-
-assert ctypes.sizeof(Status) <= PAGE
 
 
 class Channel:
@@ -50,7 +39,7 @@ class Channel:
             self._map = mmap.mmap(fd, PAGE)
         finally:
             os.close(fd)
-        self.status = Status.from_buffer(self._map)
+        self.status = RunStatus.from_buffer(self._map)       # both processes map the same file
         if create:
             self.status.magic = MAGIC
 

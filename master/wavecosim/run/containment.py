@@ -16,7 +16,6 @@ import os
 import sys
 import threading
 import time
-from pathlib import Path
 
 from ..errors import Interrupted, StepTimeout
 from ..kernel import guard
@@ -81,7 +80,7 @@ class Containment:
 
     def libraries(self):
         """The FMU binaries this process has loaded: path, address range and fmi entry points."""
-        return fmu_libraries()
+        return guard.fmu_libraries(FMI_ENTRIES)
 
     # ---- the watchdog ----
     def _progress(self):
@@ -112,7 +111,7 @@ class Containment:
                 return
             declined += 1
             if declined >= DECLINED_TRIES:       # the main thread runs Python: stop it there
-                _raise_in_main(PythonTimeout)
+                guard.raise_in_main(PythonTimeout)
 
     # ---- the rescue ----
     def _rescue(self):
@@ -192,13 +191,6 @@ def _fmus(part):
     return [] if scene is None else [s for s in scene.subsystems + scene.signal_only if s.fmu is not None]
 
 
-def _raise_in_main(exc_class):
-    """Raise exc_class in the main thread at its next Python instruction."""
-    import ctypes
-    ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(threading.main_thread().ident),
-                                               ctypes.py_object(exc_class))
-
-
 FMI_ENTRIES = tuple(f"fmi2{n}" for n in (
     "Instantiate", "FreeInstance", "SetupExperiment", "EnterInitializationMode", "ExitInitializationMode",
     "Terminate", "Reset", "GetReal", "GetInteger", "GetBoolean", "GetString", "SetReal", "SetInteger", "SetBoolean",
@@ -210,34 +202,3 @@ FMI_ENTRIES = tuple(f"fmi2{n}" for n in (
     "Reset", "GetFloat64", "SetFloat64", "GetFloat32", "SetFloat32", "GetInt32", "SetInt32", "GetBoolean",
     "SetBoolean", "GetString", "SetString", "GetFMUState", "SetFMUState", "FreeFMUState", "DoStep",
     "EnterStepMode", "UpdateDiscreteStates", "EnterEventMode"))
-
-
-def fmu_libraries():
-    """[{path, ranges, entries}] of every FMU binary mapped into this process (a shared library under
-    a `binaries/` folder): its address ranges (from /proc/self/maps) and its fmi entry points."""
-    import ctypes
-    found = {}
-    try:
-        lines = Path("/proc/self/maps").read_text().splitlines()
-    except OSError:
-        return []
-    for line in lines:
-        fields = line.split(None, 5)
-        if len(fields) < 6 or "/binaries/" not in fields[5] or ".so" not in fields[5]:
-            continue
-        lo, hi = (int(x, 16) for x in fields[0].split("-"))
-        found.setdefault(fields[5], []).append([lo, hi])
-    out = []
-    for path, ranges in found.items():
-        entries = {}
-        try:
-            lib = ctypes.CDLL(path, mode=os.RTLD_NOLOAD | os.RTLD_LAZY)
-        except OSError:
-            lib = None
-        for name in FMI_ENTRIES if lib is not None else ():
-            try:
-                entries[name] = ctypes.cast(getattr(lib, name), ctypes.c_void_p).value
-            except AttributeError:
-                pass
-        out.append({"path": path, "ranges": ranges, "entries": entries})
-    return out

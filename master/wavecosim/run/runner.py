@@ -12,7 +12,6 @@ same numbers as step by step, to the last bit, without crossing into Python at e
 A monolithic reference runs in lockstep (its own LiveRun) when asked, so errors are computed as
 both runs stream and memory does not grow with the number of steps.
 """
-import ctypes
 import math
 import signal
 import sys
@@ -22,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..kernel import blocks
+from ..kernel import blocks, cvalues
 from ..errors import ConfigError, Interrupted, NumericalError, OutputError, RunFailed, Terminated, WavecosimError
 from ..kernel.drkernel import REASONS as KERNEL_REASONS
 from ..core.gamma import GammaTuner
@@ -435,7 +434,7 @@ class LiveRun:
         """block_rows' fixed arguments: where the outputs are in the kernel's log, the grid."""
         outputs = blocks.ints([log.observed_at + r for r in readings.rows("outputs")])
         call = blocks.BlockRows(n_out=len(self.columns), inverse=grid_inverse(self.dt), dt=self.dt, outputs=outputs)
-        return call, ctypes.byref(call)
+        return call, cvalues.ref(call)
 
     def lead(self, n, end):
         """As the lockstep reference of a run at step n: make the steps up to end - 1 not made yet,

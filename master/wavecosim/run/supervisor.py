@@ -14,7 +14,6 @@ and, failing that, ends it and writes summary.json from the status channel: the 
 the files, a last line cut by the death removed, the fault's subsystem, call and step.
 """
 import codecs
-import ctypes
 import gc
 import io
 import os
@@ -25,13 +24,12 @@ import tempfile
 import time
 from pathlib import Path
 
-from ..kernel.guard import freeze_signal
+from ..kernel.guard import die_with_parent, freeze_signal
 from .channel import Channel, DONE, RESCUING, RUNNING, STOP, TERM, TIMEOUT
 
 STOP_GRACE_S = 5.0        # after passing a stop on: time for the child to stop between two steps
 RESCUE_GRACE_S = 20.0     # after asking for a rescue: time for the child to write its rows
 HEARTBEAT_GRACE_S = 10.0  # a child whose watchdog is silent this long past the step timeout is stuck
-_PR_SET_PDEATHSIG = 1
 
 
 class Relay(io.TextIOBase):
@@ -221,10 +219,7 @@ def _become_child(body, channel, step_timeout, announce, relays):
     code = 1
     try:
         os.setpgid(0, 0)
-        try:
-            ctypes.CDLL(None).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
-        except (AttributeError, OSError):
-            pass
+        die_with_parent(signal.SIGTERM)
         if relays:
             sys.stdout, sys.stderr = (Relay(fd, tty, enc) for fd, tty, enc in relays)
         tempfile.tempdir = str(channel.temp)

@@ -12,6 +12,8 @@
 #include <math.h>
 #include <stddef.h>
 
+#include "abi.h"
+
 /* Python's grow_max_pos: the running max(0, x), NaN ignored (NaN until a number arrives). Over a
  * block it is applied once, to the largest number of the block: max(0, x) is never -0, so the
  * running maximum does not depend on the order of the numbers. */
@@ -263,3 +265,8 @@ int watch_block(WatchBlock *p) {
     }
     return 0;
 }
+
+MIRRORED(PassBlock)
+MIRRORED(BlockRows)
+MIRRORED(SampledBlock)
+MIRRORED(WatchBlock)

@@ -14,6 +14,7 @@
 #include "kernel_internal.h"
 #include "linalg.h"
 #include "dr_options.h"
+#include "abi.h"
 
 /* A thread waiting for the other spins this long, then sleeps on a condition variable: spinning
  * answers within a microsecond when both have a core, sleeping leaves the core to the other
@@ -911,3 +912,6 @@ double dr_now_ns(void) { return now_ns(); }
 double *dr_outputs(DRKernel *k) { return k->b; }
 
 double *dr_inputs(DRKernel *k) { return k->a_hat; }
+
+MIRRORED(DRFunctions)
+MIRRORED(DRStep)

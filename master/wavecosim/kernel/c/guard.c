@@ -20,6 +20,8 @@
 #include <ucontext.h>
 #include <unistd.h>
 
+#include "abi.h"
+
 #define GUARD_FRAMES 48
 #define FREEZE_SIGNAL SIGUSR2
 
@@ -37,6 +39,18 @@ typedef struct {
     void *address;             /* si_addr: the memory address of a SIGSEGV or SIGBUS */
     void *pc[GUARD_FRAMES];    /* pc[0]: the interrupted instruction; then return addresses */
 } GuardFault;
+
+/* The page a supervised run's parent and child share (wavecosim/run/channel.py): the child's state
+ * and exit code, what the parent or the watchdog asks, the watchdog's heartbeat, and the fault. */
+typedef struct {
+    unsigned magic;
+    int state, exit_code, request, pid, spare;
+    double heartbeat;
+    GuardFault fault;
+} RunStatus;
+
+MIRRORED(GuardFault)
+MIRRORED(RunStatus)
 
 static GuardFault *volatile record = NULL;
 static volatile int armed = 0, claimed = 0, notify_fd = -1;
