@@ -1,25 +1,24 @@
-/* A linear oscillator (LinearSide's equations and port) that misbehaves on purpose inside doStep at a
- * chosen macro-step, so the tests can check that a run contains a crashing, exiting, hanging or
- * chatty FMU: fault 1 dereferences a null pointer (SIGSEGV), 2 calls exit(0), 3 loops forever,
- * 4 calls abort(). The fault strikes in the first doStep that starts at t = fault_step * h. With
- * log_bytes > 0 every successful step logs a warning of that many characters. */
+/* A damped mass with an effort port (it can take LinearSide's place) that misbehaves on purpose inside
+ * doStep at a chosen macro-step, so the tests can check that a run contains a crashing, exiting,
+ * hanging or chatty FMU: fault 1 dereferences a null pointer (SIGSEGV), 2 calls exit(0), 3 loops
+ * forever, 4 calls abort(). The fault strikes in the first doStep that starts at t = fault_step * h.
+ * With log_bytes > 0 every successful step logs a warning of that many characters. */
 #define MODEL_IDENTIFIER FaultySide
 #define MODEL_GUID "{3c0f4a52-8e1d-4d2b-9a6e-7f1b2c3d0f17}"
-#define MODEL_DESCRIPTION "Linear oscillator that segfaults, exits, hangs or aborts in doStep at a chosen step (tests)"
+#define MODEL_DESCRIPTION "Damped mass that segfaults, exits, hangs or aborts in doStep at a chosen step (tests)"
 
 #define REAL_VARIABLES(X) \
-    X(m2, PARAMETER, 4.0, "kg", "mass 2") \
-    X(k2, PARAMETER, 50.0, "N/m", "spring of mass 2") \
-    X(c2, PARAMETER, 0.0, "N.s/m", "damper of mass 2") \
+    X(mass, PARAMETER, 4.0, "kg", "the mass") \
+    X(damping, PARAMETER, 0.5, "N.s/m", "viscous damping to ground") \
     X(gamma, TUNABLE, 0.4, "N.s/m", "scattering impedance of the wave port") \
-    X(q2, STATE, 0.0, "m", "position of mass 2") \
-    X(v2, STATE, 0.0, "m/s", "velocity of mass 2") \
+    X(x, STATE, 0.0, "m", "position") \
+    X(v, STATE, 0.0, "m/s", "velocity") \
     X(a, INPUT, 0.0, "", "incident wave (wave mode), scaled by sqrt(dt)") \
-    X(F, INPUT, 0.0, "N", "port effort input: coupling force (physical mode)") \
+    X(F, INPUT, 0.0, "N", "port effort input: the force pulling the mass towards -x (physical mode)") \
     X(b, OUTPUT, 0.0, "", "outgoing wave, scaled by sqrt(dt)") \
-    X(e, OUTPUT, 0.0, "N", "port effort: coupling force held over the step") \
-    X(f, OUTPUT, 0.0, "m/s", "port flow: -v2 at the stage") \
-    X(H, OUTPUT, 0.0, "J", "stored energy")
+    X(e, OUTPUT, 0.0, "N", "port effort held over the step") \
+    X(f, OUTPUT, 0.0, "m/s", "port flow: -v at the stage") \
+    X(H, OUTPUT, 0.0, "J", "kinetic energy")
 
 #define INTEGER_VARIABLES(X) \
     X(port_mode, 0, "0 = wave port (input a, output b), 1 = physical port (input F)") \

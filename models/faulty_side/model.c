@@ -1,4 +1,5 @@
-/* FaultySide: LinearSide's implicit midpoint step, and the fault of config.h at step fault_step. */
+/* FaultySide: a damped mass, mass dv/dt = -F - damping v (implicit midpoint), and the fault of
+ * config.h at step fault_step. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -15,6 +16,10 @@ int model_initialize(ModelData *m, char *msg, size_t n) {
         snprintf(msg, n, "fault must be 0..4, got %d", m->i[VRI_fault]);
         return 1;
     }
+    if (!(m->r[VR_mass] > 0.0) || !(m->r[VR_damping] >= 0.0)) {
+        snprintf(msg, n, "mass must be > 0 and damping >= 0, got %g and %g", m->r[VR_mass], m->r[VR_damping]);
+        return 1;
+    }
     if (m->i[VRI_log_bytes] < 0 || m->i[VRI_log_bytes] > 250) {
         snprintf(msg, n, "log_bytes must be 0..250, got %d", m->i[VRI_log_bytes]);
         return 1;
@@ -23,8 +28,7 @@ int model_initialize(ModelData *m, char *msg, size_t n) {
 }
 
 double model_energy(const ModelData *m) {
-    const double *r = m->r;
-    return 0.5 * r[VR_m2] * r[VR_v2] * r[VR_v2] + 0.5 * r[VR_k2] * r[VR_q2] * r[VR_q2];
+    return 0.5 * m->r[VR_mass] * m->r[VR_v] * m->r[VR_v];
 }
 
 /* The fault of this instance, when the step from m->time is fault_step. */
@@ -53,11 +57,11 @@ static void note(const ModelData *m, double h, char *msg, size_t n) {
 int model_step(ModelData *m, double h, const PortClosure *p, double *e, double *f, char *msg, size_t n) {
     strike(m, h);
     double *r = m->r;
-    double m2 = r[VR_m2], k2 = r[VR_k2], c = p->c[0], s = p->s[0];
-    double vbar = (2.0 * m2 * r[VR_v2] / h - k2 * r[VR_q2] - c) / (2.0 * m2 / h + 0.5 * k2 * h + r[VR_c2] + s);
-    r[VR_q2] += h * vbar;
-    r[VR_v2] = 2.0 * vbar - r[VR_v2];
-    e[0] = c + s * vbar;
+    /* mass (v' - v)/h = -F - damping vbar with F = c + s vbar held over the step, v' = 2 vbar - v */
+    double vbar = (2.0 * r[VR_mass] * r[VR_v] / h - p->c[0]) / (2.0 * r[VR_mass] / h + r[VR_damping] + p->s[0]);
+    r[VR_x] += h * vbar;
+    r[VR_v] = 2.0 * vbar - r[VR_v];
+    e[0] = p->c[0] + p->s[0] * vbar;
     f[0] = -vbar;
     note(m, h, msg, n);
     return 0;

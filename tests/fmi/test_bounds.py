@@ -1,6 +1,5 @@
 """Bounded resources: an FMU's messages (the last few in memory, a capped log file), archives that
 unpack to too much (FMU and .ssp: refused in one line), the SSP cache, the temporary folders."""
-import copy
 import os
 import subprocess
 import tempfile
@@ -14,10 +13,7 @@ from wavecosim.errors import ConfigError, FmuError
 from wavecosim.fmi import messages, unpack
 from wavecosim.fmi.fmu import extract_fmu
 from wavecosim.fmi.messages import LogFile, MessageLog
-from wavecosim.scenario.config import DEFAULT_CONFIG
 from wavecosim.scenario.ssp import archive
-
-BASE = yaml.safe_load(DEFAULT_CONFIG.read_text())
 
 
 def test_an_fmus_messages_are_kept_in_a_ring_and_a_capped_file(tmp_path, monkeypatch):
@@ -37,10 +33,8 @@ def test_an_fmus_messages_are_kept_in_a_ring_and_a_capped_file(tmp_path, monkeyp
     assert len(lines) == 6 and lines[-1].startswith("... 98 further messages not written")
 
 
-def test_a_chatty_fmu_run_writes_its_log_beside_the_rows(tmp_path):
-    raw = copy.deepcopy(BASE)
-    raw["T"] = 0.05
-    raw["subsystems"]["B"].update(fmu="FaultySide", integers={"log_bytes": 200})
+def test_a_chatty_fmu_run_writes_its_log_beside_the_rows(tmp_path, faulty_scenario):
+    raw = faulty_scenario(T=0.05, log_bytes=200)
     (tmp_path / "chatty.yaml").write_text(yaml.safe_dump(raw))
     proc = subprocess.run([*CLI, "run", str(tmp_path / "chatty.yaml"), "--out", str(tmp_path / "out"), "--quiet",
                            "--no-reference", "--no-certificates", "--K", "2"], capture_output=True, text=True)

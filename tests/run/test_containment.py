@@ -3,7 +3,6 @@
 subsystem and the call, an exit code of its own, 2500 rows in trajectory.csv equal to those of the
 same run without the fault, summary.json saying what happened, and nothing left in the temporary
 folder. SIGTERM stops a run as Ctrl-C does, also inside a call that does not return."""
-import copy
 import json
 import os
 import signal
@@ -14,23 +13,12 @@ import pytest
 import yaml
 
 from paths import CLI
-from wavecosim.scenario.config import DEFAULT_CONFIG
 
-BASE = yaml.safe_load(DEFAULT_CONFIG.read_text())
 FAULTS = {"segfault": (1, 5, "{who}: the FMU crashed (SIGSEGV: segmentation fault) in fmi2DoStep at step 2500 (t = 25)"),
           "exit": (2, 5, "{who}: the FMU ended the process with exit(0) in fmi2DoStep at step 2500 (t = 25)"),
           "hang": (3, 6, "step 2500 (t = 25) did not finish within 5 s (step timeout); stopped inside {who} in "
                          "fmi2DoStep"),
           "abort": (4, 5, "{who}: the FMU crashed (SIGABRT: aborted) in fmi2DoStep at step 2500 (t = 25)")}
-
-
-def faulty(fault=0, step=2500, T=30.0, **integers):
-    """Table I with B a FaultySide that faults at `step` (3000 steps of 0.01 s)."""
-    raw = copy.deepcopy(BASE)
-    raw["T"] = T
-    raw["subsystems"]["B"]["fmu"] = "FaultySide"
-    raw["subsystems"]["B"]["integers"] = {"fault": fault, "fault_step": step, **integers}
-    return raw
 
 
 def lines(path):
@@ -55,19 +43,18 @@ def wavecosim(tmp_path, env, raw, *options, timeout=120):
 
 
 @pytest.fixture(scope="module")
-def fault_free(tmp_path_factory):
+def fault_free(tmp_path_factory, faulty_scenario):
     """The same run without a fault (its first rows are what a faulted run must keep)."""
-    tmp = tmp_path_factory.mktemp("fault_free")
-    proc, out = wavecosim(tmp, os.environ, faulty(0, -1), "--step-timeout", "5")
+    proc, out = wavecosim(tmp_path_factory.mktemp("fault_free"), os.environ, faulty_scenario(), "--step-timeout", "5")
     assert proc.returncode == 0, proc.stderr
     return out
 
 
 @pytest.mark.parametrize("name", list(FAULTS))
-def test_a_fault_in_dostep_keeps_every_step_before_it(name, tmp_path, tmp_env, fault_free):
+def test_a_fault_in_dostep_keeps_every_step_before_it(name, tmp_path, tmp_env, fault_free, faulty_scenario):
     fault, code, what = FAULTS[name]
     env, temp = tmp_env
-    proc, out = wavecosim(tmp_path, env, faulty(fault), "--step-timeout", "5")
+    proc, out = wavecosim(tmp_path, env, faulty_scenario(fault, 2500), "--step-timeout", "5")
     err = proc.stderr.strip().splitlines()
     assert proc.returncode == code and len(err) == 1, proc.stderr
     # the reference runs ahead and meets the fault first; the run is brought up to the same step
@@ -82,10 +69,10 @@ def test_a_fault_in_dostep_keeps_every_step_before_it(name, tmp_path, tmp_env, f
 
 
 @pytest.mark.parametrize("name", ["segfault", "hang"])
-def test_without_the_reference_the_kernel_block_in_progress_is_kept(name, tmp_path, tmp_env):
+def test_without_the_reference_the_kernel_block_in_progress_is_kept(name, tmp_path, tmp_env, faulty_scenario):
     """The C kernel makes the steps in blocks; the rescue books the block's steps before the fault."""
     fault, code, what = FAULTS[name]
-    proc, out = wavecosim(tmp_path, tmp_env[0], faulty(fault), "--no-reference", "--step-timeout", "5")
+    proc, out = wavecosim(tmp_path, tmp_env[0], faulty_scenario(fault, 2500), "--no-reference", "--step-timeout", "5")
     assert proc.returncode == code
     assert proc.stderr.strip() == "error: " + what.format(who="subsystem B")
     summary = json.loads((out / "summary.json").read_text())
@@ -93,12 +80,12 @@ def test_without_the_reference_the_kernel_block_in_progress_is_kept(name, tmp_pa
     assert len(lines(out / "trajectory.csv")) == 2501 and len(lines(out / "steps.csv")) == 2500
 
 
-def test_a_process_killed_outright_still_gets_its_summary(tmp_path, tmp_env):
+def test_a_process_killed_outright_still_gets_its_summary(tmp_path, tmp_env, faulty_scenario):
     """SIGKILL of the child (as the out-of-memory killer does): the parent writes summary.json from
     the rows already on disk (handed over at least every second), cut after the last whole row."""
     env, temp = tmp_env
     scenario = tmp_path / "scenario.yaml"
-    scenario.write_text(yaml.safe_dump(faulty(3, 2000, T=30.0), sort_keys=False))
+    scenario.write_text(yaml.safe_dump(faulty_scenario(3, 2000), sort_keys=False))
     out = tmp_path / "out"
     proc = subprocess.Popen([*CLI, "run", str(scenario), "--out", str(out), "--quiet"], env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -128,11 +115,11 @@ def _child_when_hung(parent, trajectory, timeout=60):
 
 
 @pytest.mark.parametrize("hung", [False, True], ids=["between-steps", "inside-a-hung-call"])
-def test_sigterm_ends_the_run_cleanly(hung, tmp_path, tmp_env):
+def test_sigterm_ends_the_run_cleanly(hung, tmp_path, tmp_env, faulty_scenario):
     """SIGTERM: exit 143, one line, every committed step on disk and in summary.json (status
     interrupted), also when the run is stuck in an FMU call (the parent asks for a rescue)."""
     env, temp = tmp_env
-    raw = faulty(3 if hung else 0, 600, T=10000.0)
+    raw = faulty_scenario(3 if hung else 0, 600, T=10000.0)
     scenario = tmp_path / "scenario.yaml"
     scenario.write_text(yaml.safe_dump(raw, sort_keys=False))
     out = tmp_path / "out"

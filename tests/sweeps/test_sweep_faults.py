@@ -1,30 +1,29 @@
 """A sweep whose runs crash or hang: each such run is one row with its status and message, the others
 are kept, --resume runs only the failed one (once more), the sweep exits 8, and SIGTERM leaves no
 process behind."""
-import copy
 import json
 import os
 import signal
 import subprocess
 import time
 
+import pytest
 import yaml
 
 from paths import CLI
-from wavecosim.scenario.config import DEFAULT_CONFIG
-
-BASE = yaml.safe_load(DEFAULT_CONFIG.read_text())
 
 
-def scenario(tmp_path, fault, T=0.5, **top):
-    """Table I with B a FaultySide with the given fault (the sweep sets fault_step)."""
-    raw = copy.deepcopy(BASE)
-    raw.update(T=T, **top)
-    raw["subsystems"]["B"]["fmu"] = "FaultySide"
-    raw["subsystems"]["B"]["integers"] = {"fault": fault, "fault_step": -1}
-    path = tmp_path / "faulty.yaml"
-    path.write_text(yaml.safe_dump(raw, sort_keys=False))
-    return path
+@pytest.fixture
+def scenario(tmp_path, faulty_scenario):
+    """scenario(fault, **top): a file of Table I with B a FaultySide with that fault (the sweep sets
+    its fault_step), T = 0.5."""
+    def write(fault, **top):
+        raw = faulty_scenario(fault, -1, T=0.5)
+        raw.update(top)
+        path = tmp_path / "faulty.yaml"
+        path.write_text(yaml.safe_dump(raw, sort_keys=False))
+        return path
+    return write
 
 
 def sweep(path, out, *extra, env=None):
@@ -37,9 +36,9 @@ def rows(out):
     return json.loads((out / "runs.json").read_text())["runs"]
 
 
-def test_a_crashing_run_is_one_row_and_the_others_are_kept(tmp_path):
+def test_a_crashing_run_is_one_row_and_the_others_are_kept(tmp_path, scenario):
     out = tmp_path / "out"
-    proc = sweep(scenario(tmp_path, 1), out)
+    proc = sweep(scenario(1), out)
     assert proc.returncode == 8, proc.stderr
     assert proc.stderr.strip() == f"error: 1 of 4 runs did not finish (their rows say why: {out / 'runs.csv'})"
     got = rows(out)
@@ -52,18 +51,18 @@ def test_a_crashing_run_is_one_row_and_the_others_are_kept(tmp_path):
     assert "run 2 (2_fault_step-20): crashed: subsystem B" in proc.stdout
     # --resume: the three finished runs are kept as they are, the crashed one is tried once more
     kept = {r["index"]: r["task_time_s"] for r in got}
-    again = sweep(scenario(tmp_path, 1), out, "--resume")
+    again = sweep(scenario(1), out, "--resume")
     assert again.returncode == 8
     second = rows(out)
     assert [r["task_time_s"] == kept[r["index"]] for r in second] == [True, True, False, True]
     assert second[2]["attempts"] == 2 and second[2]["status"] == "crashed"
-    third = sweep(scenario(tmp_path, 1), out, "--resume")
+    third = sweep(scenario(1), out, "--resume")
     assert third.returncode == 8 and rows(out) == second             # failed twice: kept, not tried again
 
 
-def test_a_hanging_run_times_out_and_the_sweep_ends(tmp_path):
+def test_a_hanging_run_times_out_and_the_sweep_ends(tmp_path, scenario):
     out = tmp_path / "out"
-    proc = sweep(scenario(tmp_path, 3, step_timeout=2.0), out)
+    proc = sweep(scenario(3, step_timeout=2.0), out)
     assert proc.returncode == 8
     got = rows(out)
     assert [r["status"] for r in got] == ["finished", "finished", "timed out", "finished"]
@@ -71,10 +70,10 @@ def test_a_hanging_run_times_out_and_the_sweep_ends(tmp_path):
                                  "subsystem B (monolithic reference) in fmi2DoStep")
 
 
-def test_sigterm_stops_the_sweep_and_leaves_no_process(tmp_path):
+def test_sigterm_stops_the_sweep_and_leaves_no_process(tmp_path, scenario):
     out = tmp_path / "out"
     env = {**os.environ}
-    proc = subprocess.Popen([*CLI, "sweep", str(scenario(tmp_path, 3)), "--set",
+    proc = subprocess.Popen([*CLI, "sweep", str(scenario(3)), "--set",
                              "subsystems.B.integers.fault_step=20,21,22,23", "--workers", "2", "--out", str(out),
                              "--quiet", "--no-certificates"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True, env=env)

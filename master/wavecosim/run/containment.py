@@ -138,11 +138,7 @@ class Containment:
             print(f"error: the run stopped ({fault.get('kind')}) and could not be written whole: "
                   f"{type(exc).__name__}: {exc}", file=sys.stderr, flush=True)
         self.status.exit_code, self.status.state = code, DONE
-        for stream in (sys.stdout, sys.stderr):
-            try:
-                stream.flush()
-            except Exception:
-                pass
+        flush_streams()
         os._exit(code)
 
     def _catch_up(self, reference):
@@ -170,6 +166,15 @@ class Containment:
 
     def _subsystems(self, part):
         return {str(s.fmu.folder): f"{s.name}{self.labels.get(id(part), '')}" for s in _fmus(part)}
+
+
+def flush_streams():
+    """Flush stdout and stderr before the process ends with os._exit (a closed pipe is no error)."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except Exception:
+            pass
 
 
 class PythonTimeout(StepTimeout):

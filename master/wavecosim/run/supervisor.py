@@ -26,6 +26,7 @@ from pathlib import Path
 
 from ..kernel.guard import die_with_parent, freeze_signal
 from .channel import Channel, DONE, RESCUING, RUNNING, STOP, TERM, TIMEOUT
+from .containment import Containment, announcement, flush_streams
 
 STOP_GRACE_S = 5.0        # after passing a stop on: time for the child to stop between two steps
 RESCUE_GRACE_S = 20.0     # after asking for a rescue: time for the child to write its rows
@@ -197,7 +198,6 @@ class Child:
 
     def _fallback(self):
         """The child died without finishing: the summary from the channel, one line, the exit code."""
-        from .containment import announcement
         from .salvage import salvage
         error = salvage(self.channel, self.wait_status, self.summary_path, self.step_timeout, self.killed)
         self.error = str(error)
@@ -225,7 +225,6 @@ def _become_child(body, channel, step_timeout, announce, relays):
         tempfile.tempdir = str(channel.temp)
         os.environ["TMPDIR"] = str(channel.temp)
         signal.signal(signal.SIGTERM, _terminate)
-        from .containment import Containment
         contain = Containment(channel, step_timeout, announce)
         code = body()
         contain.close()
@@ -234,11 +233,7 @@ def _become_child(body, channel, step_timeout, announce, relays):
         print(f"error: {type(exc).__name__}: {exc}", file=sys.stderr, flush=True)
         channel.status.exit_code, channel.status.state = code, DONE
     finally:
-        for stream in (sys.stdout, sys.stderr):
-            try:
-                stream.flush()
-            except Exception:
-                pass
+        flush_streams()
         os._exit(code)
 
 
