@@ -142,3 +142,26 @@ def test_sigterm_ends_the_run_cleanly(hung, tmp_path, tmp_env, faulty_scenario):
         assert "inside subsystem B in fmi2DoStep" in summary["message"]
     assert len(lines(out / "trajectory.csv")) == n + 1 and len(lines(out / "steps.csv")) == n
     assert list(temp.iterdir()) == []
+
+
+def test_rows_reach_the_file_at_least_every_second(tmp_path, faulty_scenario):
+    """Step by step (no kernel blocks) the rows fill blocks of 1024 in memory; a second after the last
+    hand-over the rows booked so far are handed to the writer anyway, so a death loses at most about
+    a second of steps."""
+    from wavecosim.run.runner import run
+    from wavecosim.scenario.config import parse_scenario
+    raw = faulty_scenario(T=5.0)
+    raw["master"]["fast"] = False
+    seen = {}
+
+    def progress(n, total):
+        if n >= 100 and "slept" not in seen:
+            seen["slept"] = n
+            time.sleep(1.2)                              # a slow step: the next one hands the rows over
+        elif n >= 300 and "rows" not in seen:
+            deadline = time.time() + 5
+            while time.time() < deadline and len(lines(tmp_path / "trajectory.csv")) <= seen["slept"]:
+                time.sleep(0.05)
+            seen["rows"] = len(lines(tmp_path / "trajectory.csv"))
+    run(parse_scenario(raw, "faulty", tmp_path), tmp_path, certificates=False, progress=progress, file_suffix=False)
+    assert seen["slept"] < seen["rows"] < 1024
