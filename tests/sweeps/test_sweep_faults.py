@@ -78,11 +78,11 @@ def test_sigterm_stops_the_sweep_and_leaves_no_process(tmp_path, scenario):
                              "--quiet", "--no-certificates"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True, env=env)
     deadline, children = time.time() + 60, []
-    while len(children) < 2:                                       # both runs started (and hang)
+    while len(children) < 2 or len(list(out.glob("runs/*/trajectory.csv"))) < 2:    # both runs stepping
         assert time.time() < deadline and proc.poll() is None
         children = open(f"/proc/{proc.pid}/task/{proc.pid}/children").read().split()
         time.sleep(0.2)
-    time.sleep(1.0)
+    time.sleep(1.0)                                                # and hung at steps 20 and 21
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 143, err

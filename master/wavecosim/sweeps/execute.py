@@ -190,7 +190,12 @@ def _start_child(task):
     from ..run.supervisor import Child
 
     def body():
-        run_task(task)
+        try:
+            run_task(task)
+        except Interrupted as exc:                      # stopped during its steps: its summary says so
+            return exc.exit_code
+        except KeyboardInterrupt:                       # stopped during its set-up
+            return Interrupted.exit_code
         return 0
     remove_run_files(task.out_dir)                      # an earlier attempt's must not stand for this one
     timeout = task.step_timeout or task_scenario(task).step_timeout
@@ -213,14 +218,17 @@ def _ended(running):
 
 def _child_row(task, child, started):
     """The row a task's child wrote, or one made from the summary its rescue (or its parent) wrote."""
-    child.finish()
+    code = child.finish()
     row = stored_row(task)
     if row is not None and row.get("attempts", 1) == task.attempt:
         return row
     try:
         summary = json.loads((Path(task.out_dir) / "summary.json").read_text())
     except (OSError, ValueError):
-        summary = {"status": "crashed", "message": child.error or "the run's process ended without a summary"}
+        stopped = code in (Interrupted.exit_code, Terminated.exit_code)
+        summary = {"status": "interrupted" if stopped else "crashed",
+                   "message": "stopped before its first step" if stopped
+                   else child.error or "the run's process ended without a summary"}
     row = _row_head(task)
     row.update({k: v for k, v in flatten(summary).items() if k not in row and k != "label"})
     row["warnings"] = ""
