@@ -50,7 +50,8 @@ def fault_free(tmp_path_factory, faulty_scenario):
     return out
 
 
-@pytest.mark.parametrize("name", list(FAULTS))
+@pytest.mark.parametrize("name", [name if name in ("segfault", "hang") else pytest.param(name, marks=pytest.mark.slow)
+                                  for name in FAULTS])
 def test_a_fault_in_dostep_keeps_every_step_before_it(name, tmp_path, tmp_env, fault_free, faulty_scenario):
     fault, code, what = FAULTS[name]
     env, temp = tmp_env

@@ -60,6 +60,7 @@ def test_a_crashing_run_is_one_row_and_the_others_are_kept(tmp_path, scenario):
     assert third.returncode == 8 and rows(out) == second             # failed twice: kept, not tried again
 
 
+@pytest.mark.slow
 def test_a_hanging_run_times_out_and_the_sweep_ends(tmp_path, scenario):
     out = tmp_path / "out"
     proc = sweep(scenario(3, step_timeout=2.0), out)
@@ -70,6 +71,7 @@ def test_a_hanging_run_times_out_and_the_sweep_ends(tmp_path, scenario):
                                  "subsystem B (monolithic reference) in fmi2DoStep")
 
 
+@pytest.mark.slow
 def test_sigterm_stops_the_sweep_and_leaves_no_process(tmp_path, scenario):
     out = tmp_path / "out"
     env = {**os.environ}
