@@ -151,6 +151,10 @@ static void on_exit_call(int status, void *arg) {
     }
 }
 
+#if !defined(__GLIBC__)
+static void on_exit_without_status(void) { on_exit_call(-1, NULL); }
+#endif
+
 /* Arms the guard in the calling (main) thread: faults go into *fault, the rescue pipe is fd.
  * Returns 0, or -1 if a handler could not be installed. */
 int guard_arm(GuardFault *fault, int fd) {
@@ -176,7 +180,11 @@ int guard_arm(GuardFault *fault, int fd) {
     sa.sa_flags = SA_SIGINFO | SA_RESTART;
     if (sigaction(FREEZE_SIGNAL, &sa, NULL)) return -1;
     if (!exit_handler_added) {
-        if (on_exit(on_exit_call, NULL)) return -1;
+#if defined(__GLIBC__)
+        if (on_exit(on_exit_call, NULL)) return -1;   /* glibc passes the exit status */
+#else
+        if (atexit(on_exit_without_status)) return -1;
+#endif
         exit_handler_added = 1;
     }
     armed = 1;
