@@ -12,7 +12,7 @@ from .errors import ConfigError, Interrupted, SweepFailed, WavecosimError
 from . import api
 from .api import simulate, with_overrides
 from .core.gamma import parse_gamma
-from .masters import ALGORITHMS
+from .masters import ALGORITHMS, MASTERS
 from .run.outputs import OutputFolder
 from .run.recorder import write_json
 from .run.runner import MAX_STEPS, check_steps
@@ -44,10 +44,12 @@ def _progress(label, quiet):
     return report
 
 
-def _apply_overrides(scenario, K=None, eps=None, gamma=None, dt=None, T=None, algorithm=None):
+def _apply_overrides(scenario, K=None, eps=None, gamma=None, dt=None, T=None, algorithm=None, start_time=None,
+                     outputs=None):
     """The scenario with the command line's values in place of the file's."""
     gamma = parse_gamma(gamma, "--gamma") if gamma is not None else None
-    return with_overrides(scenario, master=algorithm, K=K, eps=eps, gamma=gamma, dt=dt, T=T, where="--T/--dt")
+    return with_overrides(scenario, master=algorithm, K=K, eps=eps, gamma=gamma, dt=dt, T=T, start_time=start_time,
+                          outputs=outputs, where="--T/--dt")
 
 
 def parse_budgets(ks, option="--Ks"):
@@ -89,12 +91,15 @@ overwrite_option = click.option(
 
 
 config_argument = click.argument("config", required=False, type=click.Path(dir_okay=False, path_type=Path))
+system_argument = click.argument("config", required=False, type=click.Path(path_type=Path))   # also an SSP folder
 common = [
     click.option("--K", "K", type=click.IntRange(min=0), help="Inner-iteration budget K per macro-step."),
     click.option("--eps", type=click.FloatRange(min=0, min_open=True), help="Inner tolerance: stop when |u_new - u| <= eps."),
     click.option("--gamma", help="Scattering impedance (> 0), or auto / auto-retune / fast-unsafe."),
-    click.option("--dt", type=click.FloatRange(min=0, min_open=True), help="Macro-step size (s)."),
-    click.option("--T", "T", type=click.FloatRange(min=0, min_open=True), help="End time (s)."),
+    click.option("--dt", type=click.FloatRange(min=0, min_open=True),
+                 help="Macro-step size (s); default: the file's, else the smallest DefaultExperiment stepSize of the FMUs."),
+    click.option("--T", "T", type=float,
+                 help="Stop time (s); default: the file's, else the largest DefaultExperiment stopTime of the FMUs."),
     click.option("--quiet", is_flag=True, help="No progress output."),
 ]
 
@@ -138,39 +143,65 @@ ssp_options = options([
 ])
 
 
-def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None):
-    """A scenario file, or an SSP system (.ssd, .ssp, folder) with its overlay; import notes are warnings."""
-    from .scenario.ssp import is_ssp
+experiment_options = options([
+    click.option("--start-time", type=float, help="Start time t0 (s) of the grid t0 + n dt; default: the file's, "
+                 "else the DefaultExperiment startTime of the FMUs, else 0."),
+])
+
+
+def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None, start_time=None, input_csv=None):
+    """A scenario file, an SSP system (.ssd, .ssp, folder) with its overlay, or one FMU (.fmu) with
+    its input file; the command line's times go in before the file's are checked; import notes
+    are warnings."""
+    from .scenario.fmu import is_fmu
+    from .scenario.ssp.archive import is_ssp           # the archive module alone: a scenario file needs no more
+    times = {"dt": dt, "T": T, "start_time": start_time}
+    warn = lambda note: click.echo(f"warning: {note}", err=True)        # noqa: E731
     if ports or parameter_set or (config is not None and is_ssp(config)):
-        return api.load(config, ports=ports, parameter_set=parameter_set, dt=dt, T=T, gamma=gamma,
-                        warn=lambda note: click.echo(f"warning: {note}", err=True))
-    return load_scenario(config)
+        return api.load(config, ports=ports, parameter_set=parameter_set, gamma=gamma, warn=warn, **times)
+    if input_csv is not None or is_fmu(config):
+        return api.load(config, input=input_csv, warn=warn, **times)
+    return load_scenario(config, times)
 
 
 @cli.command("run")
 @click.argument("config", required=False, type=click.Path(path_type=Path))
 @with_common
+@experiment_options
 @with_output
 @ssp_options
-@click.option("--master", "algorithm", type=click.Choice(ALGORITHMS), help="Master algorithm (default: from CONFIG).")
+@click.option("--input", "input_csv", type=click.Path(dir_okay=False, path_type=Path),
+              help="FMU input: a CSV file (a time column, one column per input; true/false for Booleans; a time "
+                   "given twice for an event), applied as fmpy applies it.")
+@click.option("--outputs", "outputs", multiple=True, metavar="PATTERN",
+              help="Record only the columns matching this glob (e.g. 'IO.y_*'; repeat for more); default: every "
+                   "output and connected input, named COMPONENT.variable (or the file's outputs).")
+@click.option("--master", "algorithm", type=click.Choice(ALGORITHMS),
+              help="Master algorithm (default: from CONFIG; else dr where there are power bonds, explicit without).")
 @click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("out/run"), show_default=True,
               help="Output folder for trajectory.csv, steps.csv, summary.json and metadata.json.")
 @click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and the Condition 1 watch (faster).")
 @click.option("--no-reference", is_flag=True, help="Skip the monolithic reference run (no error figures).")
 @click.option("--plots", is_flag=True, help="Also write PNG figures into the output folder.")
+@click.option("--threads", help="Threads evaluating the subsystems: auto, or N (up to min(N, CPUs, subsystems)); "
+                                "the numbers are the same for any N.")
 @step_timeout_option
 @overwrite_option
 @click.option("--force", is_flag=True, help=f"Run even more than {MAX_STEPS:,} macro-steps.")
-def run_cmd(config, K, eps, gamma, dt, T, quiet, output_interval, formats, ports, parameter_set, algorithm, out,
-            no_certificates, no_reference, plots, step_timeout, overwrite, force):
-    """Run one scenario (with the monolithic reference alongside) and write its trajectory, per-step
-    certificates, summary and metadata. CONFIG is a scenario file or an SSP system (.ssd, .ssp, folder).
+def run_cmd(config, K, eps, gamma, dt, T, quiet, start_time, output_interval, formats, ports, parameter_set, input_csv,
+            outputs, algorithm, out, no_certificates, no_reference, plots, threads, step_timeout, overwrite, force):
+    """Run one scenario (with the monolithic reference alongside where there are power bonds) and
+    write its trajectory, per-step certificates, summary and metadata. CONFIG is a scenario file,
+    an SSP system (.ssd, .ssp, folder) or one FMU (.fmu), run as fmpy's simulate runs it.
 
     The steps are made in a child process: an FMU that crashes, calls exit() or (with --step-timeout)
     does not return leaves every step before it on disk, a summary.json saying what happened, and
     an exit code of its own (docs/troubleshooting.md). An earlier run's files in OUT are replaced."""
-    scenario = _apply_overrides(_read_config(config, ports, parameter_set, dt, T, gamma), K, eps, gamma, dt, T,
-                                algorithm)
+    scenario = _apply_overrides(_read_config(config, ports, parameter_set, dt, T, gamma, start_time, input_csv), K, eps,
+                                gamma, dt, T, algorithm, start_time, outputs)
+    if threads is not None:
+        from .scenario.config import threads_option
+        scenario = scenario.with_master(threads=threads_option(threads))
     max_steps = None if force else MAX_STEPS
     check_steps(scenario, max_steps)
 
@@ -204,7 +235,8 @@ def _supervised(work, summary, step_timeout):
 
 def _report_run(scenario, result, out):
     s = result.summary
-    click.echo(f"{scenario.name}: {s['master']} K={s['K']} dt={scenario.dt} T={scenario.T} -> {out}")
+    budget = f" K={s['K']}" if MASTERS[s["master"]].budgets != (None,) else ""
+    click.echo(f"{scenario.name}: {s['master']}{budget} dt={scenario.dt} T={scenario.T} -> {out}")
     if s.get("gamma_mode", "fixed") != "fixed":
         each = lambda d: ", ".join(f"{k} {v:.6g}" for k, v in d.items())      # noqa: E731
         click.echo(f"gamma: {s['gamma_mode']} -> {each(s['gamma_initial'])} (FNE bounds {each(s['gamma_fne_bounds'])}; "
@@ -212,11 +244,15 @@ def _report_run(scenario, result, out):
                    f"{s['gamma_changes']} changes; "
                    f"{'inside the FNE bounds' if s['gamma_guaranteed'] else 'OUTSIDE an FNE bound: Theorem 1 not guaranteed'}"
                    f"{'' if s.get('fne_watch_ok', True) else '; the Condition 1 watch found a violation'})")
-    print_table([s], ["steps", "max_error", "rms_error", "final_error", "max_passivity_pos", "max_augmented_pos",
-                      "min_fne_margin", "iterations_mean", "wall_time_s", "total_time_s",
-                      *(["energy_guard_steps"] if "energy_guard_steps" in s else [])])
+    print_table([s], [f for f in ("steps", "max_error", "rms_error", "final_error", "max_passivity_pos",
+                                  "max_augmented_pos", "min_fne_margin", "iterations_mean", "wall_time_s",
+                                  "total_time_s", "energy_guard_steps") if f in s])
     if "signal_note" in s:
         click.echo(f"note: {s['signal_note']}")
+    if s["status"] == "finished" and s.get("message"):
+        click.echo(f"note: {s['message']}")
+    if s.get("threads", 1) > 1 or scenario.master.threads not in ("auto", "1"):
+        click.echo(f"threads: {s.get('thread_note', 'serial')}")
 
 
 # sweep: the common options with --K a list, plus those of general sweeps
@@ -332,8 +368,9 @@ def _sweep_progress(total, skipped):
 
 
 @cli.command("compare")
-@config_argument
+@system_argument
 @with_common
+@experiment_options
 @ssp_options
 @click.option("--masters", default=",".join(ALGORITHMS), show_default=True,
               help="Comma-separated masters to compare.")
@@ -349,8 +386,8 @@ def _sweep_progress(total, skipped):
                    "fastest-memory-eps3, fastest-memory-eps5.")
 @step_timeout_option
 @overwrite_option
-def compare_cmd(config, K, eps, gamma, dt, T, quiet, ports, parameter_set, masters, ks, out, no_certificates, plots,
-                dr_options, step_timeout, overwrite):
+def compare_cmd(config, K, eps, gamma, dt, T, quiet, start_time, ports, parameter_set, masters, ks, out,
+                no_certificates, plots, dr_options, step_timeout, overwrite):
     """Every master over a grid of budgets against the monolithic reference: error, energy, cost."""
     from .sweeps.comparison import COMPARE_FIELDS, parse_options
     options = parse_options(dr_options)
@@ -363,7 +400,8 @@ def compare_cmd(config, K, eps, gamma, dt, T, quiet, ports, parameter_set, maste
     Ks = [K] if K is not None else None
     if ks is not None:
         Ks = parse_budgets(ks)
-    scenario = _apply_overrides(_read_config(config, ports, parameter_set, dt, T, gamma), None, eps, gamma, dt, T)
+    scenario = _apply_overrides(_read_config(config, ports, parameter_set, dt, T, gamma, start_time), None, eps,
+                                gamma, dt, T, start_time=start_time)
 
     def work():
         table = api.compare(scenario, names, Ks, out_dir=out, progress=(lambda label: _progress(label, quiet)),
@@ -383,19 +421,24 @@ def compare_cmd(config, K, eps, gamma, dt, T, quiet, ports, parameter_set, maste
 
 
 @cli.command("validate")
-@config_argument
+@system_argument
 @ssp_options
-def validate_cmd(config, ports, parameter_set):
-    """Check a scenario file (or an SSP system) and its FMUs without running it."""
+@click.option("--input", "input_csv", type=click.Path(dir_okay=False, path_type=Path), help="FMU input: a CSV file.")
+@options([opt for opt in common if opt in (common[3], common[4])])
+@experiment_options
+def validate_cmd(config, ports, parameter_set, input_csv, dt, T, start_time):
+    """Check a scenario file (an SSP system, or one FMU) and its FMUs without running it."""
     from .core.scene import build_scene
-    scenario = _read_config(config, ports, parameter_set)
+    scenario = _read_config(config, ports, parameter_set, dt, T, start_time=start_time, input_csv=input_csv)
     scene = build_scene(scenario, wave=True)
     try:
-        wm = scene.wave_map()
+        for note in scene.notes:
+            click.echo(f"warning: {note}", err=True)
         signals = (f", {len(scene.signal_only)} signal-only, {len(scenario.signals)} signals, "
-                   f"{len(scenario.sources)} sources") if scenario.signals else ""
-        click.echo(f"{scenario.source}: OK ({len(scene.subsystems)} subsystems{signals}, {scene.n_channels} channels, "
-                   f"|P^T P - I| = {wm.orthogonality_residual:.1e})")
+                   f"{len(scenario.sources)} sources") if scene.signal_only or scenario.signals else ""
+        waves = f", |P^T P - I| = {scene.wave_map().orthogonality_residual:.1e}" if scene.n_channels else ""
+        click.echo(f"{scenario.source}: OK ({len(scene.subsystems)} subsystems{signals}, {scene.n_channels} channels"
+                   f"{waves})")
     finally:
         scene.close()
 
@@ -443,11 +486,20 @@ def examples_cmd(name):
 @cli.command("bench")
 @click.option("--quick", is_flag=True, help="Fewer steps and repeats (a few seconds instead of about a minute).")
 @click.option("--json", "json_file", type=click.Path(dir_okay=False, path_type=Path), help="Also write the figures here.")
-def bench_cmd(quick, json_file):
-    """Time the inner iteration: plain fmpy loop, Python reference, C fast path and the C floor; the deadline bound."""
-    from .bench.main import report, run_bench
-    result = run_bench(quick=quick, progress=lambda msg: click.echo(msg, err=True))
-    for line in report(result):
+@click.option("--only", type=click.Choice(["parallel_threads", "real_fmus"]),
+              help="Measure this part alone (real_fmus: systems of real FMUs against the floor of their FMU "
+                   "calls and libcosim).")
+def bench_cmd(quick, json_file, only):
+    """Time the inner iteration: plain fmpy loop, Python reference, C fast path and the C floor; the deadline
+    bound; threads; real FMUs against their floor and libcosim."""
+    from .bench.main import report, run_bench, run_part
+    progress = lambda msg: click.echo(msg, err=True)      # noqa: E731
+    if only:
+        result, lines = run_part(only, quick, progress)
+    else:
+        result = run_bench(quick=quick, progress=progress)
+        lines = report(result)
+    for line in lines:
         click.echo(line)
     if json_file:
         write_json(json_file, result)

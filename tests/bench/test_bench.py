@@ -37,3 +37,5 @@ def test_bench_quick_reports_every_path_and_the_run_over_master_ratio(tmp_path, 
     assert set(data["classical_kernel"]["masters"]) == {"explicit", "gauss-seidel", "jacobi-iter", "gauss-seidel-iter"}
     assert "chain of N" in out and "classical masters" in out
     assert set(data["newton_kernel"]["scenes"]) == {"Table I", "stiff"} and "newton, " in out
+    assert [r["threads"] for r in data["parallel_threads"]["rows"]] == [1, 2, 4, 8] and "heavy_chain_8" in out
+    assert "parallel_threads speedup >= 0.8 x min(threads, CPUs)" in data["targets"]

@@ -86,12 +86,12 @@ def test_linear_interpolation_between_table_rows(folder):
 
 
 def test_fast_path_equals_the_python_reference_with_signals(folder):
-    """The kernel makes one macro-step per call (the signals are set from Python in between); every
-    number equals the Python reference's, and the summary says why blocks are not used."""
+    """The kernel holds the signals itself in its blocks of steps (kernel/c/signals.c); every number
+    equals the Python reference's."""
     fast = run(scenario(folder), reference="lockstep", warn=quiet)
     slow = run(scenario(folder, lambda r: r["master"].update(fast=False)), reference="lockstep", warn=quiet)
     assert fast.summary["fast_path"] and not slow.summary["fast_path"]
-    assert "signals are set from Python" in fast.summary["fast_note"] and fast.summary["block_steps"] == 0
+    assert fast.summary["fast_note"] == "C kernel" and fast.summary["block_steps"] > 0
     for name in ("trajectory", "steps"):
         a, b = getattr(fast, name), getattr(slow, name)
         for field in a.dtype.names:
@@ -144,8 +144,10 @@ BAD = [
      "sources.A: is also the name of a subsystem"),
     ("csv-missing", lambda r: r["sources"]["push"].update({"csv": "nowhere.csv"}), "sources.push.csv: cannot read"),
     ("csv-no-time", _table("t,force\n0,1\n"), "sources.push.csv: bad.csv: the first column of the header must be `time`"),
-    ("csv-times-not-increasing", _table("time,force\n0,1\n0.5,2\n0.5,3\n"),
-     "sources.push.csv: bad.csv: times must increase, line 4 has 0.5 after 0.5"),
+    ("csv-times-decreasing", _table("time,force\n0,1\n0.5,2\n0.5,3\n0.4,3\n"),
+     "sources.push.csv: bad.csv: times must not decrease, line 5 has 0.4 after 0.5"),
+    ("csv-boolean-time", _table("time,force\n0,1\ntrue,2\n"), "bad.csv: line 3: the time must be a number"),
+    ("csv-mixed-column", _table("time,force\n0,1\n1,true\n"), "bad.csv: column force mixes true/false and numbers"),
     ("csv-not-numbers", _table("time,force\n0,abc\n"), "sources.push.csv: bad.csv: line 2 is not all numbers"),
 ]
 

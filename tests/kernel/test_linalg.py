@@ -29,3 +29,21 @@ def test_the_inverse_is_lapacks_for_one_channel_and_pivots():
     M = [[0.0, 2.0, 1.0], [1.0, 1e-3, 0.0], [4.0, 1.0, 3.0]]           # a zero leading pivot
     np.testing.assert_allclose(linalg.inverse(M), np.linalg.inv(M), rtol=1e-12, atol=1e-14)
     assert all(np.isnan(x) for row in linalg.inverse([[1.0, 2.0], [2.0, 4.0]]) for x in row)
+
+
+def test_the_sparse_lu_gives_the_dense_solve_numbers():
+    """linalg.solve_sparse (the interface Newton's solve, kernel/c/newton.c's lu_sparse) gives solve()'s
+    numbers on random sparse systems, row swaps, zero right-hand sides and singular ones included."""
+    rng = np.random.default_rng(7)
+    for _ in range(500):
+        n = int(rng.integers(1, 12))
+        mask = rng.random((n, n)) < rng.uniform(0.1, 0.6)
+        A = np.where(mask, rng.standard_normal((n, n)) * 10.0 ** rng.integers(-3, 4, (n, n)), 0.0)
+        if rng.random() < 0.5:
+            A += np.diag(rng.standard_normal(n))
+        b = np.where(rng.random(n) < 0.2, 0.0, rng.standard_normal(n))
+        dense = solve(A, b)
+        sparse = linalg.solve_sparse([{j: v for j, v in enumerate(row) if v != 0.0} for row in A], b)
+        assert (dense is None) == (sparse is None)
+        if dense is not None:
+            assert np.array_equal(dense, sparse)

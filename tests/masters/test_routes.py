@@ -3,7 +3,7 @@
 For each master with a kernel route (ROUTED), `master.fast: true` (the C kernel) runs against
 `master.fast: false` (the Python reference) on the scenes that exercise what the route does: wave
 ports (Table I), the stiff scene, several channels per port (chain), a physical port through the
-wave adapter (foreign_pair), an FMI 3 FMU and Dymola FMUs whose queries stall (when the third-party
+wave adapter (foreign_pair; the classical masters over its signed physical ports), an FMI 3 FMU and Dymola FMUs whose queries stall (when the third-party
 FMUs are present), the certificates inside the blocks, the energy ledger acting, a deadline, two
 threads, a change of gamma, and failures. Compared step by step (every StepLog field, the committed
 waves or outputs, the inner loop's trace, FMU calls, an undo and recommit), through the Route
@@ -30,7 +30,7 @@ from wavecosim.masters.base import Route
 from wavecosim.run.runner import run
 from wavecosim.scenario.config import load_scenario
 
-ROUTED = ("dr", "explicit", "gauss-seidel", "jacobi-iter", "gauss-seidel-iter", "newton")
+ROUTED = ("dr", "explicit", "gauss-seidel", "jacobi-iter", "gauss-seidel-iter", "newton", "aitken", "iqn-ils")
 BLOCKS = ("dr", "explicit", "gauss-seidel", "jacobi-iter", "gauss-seidel-iter")     # their route makes blocks
 THIRD_PARTY_SCENES = ("fmi3_damper", "dcmotor_shaft")
 STEPS = 30                          # macro-steps of the step-by-step comparisons
@@ -113,7 +113,8 @@ def the_route(master):
 
 def test_every_master_is_routed_or_declares_no_route(scenario):
     """A master not in ROUTED gives no route and runs its Python reference; a routed one runs the
-    kernel with fast: auto (newton makes no blocks: one kernel call per step), the reference with false."""
+    kernel with fast: auto (newton makes no blocks: one kernel call per step; aitken and iqn-ils neither:
+    their passes in C, their update in Python), the reference with false."""
     sc = scenario("two_oscillators_stiff", K=3)
     for name, cls in MASTERS.items():
         scene = build_scene(sc, wave=cls.wave, needs_rollback=cls.needs_rollback)
@@ -142,9 +143,13 @@ STEPPED = {
     "newton-adapter": ("newton", "foreign_pair", {}),
     "newton-fmi3": ("newton", "fmi3_damper", {}),
     "explicit-stiff": ("explicit", "two_oscillators_stiff", {}),
+    "explicit-physical": ("explicit", "foreign_pair", {}),
     "gauss-seidel-stiff": ("gauss-seidel", "two_oscillators_stiff", {}),
+    "jacobi-iter-physical": ("jacobi-iter", "foreign_pair", dict(K=3)),
     "jacobi-iter-stiff": ("jacobi-iter", "two_oscillators_stiff", dict(K=3)),
     "gauss-seidel-iter-chain": ("gauss-seidel-iter", "chain", dict(K=10, eps=1e-9)),
+    "aitken-stiff": ("aitken", "two_oscillators_stiff", dict(K=3)),
+    "iqn-ils-chain": ("iqn-ils", "chain", dict(K=6)),
 }
 
 
@@ -258,6 +263,8 @@ RUNS = {
     "newton-adapter": ("newton", "foreign_pair", 0.05, {}, {}, "adapter"),
     "newton-fmi3": ("newton", "fmi3_damper", 0.1, {}, {}, "adapter"),
     "explicit-stiff": ("explicit", "two_oscillators_stiff", 1.0, {}, dict(output_interval=7), "blocks"),
+    "explicit-physical": ("explicit", "foreign_pair", 0.3, {}, {}, "blocks"),
+    "gauss-seidel-iter-physical": ("gauss-seidel-iter", "foreign_pair", 0.3, dict(K=3, eps=1e-12), {}, "blocks"),
     "gauss-seidel-chain": ("gauss-seidel", "chain", 0.5, {}, {}, "blocks"),
     "jacobi-iter-table1-K0": ("jacobi-iter", "two_oscillators", 0.5, dict(K=0, energy_guard="off"), {}, "blocks"),
     "jacobi-iter-stiff": ("jacobi-iter", "two_oscillators_stiff", 1.0, dict(K=3), {}, "blocks"),
@@ -265,6 +272,8 @@ RUNS = {
                                  "guard"),
     "jacobi-iter-deadline": ("jacobi-iter", "chain", 0.3, dict(K=1000, deadline_us=1e-3), {}, "deadline"),
     "gauss-seidel-iter-chain": ("gauss-seidel-iter", "chain", 0.5, dict(K=10, eps=1e-9), {}, "blocks"),
+    "aitken-stiff": ("aitken", "two_oscillators_stiff", 0.5, dict(K=3), {}, ""),
+    "iqn-ils-chain-two-threads": ("iqn-ils", "chain", 0.3, dict(K=6, threads="2"), {}, "threads"),
 }
 
 
@@ -367,13 +376,3 @@ def test_fast_true_where_the_kernel_cannot_run_is_a_config_error(scenario, name)
         fallback.close()
     finally:
         scene.close()
-
-
-def test_declared_physical_ports_keep_the_classical_masters_on_the_reference(scenario):
-    sc = scenario("foreign_pair", 0.05, algorithm="jacobi-iter", K=2)
-    result = run(sc, certificates=False, warn=lambda note: None)
-    assert result.summary["fast_path"] is False and "physical port" in result.summary["fast_note"]
-    with pytest.raises(ConfigError) as info:
-        run(sc.with_master(fast="true"), certificates=False, warn=lambda note: None)
-    assert "\n" not in str(info.value)
-    assert "master.fast: true, but subsystem A has a declared physical port" in str(info.value)

@@ -172,15 +172,17 @@ def test_a_broken_ssd_is_one_line_naming_file_element_and_line(tmp_path, capsys,
         assert f"broken.ssd line {lines[-1] if what == 'input driven twice' else lines[0]}: " in err, err
 
 
-def test_not_xml_and_missing_settings_are_one_line(tmp_path, capsys, built_fmus):
+def test_not_xml_a_missing_dt_and_a_portless_ssd(tmp_path, capsys, built_fmus):
+    """Not XML: one line. No dt in the annotation: the FMUs' DefaultExperiment stepSize. Without
+    the port annotations the connections are signals, so the annotation's DR is refused in one line."""
     bad = tmp_path / "bad.ssd"
     bad.write_text("<ssd:SystemStructureDescription")
     code, _, err = run_cli(capsys, "run", bad, "--quiet")
     assert code == 2 and "bad.ssd line 1: not well-formed XML" in err
     bare = table_i_copy(tmp_path, [('dt="0.01" ', "")], "bare.ssd")
-    code, _, err = run_cli(capsys, "run", bare, "--quiet")
-    assert code == 2 and "dt: an SSD has none; give it in the overlay (--ports FILE)" in err
-    code, _, err = run_cli(capsys, "run", bare, "--dt", "0.01", "--T", "0.05", "--quiet", "--no-certificates",
+    imported = import_ssp(bare)
+    assert imported.raw["dt"] == 0.01 and imported.origins["dt"].startswith("the DefaultExperiment stepSize of")
+    code, _, err = run_cli(capsys, "run", bare, "--dt", "0.02", "--T", "0.06", "--quiet", "--no-certificates",
                            "--out", tmp_path / "o")
     assert code == 0, err
     code, _, err = run_cli(capsys, "run", TABLE_I_YAML, "--ports", TABLE_I_YAML, "--quiet")
@@ -188,7 +190,7 @@ def test_not_xml_and_missing_settings_are_one_line(tmp_path, capsys, built_fmus)
     portless = table_i_copy(tmp_path, [('<ssc:Annotation type="org.wavecosim.port">', '<ssc:Annotation type="x.y">')] * 2,
                             "portless.ssd")
     code, _, err = run_cli(capsys, "run", portless, "--quiet")
-    assert code == 2 and "couplings: no power bond found; declare which connectors form ports" in err
+    assert code == 2 and "master.algorithm: dr couples power bonds, and this system has none" in err, err
 
 
 # --- parameters ---------------------------------------------------------------------------------
@@ -362,11 +364,10 @@ def test_dcmotor_imports_its_bindings_signals_bond_and_outputs():
 @needs_dcmotor
 @pytest.mark.parametrize("master", wc.ALGORITHMS)
 def test_dcmotor_from_the_ssd_runs_as_configs_dcmotor_yaml(master):
-    """Every master on the SSD with the overlay gives configs/dcmotor.yaml's numbers, column by column."""
+    """Every master on the SSD with the overlay gives configs/dcmotor.yaml's numbers, column by column
+    (both set the FMUs up with tolerance 1e-5)."""
     yaml_file = ROOT / "configs" / "dcmotor.yaml"
     ssd = dcmotor_scenario(T=0.01)
-    if not yaml_file.exists():
-        pytest.skip("configs/dcmotor.yaml comes with the signals branch")
     ours = trajectory(ssd.with_master(algorithm=master))
     theirs = trajectory(load_scenario(yaml_file).with_changes(T=0.01).with_master(algorithm=master))
     assert ours.dtype.names == theirs.dtype.names
@@ -469,3 +470,14 @@ def test_power_bonds_of_an_osp_system_structure_stand_for_their_connections(tmp_
     with pytest.raises(ConfigError, match=r"OspSystemStructure.xml line \d+: .*B.v is driven by A.x in "
                                           r"SystemStructure.ssd line \d+"):
         import_ssp(tmp_path)
+
+
+def test_an_ssd_with_power_bonds_and_no_gamma_runs_without_asking_for_one(tmp_path, capsys, built_fmus):
+    """gamma is auto where there is a power bond and none is given; the explicit master has no
+    waves, so it runs without any."""
+    from wavecosim.api import load
+    no_gamma = table_i_copy(tmp_path, [(' gamma="0.4"', "")], "no_gamma.ssd")
+    assert load(no_gamma, warn=lambda m: None).gamma == "auto"
+    code, _, err = run_cli(capsys, "run", no_gamma, "--master", "explicit", "--T", "0.05", "--quiet",
+                           "--no-certificates", "--out", tmp_path / "o")
+    assert code == 0 and "gamma" not in err, err

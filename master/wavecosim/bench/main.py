@@ -23,7 +23,9 @@ the heavy scene (configs/heavy_chain.yaml): master time with threads = 1 over th
 the wave adapter's cost per query on its Python and C routes (wavecosim/bench/adapter.py), and
 the deadline bound: DR with the energy ledger under master.deadline_us (light FMUs: the star at
 30 µs; heavy: heavy_chain at γ = 600, 1500 µs), realised step times against deadline + one
-evaluation round.
+evaluation round; and real FMUs (wavecosim/bench/real_fmus.py: the foreign pair, a signal-only
+system, the dcmotor) whole runs against the floor of their own FMU calls and libcosim
+(`--only real_fmus` times that part alone).
 """
 import dataclasses
 import os
@@ -33,6 +35,7 @@ import time
 import numpy as np
 
 from .adapter import adapter_bench, report_lines
+from .threads import parallel_threads, report_threads
 from .common import TABLE_I, make_steps, master_seconds, slope
 from ..examples import path as example
 from ..scenario.config import load_scenario
@@ -281,6 +284,18 @@ def deadline_bound(quick=False, progress=print):
     return out
 
 
+def with_real_fmus(result, quick, progress):
+    """The result with the real_fmus rows (bench/real_fmus.py) and their targets added."""
+    from .real_fmus import TARGET_FLOOR, real_fmus_rows
+    rows = real_fmus_rows(quick, progress)
+    result["real_fmus"] = rows
+    result["targets"][f"real FMUs: whole run <= {TARGET_FLOOR} x the floor on every row"] = rows["within_floor"]
+    if rows["explicit_not_slower_than_libcosim"] is not None:
+        result["targets"]["real FMUs: wavecosim explicit <= libcosim per macro-step"] = \
+            rows["explicit_not_slower_than_libcosim"]
+    return result
+
+
 def with_scale_and_classical(result, scenario, quick, progress):
     """The result with the scale rows (bench_scale.py) and the classical masters' kernel route
     (bench_classical.py) added, and their targets."""
@@ -290,10 +305,33 @@ def with_scale_and_classical(result, scenario, quick, progress):
     add_newton_rows(result, quick, progress)       # the newton rows (bench_newton.py)
     scale, classical = scale_rows(quick, progress), classical_rows(scenario, quick, progress)
     result.update(us_per_subsystem_iter=scale["us_per_subsystem_iter"], scale=scale, classical_kernel=classical)
+    with_real_fmus(result, quick, progress)
     result["targets"].update({"N = 512 within 1.5x of N = 8 per subsystem and iteration": scale["target_met"],
                               "classical masters on the kernel >= 10x faster than their Python loops":
                               classical["target_met"]})
     return result
+
+
+def real_fmus(quick, progress):
+    """The real_fmus rows alone (bench/real_fmus.py)."""
+    from .real_fmus import real_fmus_rows
+    return real_fmus_rows(quick, progress)
+
+
+def report_real(rows):
+    from .real_fmus import report_real_fmus
+    return report_real_fmus(rows)
+
+
+PARTS = {"parallel_threads": (parallel_threads, report_threads),      # `wavecosim bench --only NAME`
+         "real_fmus": (real_fmus, report_real)}
+
+
+def run_part(name, quick=False, progress=print):
+    """One part of the bench alone: ({name: its figures}, its printed lines)."""
+    measure, lines = PARTS[name]
+    figures = measure(quick, progress)
+    return {name: figures, "quick": quick}, lines(figures)
 
 
 def run_bench(quick=False, progress=print):
@@ -306,6 +344,7 @@ def run_bench(quick=False, progress=print):
     progress("  Table I sweep K = 0..50 through the runner")
     sweep_s, sweep_alone_s = sweep_master_time(scenario)
     par = parallel(load_scenario(HEAVY), heavy_steps, heavy_repeats, progress)
+    threads = parallel_threads(quick, progress)
     whole = run_overhead(scenario.with_changes(T=n_steps * scenario.dt), 3 * repeats,   # runs of ~1-30 ms: more repeats
                          10_000 if quick else 100_000, progress)
     over = {k: v["run_over_master"] for k, v in whole.items()}
@@ -326,6 +365,7 @@ def run_bench(quick=False, progress=print):
                   "master_alone_s": sweep_alone_s},
         "parallel": par,
         "parallel_speedup": par["speedup"],
+        "parallel_threads": threads,
         "whole_run": whole,
         **run_ratios(whole),
         "wave_adapter": adapter_bench(quick, 1 if quick else repeats, progress),
@@ -336,6 +376,7 @@ def run_bench(quick=False, progress=print):
             "naive_over_fast >= 10": ratios["naive_over_fast"] >= TARGETS["naive_over_fast_min"],
             "sweep master time < 1 s": sweep_s < TARGETS["sweep_master_s_max"],
             "parallel speedup >= 1.6": par["speedup"] >= TARGETS["parallel_speedup_min"],
+            "parallel_threads speedup >= 0.8 x min(threads, CPUs)": threads["target_met"],
             **run_targets(over),
         },
     }, scenario, quick, progress)
@@ -387,6 +428,7 @@ def report(result):
                  f"{p['load_average_1min']:.2f}): threads=1 {p['serial_s']:.3f} s, threads=2 {p['parallel_s']:.3f} s, "
                  f"speedup {p['speedup']:.2f}x")
     lines.append(f"  threads: auto -> {p['auto']}")
+    lines.extend(report_threads(result["parallel_threads"]))
     lines.append(f"{'whole run':<24}{'µs/step run':>13}{'its master':>12}{'master alone':>14}{'run / master alone':>20}")
     for key, w in result["whole_run"].items():
         lines.append(f"{key:<24}{w['run_us_per_step']:>13.2f}{w['master_us_per_step']:>12.2f}"
@@ -406,5 +448,6 @@ def report(result):
     lines.extend(report_classical(result["classical_kernel"]))
     from .newton import report_newton
     lines.extend(report_newton(result["newton_kernel"]))
+    lines.extend(report_real(result["real_fmus"]))
     lines.append("targets: " + ", ".join(f"{k}: {'met' if v else 'MISSED'}" for k, v in result["targets"].items()))
     return lines

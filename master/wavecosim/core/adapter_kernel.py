@@ -7,7 +7,7 @@ function table the DR kernel calls as a wave port (set a, doStep solves, get b),
 FMU function table it was given. Queries made from Python (gamma probes, certificates, a redone
 commit) run the same C solve on the same memory, so both routes see one adapter.
 """
-from ..kernel.adapter import AD_FMU, AD_SINGULAR, AD_STALLED, new_adapter, shim
+from ..kernel.adapter import AD_FMU, AD_SINGULAR, AD_STALLED, field_address, new_adapter, shim
 from . import ports
 
 
@@ -35,6 +35,18 @@ class KernelAdapter(ports.AdapterPort):
     def shim(self):
         """(function table, component) of the adapter as an fmi2 wave port, for the DR kernel."""
         return shim(self.lib, self.struct)
+
+    def impedance(self):
+        """Addresses of the C struct's gamma and k (the kernel's port view reads them at each commit)."""
+        return self._address("gamma"), self._address("k")
+
+    def counters(self):
+        """Addresses of the C struct's worst_accepted (the kernel's energy ledger reads it: Scene.map_noise)
+        and do_steps (its count of the FMU's doSteps)."""
+        return self._address("worst_accepted"), self._address("do_steps")
+
+    def _address(self, name):
+        return field_address(self.struct, name)
 
     def _set_weights(self, gamma):
         self.weights(gamma)

@@ -7,12 +7,13 @@ FMI 3 FMU, wavecosim/fmi3.py puts its fmi3 functions behind the same signatures)
 the subsystem's port (wavecosim/core/ports.py): the FMU's own wave mode, or the wave adapter for an FMU
 with only a physical port.
 """
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..kernel import cvalues, queries
-from ..errors import FmuError
+from ..errors import FmuError, SimulationEnded
 from ..kernel.drkernel import FUNCTIONS
 from .adapter_kernel import KernelAdapter
 from .ports import DirectPort, WaveAdapter
@@ -124,7 +125,17 @@ class Subsystem:
         """One doStep from the current state with the inputs already set: a subsystem without a port
         (signals only), stepped once per macro-step and never frozen or rolled back."""
         self.begin(step_index, t)
-        self._call(self._do_step, "fmi2DoStep", self._comp, self._t, self._h, 1)     # never rolled back
+        status = self._do_step(self._comp, self._t, self._h, 1)                     # never rolled back
+        reached = self.fmu.asked_to_end(status) if status > 1 else None
+        if reached is not None:
+            done = math.isclose(reached, t + self.dt, rel_tol=1e-12, abs_tol=1e-12 * self.dt)
+            where = "after the step to" if done else "in the step from"
+            error = SimulationEnded(f"subsystem {self.name} ended the simulation {where} t = "
+                                    f"{t + self.dt if done else t:.6g}", subsystem=self.name, step=step_index, time=t)
+            error.step_done = done
+            raise error
+        if status > 1:
+            raise self.fmu.status_error("fmi2DoStep", status, step_index, t)
         self.calls["doStep"] += 1
 
     def freeze(self, step_index, t):
@@ -171,6 +182,13 @@ class Subsystem:
         if not isinstance(self.map, KernelAdapter):
             self.map = KernelAdapter(self.map, fns, comp, functions)
         return self.map.shim()
+
+    def port_scales(self):
+        """(in_scale, out_scale) of a signed physical port (ports.DirectPort), or None: the kernel then
+        calls the FMU through portview.c's signed shim, making the same products."""
+        if isinstance(self.map, DirectPort) and self.map.in_scale is not None:
+            return self.map.in_scale, self.map.out_scale
+        return None
 
     def plain_wave_port(self):
         """Whether the port is the FMU's own wave map: no adapter, no input scaling."""

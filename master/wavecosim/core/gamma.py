@@ -27,14 +27,19 @@ Modes (YAML `gamma:` or `--gamma`; they override per-subsystem `gamma:` keys):
   smaller FNE bound (near the geometric mean of the port impedances). It leaves Condition 1 and
   Theorem 1; the run warns and reports the augmented residual.
 """
+import hashlib
+import json
 import math
+import os
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from . import interconnection as ic
 from .waves import outgoing_wave
 from ..errors import ConfigError, NumericalError
+from ..kernel.build import cache_dir
 
 MODES = ("auto", "auto-retune", "fast-unsafe", "fastest")       # the one list of gamma modes
 PROBE_GAMMA = 0.4       # the gamma FMUs start at (when the scenario gives no number) before a mode probes them
@@ -224,7 +229,7 @@ def dr_eigenvalues(scene, probes, gammas):
 def choose_relaxation(scene, b, P):
     """`master.relaxation: auto`: probe the frozen maps at x^0 around u^0 = P b, predict the contraction
     of each lambda from the linearized operator and pick the fastest (best_relaxation)."""
-    probes = probe_scene(scene, b, 0, 0.0, P)
+    probes = probe_scene(scene, b, 0, scene.scenario.start_time, P)
     mu = dr_eigenvalues(scene, probes, [scene.gammas[s.name] for s in scene.subsystems])
     lam, rate = best_relaxation(mu)
     return {"relaxation": lam, "rate_plain": relaxed_rate(mu, 1.0), "rate_relaxed": rate}
@@ -293,7 +298,66 @@ def _fast_unsafe(rate, probes, finite, ref, count):
     return common * count, best
 
 
+_CHOICES = {}            # recent choose_gamma results by their inputs (a run's lockstep reference repeats the search)
+CHOICES_KEPT = 8
+CACHE_FILES_KEPT = 256   # choices kept on disk (the oldest go first)
+
+
+def _choice_key(scene, probes, mode, secant, ceiling):
+    """A hash of everything choose_gamma reads, and of the code that reads it."""
+    h = hashlib.sha256(repr((mode, scene.E.shape, tuple(scene.sizes), str(scene.scenario.master.relaxation),
+                             tuple(sorted((secant or {}).items())), tuple(sorted((ceiling or {}).items())),
+                             [(p.name, p.gamma) for p in probes], np.__version__)).encode())
+    for part in (scene.E, scene.F, *[m for p in probes for m in (p.dE, p.dF)]):
+        h.update(np.ascontiguousarray(part, dtype=np.float64).tobytes())
+    for source in (__file__, ic.__file__):
+        h.update(Path(source).read_bytes())
+    return h.hexdigest()[:32]
+
+
+def _cached_choice(key):
+    """A choice stored by an earlier process (the gamma folder of the build cache), or None."""
+    try:
+        d = json.loads((cache_dir() / "gamma" / f"{key}.json").read_text())
+        return GammaChoice(d["gammas"], d["mode"], d["bounds"], d["rate"], d["guaranteed"])
+    except (OSError, ValueError, KeyError):
+        return None
+
+
+def _store_choice(key, choice):
+    folder = cache_dir() / "gamma"
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        old = sorted(folder.glob("*.json"), key=lambda f: f.stat().st_mtime)
+        for f in old[:max(0, len(old) - CACHE_FILES_KEPT + 1)]:
+            f.unlink(missing_ok=True)
+        tmp = folder / f".{key}.{os.getpid()}.tmp"
+        tmp.write_text(json.dumps({"gammas": choice.gammas, "mode": choice.mode, "bounds": choice.bounds,
+                                   "rate": choice.rate, "guaranteed": choice.guaranteed}))
+        os.replace(tmp, folder / f"{key}.json")
+    except OSError:
+        pass                           # a read-only cache only costs the search next time
+
+
 def choose_gamma(scene, probes, mode, where="gamma", secant=None, ceiling=None):
+    """_choose_gamma, remembered for the same inputs (the scene's coupling, the probes, the mode): it
+    is a pure function of them, so a run and its lockstep reference, probed alike at x^0, search once,
+    and a later process with the same FMUs and scene reads the choice from the build cache (JSON keeps
+    every float exactly) instead of searching (and importing scipy.optimize)."""
+    key = _choice_key(scene, probes, mode, secant, ceiling)
+    if key not in _CHOICES:
+        choice = _cached_choice(key)
+        if choice is None:
+            choice = _choose_gamma(scene, probes, mode, where, secant, ceiling)
+            _store_choice(key, choice)
+        if len(_CHOICES) >= CHOICES_KEPT:
+            _CHOICES.pop(next(iter(_CHOICES)))
+        _CHOICES[key] = choice
+    choice = _CHOICES[key]
+    return GammaChoice(dict(choice.gammas), choice.mode, dict(choice.bounds), choice.rate, choice.guaranteed)
+
+
+def _choose_gamma(scene, probes, mode, where, secant, ceiling):
     """Each subsystem's gamma for `mode` (see the module docstring). Condition 1 is per subsystem
     (gamma_i <= lambda_min(Z_d,i)) and P stays orthogonal for any positive channel impedances
     (paper Remark 1), so auto searches every gamma_i in (0, SAFETY * bound_i] for the fastest
@@ -368,7 +432,7 @@ class GammaTuner:
         conditioned), set the FMUs' gammas and return the choice."""
         choice = None
         for _ in range(2):
-            probes = probe_scene(self.scene, b0, 0, 0.0, check=True)
+            probes = probe_scene(self.scene, b0, 0, self.scene.scenario.start_time, check=True)
             choice = choose_gamma(self.scene, probes, self.mode, self.where)
             self.scene.set_gammas(choice.gammas)
         self.choices.append((0, choice))

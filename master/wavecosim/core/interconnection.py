@@ -185,17 +185,32 @@ def _snap(M):
     return np.where(np.abs(M - R) < 1e-12, R, M)
 
 
+_CHECKED = {}         # the components of recently checked couplings (gamma searches compile one many times)
+CHECKED_KEPT = 8
+
+
+def _checked_components(E, F, where):
+    """check_dirac, then components(E, F), remembered for the same E and F (neither depends on gamma)."""
+    key = (E.shape, E.tobytes(), F.tobytes())
+    if key not in _CHECKED:
+        check_dirac(E, F, where)
+        if len(_CHECKED) >= CHECKED_KEPT:
+            _CHECKED.pop(next(iter(_CHECKED)))
+        _CHECKED[key] = components(E, F)
+    return _CHECKED[key]
+
+
 def compile_wave_map(E, F, gammas, where="coupling") -> WaveInterconnection:
     """P from E e + F f = 0 for channel impedances `gammas` (one per channel, all > 0)."""
     E, F = np.asarray(E, float), np.asarray(F, float)
-    check_dirac(E, F, where)
+    parts = _checked_components(E, F, where)
     g = np.asarray(gammas, float)
     if g.shape != (E.shape[0],) or not np.all(g > 0) or not np.all(np.isfinite(g)):
         raise CouplingError(f"{where}: gamma must be finite and > 0 on each of the {E.shape[0]} channels")
     left = F / np.sqrt(g) + E * np.sqrt(g)
     right = F / np.sqrt(g) - E * np.sqrt(g)
     P_parts, J_parts, ortho = [], [], 0.0
-    for rows, cols in components(E, F):
+    for rows, cols in parts:
         P, J_L, residual = _compile_block(left[np.ix_(rows, cols)], right[np.ix_(rows, cols)], where)
         ortho = max(ortho, residual)
         P_parts.append((cols, P))

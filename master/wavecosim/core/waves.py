@@ -4,6 +4,8 @@ Discrete waves carry sqrt(dt), so 1/2 (|a|^2 - |b|^2) is the energy through the 
 """
 import math
 
+from ..kernel.linalg import dot
+
 
 def wave_scale(gamma, dt=1.0):
     """k = sqrt(dt / (2 gamma)), so that a = k (e + gamma f) and b = k (e - gamma f)."""
@@ -28,9 +30,9 @@ def power_variables(a, b, gamma, dt=1.0):
 
 def port_energy(a, b):
     """1/2 (|a|^2 - |b|^2): energy entering the port(s) over the step, eq. (5); sums left to right."""
-    return 0.5 * (sum(x * x for x in a) - sum(x * x for x in b))
+    return 0.5 * (dot(a, a) - dot(b, b))
 
 
 def physical_port_energy(e, f, dt):
     """dt e.f: energy entering a port over the step from its stage effort and flow."""
-    return dt * sum(ei * fi for ei, fi in zip(e, f))
+    return dt * dot(e, f)

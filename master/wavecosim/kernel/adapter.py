@@ -74,3 +74,8 @@ def shim(lib, struct):
     """(function table, component) of an adapter as an fmi2 wave port, for the DR kernel to call."""
     return [ctypes.cast(getattr(lib, f"adapter_{name}"), ctypes.c_void_p).value for name in SHIM], \
         ctypes.addressof(struct)
+
+
+def field_address(struct, name):
+    """The address of field `name` of an adapter struct (the kernel reads it at each step)."""
+    return ctypes.addressof(struct) + getattr(type(struct), name).offset

@@ -20,7 +20,7 @@ class PassBlock(ctypes.Structure):
     _fields_ = [("count", ctypes.c_int), ("k", ctypes.c_int), ("wave", ctypes.c_int), ("dt", ctypes.c_double),
                 ("log", ctypes.c_void_p), ("ld", ctypes.c_long), ("out", ctypes.c_void_p), ("ldo", ctypes.c_long),
                 *[(name, _int_p) for name in ("port", "a", "b", "e", "f", "h")],
-                ("prev", _double_p), ("fig", _double_p)]
+                ("prev", _double_p), ("fig", _double_p), ("has_h", _int_p), ("ledger", _double_p)]
 
 
 @mirrors("blocks", "BlockRows")
@@ -30,7 +30,7 @@ class BlockRows(ctypes.Structure):
                 ("inverse", ctypes.c_double), ("dt", ctypes.c_double), ("log", ctypes.c_void_p), ("ld", ctypes.c_long),
                 ("outputs", _int_p), ("steps", ctypes.c_void_p), ("lds", ctypes.c_long),
                 ("trajectory", ctypes.c_void_p), ("ldt", ctypes.c_long),
-                ("iterations_sum", ctypes.c_double), ("iterations_max", ctypes.c_double)]
+                ("iterations_sum", ctypes.c_double), ("iterations_max", ctypes.c_double), ("t0", ctypes.c_double)]
 
 
 @mirrors("blocks", "SampledBlock")

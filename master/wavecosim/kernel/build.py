@@ -16,7 +16,8 @@ SOURCES = Path(__file__).resolve().parent / "c"
 CFLAGS = ["-O2", "-std=c99", "-fPIC", "-ffp-contract=off", "-Wall", "-Wextra", "-Werror"]
 # C files compiled into another file's library: the routes built on the DR kernel's subsystem
 # evaluation (classical.c, newton.c, certs.c) go into libdrkernel.so.
-PART_OF_LIBRARY = {"classical.c": "drkernel", "newton.c": "drkernel", "certs.c": "drkernel"}
+PART_OF_LIBRARY = {"classical.c": "drkernel", "newton.c": "drkernel", "certs.c": "drkernel", "portview.c": "drkernel",
+                   "signals.c": "drkernel"}
 _loaded = {}
 
 

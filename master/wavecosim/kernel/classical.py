@@ -26,6 +26,7 @@ def _library():
         lib.cl_create.argtypes = [p, ip, ip, _double_p]
         lib.cl_fixed_point_step.argtypes = [p, p, p, p, p, ctypes.c_int]      # arrays by address
         lib.cl_explicit_step.argtypes = [p, p, p, p, ctypes.c_int]
+        lib.cl_pass.argtypes = [p, p, p, p, p, ctypes.c_int, ctypes.c_int]
         lib.cl_run_steps.argtypes = [p, p, ctypes.c_int, ctypes.c_int, p, ctypes.c_long, ctypes.c_double,
                                      ctypes.c_int, ctypes.c_int]
         lib.cl_destroy.argtypes = [p]
@@ -39,9 +40,6 @@ def refusal(scene, mode):
     if mode == "false":
         return "master.fast is false"
     why = unusable(scene)
-    if why is None:
-        physical = [s.name for s in scene.subsystems if s.port.physical]
-        why = f"subsystem {physical[0]} has a declared physical port (Python only for now)" if physical else None
     if why is not None and mode == "true":
         raise ConfigError(f"{scene.scenario.source}: master.fast: true, but {why}")
     return why
@@ -68,28 +66,41 @@ class ClassicalKernel:
     def _blocks(self, explicit, sequential, _, io, n0, count, rows, ld, H_cap):
         return self.lib.cl_run_steps(self._handle, io, n0, count, rows, ld, H_cap, explicit, sequential)
 
-    def run_steps(self, n0, count, y, H_cap=math.inf):
+    def run_steps(self, n0, count, y, H_cap=math.inf, measure=False):
         """Macro-steps n0 .. n0 + count - 1 from outputs y in one call (classical.h, cl_run_steps):
-        (steps done, their fast_path.BlockLog, the FmuError of the step after them or None)."""
+        (steps done, their fast_path.BlockLog, the FmuError of the step after them or None);
+        measure: time the evaluations (Kernel.costs)."""
         self.base.b[:] = [float(x) for x in y]
-        return self.base.run_steps(n0, count, H_cap)
+        return self.base.run_steps(n0, count, H_cap, measure)
 
     def configure(self, K, eps, deadline_s):
         self.base.configure(self.base.io.dt, K, eps, deadline_s)
 
-    def fixed_point_step(self, n, t, y, sequential):
+    def fixed_point_step(self, n, t, y, sequential, measure=False):
         """Macro-step n from outputs y: (io, y^{n+1}, committed inputs); raises the reference's FmuError."""
         io = self.base.io
-        io.t = t
+        io.t, io.measure = t, measure
         y_n = np.ascontiguousarray(y, dtype=np.float64)
         y_next, u = np.empty(self.n), np.empty(self.n)
         if self._step(self._handle, self.base._io, y_n.ctypes.data, y_next.ctypes.data, u.ctypes.data, sequential):
             raise self.base.failure(n, t)
         return io, y_next, u
 
-    def explicit_step(self, n, t, y, sequential):
+    def one_pass(self, n, t, y, commit=False, first=False, measure=False):
+        """One Jacobi pass from y (classical.h, cl_pass): (outputs, inputs handed out); first: macro-step
+        n at t begins; commit: the state is kept. Raises the reference's FmuError."""
+        io = self.base.io
+        io.t, io.measure = t, measure
+        y_n = np.ascontiguousarray(y, dtype=np.float64)
+        y_new, u = np.empty(self.n), np.empty(self.n)
+        if self.lib.cl_pass(self._handle, self.base._io, y_n.ctypes.data, y_new.ctypes.data, u.ctypes.data,
+                            int(commit), int(first)):
+            raise self.base.failure(n, t)
+        return y_new, u
+
+    def explicit_step(self, n, t, y, sequential, measure=False):
         """Explicit macro-step n from outputs y, nothing saved: (io, y^{n+1})."""
-        self.base.io.t = t
+        self.base.io.t, self.base.io.measure = t, measure
         y_n = np.ascontiguousarray(y, dtype=np.float64)
         y_next = np.empty(self.n)
         if self.lib.cl_explicit_step(self._handle, self.base._io, y_n.ctypes.data, y_next.ctypes.data, sequential):

@@ -21,12 +21,17 @@ from .build import kernel_library
 from ..errors import ConfigError, FmuError
 from .adapter import load_library as load_adapter_library
 from .linalg import Sparse
+from .portview import ObservedPort, PortView, SignedPort
+from .signals import SignalPlan
 
-PARALLEL_MIN_US = 150.0
+PARALLEL_MIN_US = 150.0   # a thread pays only when it takes over at least this much work per evaluation round
+DR_MAX_THREADS = 64       # drkernel.h
+CPUS_ENV = "WAVECOSIM_CPUS"
 REASONS = ("budget", "tolerance", "deadline", "explicit", "converged", "energy-guard")  # as masters/base.py (the
 #                                                  runner asserts it); the kernel never gives "converged"
 LEDGER_LOG = ("supplied", "ledger", "traffic", "scale", "action", "rounds", "step_s", "round_s", "cpu_s")  # drkernel.h
 FUNCTIONS = (None, "fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2SetReal", "fmi2DoStep", "fmi2GetReal")
+FAILED_EXTRA = -2        # drkernel.h DR_FAILED_EXTRA: the signals or a subsystem stepped alone failed
 FMI_NAMES = ("fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate", "fmi2SetReal", "fmi2DoStep",
               "fmi2GetReal")
 
@@ -59,7 +64,7 @@ class Trace:
         return arr.reshape(self._count, 2, self._n)
 
 
-@mirrors("drkernel", "queries", "DRFunctions")
+@mirrors("drkernel", "queries", "floor", "DRFunctions")
 class DRFunctions(ctypes.Structure):
     """drkernel.h: the FMU functions the kernel calls."""
     _fields_ = [(name, ctypes.c_void_p) for name in
@@ -75,7 +80,7 @@ class DRStep(ctypes.Structure):
                 ("failed_function", ctypes.c_int), ("failed_status", ctypes.c_int), ("stopped", ctypes.c_int),
                 ("ledger_on", ctypes.c_int), ("ledger", ctypes.c_double), ("traffic", ctypes.c_double),
                 ("ledger_rtol", ctypes.c_double), ("step_deadline_s", ctypes.c_double), ("round_s", ctypes.c_double),
-                ("tail_s", ctypes.c_double)]
+                ("tail_s", ctypes.c_double), ("t0", ctypes.c_double)]
 
 
 _lib = None
@@ -92,6 +97,7 @@ def load_library():
         lib.dr_set_subsystem.argtypes = [p, i, ctypes.POINTER(DRFunctions), p, p, ctypes.POINTER(ctypes.c_uint),
                                          ctypes.POINTER(ctypes.c_uint), i, i]
         lib.dr_set_threads.argtypes = [p, i, ctypes.POINTER(ctypes.c_int)]
+        lib.dr_thread_plan.argtypes = [p, ctypes.POINTER(ctypes.c_int)]
         lib.dr_costs.argtypes = [p, d]
         lib.dr_costs.restype = None
         lib.dr_counts.argtypes = [p, ctypes.POINTER(ctypes.c_long)]
@@ -104,6 +110,10 @@ def load_library():
         lib.dr_set_trace.argtypes = [p, d, i]
         lib.dr_set_trace.restype = None
         lib.dr_set_observed.argtypes = [p, i, ctypes.POINTER(ctypes.c_uint), i]
+        lib.dr_set_observed_view.argtypes = [p, i, p, p, i]
+        lib.dr_set_adapter.argtypes = [p, i, p, p]
+        lib.dr_redo_do_steps.argtypes = [p]
+        lib.dr_redo_do_steps.restype = ctypes.c_long
         lib.dr_log_width.argtypes = [p]
         lib.dr_log_width.restype = ctypes.c_size_t
         lib.dr_run_steps.argtypes = [p, ctypes.POINTER(DRStep), i, i, p, ctypes.c_long, ctypes.c_double]
@@ -141,8 +151,15 @@ class BlockLog:
 
 
 def unusable(scene):
-    """Why the kernel cannot run this scene, or None if it can; a library whose structs differ from
-    their mirrors is no reason to fall back but an error (abi.LayoutError)."""
+    """Why the kernel cannot run this scene, or None if it can (subsystems stepped alone need only
+    getReal, setReal and doStep); a library whose structs differ from their mirrors is no reason to
+    fall back but an error (abi.LayoutError)."""
+    for s in scene.signal_only:
+        for name in ("fmi2GetReal", "fmi2SetReal", "fmi2DoStep"):
+            try:
+                s.fmu.function_pointer(name)
+            except (AttributeError, FmuError):
+                return f"subsystem {s.name}: the FMU does not export {s.fmu.function_name(name)}"
     for s in scene.subsystems:
         if not s.fmu.can_save_state:
             return f"subsystem {s.name} cannot get and set its FMU state"
@@ -178,6 +195,13 @@ def kernel_refusal(scene, mode):
 
 
 def available_cpus():
+    """The cores this process may run on, or $WAVECOSIM_CPUS when set (e.g. a container's CPU quota,
+    which the affinity mask does not show)."""
+    value = os.environ.get(CPUS_ENV, "").strip()
+    if value:
+        if not value.isdigit() or int(value) < 1:
+            raise ConfigError(f"{CPUS_ENV} must be a positive integer, got {value!r}")
+        return int(value)
     try:
         return len(os.sched_getaffinity(0))
     except AttributeError:
@@ -217,6 +241,8 @@ class Kernel:
         lib = self.lib = load_library()
         n = scene.n_channels
         self.subsystems = scene.subsystems
+        self.signals, self.alone = scene.kernel_signals(), scene.signal_only     # plain data, or None
+        self.plan, self.views, self.shims = None, [], []    # signals.c's plan, portview.c's views and shims
         array = ctypes.c_double * n
         self.n = n
         # b^n, a, u^0, u^K side by side, so that one slice reads all four after a macro-step
@@ -236,7 +262,11 @@ class Kernel:
             fns, comp = fmu_functions(s)
             if s.adapter:
                 fns, comp, vr_in, vr_out = adapter_port(s, fns, comp)
+                lib.dr_set_adapter(self.handle, i, *s.map.counters())
             else:
+                if s.port_scales() is not None:                # a signed physical port: portview.c's shim
+                    self.shims.append(SignedPort(lib, fns, comp, s.m, *s.port_scales()))
+                    fns, comp = self.shims[-1].functions, self.shims[-1].handle
                 vr_in, vr_out = s.port_vrs()
             # x_i^n goes into the Subsystem's own handle, so that after a fast macro-step the
             # Subsystem holds x_i^n exactly as after the reference one (restore_frozen, thaw work)
@@ -245,7 +275,7 @@ class Kernel:
                                     int(off)):
                 self.close()
                 raise FmuError(f"subsystem {s.name}: the DR kernel refused its port")
-        self.io = DRStep(measure=0, eps=-1.0, deadline_s=0.0)
+        self.io = DRStep(measure=0, eps=-1.0, deadline_s=0.0, t0=scene.scenario.start_time)
         self.at = (None, None)                     # (n, t) of the last macro_step
         self._io = ctypes.byref(self.io)
         self._macro_step = lib.dr_macro_step       # called with pre-converted arguments
@@ -259,12 +289,32 @@ class Kernel:
         with a log of room for `steps` steps made now; returns an empty BlockLog of the blocks' layout
         (what the runner prepares its passes with)."""
         for i, (s, vars_i) in enumerate(zip(self.subsystems, names)):
-            vrs = (ctypes.c_uint * len(vars_i))(*s.fmu.real_vrs(vars_i))
+            port = vars_i if isinstance(vars_i, ObservedPort) else None
+            vrs = (ctypes.c_uint * len(vars_i))(*(range(len(vars_i)) if port else s.fmu.real_vrs(vars_i)))
             if self.lib.dr_set_observed(self._handle, i, vrs, len(vars_i)):
                 raise FmuError(f"subsystem {s.name}: the DR kernel could not keep {len(vars_i)} observed values")
+            if port is not None:
+                self._view(i, s, port)
+        if self.signals is not None:
+            self._take_signals(names[len(self.subsystems):])
         self.width = self.lib.dr_log_width(self._handle)
         self._log_room(0, steps)
         return BlockLog(self.log[:, :0], self.n)
+
+    def _view(self, i, s, port):
+        """Subsystem i's observed values through portview.c's view of its physical port."""
+        view = PortView(self.lib, s.fmu.function_pointer("fmi2GetReal"), s.fmu.component, s.fmu.real_vrs(port.names),
+                        port, s.map.impedance() if port.adapter else None)
+        self.views.append(view)
+        self.lib.dr_set_observed_view(self._handle, i, view.get, view.handle, int(not port.has_H))
+
+    def _take_signals(self, alone_names):
+        """The scene's signals and subsystems stepped alone into the blocks (signals.c), reading
+        alone_names[j] of the j-th subsystem stepped alone after each step."""
+        if self.plan is not None:
+            self.plan.close()
+        vrs = [s.fmu.real_vrs(names) for s, names in zip(self.alone, alone_names)]
+        self.plan = SignalPlan(self.lib, self._handle, self.signals, vrs, FUNCTIONS)
 
     def _log_room(self, keep, steps):
         """A log of room for `steps` steps per call (written through once, so no page of it is first
@@ -291,15 +341,23 @@ class Kernel:
         self._log_room(at, at + count)
         self.io.measure = measure
         log, ld = self.log, self.log.shape[1]
+        if self.plan is not None:
+            self.plan.prepare(n0, count)
         done = self._run_steps(self._handle, self._io, n0, count, log.ctypes.data + 8 * at, ld, H_cap)
-        n = n0 + done
-        error = self.failure(n, n * self.io.dt) if self.io.failed_subsystem >= 0 else None
+        n, failed = n0 + done, self.io.failed_subsystem != -1
+        if self.plan is not None:
+            self.plan.book(n0, done, failed)
+        error = self.failure(n, n * self.io.dt) if failed else None
         return done, BlockLog(log[:, at:at + done], self.n, bool(self.io.stopped)), error
 
     def step_in_progress(self):
         """The macro-step the kernel is making or made last (from t_n, which each step sets first): read
         by another thread while run_steps runs, it tells how far the call has come."""
         return int(round(self.io.t / self.io.dt)) if self.io.dt > 0 else 0
+
+    def redo_do_steps(self):
+        """doSteps of the FMUs in the energy ledger's redos the kernel made so far."""
+        return self.lib.dr_redo_do_steps(self._handle)
 
     def joined_log(self, steps, stopped):
         """The log's first `steps` columns as one BlockLog (a call and the calls it went on after)."""
@@ -384,6 +442,8 @@ class Kernel:
 
     def failure(self, n, t):
         io = self.io
+        if io.failed_subsystem == FAILED_EXTRA:
+            return self.plan.error(n, t)
         sub = self.subsystems[io.failed_subsystem]
         inner = sub.map.kernel_error(n, t) if sub.adapter else None      # the wave adapter's own failure
         return inner or sub.fmu.status_error(FUNCTIONS[io.failed_function], io.failed_status, n, t)
@@ -407,7 +467,19 @@ class Kernel:
         self.threads = n_threads if ok else 1
         return ok
 
+    def thread_plan(self):
+        """The plan in force in the kernel: [thread of subsystem i]."""
+        out = (ctypes.c_int * len(self.subsystems))()
+        self.lib.dr_thread_plan(self.handle, out)
+        return list(out)
+
     def close(self):
+        if self.plan is not None:
+            self.plan.close()
+            self.plan = None
         if self.handle:
             self.lib.dr_destroy(self.handle)
             self.handle = None
+        for part in self.views + self.shims:
+            part.close()
+        self.views, self.shims = [], []

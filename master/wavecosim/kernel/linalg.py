@@ -118,11 +118,77 @@ def inverse(M):
     return [row[n:] for row in A]
 
 
+def solve_sparse(rows, b):
+    """solve() on a sparse A given as rows ({column: value} each, absent entries zero), with the same
+    operations on the entries it stores: the same pivots (the first row of largest |A[r, c]|, a NaN
+    first), the same multipliers, each stored entry of a row updated once per step as there, fill-in
+    starting from 0.0; rows with a zero multiplier and absent entries are skipped, where solve()
+    subtracts exact zeros (which changes no value, at most the sign of a zero in x). The work follows
+    the nonzeros (a chain's banded Newton matrix: linear in n). Returns x as a list, or None when a
+    pivot is zero (kernel/c/newton.c's lu_sparse mirrors it)."""
+    n = len(b)
+    A, x = [dict(row) for row in rows], [float(v) for v in b]
+    where = [set() for _ in range(n)]                 # column -> the rows holding an entry there
+    for r, row in enumerate(A):
+        for j in row:
+            where[j].add(r)
+    for c in range(n):
+        p, best = c, abs(A[c].get(c, 0.0))
+        for r in sorted(r for r in where[c] if r > c) if best == best else ():
+            v = abs(A[r][c])
+            if v != v or v > best:
+                p, best = r, v
+                if v != v:
+                    break
+        if A[p].get(c, 0.0) == 0.0:
+            return None
+        if p != c:
+            _swap_rows(A, x, where, c, p)
+        inv = 1.0 / A[c][c]
+        pivot = [(j, v) for j, v in A[c].items() if j > c]
+        for r in where[c]:
+            ell = A[r][c] * inv if r > c else 0.0
+            if ell != 0.0:                            # a zero multiplier leaves its row as it is
+                row = A[r]
+                for j, v in pivot:
+                    if j not in row:
+                        row[j] = 0.0
+                        where[j].add(r)
+                    row[j] -= ell * v
+                x[r] -= ell * x[c]
+    for c in range(n - 1, -1, -1):
+        x[c] /= A[c][c]
+        for r in where[c]:
+            if r < c:
+                x[r] -= A[r][c] * x[c]
+    return x
+
+
+def _swap_rows(A, x, where, c, p):
+    """Rows c and p of A (and x) exchanged, with the column index following."""
+    for j in set(A[c]) | set(A[p]):
+        has_c, has_p = c in where[j], p in where[j]
+        if has_c != has_p:
+            where[j].discard(c if has_c else p)
+            where[j].add(p if has_c else c)
+    A[c], A[p] = A[p], A[c]
+    x[c], x[p] = x[p], x[c]
+
+
 def dot(x, y):
     """sum_j x_j y_j, left to right from 0.0."""
     acc = 0.0
     for xj, yj in zip(x, y):
         acc += xj * yj
+    return acc
+
+
+def total(x):
+    """sum_j x_j, left to right from 0.0 (the builtin sum() adds with compensation from Python 3.12 on;
+    the kernel's C and the blocks' numpy passes add left to right)."""
+    acc = 0.0
+    for xj in x:
+        acc += xj
     return acc
 
 

@@ -20,7 +20,7 @@ ACCEPT_REL = 1e-5       # relative to the port-wave scale |a| + |b|
 MAX_ITER = 30
 STALL = 3
 NON_FINITE, SINGULAR = "non-finite residual", "singular Jacobian"
-WHY = {1: NON_FINITE, 2: SINGULAR}          # newton.h: NT_NONFINITE, NT_SINGULAR
+WHY = {1: NON_FINITE, 2: SINGULAR, 4: "out of memory"}       # newton.h: NT_NONFINITE, NT_SINGULAR, NT_NO_MEMORY
 NOT_CONVERGED = 3                                                 # newton.h: NT_NOT_CONVERGED
 
 

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from typing import Optional, Protocol, runtime_checkable
 
 from ..errors import ConfigError
-from ..kernel.linalg import matvec
+from ..kernel.linalg import dot, matvec
 from .monolithic import solve_interface
 
 
@@ -93,7 +93,7 @@ class Master:
     def __init__(self, scene, settings):
         self.scene, self.settings = scene, settings
         self.subsystems = scene.subsystems
-        self.dt = scene.scenario.dt
+        self.dt, self.t0 = scene.scenario.dt, scene.scenario.start_time      # t_n = t0 + n dt
         self.deadline_s = settings.deadline_us * 1e-6 if settings.deadline_us else None
         self.inner_deadline_s = self.deadline_s          # the inner loop's share of the deadline
         self.step_started = 0.0                          # perf_counter() when the last step began
@@ -208,7 +208,7 @@ class WaveMaster(Master):
     def supply(inputs, outputs):
         """Energy the interface supplies over a step, 1/2 (|a|^2 - |b|^2) (eq. 5), and its traffic
         1/2 (|a|^2 + |b|^2), the scale of its roundoff."""
-        aa, bb = sum(x * x for x in inputs), sum(x * x for x in outputs)
+        aa, bb = dot(inputs, inputs), dot(outputs, outputs)
         return 0.5 * (aa - bb), 0.5 * (aa + bb)
 
 

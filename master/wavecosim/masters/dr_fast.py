@@ -5,26 +5,23 @@ library is built and every FMU can get and set its state; with `fast: false`, or
 cannot be used, `step` is the Python reference unchanged. Both give the same numbers to the last
 bit, and the same FMU call counts.
 
-Threads (`master.threads`): the first macro-step runs serially and times one evaluation of each
-subsystem; then `1` stays serial, `2` evaluates the subsystems on two threads (the costliest
-first, each onto the less loaded thread), and `auto` does so only when the work the second
-thread would take over costs at least PARALLEL_MIN_US per inner iteration (below that, hand-offs
-and a busy second core cost more than they save), and keeps two threads only if the second
-macro-step, run on them, was at least 1 / KEEP_PARALLEL times faster per evaluation round than
-the first (the threads meet at every iteration, so on a busy machine, where one of them is often
-descheduled, serial is faster). Each thread writes only its own subsystems' outputs and the caller does all the arithmetic, so
-the thread plan never changes a number.
+Threads (`master.threads`, masters/threads.py): the first macro-step runs serially and times one
+evaluation of each subsystem; then `N` evaluates the subsystems on min(N, CPUs, subsystems) threads
+(longest evaluation first, each onto the least loaded thread) and `auto` adds threads only while
+they pay, each plan tried on one macro-step alone; the costs are timed again while threads run and
+the plan re-balanced when they drift. Each thread writes only its own subsystems' outputs and the
+caller does all the arithmetic, so the thread plan never changes a number.
 """
 import math
 import time
 
-from ..kernel.drkernel import PARALLEL_MIN_US, REASONS, Kernel, available_cpus, kernel_refusal, thread_plan
+from ..kernel.drkernel import REASONS, Kernel, kernel_refusal
 from ..kernel.certs import KernelCertificates, supports
 from ..kernel.newton import NewtonKernel
 from .base import StepLog
 from .dr import DRMaster
+from .threads import ThreadPlanner
 
-KEEP_PARALLEL = 0.85      # threads=auto keeps two threads if a round takes at most this much of serial
 BLOCK_SECONDS = 0.25      # run_steps makes about this much work at most, so Ctrl-C and progress stay prompt
 
 
@@ -37,15 +34,13 @@ class FastDRMaster(DRMaster):
 
     def __init__(self, scene, settings):
         super().__init__(scene, settings)
-        self.kernel, self.fast, self.threads = None, False, 1
+        self.kernel, self.fast, self.planner = None, False, None
         self.guarded = None       # the kernel's BlockLog of the last step when step() made the ledger's guard too
         self._guarding = False    # keep_ledger was called: step() makes iteration, commit and redo in one call
         self._newton = None       # the certificates' interface Newton in C (newton_path.NewtonKernel), when asked
         self._certs = None        # the certificates inside the blocks (certs_path.KernelCertificates), when asked
-        # blocks of steps (run_steps) read the observed values in C; a physical port's b is computed
-        # from them in Python (readings.py), so scenes with wave adapters run one step per call
-        self._blocks = not any(s.adapter for s in scene.subsystems)
-        self.thread_note = "serial"
+        # the certificates' C passes need every port to be the FMU's own wave map (no wave adapter)
+        self._exact = not any(s.adapter for s in scene.subsystems)
         self.fast_note = self._kernel_refusal(scene, str(settings.fast).lower())
         if self.fast_note is not None:
             return
@@ -53,12 +48,10 @@ class FastDRMaster(DRMaster):
         self.kernel.configure(self.dt, self.K, self.eps, self.deadline_s)
         self._send_options()
         self.fast, self.fast_note = True, "C kernel"
-        self.thread_mode = str(settings.threads)
-        # the first macro-step this master makes picks the thread plan (None: not made yet)
-        self._choose_after = None if self.thread_mode != "1" and len(self.subsystems) > 1 else -1
-        self._on_trial = False
+        self.planner = ThreadPlanner(self.kernel, settings.threads, len(self.subsystems))
         self._step_s = 0.0        # seconds per macro-step of the last run_steps call
         self._call = 0            # n0 of the last kernel call (salvage after a fault inside it)
+        self._redo_seen = 0       # the kernel's count of redo doSteps when redo_doSteps last looked
 
     def _send_options(self):
         """The named options to the kernel (it forgets b^{n-1} and the Anderson differences)."""
@@ -85,7 +78,7 @@ class FastDRMaster(DRMaster):
     def fixed_point(self, n, t):
         """b* in C (newton.c: nt_solve, the reference's Newton to the last bit) when the kernel runs a
         scene without wave adapters (their Python maps keep figures the C route would not book)."""
-        if self.kernel is None or not self._blocks:
+        if self.kernel is None or not self._exact:
             return super().fixed_point(n, t)
         return self._newton_kernel().solve(n, t, self._b)
 
@@ -97,7 +90,7 @@ class FastDRMaster(DRMaster):
     def kernel_certificates(self, floor):
         """The certificates inside this master's blocks (certs_path.KernelCertificates; the watch keeps
         pairs above `floor`), made on the first ask; None where the blocks cannot compute them."""
-        if self._certs is None and self.kernel is not None and self._blocks and supports(self.scene):
+        if self._certs is None and self.kernel is not None and self._exact and supports(self.scene):
             self._certs = KernelCertificates(self.kernel, self._newton_kernel(), self.scene, floor)
         return self._certs
 
@@ -122,25 +115,17 @@ class FastDRMaster(DRMaster):
             return super().step(n, t)
         kernel = self.kernel
         self.step_started = time.perf_counter()
-        if self._choose_after is None:
-            self._choose_after = n
-        measure = n == self._choose_after
-        timing = self._choose_after >= 0 and n - self._choose_after in (0, 1)
-        started = time.perf_counter() if timing else 0.0
+        measure, timed = self.planner.begin()
         io, redone = self._kernel_step(n, t, measure)
         k = io.iterations
-        if timing:
-            per_round = (time.perf_counter() - started) / (k + 1 + redone)   # K queries, the commit, the redo
+        if timed:   # K queries, the commit, the redo
+            self.planner.end(measure, (time.perf_counter() - self.step_started) / (k + 1 + redone))
         self._note_kernel_steps(n, t, k, 1, redone)   # frozen at x^n (saved by the kernel), calls counted
         n_ch = kernel.n
         out = kernel.results[:]                  # b^{n+1}, a, u^0, u^K
         self._b_step_start, self._b = self._b, out[:n_ch]
         if self._trace is not None:
             self._trace = kernel.recorded(k)
-        if measure:
-            self.choose_threads(kernel.costs(), per_round)
-        elif timing and self._on_trial:
-            self.confirm_threads(per_round)
         u0, uK = (None, None) if redone else (out[2 * n_ch:3 * n_ch], out[3 * n_ch:])   # a redo's log has none
         return StepLog(iterations=k, residual=io.residual, reason=REASONS[io.reason], a_hat=out[n_ch:2 * n_ch],
                        u0=u0, uK=uK)
@@ -174,21 +159,19 @@ class FastDRMaster(DRMaster):
         return self if self.fast else None
 
     def can_run_steps(self, n):
-        """Whether run_steps may make macro-step n: the kernel runs and no trial of two threads is on
-        (threads=auto times it on the macro-step after the first, alone)."""
-        return self.kernel is not None and self._blocks and not self._on_trial \
-            and (self._choose_after is None or n > self._choose_after)
+        """Whether run_steps may make macro-step n: the kernel runs and no thread plan is on trial
+        (threads=auto times each on one macro-step, alone)."""
+        return self.kernel is not None and not self.planner.on_trial
 
     def observe(self, names, steps=0):
         """The variables of each subsystem run_steps reads after every commit (names[i], H_i first),
-        with room for blocks of `steps` steps made now; returns an empty BlockLog of the blocks' layout
-        (None without blocks)."""
-        return self.kernel.observe(names, steps) if self._blocks else None
+        with room for blocks of `steps` steps made now; returns an empty BlockLog of the blocks' layout."""
+        return self.kernel.observe(names, steps)
 
     def guards_steps(self):
-        """Whether step() can keep the energy ledger in the kernel (keep_ledger): the kernel runs and no
-        wave adapter's accuracy (the ledger's tol) moves within a step."""
-        return self.kernel is not None and self._blocks
+        """Whether step() can keep the energy ledger in the kernel (keep_ledger): whenever the kernel runs
+        (it reads the wave adapters' accuracy, the ledger's tol, at each step)."""
+        return self.kernel is not None
 
     def keep_ledger(self, ledger, traffic, rtol):
         """The energy ledger's state for the kernel's next steps and blocks, which it keeps within
@@ -202,28 +185,26 @@ class FastDRMaster(DRMaster):
         making no more than about BLOCK_SECONDS of work: (steps done, their BlockLog, the FmuError
         of the step after them or None). b^n and b^{n+1} of the last step done become the master's,
         so undo_step works as after step()."""
-        if self._choose_after is None:
+        if not self.planner.started:
             return self._first_steps(n0, count, H_cap)
         return self._kernel_steps(n0, count, H_cap)
 
     def _first_steps(self, n0, count, H_cap):
         """The first call: macro-step n0 alone and timed picks the thread plan, then the others
-        follow in a second call unless two threads go on trial (on the next step, alone)."""
-        self._choose_after = n0
-        done, first, error = self._kernel_steps(n0, 1, H_cap, measure=True)
-        if not done:
+        follow in a second call unless a plan goes on trial (on the next step, alone)."""
+        done, first, error = self._kernel_steps(n0, 1, H_cap)
+        if not done or first.stopped or self.planner.on_trial or count == 1:
             return done, first, error
-        self.choose_threads(self.kernel.costs(), self._step_s / (first.iterations[0] + 1))
-        if first.stopped or self._on_trial or count == 1:
-            return 1, first, None
         done, rest, error = self._kernel_steps(n0 + 1, count - 1, H_cap, at=1)    # logged after the first
         return done + 1, self.kernel.joined_log(done + 1, rest.stopped), error
 
-    def _kernel_steps(self, n0, count, H_cap, measure=False, at=0):
+    def _kernel_steps(self, n0, count, H_cap, at=0):
         """One call of the kernel, of at most about BLOCK_SECONDS at the last call's pace, booked; it
-        logs after the last call's first `at` steps (fast_path.Kernel.run_steps)."""
+        logs after the last call's first `at` steps (fast_path.Kernel.run_steps). The thread planner
+        may have it time the evaluations."""
         if self._step_s > 0.0:
             count = max(1, min(count, int(BLOCK_SECONDS / self._step_s)))
+        measure, _ = self.planner.begin()
         started = time.perf_counter()
         if self._certs is not None:
             self._certs.arm(n0, count)
@@ -233,6 +214,8 @@ class FastDRMaster(DRMaster):
             error = self._certs.disarm(done) or error
         if done:
             self._step_s = (time.perf_counter() - started) / done
+            rounds = 1.0 + float(log.iterations.mean()) + float(log.ledger["rounds"].mean())
+            self.planner.end(measure, self._step_s / rounds)
         self._book(n0, done, log)
         return done, log, error
 
@@ -246,13 +229,19 @@ class FastDRMaster(DRMaster):
             self._certs.disarm(made - self._call)
         return made - n0, self.kernel.joined_log(made - n0, False)
 
+    def redo_doSteps(self):
+        """doSteps of the FMUs in the ledger's redos since the last ask (the kernel counts them: a wave
+        adapter's query takes a varying number)."""
+        made, self._redo_seen = self._redo_seen, self.kernel.redo_do_steps()
+        return self._redo_seen - made
+
     def _book(self, n0, done, log):
         """Book macro-steps n0 .. n0 + done - 1 of the kernel: calls and step on the Subsystems, b^n, b^{n+1}."""
         if not done:
             return
         last = n0 + done - 1
         iterations, redone = int(log.iterations.sum()), int(log.ledger["rounds"].sum())
-        self._note_kernel_steps(last, last * self.dt, iterations, done, redone)
+        self._note_kernel_steps(last, self.t0 + last * self.dt, iterations, done, redone)
         self._b_step_start = log.b[done - 2].tolist() if done > 1 else self._b
         self._b = self.kernel.b[:]
         if self._trace is not None:
@@ -274,37 +263,20 @@ class FastDRMaster(DRMaster):
         return StepLog(iterations=int(log.iterations[j]), residual=float(log.residual[j]),
                        reason=REASONS[int(log.reason[j])], a_hat=log.a_hat[j].tolist())
 
-    def choose_threads(self, costs_us, serial_round_s):
-        """After the first (serial) macro-step: pick the thread plan from the measured µs per
-        evaluation of each subsystem; with threads=auto, two threads go on trial for one step."""
-        self.costs_us, self._serial_round_s = costs_us, serial_round_s
-        plan, load = thread_plan(costs_us, 2)
-        if self.thread_mode == "auto":
-            cpus = available_cpus()
-            if min(load) < PARALLEL_MIN_US:
-                self.thread_note = (f"serial: a second thread would take over {min(load):.3g} µs per inner "
-                                    f"iteration (< {PARALLEL_MIN_US:g} µs)")
-                return
-            if cpus < 2:
-                self.thread_note = f"serial: {cpus} CPU available"
-                return
-        if not self.kernel.set_threads(plan):
-            self.thread_note = "serial: the worker thread could not be started"
-            return
-        self.threads, self._on_trial = 2, self.thread_mode == "auto"
-        costs = ", ".join(f"{c:.3g}" for c in costs_us)
-        self.thread_note = f"2 threads: subsystems on threads {plan} (µs per evaluation: {costs})"
+    @property
+    def threads(self):
+        """Threads evaluating the subsystems now (1 on the Python reference)."""
+        return self.planner.threads if self.planner is not None else 1
 
-    def confirm_threads(self, parallel_round_s):
-        """threads=auto, after the second macro-step (on two threads): keep them only if faster."""
-        self._on_trial = False
-        rounds = f"{1e6 * self._serial_round_s:.3g} µs per round serial, {1e6 * parallel_round_s:.3g} µs on two threads"
-        if parallel_round_s <= KEEP_PARALLEL * self._serial_round_s:
-            self.thread_note += f"; {rounds}"
-            return
-        self.kernel.set_threads([0] * len(self.subsystems))
-        self.threads = 1
-        self.thread_note = f"serial: two threads were not faster here ({rounds})"
+    @property
+    def thread_note(self):
+        """Why that many (masters/threads.py)."""
+        return self.planner.note if self.planner is not None else "serial"
+
+    @property
+    def costs_us(self):
+        """µs per evaluation of each subsystem, as last timed (None before)."""
+        return self.planner.costs if self.planner is not None else None
 
     def run_info(self):
         """For the run summary: which path and thread plan ran."""

@@ -18,7 +18,8 @@ class ExplicitMaster(KernelRoute, PhysicalMaster):
 
     def step(self, n, t) -> StepLog:
         if self.kernel is not None:
-            _, self.y = self.kernel.explicit_step(n, t, self.y, int(self.sequential))
+            _, self.y = self.planned(lambda measure: self.kernel.explicit_step(n, t, self.y, int(self.sequential),
+                                                                              measure))
             self.book_kernel(n, t, 0, 1)
             return StepLog(iterations=0, reason="explicit")
         self.y = self.sweep(self.y, lambda sub, inputs: step_forward(sub, n, t, inputs))

@@ -23,18 +23,42 @@ class JacobiIterMaster(KernelRoute, RollbackPhysicalMaster):
     def __init__(self, scene, settings):
         super().__init__(scene, settings)
         self.K, self.eps = settings.K, settings.eps
-        self.attach_kernel(scene, settings, type(self).update is JacobiIterMaster.update)   # plain Picard only
+        self.attach_kernel(scene, settings, type(self).update is JacobiIterMaster.update)   # blocks: Picard only
 
     def step(self, n, t) -> StepLog:
-        if self.kernel is not None:
+        if self.kernel is not None and self.blocks:
             return self._kernel_step(n, t)
+        if self.kernel is not None:
+            return self.planned(lambda measure: self._passes(n, t, measure))[0]
+        return self._iterate(n, t, lambda y: self.sweep(y, lambda sub, inputs: sub.query(inputs)), self.commit)
+
+    def _passes(self, n, t, measure):
+        """The macro-step with its passes in C (classical.h, cl_pass) and the update here: (its StepLog,)."""
+        passes = []
+
+        def query(y):
+            passes.append(1)
+            return self.kernel.one_pass(n, t, y, first=len(passes) == 1, measure=measure)[0]
+
+        def commit(y):
+            self.y_step_start = self.y
+            self.y, self.u = self.kernel.one_pass(n, t, y, commit=True, first=not passes, measure=measure)
+
+        log = self._iterate(n, t, query, commit, freeze=False)
+        self.book_kernel(n, t, log.iterations, 1)
+        return (log,)
+
+    def _iterate(self, n, t, query, commit, freeze=True):
+        """Freeze x^n, iterate y -> update(y, query(y)) within the budget, tolerance and deadline,
+        then commit(y^K)."""
         self.step_started = time.perf_counter()
-        self.scene.freeze(n, t)
+        if freeze:
+            self.scene.freeze(n, t)
         deadline = self.step_started + self.inner_deadline_s if self.deadline_s else None
         y, k, residual, reason = self.y, 0, float("nan"), "budget"
         self.restart()
         while k < self.K:
-            y_tilde = self.sweep(y, lambda sub, inputs: sub.query(inputs))
+            y_tilde = query(y)
             residual = distance(y_tilde.tolist(), y.tolist())
             y, k = self.update(y, y_tilde), k + 1
             if self.eps is not None and residual <= self.eps:
@@ -43,14 +67,15 @@ class JacobiIterMaster(KernelRoute, RollbackPhysicalMaster):
             if deadline is not None and time.perf_counter() >= deadline:
                 reason = "deadline"
                 break
-        self.commit(y)
+        commit(y)
         return StepLog(iterations=k, residual=residual, reason=reason if self.K else "explicit")
 
     def _kernel_step(self, n, t) -> StepLog:
         """The same macro-step in C (classical.c); the Subsystems book its calls."""
         self.step_started = time.perf_counter()
         self.configure_kernel()
-        io, y_next, u = self.kernel.fixed_point_step(n, t, self.y, int(self.sequential))
+        io, y_next, u = self.planned(lambda measure: self.kernel.fixed_point_step(n, t, self.y, int(self.sequential),
+                                                                                  measure))
         self.book_kernel(n, t, io.iterations, 1)
         self.y_step_start, self.y, self.u = self.y, y_next, u
         return StepLog(iterations=io.iterations, residual=io.residual, reason=REASONS[io.reason])

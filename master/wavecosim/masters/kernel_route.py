@@ -9,6 +9,7 @@ from ..kernel.classical import ClassicalKernel, refusal
 from ..kernel.drkernel import REASONS
 from .base import KernelOwner, StepLog
 from .dr_fast import BLOCK_SECONDS
+from .threads import ThreadPlanner
 
 
 class KernelRoute(KernelOwner):
@@ -18,14 +19,33 @@ class KernelRoute(KernelOwner):
     the kernel's budget (`configure_kernel`), books its steps on the Subsystems (`book_kernel`) and
     takes a block's last state (`took_block`)."""
 
-    def attach_kernel(self, scene, settings, has_route=True):
-        self.kernel, self.fast_note = None, "Python reference (this master has no kernel route)"
+    def attach_kernel(self, scene, settings, blocks=True):
+        """The kernel when master.fast allows it; blocks: it makes whole macro-steps (else only the
+        passes, the master's update staying in Python)."""
+        self.kernel, self.blocks, self.planner = None, blocks, None      # planner: masters/threads.py
         self._step_s = 0.0                     # seconds per macro-step of the last run_steps call
-        if has_route:
-            self.fast_note = refusal(scene, str(settings.fast).lower())
-            if self.fast_note is None:
-                explicit = not self.needs_rollback
-                self.kernel, self.fast_note = ClassicalKernel(scene, self.G, explicit, self.sequential), "C kernel"
+        self.fast_note = refusal(scene, str(settings.fast).lower())
+        if self.fast_note is None:
+            explicit = not self.needs_rollback
+            self.kernel = ClassicalKernel(scene, self.G, explicit, self.sequential)
+            self.fast_note = "C kernel" if blocks else "C kernel passes, the update in Python"
+            self.planner = ThreadPlanner(self.kernel.base, settings.threads, len(self.subsystems),
+                                         independent=not self.sequential)
+
+    def run_info(self):
+        """The route and the thread plan of its passes (serial on the Python reference)."""
+        threads, note = (self.planner.threads, self.planner.note) if self.planner else (1, "serial")
+        return {**super().run_info(), "threads": threads, "thread_note": note}
+
+    def planned(self, step):
+        """step(measure) -> (io, ...), a kernel macro-step made under the thread plan: timed when the
+        planner asks (its evaluations, or its round for a plan on trial)."""
+        measure, timed = self.planner.begin()
+        started = time.perf_counter()
+        out = step(measure)
+        if timed:
+            self.planner.end(measure, (time.perf_counter() - started) / (out[0].iterations + 1))
+        return out
 
     keeps_ledger = False          # the ledger is kept step by step for these masters
 
@@ -35,8 +55,8 @@ class KernelRoute(KernelOwner):
         return self.kernel is not None
 
     def route(self):
-        """This master as its kernel route (base.Route) while the kernel runs."""
-        return self if self.kernel is not None else None
+        """This master as its kernel route (base.Route) while the kernel makes its macro-steps."""
+        return self if self.kernel is not None and self.blocks else None
 
     def guards_steps(self):
         return False
@@ -45,7 +65,8 @@ class KernelRoute(KernelOwner):
         raise NotImplementedError("the classical masters keep the energy ledger step by step")
 
     def can_run_steps(self, n):
-        return self.kernel is not None
+        """The kernel runs and no thread plan is on trial (it is timed on one macro-step, alone)."""
+        return self.kernel is not None and self.blocks and not self.planner.on_trial
 
     def observe(self, names, steps=0):
         """The variables of each subsystem run_steps reads after every commit (names[i], H_i first),
@@ -58,12 +79,14 @@ class KernelRoute(KernelOwner):
         if self._step_s > 0.0:
             count = max(1, min(count, int(BLOCK_SECONDS / self._step_s)))
         self.configure_kernel()
+        measure, _ = self.planner.begin()
         started = time.perf_counter()
-        done, log, error = self.kernel.run_steps(n0, count, self.y, H_cap)
+        done, log, error = self.kernel.run_steps(n0, count, self.y, H_cap, measure)
         if done:
             self._step_s = (time.perf_counter() - started) / done
+            self.planner.end(measure, self._step_s / (1.0 + float(log.iterations.mean())))
             last = n0 + done - 1
-            self.book_kernel(last, last * self.dt, int(log.iterations.sum()), done)
+            self.book_kernel(last, self.t0 + last * self.dt, int(log.iterations.sum()), done)
             self.took_block(log, done)
         return done, log, error
 

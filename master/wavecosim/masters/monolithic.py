@@ -11,40 +11,51 @@ the port-wave scale |a| + |b|. Past the absolute level, Newton also stops after 
 a row that do not halve the residual (it has reached the FMUs' noise floor). Our own FMUs converge
 to TOL well before either applies, so their reference results do not depend on them.
 
-The arithmetic runs in a fixed operation order (wavecosim/kernel/linalg.py: sums left to right, the LU
-solve of `solve`), mirrored by kernel/c/newton.c, so the Newton master's kernel route
-(wavecosim/kernel/newton.py, which also holds the acceptance constants both share) gives the same bits.
+The Jacobian is block-diagonal (one block per subsystem) and P is sparse, so the Newton matrix
+I - J_S P is sparse too: it is built row by row from P's stored entries and solved by the sparse LU
+of linalg.solve_sparse, whose work follows the nonzeros (a chain of N subsystems: linear in N, as
+the master). The arithmetic runs in a fixed operation order (wavecosim/kernel/linalg.py: sums left
+to right, the LU's pivots and updates), mirrored by kernel/c/newton.c, so the Newton master's kernel
+route (wavecosim/kernel/newton.py, which also holds the acceptance constants both share) gives the
+same bits.
 """
 import numpy as np
 
-from ..kernel.linalg import distance, matvec, norm2, solve
+from ..kernel.linalg import distance, matvec, norm2, solve_sparse
 from ..kernel.newton import (ACCEPT, ACCEPT_REL, MAX_ITER, NON_FINITE, SINGULAR, STALL, TOL, failed,
                              not_converged)
 
 
 def _jacobian(scene, a, s, h):
-    """dS/da of the block-diagonal frozen map by forward differences, one query per channel index."""
-    n, J_S = len(a), np.zeros((len(a), len(a)))
+    """dS/da of the block-diagonal frozen map by forward differences, one query per channel index:
+    its diagonal blocks (m x m, one per subsystem)."""
+    n, blocks = len(a), [np.zeros((m, m)) for m in scene.sizes]
     for j in range(max(scene.sizes)):
         da = np.zeros(n)
         da[[off + j for off, m in zip(scene.offsets, scene.sizes) if j < m]] = h
         ds = (np.array(scene.S(list(a + da))) - s) / h
-        for off, m in zip(scene.offsets, scene.sizes):
+        for J, off, m in zip(blocks, scene.offsets, scene.sizes):
             if j < m:
-                J_S[off:off + m, off + j] = ds[off:off + m]
-    return J_S
+                J[:, j] = ds[off:off + m]
+    return blocks
 
 
-def newton_matrix(J_S, P, offsets, sizes):
-    """I - J_S P for the block-diagonal J_S: entry (i, j) sums J_S[i, k] P[k, j] over k ascending
-    (P's stored entries, subsystem blocks of J_S), then is subtracted from the identity's."""
-    n = len(J_S)
-    JP = np.zeros((n, n))
-    for off, m in zip(offsets, sizes):
-        for k in range(off, off + m):
-            cols, vals = P.col[P.start[k]:P.start[k + 1]], P.val[P.start[k]:P.start[k + 1]]
-            JP[off:off + m, cols] += J_S[off:off + m, k, None] * vals
-    return np.eye(n) - JP
+def newton_matrix(blocks, P, offsets, sizes):
+    """I - J_S P as sparse rows ({column: value}) for the block-diagonal J_S: entry (i, j) sums
+    J_S[i, k] P[k, j] from 0.0 over k ascending in i's block (P's stored entries), then is subtracted
+    from the identity's (the diagonal always stored)."""
+    rows = []
+    for J, off, m in zip(blocks, offsets, sizes):
+        for r in range(m):
+            acc = {}
+            for k in range(m):
+                for j, v in zip(*P.rows[off + k]):
+                    acc[j] = acc.get(j, 0.0) + float(J[r, k]) * v
+            i = off + r
+            row = {j: (1.0 if j == i else 0.0) - x for j, x in acc.items()}
+            row.setdefault(i, 1.0 - 0.0)
+            rows.append(row)
+    return rows
 
 
 def solve_interface(scene, P, b0, tol=TOL, max_iter=MAX_ITER, where=""):
@@ -67,10 +78,10 @@ def solve_interface(scene, P, b0, tol=TOL, max_iter=MAX_ITER, where=""):
         a = np.array(a)
         J_S = _jacobian(scene, a, np.array(s), 1e-7 * (1.0 + float(np.abs(a).max())))
         evals += max(scene.sizes)
-        step = solve(newton_matrix(J_S, P, scene.offsets, scene.sizes), [-(bi - si) for bi, si in zip(b, s)])
+        step = solve_sparse(newton_matrix(J_S, P, scene.offsets, scene.sizes), [-(bi - si) for bi, si in zip(b, s)])
         if step is None:
             raise failed(where, SINGULAR)
-        b = [bi + di for bi, di in zip(b, step.tolist())]
+        b = [bi + di for bi, di in zip(b, step)]
     b, res, scale = best
     if res > ACCEPT * (1.0 + norm2(b)) and res > ACCEPT_REL * scale:
         raise not_converged(where, res, scale)

@@ -7,7 +7,7 @@ produced (Gauss-Seidel, `sequential`).
 """
 import numpy as np
 
-from ..kernel.linalg import Sparse, matvec_rows
+from ..kernel.linalg import Sparse, matvec_rows, norm1, total
 from .base import Master
 
 
@@ -71,7 +71,7 @@ class RollbackPhysicalMaster(PhysicalMaster):
         """Energy into the ports over a step, dt sum(input * output) (each a conjugate pair), and its
         traffic dt sum |input * output|."""
         powers = [u * y for u, y in zip(inputs, outputs)]
-        return self.dt * sum(powers), self.dt * sum(map(abs, powers))
+        return self.dt * total(powers), self.dt * norm1(powers)
 
 
 def step_forward(sub, n, t, inputs):

@@ -116,11 +116,11 @@ def _owner(path, subsystems):
     return f"an FMU ({Path(path).name})"
 
 
-def describe(fault, request, where, step, dt, step_timeout):
+def describe(fault, request, where, step, t, step_timeout):
     """The FmuCrashed, StepTimeout or Interrupted for a fault record: what happened, in which
-    subsystem and call (`where`, from locate), at which step."""
+    subsystem and call (`where`, from locate), at which step (starting at time t)."""
     who, call = where
-    at = "" if step is None else f" at step {step} (t = {step * dt:.6g})"
+    at = "" if step is None else f" at step {step} (t = {t:.6g})"
     kind, call_text = fault.get("kind"), f" in {call}" if call else ""
     if request in (STOP, TERM) and kind in ("frozen", None, "none"):
         cls, verb = (Terminated, "stopped by SIGTERM") if request == TERM else (Interrupted, "interrupted by the user")
@@ -128,7 +128,7 @@ def describe(fault, request, where, step, dt, step_timeout):
     if request == TIMEOUT and kind in ("frozen", None, "none"):
         late = f"did not finish within {step_timeout:g} s (step timeout)" if step_timeout else "did not finish"
         inside = f"; stopped inside {who}{call_text}" if who else ""
-        return StepTimeout(f"step {step} (t = {step * dt:.6g}) {late}{inside}" if step is not None
+        return StepTimeout(f"step {step} (t = {t:.6g}) {late}{inside}" if step is not None
                            else f"a step {late}{inside}")
     if kind == "exit":
         happened = f"the FMU ended the process with exit({fault.get('code')})"

@@ -161,8 +161,8 @@ class Containment:
         where = locate(fault.get("pc", []), self.libraries(),
                        {k: v for p in self.parts for k, v in self._subsystems(p).items()})
         step = part.steps_done if part is not None else None
-        dt = part.dt if part is not None else None
-        return describe(fault, self.status.request, where, step, dt, self.step_timeout)
+        t = part.t0 + step * part.dt if part is not None else None
+        return describe(fault, self.status.request, where, step, t, self.step_timeout)
 
     def _subsystems(self, part):
         return {str(s.fmu.folder): f"{s.name}{self.labels.get(id(part), '')}" for s in _fmus(part)}

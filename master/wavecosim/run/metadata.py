@@ -5,14 +5,23 @@ import os
 import platform
 import sys
 import time
-from importlib import metadata as importlib_metadata
+
+_versions = {}
 
 
 def _version(package):
-    try:
-        return importlib_metadata.version(package)
-    except importlib_metadata.PackageNotFoundError:
-        return None
+    """The installed version of a package: its __version__ when it is imported, else its metadata
+    (importlib.metadata costs about as much as a run of a few steps, so it is read only then); once."""
+    if package not in _versions:
+        found = getattr(sys.modules.get(package), "__version__", None)
+        if not isinstance(found, str):
+            from importlib import metadata as importlib_metadata
+            try:
+                found = importlib_metadata.version(package)
+            except importlib_metadata.PackageNotFoundError:
+                found = None
+        _versions[package] = found
+    return _versions[package]
 
 
 def _sha256(path):

@@ -22,8 +22,11 @@ from pathlib import Path
 import numpy as np
 
 from ..kernel import blocks, cvalues
-from ..errors import ConfigError, Interrupted, NumericalError, OutputError, RunFailed, Terminated, WavecosimError
+from ..errors import (ConfigError, Interrupted, NumericalError, OutputError, RunFailed, SimulationEnded, Terminated,
+                      WavecosimError)
+from ..fmi.values import BOOLEAN, INTEGER, category
 from ..kernel.drkernel import REASONS as KERNEL_REASONS
+from ..kernel.linalg import total
 from ..core.gamma import GammaTuner
 from ..masters import MASTERS
 from ..masters.base import REASONS, WaveMaster, require_wave_tuning
@@ -39,7 +42,7 @@ from .observers.fne_watch import FneWatch
 from .observers.gamma import GammaLog, TunedGammaLog
 from .observers.passivity import Passivity
 from .outputs import cannot
-from .recorder import BLOCK, Interrupts, Labels, Table, ints, write_json, write_mat
+from .recorder import BLOCK, Interrupts, Labels, Table, Texts, ints, write_json, write_mat
 from ..core.readings import Sampler
 from ..core.scene import build_scene
 from ..fmi.messages import LogFile
@@ -73,12 +76,19 @@ def grid_times(k, dt):
 
 
 def _structured(table):
-    """A table's rows as a NumPy structured array, one float field per column ('reason' as text)."""
+    """A table's rows as a NumPy structured array, one float field per column ('reason' and the
+    recorded String outputs as text)."""
     data = table.array()
-    fields = [(c, "U12" if c == "reason" else "f8") for c in table.columns]
+    texts = {c: f.texts for c, f in zip(table.columns, table.formats) if isinstance(f, Texts)}
+    fields = [(c, "U12" if c == "reason" else f"U{max(map(len, texts[c]), default=1) or 1}" if c in texts
+               else "f8") for c in table.columns]
     out = np.empty(len(data), dtype=fields)
     for j, (name, _) in enumerate(fields):
-        out[name] = [REASONS[int(v)] for v in data[:, j]] if name == "reason" else data[:, j]
+        if name == "reason" or name in texts:
+            names = REASONS if name == "reason" else texts[name]
+            out[name] = [names[int(v)] for v in data[:, j]]
+        else:
+            out[name] = data[:, j]
     return out
 
 
@@ -187,8 +197,11 @@ def open_parts(scenario, warn):
 
 
 def make_observers(scenario, scene, master, tuner, certificates, warn):
-    """The observers this run needs, in the order they act (the energy guard first)."""
+    """The observers this run needs, in the order they act (the energy guard first); none where no
+    subsystem has a port (nothing exchanges energy)."""
     obs, unavailable = [], []
+    if not scene.n_channels:
+        return obs
     has_H = all(s.port.energy is not None for s in scene.subsystems)
     guard = scenario.master.energy_guard or master.default_guard
     if guard == "ledger" and master.guardable:
@@ -233,9 +246,9 @@ class LiveRun:
         self.fmu_log = LogFile(self.out_dir / f"fmu_log{self.suffix}.txt") if self.out_dir is not None else None
         for s in self.scene.subsystems + self.scene.signal_only if self.fmu_log is not None else ():
             s.fmu.messages.attach(self.fmu_log)
-        self.every, self.n_steps, self.dt = output_interval, scenario.n_steps, scenario.dt
-        self.sampler = Sampler(self.scene, scenario.outputs)
-        self.columns = list(scenario.outputs)
+        self.every, self.n_steps, self.dt, self.t0 = output_interval, scenario.n_steps, scenario.dt, scenario.start_time
+        self.sampler = Sampler(self.scene, self.scene.outputs)
+        self.columns = list(self.scene.outputs)
         self.master_time, self.steps_done, self.started = 0.0, 0, time.perf_counter()
         self.iterations = [0, 0]                       # sum and max of the inner iterations per step
         self.loop_time = 0.0                           # start() to the last row written: the run's own per-step cost
@@ -251,7 +264,8 @@ class LiveRun:
     def _tables(self):
         rows = self.n_steps // self.every + 2
         path = (lambda kind: self.out_dir / f"{kind}{self.suffix}.csv") if self.out_dir else (lambda kind: None)
-        self.trajectory = Table(["time", *self.columns], path("trajectory"), expected_rows=rows)
+        self.trajectory = Table(["time", *self.columns], path("trajectory"), expected_rows=rows,
+                                formats=self._output_formats())
         obs_cols = [c for o in self.observers for c in o.columns]
         formats = {"iterations": ints, "reason": Labels(REASONS)}
         for o in self.observers:
@@ -263,7 +277,14 @@ class LiveRun:
             self.slices.append(self.scratch[at:at + len(o.columns)])
             self.spans[id(o)] = slice(at, at + len(o.columns))
             at += len(o.columns)
-        self.time_of = grid_clock(self.dt)
+        clock, t0 = grid_clock(self.dt), self.t0
+        self.time_of = lambda k: t0 + clock(k)          # t_k = t0 + k dt
+
+    def _output_formats(self):
+        """Integer and Boolean outputs written as integers, String (Binary) outputs as quoted text."""
+        texts = self.sampler.typed.texts
+        return {c: Texts(texts[c]) if c in texts else ints for c, kind in zip(self.columns, self.sampler.types)
+                if c in texts or category(kind) in (INTEGER, BOOLEAN)}
 
     def start(self):
         """Read the FMUs at t = 0, start the observers, record the first trajectory row."""
@@ -273,9 +294,9 @@ class LiveRun:
             o.start(first)
         self._check_finite(first, -1)
         row = self.trajectory.next_row()
-        row[0], row[1:] = 0.0, first.outputs
+        row[0], row[1:] = self.t0, first.outputs
         self.trajectory.commit_row()
-        self.first = {"H": sum(first.H), "error": next((o.first for o in self.observers
+        self.first = {"H": total(first.H), "error": next((o.first for o in self.observers
                                                         if isinstance(o, ErrorTracker)), math.nan)}
         self.bracket = any(type(o).before_step is not Observer.before_step for o in self.observers)
         self.guard, self.guard_row = next(((o, row) for o, row in zip(self.observers, self.slices) if o.redoes),
@@ -289,8 +310,8 @@ class LiveRun:
     def step(self, n):
         """Macro-step n: observers before, the master, observers after (the guard may redo), one row;
         returns the Reading of the FMUs after it."""
-        t = n * self.dt
-        self.scene.begin_step(n)                     # signals held over the step (none: nothing)
+        t = self.t0 + n * self.dt
+        self.scene.begin_step(n, t)                  # signals held, signal-only subsystems stepped
         before = self._totals() if self.bracket else None
         for o in self.observers:
             o.before_step(n, t)
@@ -302,7 +323,10 @@ class LiveRun:
         t0 = time.perf_counter()
         log = self.master.step(n, t)
         self.master_time += time.perf_counter() - t0
-        return self._after_master(n, t, log)
+        reading = self._after_master(n, t, log)
+        if self.scene.ended is not None:            # an FMU ended the simulation with this step
+            raise self.scene.ended
+        return reading
 
     def _after_master(self, n, t, log):
         """After the master made step n: read the FMUs, the guard (it may redo), the observers, one row."""
@@ -321,9 +345,8 @@ class LiveRun:
         return reading
 
     def _plan_blocks(self):
-        """Blocks when the master can make them, every observer takes them, nothing acts before a
-        step (a paced observer: before the steps it names; blocks stop before them), and builtin sum()
-        adds left to right (Python < 3.12: the blocks' sums are written so)."""
+        """Blocks when the master can make them, every observer takes them and nothing acts before a
+        step (a paced observer: before the steps it names; blocks stop before them)."""
         guard = self.guard
         self.cap = guard.cap if isinstance(guard, EnergyGuard) else math.inf
         self.ledger = isinstance(guard, EnergyLedger)
@@ -334,8 +357,7 @@ class LiveRun:
                        and all(o.blocks for o, _ in self.after)
                        and (guard is None or isinstance(guard, EnergyGuard)
                             or (self.ledger and route.keeps_ledger))          # classical: step by step
-                       and self.scene.signals is None and blocks.library() is not None
-                       and sys.version_info < (3, 12))
+                       and not self.scene.steps_in_python and self.sampler.whole and blocks.library() is not None)
         self.rows_call = None                    # block_rows' arguments, from the blocks' layout
         self.paced = [o for o in self.observers if o.paced]          # blocks stop before their steps
         if self.blocks:
@@ -386,7 +408,7 @@ class LiveRun:
             self._after_block(n0, log.first(whole))
         if whole < done:
             n = n0 + whole
-            self._after_master(n, n * self.dt, self.master.step_log(log, whole))
+            self._after_master(n, self.t0 + n * self.dt, self.master.step_log(log, whole))
         elif log.stopped:
             self._check_finite(self.sampler.read(), n0 + done - 1)
         self.loop_time = time.perf_counter() - self.loop_started
@@ -433,7 +455,8 @@ class LiveRun:
     def _rows_call(self, log, readings):
         """block_rows' fixed arguments: where the outputs are in the kernel's log, the grid."""
         outputs = blocks.ints([log.observed_at + r for r in readings.rows("outputs")])
-        call = blocks.BlockRows(n_out=len(self.columns), inverse=grid_inverse(self.dt), dt=self.dt, outputs=outputs)
+        call = blocks.BlockRows(n_out=len(self.columns), inverse=grid_inverse(self.dt), dt=self.dt, outputs=outputs,
+                                t0=self.t0)
         return call, cvalues.ref(call)
 
     def lead(self, n, end):
@@ -505,7 +528,7 @@ class LiveRun:
         if not all(map(math.isfinite, reading.outputs)) or not all(map(math.isfinite, H)):
             bad = next((s.name for s, h in zip(self.scene.subsystems, reading.H)
                         if s.port.energy is not None and not math.isfinite(h)), "an output")
-            raise NumericalError(f"non-finite value in {bad} at step {n} (t = {(n + 1) * self.dt:.6g})")
+            raise NumericalError(f"non-finite value in {bad} at step {n} (t = {self.time_of(n + 1):.6g})")
 
     def fmu_calls(self):
         """doStep, save and restore calls the master made (observers' probes excluded)."""
@@ -528,7 +551,7 @@ class LiveRun:
         if self.master is not None:
             out.update(self.master.run_info())
             out.update(self.scene.port_info())
-            out.update(self.scene.signal_info(out.get("fast_note")))
+            out.update(self.scene.signal_info())
         return out
 
     def finish(self, status, message, release=True):
@@ -590,15 +613,20 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
     """Run `scenario` with its master; stream trajectory.csv and steps.csv into out_dir when given.
 
     reference: None (no errors), a RunResult of the monolithic reference, or "lockstep" (run the
-    monolithic reference alongside, writing its files with the label "monolithic"). Raises
+    monolithic reference alongside, writing its files with the label "monolithic"; only where the
+    scene has power bonds: without them there is no interface to solve monolithically). Raises
     RunFailed (with .result) on a failure, Interrupted (with .result) on Ctrl-C; a run of more than
     max_steps macro-steps is refused before anything is opened or allocated."""
     check_steps(scenario, max_steps)
     warn = _once(warn or _warn_stderr)                 # the lockstep reference repeats set-up notes
+    if reference == "lockstep" and not scenario.couplings:
+        reference = None
     live = LiveRun(scenario, out_dir, label, certificates, warn, file_suffix, output_interval, formats)
     ref = None
     try:
         rows = None
+        if not scenario.couplings:         # no power bond: no monolithic reference, no errors
+            reference = None
         if reference == "lockstep":
             try:
                 ref = LiveRun(reference_scenario(scenario), out_dir, "monolithic", False, warn, True,
@@ -625,9 +653,10 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
         result.reference = ref.finish(status, message)
     if status == "interrupted":
         raise type(error)(message, result)
-    error = error or live.write_error or (ref.write_error if ref is not None else None)
-    if error is not None:
-        raise RunFailed(error, result) from error
+    failure = error if status != "finished" else None            # SimulationEnded finishes a run
+    failure = failure or live.write_error or (ref.write_error if ref is not None else None)
+    if failure is not None:
+        raise RunFailed(failure, result) from failure
     return result
 
 
@@ -673,6 +702,8 @@ def _loop(live, ref, progress, contain=None):
             error = Terminated if stop.signal == signal.SIGTERM else Interrupted
             return "interrupted", error("stopped by SIGTERM" if stop.signal == signal.SIGTERM
                                         else "interrupted by the user")
+        except SimulationEnded as exc:              # an FMU ended it: finished, with the steps before
+            return "finished", exc
         except WavecosimError as exc:
             return exc.status, exc
     return "finished", None

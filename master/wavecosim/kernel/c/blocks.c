@@ -47,9 +47,11 @@ static double port_supply(const double *const *x[4], size_t s, int first, int la
 
 /* One block (blocks.py, PassBlock): steps 0 .. count - 1. The values are rows of `log`, ld
  * doubles apart, one value per step: a_hat, b, e, f (channel j: row a[j] ...; port i holds channels
- * port[i] .. port[i + 1] - 1) and the k subsystems' H_i (rows h[i]). The columns r_0 .. r_{k-1},
- * supply, H_total go to `out` (ldo doubles apart). prev[k]: the H_i before the block, left at the
- * last step's. fig[k + 4]: the running max_r_i, max_supply, drift, H_max, carried on, and H_final. */
+ * port[i] .. port[i + 1] - 1) and the k subsystems' H_i (rows h[i]; NaN where has_h[i] is 0). The
+ * columns go to `out` (ldo doubles apart): r_i of each subsystem with H, then the energy into the port
+ * of each one without and its running sum (started from ledger[i], left at the last step's), then
+ * supply, and H_total when every subsystem has H. prev[k]: the H_i before the block, left at the last
+ * step's. fig[k + 4]: the running max_r_i, max_supply, drift, H_max, carried on, and H_final. */
 typedef struct {
     int count, k, wave;
     double dt;
@@ -59,6 +61,8 @@ typedef struct {
     long ldo;
     const int *port, *a, *b, *e, *f, *h;
     double *prev, *fig;
+    const int *has_h;
+    double *ledger;
 } PassBlock;
 
 void passivity_block(const PassBlock *p) {
@@ -69,8 +73,8 @@ void passivity_block(const PassBlock *p) {
     size_t ld = (size_t)p->ld;
     int n = port[k];
     const double *rows[4][n > 0 ? n : 1], *H[k], *const *x[4] = {rows[0], rows[1], rows[2], rows[3]};
-    double *r[k + 2], last[k], worst[k + 1], drift = fig[k + 1], H_max = fig[k + 2], total = fig[k + 3];
-    int seen[k + 1];
+    double *r[k + 2], *cum[k], last[k], worst[k + 1], drift = fig[k + 1], H_max = fig[k + 2], total = fig[k + 3];
+    int seen[k + 1], complete = 1, c = 0;
     for (int j = 0; j < n; j++) {
         rows[0][j] = log + (size_t)a[j] * ld;
         rows[1][j] = wave ? log + (size_t)b[j] * ld : NULL;
@@ -81,12 +85,20 @@ void passivity_block(const PassBlock *p) {
         H[i] = log + (size_t)h[i] * ld;
         last[i] = prev[i];
     }
+    for (int i = 0; i < k; i++)                                /* Passivity.columns */
+        if (p->has_h[i]) r[i] = p->out + (size_t)c++ * (size_t)p->ldo;
+    for (int i = 0; i < k; i++)
+        if (!p->has_h[i]) {
+            r[i] = p->out + (size_t)c++ * (size_t)p->ldo;
+            cum[i] = p->out + (size_t)c++ * (size_t)p->ldo;
+            complete = 0;
+        }
     for (int i = 0; i <= k; i++) {
-        r[i] = p->out + (size_t)i * (size_t)p->ldo;
         worst[i] = -INFINITY;
         seen[i] = 0;
     }
-    r[k + 1] = p->out + (size_t)(k + 1) * (size_t)p->ldo;
+    r[k] = p->out + (size_t)c * (size_t)p->ldo;
+    r[k + 1] = complete ? p->out + (size_t)(c + 1) * (size_t)p->ldo : NULL;
     for (size_t s = 0; s < (size_t)count; s++) {
         double all[2] = {0.0, 0.0}, physical = 0.0;
         total = 0.0;
@@ -96,13 +108,19 @@ void passivity_block(const PassBlock *p) {
             physical += supplied;
             total += Hi;
             last[i] = Hi;
+            if (!p->has_h[i]) {                                 /* the port's own ledger */
+                p->ledger[i] += supplied;
+                r[i][s] = supplied;
+                cum[i][s] = p->ledger[i];
+                continue;
+            }
             r[i][s] = ri;
             worst[i] = ri > worst[i] ? ri : worst[i];          /* branch-free (maxsd), NaN skipped */
             seen[i] += ri == ri;
         }
         double supply = wave ? 0.5 * (all[0] - all[1]) : physical;
         r[k][s] = supply;
-        r[k + 1][s] = total;
+        if (complete) r[k + 1][s] = total;
         worst[k] = supply > worst[k] ? supply : worst[k];
         seen[k] += supply == supply;
         drift += supply;
@@ -132,6 +150,7 @@ typedef struct {
     double *trajectory;
     long ldt;
     double iterations_sum, iterations_max;
+    double t0;          /* the start time: grid point k is t0 + k / inverse (or t0 + k dt) */
 } BlockRows;
 
 void block_rows(BlockRows *p) {
@@ -139,7 +158,7 @@ void block_rows(BlockRows *p) {
     const double *iterations = p->log, *reason = p->log + ld, *residual = p->log + 2 * ld;
     double sum = 0.0, most = -INFINITY;
     for (size_t s = 0; s < count; s++) {
-        double k = p->n0 + 1.0 + (double)s, t = p->inverse > 0.0 ? k / p->inverse : k * p->dt;
+        double k = p->n0 + 1.0 + (double)s, t = p->t0 + (p->inverse > 0.0 ? k / p->inverse : k * p->dt);
         p->steps[s] = t;
         p->steps[lds + s] = iterations[s];
         p->steps[2 * lds + s] = residual[s];

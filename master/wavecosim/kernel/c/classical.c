@@ -25,7 +25,7 @@ CLKernel *cl_create(DRKernel *k, const int *G_start, const int *G_col, const dou
     size_t n = dr_channels(k);
     c->k = k;
     c->G = dr_csr_copy(G_start, G_col, G_val, n);
-    c->y = calloc(4 * n, sizeof(double));
+    c->y = calloc(4 * n + 1, sizeof(double));                  /* n = 0: signals only */
     if (!c->G || !c->y) {
         cl_destroy(c);
         return NULL;
@@ -36,17 +36,23 @@ CLKernel *cl_create(DRKernel *k, const int *G_start, const int *G_col, const dou
     return c;
 }
 
-enum { QUERY = 0, COMMIT = 1, FORWARD = 2 };
+enum { QUERY = DR_QUERY, COMMIT = DR_COMMIT, FORWARD = DR_FORWARD };
 
 /* One pass (PhysicalMaster.sweep): y_new = y, then each subsystem in order gets inputs G y (or,
  * sequential, G y_new with its predecessors' new outputs) and writes its outputs into y_new; the
  * inputs handed out are left in `inputs`. how: QUERY from x_i^n (state discarded), COMMIT from x_i^n,
- * FORWARD from the current state with nothing saved. The first failing subsystem, or -1. */
+ * FORWARD from the current state with nothing saved. A Jacobi pass takes every input first and
+ * evaluates the subsystems in one round on the kernel's threads (measure: timed, dr_costs): the same
+ * numbers, as no subsystem reads another's new outputs. The first failing subsystem, or -1. */
 static int sweep(CLKernel *c, const double *y, double *y_new, double *inputs, double t, double h, int how,
-                 int sequential) {
+                 int sequential, int measure) {
     DRKernel *k = c->k;
     memcpy(y_new, y, dr_channels(k) * sizeof *y);
-    const double *source = sequential ? y_new : y;
+    if (!sequential) {
+        dr_csr_rows(c->G, y, inputs, 0, dr_channels(k));
+        return dr_evaluate_all(k, inputs, y_new, t, h, how, measure);
+    }
+    const double *source = y_new;
     for (int i = 0; i < dr_subsystems(k); i++) {
         size_t off, m;
         dr_span(k, i, &off, &m);
@@ -67,7 +73,7 @@ int cl_fixed_point_step(CLKernel *c, DRStep *io, const double *y_n, double *y_ne
     int it = 0, reason = DR_BUDGET;
     double residual = NAN;
     while (it < io->K) {
-        int f = sweep(c, y, y_new, c->inputs, io->t, io->dt, QUERY, sequential);   /* y~ = S^n(G y) */
+        int f = sweep(c, y, y_new, c->inputs, io->t, io->dt, QUERY, sequential, io->measure);   /* y~ = S^n(G y) */
         if (f >= 0) return dr_fail(k, io, f);
         residual = dr_distance(y_new, y, n);
         double *swap = y;                                        /* y^{k+1} = y~ (Picard) */
@@ -86,8 +92,14 @@ int cl_fixed_point_step(CLKernel *c, DRStep *io, const double *y_n, double *y_ne
     io->iterations = it;
     io->residual = residual;
     io->reason = io->K ? reason : DR_EXPLICIT;
-    int f = sweep(c, y, y_next, u, io->t, io->dt, COMMIT, sequential);  /* the commit, inputs G y^K */
+    int f = sweep(c, y, y_next, u, io->t, io->dt, COMMIT, sequential, io->measure);  /* the commit, inputs G y^K */
     return f >= 0 ? dr_fail(k, io, f) : 0;
+}
+
+int cl_pass(CLKernel *c, DRStep *io, const double *y, double *y_new, double *inputs, int commit, int first) {
+    if (first) dr_begin(c->k, io);
+    int f = sweep(c, y, y_new, inputs, io->t, io->dt, commit ? COMMIT : QUERY, 0, io->measure);
+    return f >= 0 ? dr_fail(c->k, io, f) : 0;
 }
 
 int cl_explicit_step(CLKernel *c, DRStep *io, const double *y_n, double *y_next, int sequential) {
@@ -95,7 +107,7 @@ int cl_explicit_step(CLKernel *c, DRStep *io, const double *y_n, double *y_next,
     io->iterations = 0;
     io->residual = NAN;
     io->reason = DR_EXPLICIT;
-    int f = sweep(c, y_n, y_next, c->inputs, io->t, io->dt, FORWARD, sequential);  /* y^{n+1} = Phi(x^n, G y^n) */
+    int f = sweep(c, y_n, y_next, c->inputs, io->t, io->dt, FORWARD, sequential, io->measure);  /* y^{n+1} = Phi(x^n, G y^n) */
     return f >= 0 ? dr_fail(c->k, io, f) : 0;
 }
 

@@ -19,6 +19,13 @@ CLKernel *cl_create(DRKernel *k, const int *G_start, const int *G_col, const dou
  * Returns 0, or -1 when an FMU call failed (io->failed_*). */
 int cl_fixed_point_step(CLKernel *c, DRStep *io, const double *y_n, double *y_next, double *u, int sequential);
 
+/* One Jacobi pass from the iterate y for a master whose update is not Picard (aitken, iqn-ils: the
+ * update stays in Python): every subsystem from x_i^n with inputs G y, on the kernel's threads;
+ * outputs into y_new, the inputs handed out into `inputs` (n each, the caller's). first: a new
+ * macro-step at io->t (x_i^n is saved on its first evaluation); commit: the state is kept (the
+ * step's one commit). Returns 0, or -1 when an FMU call failed (io->failed_*). */
+int cl_pass(CLKernel *c, DRStep *io, const double *y, double *y_new, double *inputs, int commit, int first);
+
 /* One macro-step of explicit coupling (no state saved): every subsystem steps once with inputs
  * G y_n (sequential: Gauss-Seidel, the newest outputs), outputs into y_next (the caller's, not y_n).
  * Returns like cl_fixed_point_step. */

@@ -32,6 +32,11 @@ typedef struct {
     fmi2ValueReference *in_vr, *out_vr;
     fmi2ValueReference *obs_vr;    /* values read after each commit of dr_run_steps (first: H_i) */
     size_t m, offset, n_obs;
+    fmi2GetRealTYPE *obs_get;      /* reads them (the FMU's getReal, or a view's: dr_set_observed_view) */
+    fmi2Component obs_comp;
+    int obs_no_H;                  /* the first observed value is no stored energy (NaN): not checked */
+    const double *noise;           /* a wave adapter's worst kept residual (dr_set_adapter), or NULL */
+    const long *fmu_do_steps;      /* a wave adapter's count of its FMU's doSteps, or NULL */
     int thread;
     int frozen, dirty;             /* x_i^n saved this macro-step / instance moved away from it */
     int failed_function, failed_status;
@@ -69,10 +74,12 @@ struct DRKernel {
     const double *task_in;
     double *task_out;
     double task_t, task_h;
-    int task_commit, task_measure;
+    int task_how, task_measure;    /* DR_QUERY, DR_COMMIT or DR_FORWARD (kernel_internal.h) */
     DROptions *opt;                /* the DR master's named options, or NULL (the paper's Algorithm 1) */
     DRHookFn hook_before, hook_after; /* around each step of dr_run_steps_of (certs.c), or NULL */
     void *hook_ctx;
+    DRExtra extra;                 /* signals and subsystems stepped alone (signals.c), or zeros */
+    long redo_do_steps;            /* the FMUs' doSteps in the ledger's redos so far */
 };
 
 static double now_ns(void) {
@@ -194,12 +201,15 @@ static int evaluate(Sub *s, const double *in, double *out, double t, double h, i
     return 0;
 }
 
-/* Every subsystem of one thread on the current task; the first that failed, or -1. */
+/* Every subsystem of one thread on the current task; the first that failed, or -1. DR_FORWARD steps
+ * from the current state with nothing saved (dr_advance). */
 static int run_group(DRKernel *k, int thread) {
+    int forward = k->task_how == DR_FORWARD;
     for (int i = 0; i < k->n_sub; i++) {
         Sub *s = &k->sub[i];
-        if (s->thread == thread &&
-            evaluate(s, k->task_in, k->task_out, k->task_t, k->task_h, k->task_commit, k->task_measure))
+        if (s->thread != thread) continue;
+        if (forward) s->frozen = 1, s->dirty = 0;
+        if (evaluate(s, k->task_in, k->task_out, k->task_t, k->task_h, k->task_how != DR_QUERY, k->task_measure))
             return i;
     }
     return -1;
@@ -281,14 +291,14 @@ static void stop_workers(DRKernel *k) {
     for (int i = 0; i < k->n_sub; i++) k->sub[i].thread = 0;
 }
 
-/* Evaluate every subsystem at in -> out (line 10 when commit = 0, lines 20-22 when commit = 1);
- * the first failing subsystem in subsystem order, or -1. */
-static int evaluate_all(DRKernel *k, const double *in, double *out, double t, double h, int commit, int measure) {
+/* Evaluate every subsystem at in -> out (line 10 when how = DR_QUERY, lines 20-22 when DR_COMMIT),
+ * each on its thread; the first failing subsystem in subsystem order, or -1. */
+static int evaluate_all(DRKernel *k, const double *in, double *out, double t, double h, int how, int measure) {
     k->task_in = in;
     k->task_out = out;
     k->task_t = t;
     k->task_h = h;
-    k->task_commit = commit;
+    k->task_how = how;
     k->task_measure = measure;
     if (k->n_threads == 1) return run_group(k, 0);
     unsigned g = ++k->generation;
@@ -430,14 +440,39 @@ int dr_set_observed(DRKernel *k, int i, const fmi2ValueReference *vrs, int count
     free(k->obs);
     s->obs_vr = copy;
     s->n_obs = (size_t)count;
+    s->obs_get = s->fn.getReal;
+    s->obs_comp = s->comp;
+    s->obs_no_H = 0;
     k->obs = obs;
     return 0;
+}
+
+int dr_set_observed_view(DRKernel *k, int i, fmi2GetRealTYPE *get, fmi2Component comp, int no_H) {
+    if (i < 0 || i >= k->n_sub || !get) return -1;
+    k->sub[i].obs_get = get;
+    k->sub[i].obs_comp = comp;
+    k->sub[i].obs_no_H = no_H;
+    return 0;
+}
+
+int dr_set_adapter(DRKernel *k, int i, const double *worst, const long *do_steps) {
+    if (i < 0 || i >= k->n_sub) return -1;
+    k->sub[i].noise = worst;
+    k->sub[i].fmu_do_steps = do_steps;
+    return 0;
+}
+
+long dr_redo_do_steps(const DRKernel *k) { return k->redo_do_steps; }
+
+void dr_set_extra(DRKernel *k, const DRExtra *extra) {
+    static const DRExtra none = {0};
+    k->extra = extra ? *extra : none;
 }
 
 size_t dr_log_width(const DRKernel *k) {
     size_t width = 3 + 2 * k->n;
     for (int i = 0; i < k->n_sub; i++) width += k->sub[i].n_obs;
-    return width + DR_LEDGER_COLUMNS;
+    return width + k->extra.rows + DR_LEDGER_COLUMNS;
 }
 
 /* Log step s after its commit, column-major: value c at rows[c ld + s]; the first failing subsystem's read, or -1. */
@@ -453,10 +488,11 @@ static int log_step(DRKernel *k, const DRStep *io, double *rows, size_t ld, size
     for (int i = 0; i < k->n_sub; i++) {
         Sub *s_i = &k->sub[i];
         if (!s_i->n_obs) continue;
-        if (failed(s_i, DR_FN_GET_REAL, s_i->fn.getReal(s_i->comp, s_i->obs_vr, s_i->n_obs, k->obs))) return i;
+        if (failed(s_i, DR_FN_GET_REAL, s_i->obs_get(s_i->obs_comp, s_i->obs_vr, s_i->n_obs, k->obs))) return i;
         for (size_t j = 0; j < s_i->n_obs; j++) rows[(c + j) * ld + s] = k->obs[j];
         c += s_i->n_obs;
     }
+    if (k->extra.rows && k->extra.observe(k->extra.ctx, rows + c * ld + s, ld)) return DR_FAILED_EXTRA;
     return -1;
 }
 
@@ -468,14 +504,16 @@ static int stop_after(const DRKernel *k, const double *obs, size_t ld, double H_
     double sum = 0.0, magnitude = 0.0;
     for (int i = 0; i < k->n_sub; i++) {
         const Sub *s = &k->sub[i];
-        for (size_t j = 0; j < s->n_obs; j++)
+        for (size_t j = s->obs_no_H && s->n_obs; j < s->n_obs; j++)
             if (!isfinite(obs[j * ld])) return 1;
-        if (s->n_obs) {
+        if (s->n_obs && !s->obs_no_H) {
             sum += obs[0];
             magnitude += fabs(obs[0]);
         }
         obs += s->n_obs * ld;
     }
+    for (size_t j = 0; j < k->extra.rows; j++)
+        if (!isfinite(obs[j * ld])) return 1;
     return isfinite(H_cap) && sum + 4.0 * k->n_sub * DBL_EPSILON * magnitude > H_cap;
 }
 
@@ -601,6 +639,21 @@ static int ledger_redo(DRKernel *k, DRStep *io, double supplied_1, double budget
     return f;
 }
 
+/* Scene.map_noise: the worst relative residual a wave adapter kept, 0.0 for exact maps. */
+static double map_noise(const DRKernel *k) {
+    double noise = 0.0;
+    for (int i = 0; i < k->n_sub; i++)
+        if (k->sub[i].noise && *k->sub[i].noise > noise) noise = *k->sub[i].noise;
+    return noise;
+}
+
+/* doSteps the FMUs made so far (a wave adapter's own count: its queries take a varying number). */
+static long fmu_do_steps(const DRKernel *k) {
+    long n = 0;
+    for (int i = 0; i < k->n_sub; i++) n += k->sub[i].fmu_do_steps ? *k->sub[i].fmu_do_steps : k->sub[i].n_do_step;
+    return n;
+}
+
 /* Book the step just committed (EnergyLedger.after_step): I = 1/2 (|a|^2 - |b|^2); a step with
  * L + I > tol = rtol (traffic + its own) is redone by ledger_redo first. Its row goes into the log's
  * last DR_LEDGER_COLUMNS columns; io->reason becomes DR_ENERGY_GUARD when it was redone. t0, c0: the
@@ -621,10 +674,12 @@ static int ledger_step(DRKernel *k, DRStep *io, double t0, double c0, double *ro
         if (timed && io->reason == DR_DEADLINE && io->step_deadline_s > 0.0)      /* past the inner deadline */
             track(&io->tail_s, 1e-9 * (now - t0) - io->deadline_s);
         supply_of(k->a_hat, k->b, k->n, &out[1], &out[2]);
-        tol = io->ledger_rtol * (io->traffic + out[2]);
+        tol = (io->ledger_rtol + map_noise(k)) * (io->traffic + out[2]);
         if (io->ledger + out[1] > tol) {
             double left = io->step_deadline_s > 0.0 ? io->step_deadline_s - 1e-9 * (now - t0) : INFINITY;
+            long made = fmu_do_steps(k);
             int f = ledger_redo(k, io, out[1], tol - io->ledger, left >= 2.0 * io->round_s, out);
+            k->redo_do_steps += fmu_do_steps(k) - made;
             if (f >= 0) return f;
             if (timed)
                 track_round(io, 1e-9 * (now_ns() - now) / out[4]);
@@ -673,7 +728,11 @@ int dr_run_steps_of(DRKernel *k, DRStep *io, int n0, int count, double *rows, lo
     size_t m = (size_t)ld, first_observed = (3 + 2 * k->n) * m;
     io->stopped = 0;
     for (int s = 0; s < count; s++) {
-        io->t = (double)(n0 + s) * io->dt;
+        io->t = io->t0 + (double)(n0 + s) * io->dt;
+        if (k->extra.before && k->extra.before(k->extra.ctx, io, n0 + s)) {      /* held signals: failed */
+            io->failed_subsystem = DR_FAILED_EXTRA;
+            return s;
+        }
         if (k->hook_before && k->hook_before(k->hook_ctx, io, n0 + s)) return s;    /* not the step's time */
         double c0 = io->ledger_on && io->step_deadline_s > 0.0 ? cpu_ns() : 0.0, t0 = clocked(io) ? now_ns() : 0.0;
         double caller = io->deadline_s;
@@ -682,6 +741,10 @@ int dr_run_steps_of(DRKernel *k, DRStep *io, int n0, int count, double *rows, lo
         io->deadline_s = caller;
         if (failure) return s;
         if (f < 0) f = log_step(k, io, rows, m, (size_t)s);
+        if (f == DR_FAILED_EXTRA) {                                  /* a subsystem stepped alone */
+            io->failed_subsystem = DR_FAILED_EXTRA;
+            return s;
+        }
         if (f >= 0) {
             report_failure(k, io, f);
             return s;
@@ -713,17 +776,17 @@ int dr_floor(DRKernel *k, DRStep *io, const double *inputs, int n_steps) {
 
 DRKernel *dr_create(int n_sub, int n, const double *P, const double *J_L, double *b, double *a_hat,
                     double *u0, double *uK) {
-    if (n_sub < 1 || n < 1) return NULL;
+    if (n_sub < 0 || n < 0 || (n_sub == 0) != (n == 0)) return NULL;   /* none: signals only (signals.c) */
     DRKernel *k = calloc(1, sizeof *k);
     if (!k) return NULL;
-    size_t nn = (size_t)n;
+    size_t nn = (size_t)n, room = nn ? nn : 1;
     k->n_sub = n_sub;
     k->n = nn;
-    k->sub = calloc((size_t)n_sub, sizeof *k->sub);
+    k->sub = calloc((size_t)(n_sub ? n_sub : 1), sizeof *k->sub);
     k->P = P ? csr_from_dense(P, nn) : csr_alloc(nn, 0);
     k->J_L = J_L ? csr_from_dense(J_L, nn) : csr_alloc(nn, 0);
-    k->u = calloc(5 * nn, sizeof(double));
-    k->redo = calloc(4 * nn, sizeof(double));
+    k->u = calloc(5 * room, sizeof(double));
+    k->redo = calloc(4 * room, sizeof(double));
     if (!k->sub || !k->P || !k->J_L || !k->u || !k->redo) {
         dr_destroy(k);
         return NULL;
@@ -784,10 +847,15 @@ void dr_set_trace(DRKernel *k, double *trace, int capacity) {
 }
 
 int dr_set_threads(DRKernel *k, int n_threads, const int *thread_of) {
+    int valid = n_threads >= 1 && n_threads <= DR_MAX_THREADS;
+    for (int i = 0; valid && n_threads > 1 && i < k->n_sub; i++)
+        valid = thread_of[i] >= 0 && thread_of[i] < n_threads;
+    if (valid && n_threads > 1 && n_threads == k->n_threads) {   /* the workers idle between tasks: re-plan only */
+        for (int i = 0; i < k->n_sub; i++) k->sub[i].thread = thread_of[i];
+        return 0;
+    }
     stop_workers(k);
-    if (n_threads < 1 || n_threads > DR_MAX_THREADS) return -1;
-    for (int i = 0; i < k->n_sub; i++)
-        if (n_threads > 1 && (thread_of[i] < 0 || thread_of[i] >= n_threads)) return -1;
+    if (!valid) return -1;
     if (n_threads == 1) return 0;
     for (int id = 1; id < n_threads; id++) {
         Worker *w = &k->worker[id];
@@ -811,6 +879,11 @@ int dr_set_threads(DRKernel *k, int n_threads, const int *thread_of) {
     for (int i = 0; i < k->n_sub; i++) k->sub[i].thread = thread_of[i];
     k->n_threads = n_threads;
     return 0;
+}
+
+int dr_thread_plan(const DRKernel *k, int *thread_of) {
+    for (int i = 0; i < k->n_sub; i++) thread_of[i] = k->sub[i].thread;
+    return k->n_threads;
 }
 
 static int compare_doubles(const void *a, const void *b) {
@@ -870,6 +943,10 @@ void dr_span(const DRKernel *k, int i, size_t *offset, size_t *m) {
 }
 
 void dr_begin(DRKernel *k, DRStep *io) { begin_macro_step(k, io); }
+
+int dr_evaluate_all(DRKernel *k, const double *in, double *out, double t, double h, int how, int measure) {
+    return evaluate_all(k, in, out, t, h, how, measure);
+}
 
 int dr_evaluate(DRKernel *k, int i, const double *in, double *out, double t, double h, int commit) {
     return evaluate(&k->sub[i], in, out, t, h, commit, 0);

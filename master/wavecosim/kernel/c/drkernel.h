@@ -19,7 +19,7 @@
 #include <stddef.h>
 #include "fmi2FunctionTypes.h"
 
-#define DR_MAX_THREADS 8
+#define DR_MAX_THREADS 64
 
 /* Termination reasons (StepLog.reason in Python). */
 enum { DR_BUDGET = 0, DR_TOLERANCE = 1, DR_DEADLINE = 2, DR_EXPLICIT = 3, DR_ENERGY_GUARD = 5 };
@@ -29,6 +29,9 @@ enum { DR_BUDGET = 0, DR_TOLERANCE = 1, DR_DEADLINE = 2, DR_EXPLICIT = 3, DR_ENE
  * running time of one evaluation round (s) and, under a step deadline, the step's CPU time on the
  * calling thread (s; else NaN). Without the ledger: NaN, NaN, NaN, 1, 0, 0, wall time, round, NaN. */
 #define DR_LEDGER_COLUMNS 9
+
+/* DRStep.failed_subsystem when the held signals or a subsystem stepped alone failed (signals.c). */
+#define DR_FAILED_EXTRA (-2)
 
 /* FMU functions, as reported in DRStep.failed_function. */
 enum { DR_FN_NONE = 0, DR_FN_GET_STATE, DR_FN_SET_STATE, DR_FN_SET_REAL, DR_FN_DO_STEP, DR_FN_GET_REAL };
@@ -60,10 +63,12 @@ typedef struct {
     int ledger_on;       /* in (dr_run_steps): keep the interface energy ledger (wavecosim/run/observers/energy_ledger.py) */
     double ledger;       /* in/out: L, the energy the interface supplied so far (steps accepted) */
     double traffic;      /* in/out: the interface's cumulative traffic 1/2 (|a|^2 + |b|^2) */
-    double ledger_rtol;  /* in: a step with L + I^n > rtol (traffic + its own) is redone with its inputs scaled */
+    double ledger_rtol;  /* in: a step with L + I^n > (rtol + the adapters' noise, dr_set_adapter) (traffic + its
+                          * own) is redone with its inputs scaled */
     double step_deadline_s; /* in (dr_run_steps, ledger): wall-clock budget of a step, redo included; <= 0 = none */
     double round_s;      /* in/out (dr_run_steps, ledger): running time of one evaluation round (all subsystems) */
     double tail_s;       /* in/out (dr_run_steps, ledger): running time a step takes past its inner loop's deadline */
+    double t0;           /* in (dr_run_steps): the start time; step n is at t0 + n dt */
 } DRStep;
 
 typedef struct DRKernel DRKernel;
@@ -93,9 +98,12 @@ int dr_set_maps(DRKernel *k, const int *P_start, const int *P_col, const double 
 void dr_set_trace(DRKernel *k, double *trace, int capacity);
 
 /* Evaluate subsystem i on thread thread_of[i] of n_threads (0 = the caller); starts or stops the
- * persistent worker threads as needed. Returns 0, or -1 if a thread cannot be started (the kernel
- * then stays serial). */
+ * persistent worker threads as needed (the same count keeps them and only moves subsystems). Returns
+ * 0, or -1 on a bad plan or if a thread cannot be started (the kernel then stays serial). */
 int dr_set_threads(DRKernel *k, int n_threads, const int *thread_of);
+
+/* The plan in force: thread_of[i] for each subsystem (n_sub values); returns the number of threads. */
+int dr_thread_plan(const DRKernel *k, int *thread_of);
 
 /* The DR master's named options (wavecosim/masters/dr_options.py): relaxation lambda in (0, 2) of
  * line 12, Anderson window (0: off, at most 16), warm start of u^0 from b^n and b^{n-1}. Each call
@@ -113,7 +121,21 @@ int dr_macro_step(DRKernel *k, DRStep *io);
  * the first is its stored energy H_i. Returns 0, or -1 on bad arguments or no memory. */
 int dr_set_observed(DRKernel *k, int i, const fmi2ValueReference *vrs, int count);
 
-/* Doubles per row of dr_run_steps' log: 3 + 2 n + every subsystem's observed count + DR_LEDGER_COLUMNS. */
+/* Observed values of subsystem i read by get(comp, ...) instead of its FMU's getReal (a port view:
+ * portview.c); no_H: its first value is no stored energy (NaN), left out of dr_run_steps' checks.
+ * Call after dr_set_observed. Returns 0, or -1 on bad arguments. */
+int dr_set_observed_view(DRKernel *k, int i, fmi2GetRealTYPE *get, fmi2Component comp, int no_H);
+
+/* Where subsystem i's wave adapter keeps the worst relative residual it accepted (read at each step:
+ * the ledger's tolerance is (io->ledger_rtol + the largest of them) times the traffic) and its count
+ * of the FMU's doSteps, or NULLs. Returns 0, or -1 on bad arguments. */
+int dr_set_adapter(DRKernel *k, int i, const double *worst, const long *do_steps);
+
+/* doSteps of the FMUs in the ledger's redos (dr_run_steps) so far. */
+long dr_redo_do_steps(const DRKernel *k);
+
+/* Doubles per row of dr_run_steps' log: 3 + 2 n + every subsystem's observed count + the values
+ * observed by signals.c (subsystems stepped alone) + DR_LEDGER_COLUMNS. */
 size_t dr_log_width(const DRKernel *k);
 
 /* Macro-steps n0 .. n0 + count - 1, each exactly dr_macro_step at t = (double)n dt, logged

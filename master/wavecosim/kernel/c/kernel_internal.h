@@ -28,6 +28,15 @@ void dr_span(const DRKernel *k, int i, size_t *offset, size_t *m);
 /* A new macro-step: the first evaluation of each subsystem saves x_i^n; failures cleared. */
 void dr_begin(DRKernel *k, DRStep *io);
 
+/* How an evaluation round treats each subsystem: a query from x_i^n (state discarded), the commit from
+ * x_i^n, or a step forward from the current state with nothing saved (dr_advance). */
+enum { DR_QUERY = 0, DR_COMMIT = 1, DR_FORWARD = 2 };
+
+/* Every subsystem at in -> out on its channels, each on the thread of the plan (dr_set_threads), in
+ * one round; measure times each evaluation (dr_costs). The first failing subsystem in subsystem
+ * order, or -1. */
+int dr_evaluate_all(DRKernel *k, const double *in, double *out, double t, double h, int how, int measure);
+
 /* Subsystem i at in -> out on its channels (commit = 0: from x_i^n, state discarded; 1: kept);
  * nonzero when an FMU call failed. */
 int dr_evaluate(DRKernel *k, int i, const double *in, double *out, double t, double h, int commit);
@@ -66,6 +75,18 @@ typedef int (*DRStepFn)(void *ctx, DRStep *io);
 /* dr_run_steps with step(ctx, io) making each macro-step: the same log, observed values and stop. */
 int dr_run_steps_of(DRKernel *k, DRStep *io, int n0, int count, double *rows, long ld, double H_cap, DRStepFn step,
                     void *ctx);
+
+/* What a route adds around each step of dr_run_steps_of (signals.c): before(ctx, io, n) first, at
+ * t_n (nonzero: it failed, and the call ends before step n with failed_subsystem DR_FAILED_EXTRA);
+ * observe(ctx, out, ld) writes `rows` more observed values after the subsystems' (value j at
+ * out[j ld]; nonzero: it failed, as before). */
+typedef struct {
+    int (*before)(void *ctx, DRStep *io, int n);
+    int (*observe)(void *ctx, double *out, size_t ld);
+    size_t rows;
+    void *ctx;
+} DRExtra;
+void dr_set_extra(DRKernel *k, const DRExtra *extra);
 
 /* The caller's buffers the log reads: b (outputs) and a_hat (inputs), n each. */
 double *dr_outputs(DRKernel *k);

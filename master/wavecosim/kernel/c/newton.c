@@ -2,8 +2,8 @@
  * of wavecosim/masters/newton.py, with the FMUs in wave port mode, evaluated by drkernel.c's
  * subsystem evaluation (kernel_internal.h). The arithmetic follows the Python reference operation
  * by operation (a = P b by linalg.matvec, norms and residual summed left to right, the forward
- * difference Jacobian, I - J_S P by monolithic.newton_matrix, the LU solve of linalg.solve), so
- * the numbers are bit-identical. */
+ * difference Jacobian's blocks, I - J_S P by monolithic.newton_matrix as sparse rows, the sparse LU
+ * of linalg.solve_sparse), so the numbers are bit-identical; the work follows the nonzeros. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -12,6 +12,18 @@
 #include "newton.h"
 #include "abi.h"
 
+/* One row of the sparse Newton matrix (entries in no order) and the rows holding a column. */
+typedef struct {
+    int *col;
+    double *val;
+    int len, cap;
+} Row;
+
+typedef struct {
+    int *row;
+    int len, cap;
+} Col;
+
 struct NTKernel {
     DRKernel *k;
     Csr *P;
@@ -19,7 +31,10 @@ struct NTKernel {
     size_t n;
     int max_m;                     /* the largest subsystem's channel count */
     double *b, *best_b, *a, *s, *ap, *sp, *x;    /* scratch, n each */
-    double *J, *M;                 /* n x n: the Jacobian of S, the Newton matrix I - J_S P */
+    double *J;                     /* the Jacobian's diagonal blocks, subsystem i's m x m at block[i] */
+    size_t *block;
+    Row *rows;                     /* the Newton matrix I - J_S P (n rows), reused between solves */
+    Col *cols;                     /* n: which rows hold an entry of each column */
 };
 
 NTKernel *nt_create(DRKernel *k, const int *P_start, const int *P_col, const double *P_val, const NTSettings *set) {
@@ -34,10 +49,20 @@ NTKernel *nt_create(DRKernel *k, const int *P_start, const int *P_col, const dou
         dr_span(k, i, &off, &m);
         if ((int)m > c->max_m) c->max_m = (int)m;
     }
+    size_t blocks = 0, room = n ? n : 1;
+    c->block = calloc((size_t)dr_subsystems(k) + 1, sizeof(size_t));
+    for (int i = 0; c->block && i < dr_subsystems(k); i++) {
+        size_t off, m;
+        dr_span(k, i, &off, &m);
+        c->block[i] = blocks;
+        blocks += m * m;
+    }
     c->P = dr_csr_copy(P_start, P_col, P_val, n);
-    c->b = calloc(7 * n, sizeof(double));
-    c->J = calloc(2 * n * n + 1, sizeof(double));
-    if (!c->P || !c->b || !c->J) {
+    c->b = calloc(7 * room, sizeof(double));
+    c->J = calloc(blocks + 1, sizeof(double));
+    c->rows = calloc(room, sizeof(Row));
+    c->cols = calloc(room, sizeof(Col));
+    if (!c->block || !c->P || !c->b || !c->J || !c->rows || !c->cols) {
         nt_destroy(c);
         return NULL;
     }
@@ -47,7 +72,6 @@ NTKernel *nt_create(DRKernel *k, const int *P_start, const int *P_col, const dou
     c->ap = c->b + 4 * n;
     c->sp = c->b + 5 * n;
     c->x = c->b + 6 * n;
-    c->M = c->J + n * n;
     return c;
 }
 
@@ -81,7 +105,6 @@ static int jacobian(NTKernel *c, double t, double h) {
     for (size_t i = 0; i < n; i++)
         if (fabs(c->a[i]) > amax) amax = fabs(c->a[i]);
     double d = 1e-7 * (1.0 + amax);
-    memset(c->J, 0, n * n * sizeof(double));
     for (int j = 0; j < c->max_m; j++) {
         for (int i = 0; i < dr_subsystems(c->k); i++) {
             size_t off, m;
@@ -94,74 +117,161 @@ static int jacobian(NTKernel *c, double t, double h) {
             size_t off, m;
             dr_span(c->k, i, &off, &m);
             if ((size_t)j >= m) continue;
-            for (size_t r = 0; r < m; r++) c->J[(off + r) * n + off + j] = (c->sp[off + r] - c->s[off + r]) / d;
+            for (size_t r = 0; r < m; r++) c->J[c->block[i] + r * m + (size_t)j] = (c->sp[off + r] - c->s[off + r]) / d;
         }
     }
     return -1;
 }
 
-/* M = I - J_S P (monolithic.newton_matrix): entry (i, j) sums J[i][k] P[k][j] over k ascending in
- * i's subsystem block and P's stored entries, then is subtracted from the identity's. */
-static void newton_matrix(NTKernel *c) {
+/* ---- the sparse Newton matrix and its LU (linalg.solve_sparse) ---- */
+
+/* Where column j sits in row R, or -1. */
+static int find(const Row *R, int j) {
+    for (int q = 0; q < R->len; q++)
+        if (R->col[q] == j) return q;
+    return -1;
+}
+
+/* A new entry (j, v) of row R (or a new row r of column C); nonzero when memory is short. */
+static int append(Row *R, int j, double v) {
+    if (R->len == R->cap) {
+        int cap = R->cap ? 2 * R->cap : 8;
+        int *col = realloc(R->col, (size_t)cap * sizeof(int));
+        if (col) R->col = col;
+        double *val = realloc(R->val, (size_t)cap * sizeof(double));
+        if (val) R->val = val;
+        if (!col || !val) return 1;
+        R->cap = cap;
+    }
+    R->col[R->len] = j;
+    R->val[R->len++] = v;
+    return 0;
+}
+
+static int add_row(Col *C, int r) {
+    if (C->len == C->cap) {
+        int cap = C->cap ? 2 * C->cap : 8;
+        int *row = realloc(C->row, (size_t)cap * sizeof(int));
+        if (!row) return 1;
+        C->row = row, C->cap = cap;
+    }
+    C->row[C->len++] = r;
+    return 0;
+}
+
+/* M = I - J_S P (monolithic.newton_matrix): row i sums J_S[i][k] P[k][j] from 0.0 over k ascending in
+ * i's block and P's stored entries, then subtracts it from the identity's; the diagonal is always
+ * stored. The column index follows. Nonzero when memory is short. */
+static int newton_matrix(NTKernel *c) {
     size_t n = c->n;
     const Csr *P = c->P;
-    double *M = c->M;
-    memset(M, 0, n * n * sizeof(double));
+    for (size_t j = 0; j < n; j++) c->rows[j].len = c->cols[j].len = 0;
     for (int i = 0; i < dr_subsystems(c->k); i++) {
         size_t off, m;
         dr_span(c->k, i, &off, &m);
-        for (size_t k = off; k < off + m; k++)
-            for (int p = P->start[k]; p < P->start[k + 1]; p++)
-                for (size_t r = off; r < off + m; r++) M[r * n + P->col[p]] += c->J[r * n + k] * P->val[p];
+        const double *J = c->J + c->block[i];
+        for (size_t r = 0; r < m; r++) {
+            Row *R = &c->rows[off + r];
+            for (size_t k = 0; k < m; k++)
+                for (int p = P->start[off + k]; p < P->start[off + k + 1]; p++) {
+                    int q = find(R, P->col[p]);
+                    if (q < 0 && append(R, P->col[p], 0.0)) return 1;
+                    q = q < 0 ? R->len - 1 : q;
+                    R->val[q] = R->val[q] + J[r * m + k] * P->val[p];
+                }
+            for (int q = 0; q < R->len; q++) R->val[q] = ((size_t)R->col[q] == off + r ? 1.0 : 0.0) - R->val[q];
+            if (find(R, (int)(off + r)) < 0 && append(R, (int)(off + r), 1.0 - 0.0)) return 1;
+        }
     }
     for (size_t r = 0; r < n; r++)
-        for (size_t j = 0; j < n; j++) M[r * n + j] = (r == j ? 1.0 : 0.0) - M[r * n + j];
+        for (int q = 0; q < c->rows[r].len; q++)
+            if (add_row(&c->cols[c->rows[r].col[q]], (int)r)) return 1;
+    return 0;
 }
 
-/* The first row at or below c of largest |A[r][c]| (numpy's argmax: a NaN counts as largest). */
-static size_t pivot_row(const double *A, size_t n, size_t c) {
-    size_t p = c;
-    double best = fabs(A[c * n + c]);
-    for (size_t r = c + 1; r < n && !isnan(best); r++) {
-        double v = fabs(A[r * n + c]);
-        if (isnan(v) || v > best) {
+static double entry(const Row *R, int j) {
+    int q = find(R, j);
+    return q < 0 ? 0.0 : R->val[q];
+}
+
+/* Rows c and p exchanged (x too), the column index following. */
+static void swap_rows(NTKernel *c, int r1, int r2) {
+    for (int pass = 0; pass < 2; pass++) {
+        const Row *R = &c->rows[pass ? r2 : r1], *other = &c->rows[pass ? r1 : r2];
+        for (int q = 0; q < R->len; q++) {
+            int j = R->col[q];
+            if (find(other, j) >= 0) continue;               /* in both rows: its column keeps both */
+            Col *C = &c->cols[j];
+            for (int t = 0; t < C->len; t++)
+                if (C->row[t] == (pass ? r2 : r1)) C->row[t] = pass ? r1 : r2;
+        }
+    }
+    Row tmp = c->rows[r1];
+    c->rows[r1] = c->rows[r2];
+    c->rows[r2] = tmp;
+    double x = c->x[r1];
+    c->x[r1] = c->x[r2];
+    c->x[r2] = x;
+}
+
+/* The pivot row of column col (linalg.solve_sparse): the first row at or below it of largest |A[r][col]|,
+ * the first NaN before any number. */
+static int pivot_row(const NTKernel *c, int col) {
+    int p = col, nan_row = -1;
+    double best = fabs(entry(&c->rows[col], col));
+    if (isnan(best)) return col;
+    const Col *C = &c->cols[col];
+    for (int t = 0; t < C->len; t++) {
+        int r = C->row[t];
+        if (r <= col) continue;
+        double v = fabs(entry(&c->rows[r], col));
+        if (isnan(v)) {
+            if (nan_row < 0 || r < nan_row) nan_row = r;
+        } else if (v > best || (v == best && r < p && p != col)) {
             p = r;
             best = v;
         }
     }
-    return p;
+    return nan_row >= 0 ? nan_row : p;
 }
 
-static void swap_rows(double *A, double *x, size_t n, size_t r, size_t p) {
-    if (r == p) return;
-    for (size_t j = 0; j < n; j++) {
-        double tmp = A[r * n + j];
-        A[r * n + j] = A[p * n + j];
-        A[p * n + j] = tmp;
-    }
-    double tmp = x[r];
-    x[r] = x[p];
-    x[p] = tmp;
-}
-
-/* x <- A^-1 x by LU with partial pivoting, in linalg.solve's operation order (A overwritten);
- * nonzero when a pivot is zero. */
-static int lu_solve(double *A, double *x, size_t n) {
-    for (size_t c = 0; c < n; c++) {
-        size_t p = pivot_row(A, n, c);
-        if (A[p * n + c] == 0.0) return 1;
-        swap_rows(A, x, n, c, p);
-        double inv = 1.0 / A[c * n + c];
-        for (size_t r = c + 1; r < n; r++) {
-            double ell = A[r * n + c] * inv;
-            if (ell != 0.0)                         /* a zero multiplier leaves its row as it is */
-                for (size_t j = c + 1; j < n; j++) A[r * n + j] -= ell * A[c * n + j];
-            x[r] -= ell * x[c];
+/* x <- M^-1 x by the sparse LU of linalg.solve_sparse (M overwritten): 0, NT_SINGULAR when a pivot is
+ * zero, -2 when memory is short. */
+static int lu_sparse(NTKernel *c) {
+    int n = (int)c->n;
+    double *x = c->x;
+    for (int col = 0; col < n; col++) {
+        int p = pivot_row(c, col);
+        if (entry(&c->rows[p], col) == 0.0) return NT_SINGULAR;
+        if (p != col) swap_rows(c, col, p);
+        const Row *U = &c->rows[col];
+        double inv = 1.0 / entry(U, col);
+        const Col *C = &c->cols[col];
+        for (int t = 0; t < C->len; t++) {
+            int r = C->row[t];
+            if (r <= col) continue;
+            Row *R = &c->rows[r];
+            double ell = entry(R, col) * inv;
+            if (ell == 0.0) continue;                         /* a zero multiplier leaves its row as it is */
+            U = &c->rows[col];
+            for (int q = 0; q < U->len; q++) {
+                int j = U->col[q];
+                if (j <= col) continue;
+                int at = find(R, j);
+                if (at < 0) {                                  /* fill-in, from 0.0 */
+                    if (append(R, j, 0.0) || add_row(&c->cols[j], r)) return -2;
+                    at = R->len - 1;
+                }
+                R->val[at] -= ell * U->val[q];
+            }
+            x[r] -= ell * x[col];
         }
     }
-    for (size_t c = n; c-- > 0;) {
-        x[c] /= A[c * n + c];
-        for (size_t r = 0; r < c; r++) x[r] -= A[r * n + c] * x[c];
+    for (int col = n - 1; col >= 0; col--) {
+        x[col] /= entry(&c->rows[col], col);
+        const Col *C = &c->cols[col];
+        for (int t = 0; t < C->len; t++)
+            if (C->row[t] < col) x[C->row[t]] -= entry(&c->rows[C->row[t]], col) * x[col];
     }
     return 0;
 }
@@ -193,9 +303,10 @@ static int newton(NTKernel *c, DRStep *io, double *out) {
         f = jacobian(c, t, h);
         if (f >= 0) return dr_fail(c->k, io, f);
         evals += c->max_m;
-        newton_matrix(c);
+        if (newton_matrix(c)) return NT_NO_MEMORY;
         for (size_t i = 0; i < n; i++) c->x[i] = -(c->b[i] - c->s[i]);
-        if (lu_solve(c->M, c->x, n)) return NT_SINGULAR;
+        int lu = lu_sparse(c);
+        if (lu) return lu == NT_SINGULAR ? NT_SINGULAR : NT_NO_MEMORY;
         for (size_t i = 0; i < n; i++) c->b[i] = c->b[i] + c->x[i];
     }
     memcpy(c->b, c->best_b, n * sizeof(double));
@@ -233,6 +344,14 @@ int nt_solve(NTKernel *c, DRStep *io, const double *b_n, double *b_star, double 
 
 void nt_destroy(NTKernel *c) {
     if (!c) return;
+    for (size_t j = 0; c->rows && c->cols && j < (c->n ? c->n : 1); j++) {
+        free(c->rows[j].col);
+        free(c->rows[j].val);
+        free(c->cols[j].row);
+    }
+    free(c->rows);
+    free(c->cols);
+    free(c->block);
     free(c->P);
     free(c->b);
     free(c->J);

@@ -9,7 +9,7 @@
 typedef struct NTKernel NTKernel;
 
 /* Outcomes of nt_step besides 0 and -1 (an FMU call failed, io->failed_*). */
-enum { NT_NONFINITE = 1, NT_SINGULAR = 2, NT_NOT_CONVERGED = 3 };
+enum { NT_NONFINITE = 1, NT_SINGULAR = 2, NT_NOT_CONVERGED = 3, NT_NO_MEMORY = 4 };
 
 /* Newton's constants (monolithic.py: TOL, ACCEPT, ACCEPT_REL, MAX_ITER, STALL). */
 typedef struct {

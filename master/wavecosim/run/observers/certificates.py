@@ -8,7 +8,7 @@ import numpy as np
 from ...kernel import blocks, cvalues
 from ...core.certificates import augmented_residual, fne_margins
 from ...kernel.drkernel import LEDGER_LOG
-from ...kernel.linalg import matvec
+from ...kernel.linalg import matvec, total
 from ...core.readings import row_sums
 from .fne_watch import FLOOR
 from .passivity import grow_max_pos
@@ -63,13 +63,13 @@ class CertificateSampler(Observer):
         if self.augmented:
             if made is not None:                          # a redo (the guard's) has no Fejer term
                 fejer = float(made[len(self.names)]) if log.reason != "energy-guard" else math.nan
-                aug = augmented_residual(sum(reading.H) - self.H_prev, None, None, None, log.a_hat, reading.B, fejer)
+                aug = augmented_residual(total(reading.H) - self.H_prev, None, None, None, log.a_hat, reading.B, fejer)
             else:
-                aug = augmented_residual(sum(reading.H) - self.H_prev, log.u0, log.uK, self.u_star, log.a_hat,
+                aug = augmented_residual(total(reading.H) - self.H_prev, log.u0, log.uK, self.u_star, log.a_hat,
                                          reading.B) if log.u0 is not None and self.u_star is not None else math.nan
             row[k] = aug
             self.max_aug = grow_max_pos(self.max_aug, aug)
-        self.H_prev = sum(reading.H)
+        self.H_prev = total(reading.H)
         self.fne, self.u_star = None, None
 
     def next_before(self, n):
@@ -116,7 +116,7 @@ class CertificateSampler(Observer):
         self.min_fne, self.max_aug, self.H_prev = fig[:k], fig[k], fig[k + 1]
 
     def start(self, first):
-        self.H_prev = sum(first.H)
+        self.H_prev = total(first.H)
 
     def summary(self):
         finite = {n: (v if math.isfinite(v) else math.nan) for n, v in zip(self.names, self.min_fne)}

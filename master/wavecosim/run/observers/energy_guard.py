@@ -7,6 +7,7 @@ system can hold more energy than it started with, and the monolithic step cannot
 and redone as the monolithic step (interface Newton), which keeps H <= H^n <= H(0).
 """
 from ...errors import NumericalError
+from ...kernel.linalg import total
 from ...masters.base import StepLog
 from . import Observer
 
@@ -22,12 +23,12 @@ class EnergyGuard(Observer):
         self.redone, self.extra = 0, 0
 
     def start(self, first):
-        H0 = sum(first.H)
+        H0 = total(first.H)
         self.cap = H0 + RTOL * abs(H0)
 
     def after_step(self, n, t, log, reading, row):
         """None if the committed step is kept, else the StepLog of the monolithic redo."""
-        if not sum(reading.H) > self.cap:
+        if not total(reading.H) > self.cap:
             return None
         master = self.master
         calls = master.scene.do_step_calls()

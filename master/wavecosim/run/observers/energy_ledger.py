@@ -66,8 +66,9 @@ class EnergyLedger(Observer):
         self.step_times = []            # under a deadline, per step: (wall, acted, round it may overrun by, CPU) s
 
     def kernel_state(self):
-        """(L, traffic, rtol): what the C kernel needs to keep the ledger itself (blocks)."""
-        return self.L, self.traffic, self.rtol()
+        """(L, traffic, RTOL): what the C kernel needs to keep the ledger itself (blocks); it adds the
+        wave adapters' noise (map_noise) at each step itself, as rtol() does here."""
+        return self.L, self.traffic, RTOL
 
     def rtol(self):
         """The allowance per unit of traffic: RTOL, plus the frozen maps' own accuracy (0.0 when exact)."""
@@ -81,7 +82,7 @@ class EnergyLedger(Observer):
         acted, rounds = int(np.count_nonzero(led["action"])), led["rounds"]     # actions: 0 kept, 1 scaled, 2 zero
         if acted:                                                          # only a redone step has rounds
             self.acted += acted
-            self.extra += len(self.master.subsystems) * int(rounds.sum())
+            self.extra += self.master.redo_doSteps()
             self.fallbacks += int(np.count_nonzero(rounds == 3))
         self.L, self.traffic = float(led["ledger"][-1]), float(led["traffic"][-1])
         self.max_L = max(self.max_L, float(led["ledger"].max()))

@@ -7,6 +7,7 @@ and the summary lists what could not be computed (certificates_unavailable)."""
 import math
 
 from ...kernel import blocks, cvalues
+from ...kernel.linalg import total
 from ...core.waves import physical_port_energy, port_energy
 from . import Observer
 
@@ -29,7 +30,7 @@ class Passivity(Observer):
         self.names = [s.name for s in scene.subsystems]
         self.has_H = [s.port.energy is not None for s in scene.subsystems]
         self.complete = all(self.has_H)
-        self.blocks = self.complete and blocks.library() is not None
+        self.blocks = blocks.library() is not None
         self.call = None                  # the C pass's arguments, from the first block's layout
         missing = [n for n, h in zip(self.names, self.has_H) if not h]
         self.unavailable = [*(f"r_{n}" for n in missing), *([] if any(self.has_H) else ["max_passivity_pos"]),
@@ -40,7 +41,7 @@ class Passivity(Observer):
 
     def start(self, first):
         self.H = list(first.H)
-        self.H_initial = self.H_max = sum(first.H)
+        self.H_initial = self.H_max = total(first.H)
         self.H_final = self.H_initial
         self.max_r = [math.nan] * len(self.names)
         self.ledger = [0.0] * len(self.names)
@@ -53,7 +54,7 @@ class Passivity(Observer):
             return [port_energy(a, b) for a, b in parts], port_energy(log.a_hat, reading.B)
         supplied = [physical_port_energy(e, f, self.dt) for e, f in
                     zip(self.scene.split(reading.E), self.scene.split(reading.F))]
-        return supplied, sum(supplied)
+        return supplied, total(supplied)
 
     def after_step(self, n, t, log, reading, row):
         supplied, supply = self._supplied(log, reading)
@@ -72,22 +73,22 @@ class Passivity(Observer):
         row[k] = supply
         self.max_supply = grow_max_pos(self.max_supply, supply)
         self.drift += supply
-        total = sum(reading.H)
+        H_total = total(reading.H)
         if self.complete:
-            row[k + 1] = total
-        self.H, self.H_final = list(reading.H), total
-        self.H_max = max(self.H_max, total) if total == total else total
+            row[k + 1] = H_total
+        self.H, self.H_final = list(reading.H), H_total
+        self.H_max = max(self.H_max, H_total) if H_total == H_total else H_total
 
     def _block_call(self, logs, readings):
         """The C pass's fixed arguments (kernel/c/blocks.c): the kernel log's rows it reads (the
         channels' a_hat, b, e, f, the subsystems' H), the ports' first channels, the running figures."""
         at, k, ints = logs.observed_at, len(self.names), blocks.ints
         rows = {key: ints([at + r for r in readings.rows(key)]) for key in ("B", "E", "F", "H")}
-        prev, fig = cvalues.doubles(k), cvalues.doubles(k + 4)
+        prev, fig, ledger = cvalues.doubles(k), cvalues.doubles(k + 4), cvalues.doubles(k)
         call = blocks.PassBlock(k=k, wave=int(self.wave), dt=self.dt, a=ints(logs.a_rows), b=rows["B"], e=rows["E"],
-                                f=rows["F"], h=rows["H"], prev=prev, fig=fig,
+                                f=rows["F"], h=rows["H"], prev=prev, fig=fig, has_h=ints(self.has_H), ledger=ledger,
                                 port=ints([*self.scene.offsets, self.scene.n_channels]))
-        return call, cvalues.ref(call), prev, fig
+        return call, cvalues.ref(call), prev, fig, ledger
 
     def prepare_block(self, logs, readings):
         self.call = self._block_call(logs, readings)
@@ -98,12 +99,13 @@ class Passivity(Observer):
         k = len(self.names)
         if self.call is None:
             self.call = self._block_call(logs, readings)
-        call, ref, prev, fig = self.call
+        call, ref, prev, fig, ledger = self.call
         prev[:], fig[:] = self.H, [*self.max_r, self.max_supply, self.drift, self.H_max, self.H_final]
+        ledger[:] = self.ledger
         call.count = len(logs)
         (call.log, call.ld), (call.out, call.ldo) = blocks.rows(logs.columns), blocks.columns(rows)
         blocks.library().passivity_block(ref)
-        self.H, self.max_r = prev[:], fig[:k]
+        self.H, self.max_r, self.ledger = prev[:], fig[:k], ledger[:]
         self.max_supply, self.drift, self.H_max, self.H_final = fig[k:]
 
     def summary(self):

@@ -6,9 +6,9 @@ from pathlib import Path
 
 import yaml
 
-ORDER = ("name", "description", "dt", "T", "gamma", "subsystems", "couplings", "signals", "master",
+ORDER = ("name", "description", "start_time", "dt", "T", "gamma", "subsystems", "couplings", "sources", "signals", "master",
          "certificates", "outputs", "error", "fne_watch")
-NEEDED = {"dt": "0.001", "gamma": "auto"}
+NEEDED = {"dt": "0.001"}
 
 
 def _flow(value):
@@ -33,6 +33,9 @@ def _subsystems(imported, folder):
     for name, sub in imported.raw["subsystems"].items():
         lines += _comment(imported.origins, f"subsystems.{name}", "  ") + [f"  {name}:"]
         lines.append(f"    fmu: {_flow(_fmu(sub['fmu'], folder))}")
+        if "tolerance" in sub:
+            lines += _comment(imported.origins, f"subsystems.{name}.tolerance", "    ")
+            lines.append(f"    tolerance: {_flow(sub['tolerance'])}")
         if "parameters" in sub or "start" in sub:
             lines += _comment(imported.origins, f"subsystems.{name}.values", "    ")
         lines += [f"    {key}: {_flow(sub[key])}" for key in ("parameters", "start") if key in sub]
@@ -56,7 +59,8 @@ def draft_text(imported, folder) -> str:
         elif key in ("couplings", "signals") and key in raw:
             lines += _comment(imported.origins, key) + [f"{key}:"] + [f"  - {_flow(item)}" for item in raw[key]]
             if key == "couplings" and not raw[key]:
-                lines[-1] = "couplings: []   # no power bond found: declare ports with --ports (README, \"SSP in\")"
+                lines[-1] = ("couplings: []   # no power bond: the explicit master runs it; declare ports "
+                             "with --ports for DR (README, \"SSP in\")")
         elif key in raw:
             lines += _comment(imported.origins, key) + [f"{key}: {_flow(raw[key])}"]
         elif key in NEEDED:

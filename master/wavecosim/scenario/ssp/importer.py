@@ -1,22 +1,22 @@
 """An SSP system as a scenario mapping (the YAML format, README "The scenario file"): components
--> subsystems, parameter bindings -> parameters/start, connections -> signals, power bonds ->
-couplings, outputs of the top system -> outputs. Reads files only; no FMU is instantiated."""
+-> subsystems, time tables -> sources, parameter bindings and values through system connectors ->
+parameters/start, connections -> signals, power bonds -> couplings, what is recorded -> outputs,
+the time grid from the files (experiment.py). Reads files only; no FMU is instantiated."""
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from fmpy import read_model_description
-
 from ...fmi.builtin import builtin_fmus
 from ...errors import ConfigError
-from . import structure
+from . import experiment, structure
 from .archive import locate_ssd
-from .bonds import Signal, as_list, channels, couplings, find_bonds, where
+from .bonds import as_list, channels, couplings, find_bonds, where
 from .osp import bond_connections
 from .declarations import declared_ports
-from .overlay import SETTINGS, annotated_settings, experiment_T, read_overlay
+from .outputs import recorded
+from .overlay import SETTINGS, annotated_settings, read_overlay
 from .parameters import Bindings
+from .wiring import wire
 from .xmlfile import at, fail, parse
-
 
 
 @dataclass
@@ -37,10 +37,12 @@ def import_ssp(path, ports=None, parameter_set=None, settings=None) -> Imported:
     overlay = read_overlay(ports) if ports else {}
     out = Imported(raw={}, ssd=ssd)
     mds, fmus = _descriptions(flat)
-    subsystems = _subsystems(flat, mds, fmus, Bindings(flat, parameter_set), out)
+    bindings = Bindings(flat, parameter_set)
+    wired, values = wire(flat, mds, bindings, out.notes)
+    subsystems = _subsystems(flat, mds, fmus, bindings, values, overlay.get("tolerance"), out)
     _check_overlay_names(ports, overlay, subsystems)
     declared, origins, groups = declared_ports(ssd, flat.components, mds, overlay.get("ports", {}))
-    signals = _with_osp_bonds(flat, _signals(flat, out.notes), groups, mds)
+    signals = _with_osp_bonds(flat, wired, groups, mds)
     halves, rest = find_bonds(ssd, declared, signals)
     coupled, signs = couplings(ssd, declared, halves, _fixed_signs(declared))
     if halves:
@@ -51,12 +53,16 @@ def import_ssp(path, ports=None, parameter_set=None, settings=None) -> Imported:
         out.origins[f"subsystems.{name}.port"] = "; ".join(origins[name])
     out.raw = _settings(flat, overlay, settings or {}, out)
     out.raw.update(subsystems=_ordered(subsystems, coupled), couplings=coupled)
+    if flat.tables:
+        out.raw["sources"] = {t.name: {"csv": str(t.csv), "interpolation": "linear"} for t in flat.tables.values()}
+        out.origins["sources"] = "time tables: " + ", ".join(at(ssd, t.element) for t in flat.tables.values())
     if rest:
         out.raw["signals"] = [{"from": ".".join(s.source), "to": ".".join(s.target), "factor": s.factor,
                                "offset": s.offset} for s in rest]
         out.origins["signals"] = "the connections at " + ", ".join(where(ssd, s) for s in rest)
-    outputs = overlay.get("outputs") or _outputs(flat, out)
-    out.raw["outputs"] = outputs
+    outputs = recorded(flat, mds, overlay, out)
+    if outputs is not None:
+        out.raw["outputs"] = outputs
     return out
 
 
@@ -67,10 +73,7 @@ def _descriptions(flat):
         fmus[key] = str(comp.fmu)
         if builtin_fmus().get(comp.fmu.stem) == comp.fmu:
             fmus[key] = comp.fmu.stem
-        try:
-            mds[key] = read_model_description(str(comp.fmu), validate=False)
-        except Exception as exc:               # fmpy raises bare exceptions for bad archives
-            fail(flat.path, comp.element, f"cannot read the FMU's modelDescription.xml: {exc}")
+        mds[key] = comp.md
         _check_connectors(flat, comp, mds[key])
     return mds, fmus
 
@@ -87,18 +90,27 @@ def _check_connectors(flat, comp, md):
                                 f"{causality[name]}")
 
 
-def _subsystems(flat, mds, fmus, bindings, out):
+def _subsystems(flat, mds, fmus, bindings, values, tolerance, out):
+    """{name: subsystem mapping}: its FMU, the overlay's tolerance, and its values from the bindings,
+    those coming through system connectors (`values`, wire()) over them."""
     subsystems = {}
     for key, comp in flat.components.items():
-        values, origins = bindings.values(comp, mds[key])
-        subsystems[comp.name] = {"fmu": fmus[key], **{k: v for k, v in values.items() if v}}
+        own, origins = bindings.values(comp, mds[key])
+        through, more = values.get(key, ({}, []))
+        for k, v in through.items():
+            own[k].update(v)
+        subsystems[comp.name] = {"fmu": fmus[key], **{k: v for k, v in own.items() if v}}
+        if tolerance is not None:
+            subsystems[comp.name]["tolerance"] = tolerance
+            out.origins[f"subsystems.{comp.name}.tolerance"] = "the overlay (--ports)"
         asked = comp.element.get("implementation", "any")
         out.origins[f"subsystems.{comp.name}"] = (
             f"component {comp.element.get('name')!r} ({at(flat.path, comp.element)}), {comp.fmu}"
             + ("" if asked in ("any", "CoSimulation") else f"; its {asked} implementation is asked for, its "
                "co-simulation interface runs"))
-        if origins:
-            out.origins[f"subsystems.{comp.name}.values"] = "parameter bindings: " + ", ".join(origins)
+        if origins or more:
+            out.origins[f"subsystems.{comp.name}.values"] = ", ".join(
+                (["parameter bindings: " + ", ".join(origins)] if origins else []) + more)
     out.notes.extend(bindings.unused())
     return subsystems
 
@@ -117,23 +129,6 @@ def _ordered(subsystems, coupled):
     rank = {name: named.index(name) if name in named else len(named) for name in subsystems}
     keys = sorted(subsystems, key=lambda n: (("port" in subsystems[n]), rank[n]))
     return {name: subsystems[name] for name in keys}
-
-
-def _signals(flat, notes):
-    """Every component input driven through the connections, as a Signal."""
-    out = []
-    for sink in flat.incoming:
-        if sink[0] != "c":
-            continue
-        target = (flat.components[sink[1]].name, sink[2])
-        found = structure.trace(flat, sink)
-        if found is None:
-            notes.append(f"{at(flat.path, flat.incoming[sink].element)}: {'.'.join(target)} is "
-                         f"connected to a system connector that nothing drives; it keeps its start value")
-            continue
-        source, factor, offset, passed = found
-        out.append(Signal((flat.components[source[1]].name, source[2]), target, factor, offset, passed))
-    return out
 
 
 def _with_osp_bonds(flat, signals, groups, mds):
@@ -171,49 +166,28 @@ def _with_signs(name, port, signs, origins):
 
 
 def _settings(flat, overlay, cli, out):
-    """name, description, T from the SSD, then our annotation, then the overlay, then the command line."""
+    """name, description, start and stop time from the files, then our annotation, then the overlay,
+    then the command line; then dt from the files when none of them gave it (the scenario's defaults
+    do the rest: without power bonds the explicit master, with them gamma auto)."""
     raw = {"name": flat.root.get("name", flat.path.stem), "description": flat.top.get("description", "")}
-    T = experiment_T(flat.path, flat.root)
-    if T is not None:
-        raw["T"] = T
-        out.origins["T"] = "ssd:DefaultExperiment stopTime"
+    for key, value, origin in experiment.times(flat):
+        raw[key], out.origins[key] = value, origin
     layers = [(annotated_settings(flat.path, flat.root), "annotation org.wavecosim.scenario"),
               ({k: overlay[k] for k in SETTINGS if k in overlay}, "the overlay (--ports)"),
               ({k: v for k, v in cli.items() if v is not None}, "the command line")]
     for layer, origin in layers:
         raw.update(layer)
         out.origins.update({key: origin for key in layer})
+    if "dt" not in raw:
+        raw["dt"], out.origins["dt"], note = experiment.step(flat, raw)
+        out.notes.extend([note] if note else [])
     if not raw["description"]:
         del raw["description"]
     return raw
-
-
-def _outputs(flat, out):
-    """{column: subsystem.variable} for every output connector of the top system."""
-    outputs, top = {}, (flat.top.get("name"),)
-    for name, el in structure.connectors(flat.top).items():
-        found = structure.trace(flat, ("s", top, name)) if el.get("kind") == "output" else None
-        if found is None:
-            continue
-        source, factor, offset, _ = found
-        outputs[name] = f"{flat.components[source[1]].name}.{source[2]}"
-        if (factor, offset) != (1.0, 0.0):
-            out.notes.append(f"{at(flat.path, el)}: output {name} is recorded as {outputs[name]} "
-                             f"without its transformation (factor {factor:g}, offset {offset:g})")
-    out.origins["outputs"] = f"output connectors of system {flat.top.get('name')!r}"
-    return outputs
 
 
 def load_ssp(path, ports=None, parameter_set=None, settings=None):
     """(Scenario, Imported): the SSP system checked like a scenario file."""
     from ..config import parse_scenario
     imported = import_ssp(path, ports, parameter_set, settings)
-    if not imported.raw["couplings"]:
-        raise ConfigError(f"{imported.ssd}: couplings: no power bond found; declare which connectors form ports "
-                          f"(an OSP-IS model description, the annotation org.wavecosim.port or --ports FILE; "
-                          f"README, \"SSP in\")")
-    for key in ("dt", "gamma"):
-        if key not in imported.raw:
-            raise ConfigError(f"{imported.ssd}: {key}: an SSD has none; give it in the overlay (--ports FILE) "
-                              f"or on the command line (--{key})")
     return parse_scenario(imported.raw, str(imported.ssd), imported.ssd.parent), imported

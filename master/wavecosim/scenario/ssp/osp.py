@@ -100,3 +100,20 @@ def _directed(path, el, ends, causality):
                        f"components, they are {kinds[0]} and {kinds[1]}")
     source, target = ends if kinds[0] == "output" else ends[::-1]
     return Signal(source, target, 1.0, 0.0, [el], path)
+
+
+def base_step_size(folder):
+    """(BaseStepSize, its file) of an OspSystemStructure.xml beside the SSD, or (None, None)."""
+    path = folder / SYSTEM_FILE
+    if not path.exists():
+        return None, None
+    for el in _read(path).iter():
+        if _local(el) == "BaseStepSize":
+            try:
+                step = float((el.text or "").strip())
+            except ValueError:
+                step = float("nan")
+            if not step > 0 or step == float("inf"):
+                fail(path, el, f"BaseStepSize must be a positive number, got {(el.text or '').strip()!r}")
+            return step, path
+    return None, None

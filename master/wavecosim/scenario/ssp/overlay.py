@@ -4,11 +4,11 @@ from pathlib import Path
 
 from ...errors import ConfigError
 from .declarations import annotation, attributes
-from .xmlfile import SSD, fail, number, q
+from .xmlfile import SSD, number, q
 
 SCENARIO_ANNOTATION = "org.wavecosim.scenario"
 SETTINGS = ("name", "description", "dt", "T", "gamma", "master", "certificates", "outputs", "error", "fne_watch")
-OVERLAY_KEYS = ("ports", *SETTINGS)
+OVERLAY_KEYS = ("ports", "tolerance", *SETTINGS)     # tolerance: every FMU's set-up tolerance
 
 
 def read_overlay(path) -> dict:
@@ -44,11 +44,9 @@ def annotated_settings(path, root) -> dict:
     return settings
 
 
-def experiment_T(path, root):
-    """T from ssd:DefaultExperiment stopTime (the run starts at 0), or None."""
+def experiment(path, root):
+    """(startTime, stopTime) of ssd:DefaultExperiment, each None when not given."""
     exp = root.find(q(SSD, "DefaultExperiment"))
-    if exp is None or exp.get("stopTime") is None:
-        return None
-    if number(path, exp, "startTime", 0.0) != 0.0:
-        fail(path, exp, "startTime must be 0 (wavecosim runs start at t = 0)")
-    return number(path, exp, "stopTime", None)
+    if exp is None:
+        return None, None
+    return number(path, exp, "startTime", None), number(path, exp, "stopTime", None)

@@ -1,94 +1,162 @@
-"""Parameter bindings -> each component's `parameters` and `start` values.
+"""Parameter bindings -> each component's `parameters` and `start` values, and the values of
+system connectors (SSP 1.0, ParameterBinding and ParameterMapping).
 
-SSP 1.0 (ParameterBinding): inline ssv:ParameterSet or an .ssv file given by source; the prefix is
-prepended to every name; a system's names are hierarchical (element.variable); later bindings
-win at one level and a higher level wins over a lower one; names matching no variable are
-ignored (noted). Whether a value is a parameter or a start value is the variable's role in the
-FMU's modelDescription: causality parameter -> parameters; an input, or a variable with initial
-exact/approx -> start; anything else cannot be set and is an error."""
-from ...errors import ConfigError
-from .xmlfile import SSD, SSV, at, fail, number, parse, q
+A binding is an inline ssv:ParameterSet or an .ssv file given by `source`; its `prefix` is prepended
+to every name; its optional ssm:ParameterMapping (inline or an .ssm file) renames names (a source
+name may feed several targets) and transforms values (ssc:LinearTransformation, and the Boolean,
+Integer and Enumeration mapping tables); names it does not mention keep theirs. A system's names
+are hierarchical (element.variable); later bindings win at one level and a higher level wins over a
+lower one; names matching no variable are ignored (noted, one note per file). Whether a value is a
+parameter or a start value is the variable's role in the FMU's modelDescription: causality
+parameter -> parameters; an input, or a variable with initial exact/approx -> start; anything else
+cannot be set and is an error."""
+from dataclasses import dataclass
+
+from .xmlfile import SSC, SSD, SSM, SSV, at, fail, number, parse, q
 
 VALUE_TYPES = ("Real", "Integer", "Boolean", "String", "Enumeration")
+SET_TYPE, MAPPING_TYPE = "application/x-ssp-parameter-set", "application/x-ssp-parameter-mapping"
+NOTE_NAMES = 5                    # unmatched names listed in a note; the rest are counted
+
+
+@dataclass
+class Entry:
+    """One value a binding gives: the name it reaches (prefix and mapping applied), the ssv:Parameter
+    and its file, and the mapping entry that renamed or transforms it (None: taken as it is)."""
+    name: str
+    param: object
+    path: object
+    mapping: object = None
+    mapping_path: object = None
 
 
 class Bindings:
-    """Reads every binding once; `values(component, md)` gives its settings, `unused()` the names
-    that reached no variable."""
+    """Reads every binding once; `values(component, md)` gives a component's settings,
+    `connector_values(system key)` a system's connector values, `unused()` the notes for names that
+    reached nothing."""
 
     def __init__(self, flat, parameter_set=None):
         self.flat, self.chosen = flat, parameter_set
-        self.files, self.used, self.seen = {}, set(), {}
+        self.files, self.cache, self.used, self.seen = {}, {}, set(), {}
         if parameter_set is not None:
             names = sorted({s.get("name") for s in self._all_sets()})
             if parameter_set not in names:
                 raise_missing(flat, parameter_set, names)
 
     def _all_sets(self):
-        for owner in self.flat.systems + [c.element for c in self.flat.components.values()]:
+        owners = self.flat.systems + [c.element for c in self.flat.components.values()]
+        for owner in owners:
             for binding in _bindings(owner):
-                yield from self._sets(binding)
+                yield from (pset for pset, _ in self._sets(binding))
+
+    def _file(self, binding, attribute_owner, schema):
+        """The root of the file `attribute_owner` names by `source`, resolved against the SSD."""
+        if attribute_owner.get("sourceBase", "SSD") != "SSD":
+            fail(self.flat.path, attribute_owner, "sourceBase='component' is not supported (give the file beside "
+                                                  "the SSD)")
+        path = (self.flat.path.parent / attribute_owner.get("source")).resolve()
+        if not path.exists():
+            fail(self.flat.path, attribute_owner, f"file not found: {path}")
+        if path not in self.files:
+            self.files[path] = parse(path, schema)
+        return self.files[path], path
 
     def _sets(self, binding):
-        """The ssv:ParameterSet elements of one binding, inline or from its source file."""
-        if binding.find(q(SSD, "ParameterMapping")) is not None:
-            fail(self.flat.path, binding, "ssm:ParameterMapping is not supported")
-        kind = binding.get("type", "application/x-ssp-parameter-set")
-        if kind != "application/x-ssp-parameter-set":
+        """[(ssv:ParameterSet, its file)] of one binding, inline or from its source file."""
+        kind = binding.get("type", SET_TYPE)
+        if kind != SET_TYPE:
             fail(self.flat.path, binding, f"parameter source type {kind!r} is not supported")
-        source = binding.get("source")
-        if source is None:
+        if binding.get("source") is None:
             values = binding.find(q(SSD, "ParameterValues"))
-            return [] if values is None else values.findall(q(SSV, "ParameterSet"))
-        if binding.get("sourceBase", "SSD") != "SSD":
-            fail(self.flat.path, binding, "sourceBase='component' is not supported (give the .ssv beside the SSD)")
-        path = (self.flat.path.parent / source).resolve()
-        if not path.exists():
-            fail(self.flat.path, binding, f"parameter file not found: {path}")
-        if path not in self.files:
-            self.files[path] = parse(path, "SystemStructureParameterValues.xsd")
-        return [self.files[path]]
+            return [] if values is None else [(s, self.flat.path) for s in values.findall(q(SSV, "ParameterSet"))]
+        return [self._file(binding, binding, "SystemStructureParameterValues.xsd")]
+
+    def _mapping(self, binding):
+        """{source name: [(ssm:MappingEntry, its file)]} of a binding's ParameterMapping, or None."""
+        holder = binding.find(q(SSD, "ParameterMapping"))
+        if holder is None:
+            return None
+        if holder.get("type", MAPPING_TYPE) != MAPPING_TYPE:
+            fail(self.flat.path, holder, f"parameter mapping type {holder.get('type')!r} is not supported")
+        if holder.get("source") is not None:
+            root, path = self._file(binding, holder, "SystemStructureParameterMapping.xsd")
+        else:
+            root, path = holder.find(q(SSM, "ParameterMapping")), self.flat.path
+        mapping = {}
+        for entry in [] if root is None else root.findall(q(SSM, "MappingEntry")):
+            if entry.get("source") and entry.get("target"):        # an empty source maps nothing
+                mapping.setdefault(entry.get("source"), []).append((entry, path))
+        return mapping
+
+    def _entries(self, binding):
+        """Every value of one binding as Entries (read once per binding)."""
+        if id(binding) not in self.cache:
+            prefix, mapping, out = binding.get("prefix", ""), self._mapping(binding), []
+            for pset, path in self._sets(binding):
+                if self.chosen is not None and pset.get("name") != self.chosen:
+                    continue
+                for param in pset.iter(q(SSV, "Parameter")):
+                    self.seen.setdefault(id(param), (path, param))
+                    name = prefix + param.get("name")
+                    targets = (mapping or {}).get(name) or [(None, None)]
+                    out += [Entry(name if e is None else e.get("target"), param, path, e, p) for e, p in targets]
+            self.cache[id(binding)] = (binding, out)
+        return self.cache[id(binding)][1]
+
+    def _bound(self, scopes, names):
+        """{name: (Entry, binding)} for `names` over the scopes [(owner, prefix)] from the innermost
+        outward (a higher level wins), and the bindings that gave them."""
+        found, origins = {}, []
+        for owner, scope in scopes:
+            for binding in _bindings(owner):
+                hits = 0
+                for entry in self._entries(binding):
+                    if entry.name.startswith(scope) and entry.name[len(scope):] in names:
+                        self.used.add(id(entry.param))
+                        found[entry.name[len(scope):]] = (entry, binding)
+                        hits += 1
+                if hits:
+                    origins.append(at(self.flat.path, binding)
+                                   + (f" ({binding.get('source')})" if binding.get("source") else ""))
+        return found, sorted(set(origins), key=origins.index)
 
     def values(self, component, md):
         """{"parameters": {...}, "start": {...}} of one component and the bindings that gave them."""
-        out, origins = {"parameters": {}, "start": {}}, []
+        out = {"parameters": {}, "start": {}}
         variables = {v.name: v for v in md.modelVariables}
-        for owner, scope in component.scopes:
-            for binding in _bindings(owner):
-                prefix = binding.get("prefix", "")
-                for pset in self._sets(binding):
-                    if self.chosen is not None and pset.get("name") != self.chosen:
-                        continue
-                    path, hits = self.files_path(pset), 0
-                    for param in pset.iter(q(SSV, "Parameter")):
-                        self.seen.setdefault(id(param), (path, param))
-                        name = prefix + param.get("name")
-                        if not name.startswith(scope) or name[len(scope):] not in variables:
-                            continue
-                        self.used.add(id(param))
-                        hits += 1
-                        var = variables[name[len(scope):]]
-                        role = _role(path, param, var)
-                        out[role][var.name] = _value(path, param, var)
-                    if hits:
-                        origins.append(at(self.flat.path, binding)
-                                       + (f" ({binding.get('source')})" if binding.get("source") else ""))
-        return out, sorted(set(origins), key=origins.index)
+        found, origins = self._bound(component.scopes, variables)
+        for name, (entry, _) in found.items():
+            var = variables[name]
+            out[role(entry.path, entry.param, var)][name] = transformed(entry, value(entry.path, entry.param, var), var)
+        return out, origins
 
-    def files_path(self, pset):
-        for path, root in self.files.items():
-            if root is pset:
-                return path
-        return self.flat.path
+    def connector_values(self, key):
+        """{connector: (value, Entry)} bound to the connectors of the system `key` (its own bindings
+        and those above it): a value such a connector passes on to what it is connected to."""
+        from .structure import connectors
+        scopes = self.flat.system_scopes[key]
+        found, _ = self._bound(scopes, connectors(scopes[0][0]))
+        return {name: (transformed(entry, value(entry.path, entry.param, None), None), entry)
+                for name, (entry, _) in found.items()}
 
     def unused(self):
-        """'file line N: parameter X' for every bound name that reached no FMU variable."""
-        return [f"{at(path, param)}: parameter {param.get('name')!r} matches no variable of "
-                f"any component; ignored (SSP: unmatched names are ignored)"
-                for key, (path, param) in self.seen.items() if key not in self.used]
+        """One note per file for the bound names that reached no variable or connector."""
+        by_file = {}
+        for key, (path, param) in self.seen.items():
+            if key not in self.used:
+                by_file.setdefault(path, []).append(param)
+        notes = []
+        for path, params in by_file.items():
+            names = ", ".join(repr(p.get("name")) for p in params[:NOTE_NAMES])
+            more = f" and {len(params) - NOTE_NAMES} more" if len(params) > NOTE_NAMES else ""
+            notes.append(f"{at(path, params[0])}: parameter{'s' if len(params) > 1 else ''} {names}{more} "
+                         f"match{'es' if len(params) == 1 else ''} no variable of any component; ignored "
+                         f"(SSP: unmatched names are ignored)")
+        return notes
 
 
 def raise_missing(flat, chosen, names):
+    from ...errors import ConfigError
     raise ConfigError(f"{flat.path.name}: parameter set {chosen!r} not found (the file has: "
                       f"{', '.join(repr(n) for n in names) or 'none'})")
 
@@ -98,18 +166,19 @@ def _bindings(owner):
     return [] if holder is None else holder.findall(q(SSD, "ParameterBinding"))
 
 
-def _role(path, param, var):
+def role(path, element, var):
     """parameters or start, by the variable's causality, variability and initial."""
     if var.causality == "parameter":
         return "parameters"
     if var.variability != "constant" and (var.causality == "input" or var.initial in ("exact", "approx")):
         return "start"
-    fail(path, param, f"{var.name} cannot be set before initialization (causality {var.causality}, "
-                      f"variability {var.variability}, initial {var.initial})")
+    fail(path, element, f"{var.name} cannot be set before initialization (causality {var.causality}, "
+                        f"variability {var.variability}, initial {var.initial})")
 
 
-def _value(path, param, var):
-    """The value of one ssv:Parameter as the Python value the scenario takes for its FMI type."""
+def value(path, param, var):
+    """The value of one ssv:Parameter as a Python value; an Enumeration item becomes its number
+    when the variable `var` is known (None: a system connector's value, the item's name)."""
     given = [child for child in param if child.tag in {q(SSV, t) for t in VALUE_TYPES}]
     if len(given) != 1:
         fail(path, param, f"needs one value element ({', '.join('ssv:' + t for t in VALUE_TYPES)})")
@@ -120,10 +189,40 @@ def _value(path, param, var):
         return int(el.get("value"))
     if kind == "Boolean":
         return el.get("value") in ("true", "1")
-    if kind == "String":
+    if kind == "String" or var is None:
         return el.get("value")
-    items = {item.name: int(item.value) for item in getattr(var.declaredType, "items", None) or []}
-    if el.get("value") not in items:
-        fail(path, el, f"{el.get('value')!r} is not an item of {var.name}'s enumeration "
-                       f"(have: {', '.join(items) or 'none'})")
-    return items[el.get("value")]
+    return item_number(path, el, el.get("value"), var)
+
+
+def item_number(path, element, item, var):
+    """An Enumeration item's number in `var`'s type (a number passes as it is)."""
+    if not isinstance(item, str):
+        return item
+    items = {i.name: int(i.value) for i in getattr(var.declaredType, "items", None) or []}
+    if item not in items:
+        fail(path, element, f"{item!r} is not an item of {var.name}'s enumeration (have: {', '.join(items) or 'none'})")
+    return items[item]
+
+
+def transformed(entry, given, var):
+    """A bound value through its mapping entry's transformation (ssc:LinearTransformation on numbers,
+    a Boolean, Integer or Enumeration mapping table on those); as it is without one."""
+    found = [c for c in (entry.mapping if entry.mapping is not None else ()) if c.tag.startswith(f"{{{SSC}}}")]
+    if not found:
+        return given
+    el, kind = found[0], found[0].tag.split("}")[1]
+    if kind == "LinearTransformation":
+        if isinstance(given, bool) or not isinstance(given, (int, float)):
+            fail(entry.mapping_path, el, f"a LinearTransformation needs a number, {entry.param.get('name')!r} is {given!r}")
+        return number(entry.mapping_path, el, "factor", 1.0) * given + number(entry.mapping_path, el, "offset", 0.0)
+    table = {_typed(kind, m.get("source")): _typed(kind, m.get("target")) for m in el.findall(q(SSC, "MapEntry"))}
+    result = table.get(given, given)
+    return item_number(entry.mapping_path, el, result, var) if kind == "EnumerationMappingTransformation" and var else result
+
+
+def _typed(kind, text):
+    if kind == "BooleanMappingTransformation":
+        return text in ("true", "1")
+    if kind == "IntegerMappingTransformation":
+        return int(text)
+    return text

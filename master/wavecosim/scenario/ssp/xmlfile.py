@@ -12,8 +12,9 @@ from ...errors import ConfigError
 SSD = "http://ssp-standard.org/SSP1/SystemStructureDescription"
 SSC = "http://ssp-standard.org/SSP1/SystemStructureCommon"
 SSV = "http://ssp-standard.org/SSP1/SystemStructureParameterValues"
+SSM = "http://ssp-standard.org/SSP1/SystemStructureParameterMapping"
 WC = "urn:wavecosim:ssp:1"                 # our own annotations (README, "SSP in")
-PREFIXES = {SSD: "ssd", SSC: "ssc", SSV: "ssv", WC: "wc"}
+PREFIXES = {SSD: "ssd", SSC: "ssc", SSV: "ssv", SSM: "ssm", WC: "wc"}
 
 
 def q(ns, tag):

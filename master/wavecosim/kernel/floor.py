@@ -1,0 +1,88 @@
+"""The floor of a run (kernel/c/floor.c, the kernel library libfloor.so): every FMU call the C kernel
+makes is recorded in order through shims (`FloorRecorder.hook`, installed as the FMU layer's pointer
+hook for one run), then made again from C alone, with the same arguments, on freshly instantiated
+FMUs (`replay`). Its time is what those FMU calls cost with nothing around them.
+"""
+import ctypes
+
+from .build import kernel_library
+from .drkernel import FMI_NAMES as NAMES, DRFunctions as FLFunctions       # floor.h: the kernel's table
+from ..errors import FmuError
+
+
+_lib = None
+
+
+def library():
+    global _lib
+    if _lib is None:
+        lib = kernel_library("floor", "the floor's recorder")
+        p = ctypes.c_void_p
+        lib.fl_create.restype = p
+        lib.fl_register.argtypes = [p, p, ctypes.POINTER(FLFunctions)]
+        lib.fl_shims.argtypes = [ctypes.POINTER(FLFunctions)]
+        lib.fl_shims.restype = None
+        lib.fl_start.argtypes = [p]
+        lib.fl_start.restype = lib.fl_stop.restype = None
+        lib.fl_calls.argtypes = [p]
+        lib.fl_calls.restype = ctypes.c_size_t
+        lib.fl_replay.argtypes = [p, p, p, ctypes.POINTER(ctypes.c_int)]
+        lib.fl_replay.restype = ctypes.c_double
+        lib.fl_destroy.argtypes = [p]
+        lib.fl_destroy.restype = None
+        _lib = lib
+    return _lib
+
+
+class FloorRecorder:
+    """Records the FMU calls the kernel makes while `hook` is the FMU layer's pointer hook and
+    recording is on (start .. stop); `names` lists the FMU instances' names in the order they were
+    first seen (the replay needs fresh instances of the same names)."""
+
+    def __init__(self):
+        self.lib = library()
+        self.handle = self.lib.fl_create()
+        if not self.handle:
+            raise FmuError("the floor's recorder could not be created (out of memory)")
+        self.shims = FLFunctions()
+        self.lib.fl_shims(ctypes.byref(self.shims))
+        self.names, self._seen = [], set()
+
+    def hook(self, fmu, fname, lookup):
+        """The pointer hook: the recording shim of fname for this FMU, registered on first sight (the
+        FMU's own function for a name it does not record)."""
+        if fname not in NAMES:
+            return lookup(fname)
+        if fmu.component not in self._seen:
+            table = FLFunctions(*[lookup(name) for name in NAMES])
+            if self.lib.fl_register(self.handle, fmu.component, ctypes.byref(table)) < 0:
+                raise FmuError("the floor's recorder takes at most 64 FMU instances")
+            self._seen.add(fmu.component)
+            self.names.append(fmu.name)
+        return getattr(self.shims, FLFunctions._fields_[NAMES.index(fname)][0])
+
+    def start(self):
+        self.lib.fl_start(self.handle)
+
+    def stop(self):
+        self.lib.fl_stop()
+
+    @property
+    def calls(self):
+        return self.lib.fl_calls(self.handle)
+
+    def replay(self, fmus):
+        """Seconds the recorded calls take made again on `fmus` ({name: Fmu}, fresh instances)."""
+        order = [fmus[name] for name in self.names]
+        comps = (ctypes.c_void_p * len(order))(*[f.component for f in order])
+        tables = (FLFunctions * len(order))(*[FLFunctions(*[f.function_pointer(n) for n in NAMES]) for f in order])
+        failed = ctypes.c_int(-1)
+        seconds = self.lib.fl_replay(self.handle, comps, tables, ctypes.byref(failed))
+        if seconds < 0 or failed.value >= 0:
+            raise FmuError(f"the floor's replay failed (call {failed.value} of {self.calls})")
+        return seconds
+
+    def close(self):
+        if self.handle:
+            self.lib.fl_destroy(self.handle)
+            self.handle = None

@@ -1,0 +1,85 @@
+"""Physical ports on the kernel route (kernel/c/portview.c, in libdrkernel.so): a signed port as an
+fmi2 shim the kernel calls like an FMU (`SignedPort`), and the view the runner reads a physical port
+through after each commit in blocks of steps (`ObservedPort`, `PortView`), both bit for bit what
+wavecosim/core/ports.py and readings.py compute in Python.
+"""
+import ctypes
+from dataclasses import dataclass
+
+from ..errors import FmuError
+
+_d = ctypes.POINTER(ctypes.c_double)
+
+
+def _library(lib):
+    if not hasattr(lib, "_portview_ready"):
+        p = ctypes.c_void_p
+        lib.sp_create.restype = p
+        lib.sp_create.argtypes = [p, p, ctypes.c_int, _d, _d]
+        lib.sp_functions.argtypes = [p]
+        lib.sp_functions.restype = None
+        lib.sp_destroy.argtypes = [p]
+        lib.sp_destroy.restype = None
+        lib.pv_create.restype = p
+        lib.pv_create.argtypes = [p, p, ctypes.POINTER(ctypes.c_uint), ctypes.c_int, ctypes.c_int, ctypes.c_int, _d,
+                                  p, p]
+        lib.pv_size.argtypes = [p]
+        lib.pv_size.restype = ctypes.c_size_t
+        lib.pv_destroy.argtypes = [p]
+        lib.pv_destroy.restype = None
+        lib._portview_ready = True
+    return lib
+
+
+@dataclass
+class ObservedPort:
+    """What the runner reads of a physical port after a commit (readings.Sampler._physical_part):
+    `names` ([energy,] efforts, flows, recorded outputs) read raw, returned as [H or NaN, e, sign f,
+    (adapter) b, outputs]; `len()` is the number of values returned."""
+    names: list
+    has_H: bool
+    m: int
+    sign: list
+    adapter: bool
+    n_out: int
+
+    def __len__(self):
+        return 1 + 2 * self.m + (self.m if self.adapter else 0) + self.n_out
+
+
+class SignedPort:
+    """An FMU with port signs behind portview.c's shim: (functions, component) for the kernel."""
+
+    def __init__(self, lib, fns, comp, m, in_scale, out_scale):
+        self.lib = _library(lib)
+        scales = [(ctypes.c_double * m)(*map(float, v)) for v in (in_scale, out_scale)]
+        self.handle = self.lib.sp_create(ctypes.byref(fns), comp, m, *scales)
+        if not self.handle:
+            raise FmuError("the kernel could not wrap a signed physical port (out of memory)")
+        self.functions = type(fns)()
+        self.lib.sp_functions(ctypes.byref(self.functions))
+
+    def close(self):
+        if self.handle:
+            self.lib.sp_destroy(self.handle)
+            self.handle = None
+
+
+class PortView:
+    """portview.c's view of one physical port over the FMU's own getReal (`get`, `comp`); `impedance`:
+    the addresses of the wave adapter's gamma and k, or None."""
+
+    def __init__(self, lib, get, comp, vrs, port: ObservedPort, impedance=None):
+        self.lib = _library(lib)
+        gamma, k = impedance or (None, None)
+        self.handle = self.lib.pv_create(get, comp, (ctypes.c_uint * len(vrs))(*vrs), int(port.has_H), port.m,
+                                         port.n_out, (ctypes.c_double * port.m)(*map(float, port.sign)), gamma, k)
+        if not self.handle:
+            raise FmuError("the kernel could not make a physical port's view (out of memory)")
+        assert self.lib.pv_size(self.handle) == len(port)
+        self.get = ctypes.cast(self.lib.pv_getReal, ctypes.c_void_p).value
+
+    def close(self):
+        if self.handle:
+            self.lib.pv_destroy(self.handle)
+            self.handle = None
