@@ -282,3 +282,23 @@ def input_signals(path):
     for name, kind, col in zip(header, kinds, columns):
         out[name] = [words[c] for c in col] if kind is np.bool_ else [float(c) for c in col]
     return out
+
+
+@pytest.fixture(scope="session")
+def faulty_scenario():
+    """faulty_scenario(fault, step, T, **integers) -> the Table I scenario (a mapping) with B a FaultySide
+    (models/faulty_side) that faults in doStep at macro-step `step`: 1 segfault, 2 exit(0), 3 endless
+    loop, 4 abort(); integers such as log_bytes go to the FMU too."""
+    import copy
+    import yaml
+    from wavecosim.scenario.config import DEFAULT_CONFIG
+    base = yaml.safe_load(DEFAULT_CONFIG.read_text())
+
+    def make(fault=0, step=-1, T=30.0, **integers):
+        raw = copy.deepcopy(base)
+        raw["T"] = T
+        raw["subsystems"]["B"].update(fmu="FaultySide", parameters={}, start={"v": 0.0},
+                                      integers={"fault": fault, "fault_step": step, **integers})
+        raw["outputs"].update(q2="B.x", v2="B.v")
+        return raw
+    return make

@@ -584,7 +584,7 @@ fmi2Status fmi2GetRealOutputDerivatives(fmi2Component comp, const fmi2ValueRefer
 }
 
 /* The step: advance the model (through the port closure when it has a wave port), write H, and
- * keep nothing unless every real is finite afterwards. */
+ * keep nothing unless every real is finite afterwards; a note the model left in msg is logged. */
 fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real t, fmi2Real h, fmi2Boolean noSetPrior) {
     (void)noSetPrior;
     Instance *c = comp;
@@ -608,6 +608,7 @@ fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real t, fmi2Real h, fmi2Boolean no
                     value, real_name[bad]);
     }
     d->time = t + h;
+    if (msg[0]) log_msg(c, fmi2Warning, "logStatusWarning", "fmi2DoStep: at t = %.17g: %s", t, msg);
     return fmi2OK;
 }
 

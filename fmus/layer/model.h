@@ -41,6 +41,7 @@
  * value reference through get/set, `gamma`,
  * `port_mode` and the PORT_CHANNELS variables when HAS_WAVE_PORT, `H` when HAS_ENERGY_OUTPUT.
  * After every call below it rejects a state with a non-finite real and restores the old one.
+ * A step that succeeds may leave a note in msg: the layer logs it as a warning.
  */
 #ifndef WAVECOSIM_MODEL_H
 #define WAVECOSIM_MODEL_H

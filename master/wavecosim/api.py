@@ -5,6 +5,7 @@ the same to the last bit. Nothing is written to disk unless `out_dir` is given. 
 classes of `wavecosim.errors` (ConfigError, FmuError, NumericalError, RunFailed, Interrupted) with
 the same one-line messages the CLI prints; RunFailed and Interrupted carry the partial `result`.
 """
+from contextlib import nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Optional, Sequence, Union
@@ -15,7 +16,8 @@ from .scenario.config import Scenario, load_scenario, output_patterns
 from .errors import ConfigError
 from .masters import ALGORITHMS
 from .core.gamma import parse_gamma
-from .run.runner import RunResult, run
+from .run.outputs import OutputFolder
+from .run.runner import MAX_STEPS, RunResult, check_steps, run
 
 ScenarioLike = Union[str, Path, Scenario]
 
@@ -103,18 +105,23 @@ def simulate(scenario: ScenarioLike = None, *, master: Optional[str] = None, K: 
              start_time: Optional[float] = None, outputs: Optional[Sequence[str]] = None,
              out_dir: Union[str, Path, None] = None, reference: bool = True, certificates: bool = True,
              progress: Union[bool, Callable[[int, int], None]] = False, output_interval: int = 1,
-             formats: Sequence[str] = ("csv",), warn: Optional[Callable[[str], None]] = None) -> RunResult:
+             formats: Sequence[str] = ("csv",), warn: Optional[Callable[[str], None]] = None,
+             overwrite: bool = False, max_steps: Optional[int] = MAX_STEPS) -> RunResult:
     """Run one scenario (a path, a Scenario, or None for Table I) and return its RunResult.
 
     `result.trajectory` is a structured array whose first field is `time` (the grid t0 + n dt), so
     `fmpy.util.plot_result(result.trajectory)` draws it; `result.steps` holds the per-step figures,
     `result.summary` the figures of summary.json, `result.reference` the monolithic reference run
-    alongside (reference=True) or None. Files are written only into `out_dir`."""
+    alongside (reference=True) or None. Files are written only into `out_dir`, which is locked while
+    the run writes; an earlier run's files there are replaced, and other files refused unless
+    `overwrite` (run/outputs.py). More than max_steps macro-steps are refused (None: no limit)."""
     sc = _scenario(scenario, master=master, K=K, eps=eps, gamma=gamma, dt=dt, T=T, start_time=start_time,
                    outputs=outputs)
-    return run(sc, out_dir, label=sc.master.algorithm, reference="lockstep" if reference else None,
-               certificates=certificates, progress=_progress_printer(progress), warn=warn,
-               file_suffix=False, output_interval=output_interval, formats=tuple(formats))
+    check_steps(sc, max_steps)
+    with OutputFolder(out_dir, overwrite) if out_dir is not None else nullcontext():
+        return run(sc, out_dir, label=sc.master.algorithm, reference="lockstep" if reference else None,
+                   certificates=certificates, progress=_progress_printer(progress), warn=warn,
+                   file_suffix=False, output_interval=output_interval, formats=tuple(formats), max_steps=max_steps)
 
 
 @dataclass

@@ -8,12 +8,14 @@ from pathlib import Path
 import click
 
 from .scenario.config import load_scenario
-from .errors import ConfigError, Interrupted, WavecosimError
+from .errors import ConfigError, Interrupted, SweepFailed, WavecosimError
 from . import api
 from .api import simulate, with_overrides
 from .core.gamma import parse_gamma
 from .masters import ALGORITHMS, MASTERS
+from .run.outputs import OutputFolder
 from .run.recorder import write_json
+from .run.runner import MAX_STEPS, check_steps
 
 
 def _progress(label, quiet):
@@ -75,6 +77,17 @@ def print_table(rows, fields):
     click.echo("  ".join(f.rjust(w) for f, w in zip(fields, widths)))
     for c in cells:
         click.echo("  ".join(v.rjust(w) for v, w in zip(c, widths)))
+
+
+step_timeout_option = click.option(
+    "--step-timeout", type=click.FloatRange(min=0, min_open=True), metavar="SECONDS",
+    help="End the run when a macro-step does not finish within SECONDS, as when a call into an FMU does not "
+         "return (the scenario's step_timeout otherwise; default: no limit). Steps before it are kept.")
+
+
+overwrite_option = click.option(
+    "--overwrite", is_flag=True, help="Write into OUT even when it holds files that are not a wavecosim run's "
+    "(they are left alone; an earlier run's files are always replaced).")
 
 
 config_argument = click.argument("config", required=False, type=click.Path(dir_okay=False, path_type=Path))
@@ -172,24 +185,52 @@ def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None, star
 @click.option("--plots", is_flag=True, help="Also write PNG figures into the output folder.")
 @click.option("--threads", help="Threads evaluating the subsystems: auto, or N (up to min(N, CPUs, subsystems)); "
                                 "the numbers are the same for any N.")
+@step_timeout_option
+@overwrite_option
+@click.option("--force", is_flag=True, help=f"Run even more than {MAX_STEPS:,} macro-steps.")
 def run_cmd(config, K, eps, gamma, dt, T, quiet, start_time, output_interval, formats, ports, parameter_set, input_csv,
-            outputs, algorithm, out, no_certificates, no_reference, plots, threads):
+            outputs, algorithm, out, no_certificates, no_reference, plots, threads, step_timeout, overwrite, force):
     """Run one scenario (with the monolithic reference alongside where there are power bonds) and
     write its trajectory, per-step certificates, summary and metadata. CONFIG is a scenario file,
-    an SSP system (.ssd, .ssp, folder) or one FMU (.fmu), run as fmpy's simulate runs it."""
+    an SSP system (.ssd, .ssp, folder) or one FMU (.fmu), run as fmpy's simulate runs it.
+
+    The steps are made in a child process: an FMU that crashes, calls exit() or (with --step-timeout)
+    does not return leaves every step before it on disk, a summary.json saying what happened, and
+    an exit code of its own (docs/troubleshooting.md). An earlier run's files in OUT are replaced."""
     scenario = _apply_overrides(_read_config(config, ports, parameter_set, dt, T, gamma, start_time, input_csv), K, eps,
                                 gamma, dt, T, algorithm, start_time, outputs)
     if threads is not None:
         from .scenario.config import threads_option
         scenario = scenario.with_master(threads=threads_option(threads))
-    result = simulate(scenario, out_dir=out, progress=_progress("run", quiet) or False,
-                      certificates=not no_certificates, reference=not no_reference,
-                      output_interval=output_interval, formats=("csv", *formats))
-    _report_run(scenario, result, out)
-    if plots:
-        from .plots import run_plots
-        for p in run_plots(result, result.reference, out):
-            click.echo(f"wrote {p}")
+    max_steps = None if force else MAX_STEPS
+    check_steps(scenario, max_steps)
+
+    def work():
+        result = simulate(scenario, out_dir=out, progress=_progress("run", quiet) or False,
+                          certificates=not no_certificates, reference=not no_reference,
+                          output_interval=output_interval, formats=("csv", *formats), max_steps=max_steps)
+        _report_run(scenario, result, out)
+        if plots:
+            from .plots import run_plots
+            for p in run_plots(result, result.reference, out):
+                click.echo(f"wrote {p}")
+    with OutputFolder(out, overwrite):
+        return _supervised(work, out / "summary.json", step_timeout or scenario.step_timeout)
+
+
+def _supervised(work, summary, step_timeout):
+    """work() in a supervised child process (run/supervisor.py); its exit code, raised as ChildExit
+    when it is not 0 (the child has printed its one line). WAVECOSIM_IN_PROCESS=1 runs it here (for a
+    debugger or a profiler; a crash then takes everything with it)."""
+    import os
+    if os.environ.get("WAVECOSIM_IN_PROCESS", "") not in ("", "0"):
+        work()
+        return 0
+    from .run.supervisor import supervise
+    code = supervise(lambda: _exit_status(work), summary=summary, step_timeout=step_timeout)
+    if code:
+        raise ChildExit(code)
+    return 0
 
 
 def _report_run(scenario, result, out):
@@ -234,10 +275,13 @@ sweep_options = options([
                  "default: the number of CPUs; 1 runs in this process."),
     click.option("--scheduler", help="Run on Dask: a scheduler address (tcp://host:8786) or 'local' for an "
                  "embedded LocalCluster of --workers processes."),
-    click.option("--resume", is_flag=True, help="Skip runs whose folder already holds a finished run."),
+    click.option("--resume", is_flag=True, help="Skip runs whose folder already holds a finished run; run "
+                 "those that did not finish once more."),
     click.option("--no-reference", is_flag=True, help="No monolithic reference per run (no error figures)."),
     click.option("--plot-y", default="max_error", show_default=True,
                  help="Comma-separated figures to plot against the first swept key (with --plots)."),
+    step_timeout_option,
+    overwrite_option,
 ])
 
 
@@ -245,26 +289,33 @@ sweep_options = options([
 @config_argument
 @sweep_options
 def sweep_cmd(config, ks, eps, gamma, dt, T, quiet, out, no_certificates, plots, sets, sample, seed, workers,
-              scheduler, resume, no_reference, plot_y):
+              scheduler, resume, no_reference, plot_y, step_timeout, overwrite):
     """Without --set: the paper's experiment, DR for each K against the monolithic reference
     (summary.json). With --set (or --sample, --workers, --scheduler, --resume, --no-reference):
-    a general sweep over any scenario keys, one row per run in OUT/runs.csv and OUT/runs.json."""
+    a general sweep over any scenario keys, one row per run in OUT/runs.csv and OUT/runs.json;
+    each run is made in a child process of its own, and one that crashes or times out is a row
+    saying so (the sweep then exits with code 8)."""
     if sets or sample or workers or scheduler or resume or no_reference:
         options = dict(no_certificates=no_certificates, plots=plots, sample=sample, seed=seed, workers=workers,
-                       scheduler=scheduler, resume=resume, no_reference=no_reference, plot_y=plot_y, quiet=quiet)
+                       scheduler=scheduler, resume=resume, no_reference=no_reference, plot_y=plot_y, quiet=quiet,
+                       step_timeout=step_timeout)
         return _general_sweep(config, ks, sets, (eps, gamma, dt, T), out, options)
-    from .sweeps.budget import SWEEP_FIELDS
     Ks = parse_budgets(ks or "0,3,8,20,35,50")
     scenario = _apply_overrides(load_scenario(config), None, eps, gamma, dt, T)
-    table = api.sweep(scenario, Ks, out_dir=out, progress=(lambda label: _progress(label, quiet)),
-                      certificates=not no_certificates)
-    reference, results, runs = table.reference, table.results, table.rows
-    click.echo(f"{scenario.name}: sweep over K = {Ks} -> {out / 'summary.json'}")
-    print_table(runs, list(SWEEP_FIELDS))
-    if plots:
-        from .plots import sweep_plots
-        for p in sweep_plots(results, reference, out):
-            click.echo(f"wrote {p}")
+
+    def work():
+        from .sweeps.budget import SWEEP_FIELDS
+        table = api.sweep(scenario, Ks, out_dir=out, progress=(lambda label: _progress(label, quiet)),
+                          certificates=not no_certificates)
+        reference, results, runs = table.reference, table.results, table.rows
+        click.echo(f"{scenario.name}: sweep over K = {Ks} -> {out / 'summary.json'}")
+        print_table(runs, list(SWEEP_FIELDS))
+        if plots:
+            from .plots import sweep_plots
+            for p in sweep_plots(results, reference, out):
+                click.echo(f"wrote {p}")
+    with OutputFolder(out, overwrite):
+        return _supervised(work, None, step_timeout or scenario.step_timeout)
 
 
 def _general_sweep(config, ks, sets, changes, out, o):
@@ -278,12 +329,14 @@ def _general_sweep(config, ks, sets, changes, out, o):
         axes.insert(0, ("master.K", parse_budgets(ks, "--K")))
     fixed = [(k, scalar(v) if k == "gamma" else v)
              for k, v in zip(("master.eps", "gamma", "dt", "T"), changes) if v is not None]
-    tasks = plan(config, axes, out, fixed, o["sample"], o["seed"], not o["no_reference"], not o["no_certificates"])
+    tasks = plan(config, axes, out, fixed, o["sample"], o["seed"], not o["no_reference"], not o["no_certificates"],
+                 step_timeout=o["step_timeout"])
     workers = o["workers"] or os.cpu_count() or 1
     meta = {"config": tasks[0].config, "axes": [[k, list(v)] for k, v in axes], "fixed": fixed,
             "sample": o["sample"], "seed": o["seed"], "executor": o["scheduler"] or f"{workers} workers"}
-    rows = run_sweep(tasks, out, meta, workers, o["scheduler"], o["resume"],
-                     None if o["quiet"] else _sweep_progress)
+    with OutputFolder(out, clear=False):
+        rows = run_sweep(tasks, out, meta, workers, o["scheduler"], o["resume"],
+                         None if o["quiet"] else _sweep_progress)
     keys = [k for k, _ in axes]
     failed = [r for r in rows if r.get("status") != "finished"]
     click.echo(f"{len(rows)} runs ({len(failed)} not finished) -> {out / 'runs.csv'}, {out / 'runs.json'}")
@@ -294,6 +347,8 @@ def _general_sweep(config, ks, sets, changes, out, o):
         from .plots import figure_plots
         for p in figure_plots(rows, keys, [y.strip() for y in o["plot_y"].split(",") if y.strip()], out):
             click.echo(f"wrote {p}")
+    if failed:
+        raise SweepFailed(f"{len(failed)} of {len(rows)} runs did not finish (their rows say why: {out / 'runs.csv'})")
 
 
 def _sweep_progress(total, skipped):
@@ -329,8 +384,10 @@ def _sweep_progress(total, skipped):
                    "warm, gamma-auto, gamma-fastest, fastest-relaxed, fastest-relaxed-anderson, "
                    "fastest-relaxed-extrapolated, fastest-relaxed-memory, fastest-memory, "
                    "fastest-memory-eps3, fastest-memory-eps5.")
+@step_timeout_option
+@overwrite_option
 def compare_cmd(config, K, eps, gamma, dt, T, quiet, start_time, ports, parameter_set, masters, ks, out,
-                no_certificates, plots, dr_options):
+                no_certificates, plots, dr_options, step_timeout, overwrite):
     """Every master over a grid of budgets against the monolithic reference: error, energy, cost."""
     from .sweeps.comparison import COMPARE_FIELDS, parse_options
     options = parse_options(dr_options)
@@ -345,19 +402,23 @@ def compare_cmd(config, K, eps, gamma, dt, T, quiet, start_time, ports, paramete
         Ks = parse_budgets(ks)
     scenario = _apply_overrides(_read_config(config, ports, parameter_set, dt, T, gamma, start_time), None, eps,
                                 gamma, dt, T, start_time=start_time)
-    table = api.compare(scenario, names, Ks, out_dir=out, progress=(lambda label: _progress(label, quiet)),
-                        certificates=not no_certificates, options=options)
-    reference, results, rows = table.reference, table.results, table.rows
-    click.echo(f"{scenario.name}: {len(rows)} runs of {len(names)} masters -> {out / 'compare.json'} (the runs' "
-               f"files: one folder per master in {out})")
-    print_table(rows, list(COMPARE_FIELDS))
-    for r in rows:
-        if r["status"] != "finished":
-            click.echo(f"{r['master']} K={r['K']}: {r['status']} after {r['steps']} steps: {r['message']}")
-    if plots:
-        from .plots import compare_plots
-        for p in compare_plots(rows, results, reference, out):
-            click.echo(f"wrote {p}")
+
+    def work():
+        table = api.compare(scenario, names, Ks, out_dir=out, progress=(lambda label: _progress(label, quiet)),
+                            certificates=not no_certificates, options=options)
+        reference, results, rows = table.reference, table.results, table.rows
+        click.echo(f"{scenario.name}: {len(rows)} runs of {len(names)} masters -> {out / 'compare.json'} (the "
+                   f"runs' files: one folder per master in {out})")
+        print_table(rows, list(COMPARE_FIELDS))
+        for r in rows:
+            if r["status"] != "finished":
+                click.echo(f"{r['master']} K={r['K']}: {r['status']} after {r['steps']} steps: {r['message']}")
+        if plots:
+            from .plots import compare_plots
+            for p in compare_plots(rows, results, reference, out):
+                click.echo(f"wrote {p}")
+    with OutputFolder(out, overwrite):
+        return _supervised(work, None, step_timeout or scenario.step_timeout)
 
 
 @cli.command("validate")
@@ -446,25 +507,40 @@ def bench_cmd(quick, json_file, only):
         click.echo(f"wrote {json_file}")
 
 
-def main(argv=None):
+class ChildExit(WavecosimError):
+    """A supervised child ended with this exit code, after printing its own line."""
+
+    def __init__(self, code):
+        super().__init__("")
+        self.exit_code = code
+
+
+def _exit_status(work):
+    """work(); its exit code: 0, or the code of the error it raised, after one line on stderr."""
     try:
-        cli.main(args=argv, standalone_mode=False)
+        work()
+        return 0
     except click.exceptions.Abort:
         click.echo("error: interrupted", err=True)
-        sys.exit(130)
+        return 130
     except click.ClickException as exc:
         click.echo(f"error: {exc.format_message()}", err=True)    # one line, naming the option
-        sys.exit(2)
+        return 2
+    except ChildExit as exc:
+        return exc.exit_code
     except Interrupted as exc:
         click.echo(f"interrupted: {exc}; results so far are on disk", err=True)
-        sys.exit(130)
+        return exc.exit_code
     except WavecosimError as exc:
         click.echo(f"error: {exc}", err=True)
-        sys.exit(getattr(exc, "exit_code", 1))
+        return getattr(exc, "exit_code", 1)
     except KeyboardInterrupt:
         click.echo("error: interrupted", err=True)
-        sys.exit(130)
-    sys.exit(0)
+        return 130
+
+
+def main(argv=None):
+    sys.exit(_exit_status(lambda: cli.main(args=argv, standalone_mode=False)))
 
 
 if __name__ == "__main__":

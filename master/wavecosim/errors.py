@@ -5,13 +5,30 @@
 | ConfigError, CouplingError | 2 | bad scenario, option or FMU choice, found before anything runs |
 | FmuError | 3 | an FMU could not be loaded or a call returned Error/Fatal (its own message kept) |
 | NumericalError | 4 | a non-finite value, a blow-up, an interface solve that did not converge |
-| Interrupted | 130 | Ctrl-C; the steps done so far are on disk |
+| FmuCrashed | 5 | an FMU crashed the process (a signal such as SIGSEGV) or ended it (exit()) |
+| StepTimeout | 6 | a macro-step did not finish within the step timeout (a call that does not return) |
+| OutputError | 7 | the output folder cannot be written (not writable, disk full, in use, holds other files) |
+| SweepFailed | 8 | a sweep ended with runs that did not finish (each one is a row saying why) |
+| Interrupted | 130 | Ctrl-C (SIGINT); the steps done so far are on disk |
+| Terminated | 143 | SIGTERM; the steps done so far are on disk |
+
+`status` is the word summary.json gives a run that stopped with the error.
 """
+
+
+def brief_text(text, limit=400):
+    """A message cut to about `limit` characters in its middle (a huge value quoted in it), so it stays
+    one readable line: its start names the culprit, its end what was expected."""
+    if len(text) <= limit:
+        return text
+    tail = limit // 4
+    return f"{text[:limit - tail]} ... [{len(text) - limit} characters left out] ... {text[-tail:]}"
 
 
 class WavecosimError(Exception):
     """Root of every error the product reports to users."""
     exit_code = 1
+    status = "failed"
 
 
 class ConfigError(WavecosimError):
@@ -42,13 +59,41 @@ class NumericalError(WavecosimError):
     exit_code = 4
 
 
+class FmuCrashed(FmuError):
+    """An FMU crashed the process or called exit(): the supervisor kept the steps before the fault."""
+    exit_code = 5
+    status = "crashed"
+
+
+class StepTimeout(FmuError):
+    """A macro-step did not finish within the step timeout (a call into an FMU that does not return)."""
+    exit_code = 6
+    status = "timed out"
+
+
+class OutputError(WavecosimError):
+    """The output folder cannot be used: not writable, full, in use by another run, or not a run's."""
+    exit_code = 7
+
+
+class SweepFailed(WavecosimError):
+    """A sweep finished, and some of its runs did not (their rows say why)."""
+    exit_code = 8
+
+
 class Interrupted(WavecosimError):
     """The user stopped the run (Ctrl-C); `result` holds the steps done (also on disk)."""
     exit_code = 130
+    status = "interrupted"
 
     def __init__(self, message, result=None):
         super().__init__(message)
         self.result = result
+
+
+class Terminated(Interrupted):
+    """SIGTERM stopped the run; as Interrupted."""
+    exit_code = 143
 
 
 class RunFailed(WavecosimError):

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from scipy.io import loadmat
 
+from wavecosim.errors import OutputError
 from wavecosim.run import recorder, writer
 from wavecosim.run.recorder import Interrupts, Labels, Table, ints, write_json, write_mat
 
@@ -147,19 +148,22 @@ def test_pieces_handed_over_as_they_are_filled_give_the_same_file(tmp_path, monk
 
 
 def test_a_writer_error_is_raised_at_the_next_flush_and_at_close(monkeypatch):
-    """/dev/full: every write fails with ENOSPC (disk full), in the writer thread."""
+    """/dev/full: every write fails with ENOSPC (disk full), in the writer thread: one OutputError naming
+    the file, raised again by every later call."""
     monkeypatch.setattr(recorder, "BLOCK", 10)
     table = Table(["a"], Path("/dev/full"))
     fill(table, [[1.0]] * 10)                      # the block is full; the next row hands it over
-    table.next_row()
-    with pytest.raises(OSError) as first:
+    with pytest.raises(OutputError) as first:
+        table.next_row()                           # raises when the writer thread failed already
         table.wait()
+    table.next_row()
     table.commit_row()
-    with pytest.raises(OSError) as again:
+    with pytest.raises(OutputError) as again:
         table.flush()
-    with pytest.raises(OSError) as at_close:
+    with pytest.raises(OutputError) as at_close:
         table.close()
-    assert first.value is again.value is at_close.value and first.value.errno == errno.ENOSPC
+    assert first.value is again.value is at_close.value and first.value.__cause__.errno == errno.ENOSPC
+    assert str(first.value) == "/dev/full: cannot write: No space left on device"
 
 
 def test_ctrl_c_while_closing_is_held_until_every_row_is_written(tmp_path):

@@ -65,7 +65,7 @@ def test_bad_keys_and_values_stop_before_anything_runs(tmp_path, capsys, args, w
 
 def test_a_failing_run_is_a_row_and_the_sweep_goes_on(tmp_path, capsys):
     code, printed, _ = sweep(capsys, tmp_path, *FAILING, "--T", "0.3", "--workers", "2", "--no-reference", "--quiet")
-    assert code == 0
+    assert code == 8                                  # SweepFailed: a run did not finish
     failed, finished = rows_of(tmp_path)
     assert failed["status"] == "failed" and finished["status"] == "finished"
     assert "at step 18" in failed["message"] and "did not converge in 4 iterations" in failed["message"]

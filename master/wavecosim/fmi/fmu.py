@@ -24,8 +24,10 @@ from fmpy.fmi2 import fmi2LastSuccessfulTime
 
 from ..errors import FmuError
 from .me import ModelExchange
+from .messages import MessageLog, cut
 from .sources import provide_binary
-from .values import BOOLEAN, REAL, as_python, category, integer_range, is_number, is_whole
+from .unpack import unpack
+from .values import BOOLEAN, REAL, as_python, category, integer_range, is_int32, is_number
 
 _STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
 _libc = ctypes.CDLL(None)
@@ -35,7 +37,8 @@ _libc.free.argtypes = [ctypes.c_void_p]
 
 
 def extract_fmu(path: Path) -> Path:
-    """Extract an FMU into a fresh temporary folder, refusing members that would escape it."""
+    """Extract an FMU into a fresh temporary folder (removed at exit), refusing members that would
+    escape it and an archive that unpacks to too much (fmi/unpack.py)."""
     path = Path(path)
     if not path.exists():
         raise FmuError(f"FMU file not found: {path}")
@@ -45,15 +48,9 @@ def extract_fmu(path: Path) -> Path:
     atexit.register(shutil.rmtree, target, True)
     try:
         with zipfile.ZipFile(path) as z:
-            names = z.namelist()
-            if "modelDescription.xml" not in names:
+            if "modelDescription.xml" not in z.namelist():
                 raise FmuError(f"{path} is not an FMU (no modelDescription.xml)")
-            root = target.resolve()
-            for member in names:
-                dest = (target / member).resolve()
-                if dest != root and root not in dest.parents:
-                    raise FmuError(f"{path}: archive member {member!r} escapes the extraction folder")
-            z.extractall(target)
+        unpack(path, target, FmuError)
     except (zipfile.BadZipFile, OSError) as exc:
         shutil.rmtree(target, ignore_errors=True)
         raise FmuError(f"{path}: cannot extract FMU: {exc}") from None
@@ -149,8 +146,8 @@ def schema_note(path, folder, version):
 # FMI type -> (FMU2Slave setter, (accepts the YAML value, converts it))
 SETTERS = {
     "Real": ("setReal", (is_number, float)),
-    "Integer": ("setInteger", (is_whole, int)),
-    "Enumeration": ("setInteger", (is_whole, int)),
+    "Integer": ("setInteger", (is_int32, int)),
+    "Enumeration": ("setInteger", (is_int32, int)),
     "Boolean": ("setBoolean", (lambda v: isinstance(v, bool), bool)),
     "String": ("setString", (lambda v: isinstance(v, str), str)),
 }
@@ -292,7 +289,7 @@ class Fmu:
             self._key, self.folder = None, extract_fmu(self.path)
         self.can_save_state = bool(cs.canGetAndSetFMUstate)
         self.variables = like.variables if like is not None else {v.name: v for v in self.description.modelVariables}
-        self.messages = []
+        self.messages = MessageLog(name)        # bounded: the last few, and the run's log file
         self.phase = "instantiated"        # of the FMI state machine: instantiated, step, error, fatal
         try:
             self._fmi = self._bind(binding, cs.modelIdentifier, like)
@@ -348,7 +345,9 @@ class Fmu:
                    initialize=self.initialize, like=self)
 
     def last_message(self) -> str:
-        return self.messages[-1][1] if self.messages else "no message from the FMU"
+        """The FMU's last message, cut to a few hundred characters (for one-line errors)."""
+        last = self.messages.last()
+        return cut(last, 300) if last is not None else "no message from the FMU"
 
     def checked(self, call, fname, *args, **kwargs):
         """call(*args, **kwargs), an fmpy method; its exception becomes an FmuError with the FMU's message."""

@@ -42,6 +42,11 @@ def is_whole(v):
     return isinstance(v, int) and not isinstance(v, bool)
 
 
+def is_int32(v):
+    """An FMI 2 Integer: a whole number that fits in 32 bits (a larger one would wrap)."""
+    return is_whole(v) and -2 ** 31 <= v < 2 ** 31
+
+
 def as_python(kind, value):
     """A value an FMU returned (through fmpy) as the Python value of its category: float, int,
     bool, str (UTF-8 decoded) or bytes."""

@@ -356,6 +356,11 @@ class Kernel:
         error = self.failure(n, n * self.io.dt) if failed else None
         return done, BlockLog(log[:, at:at + done], self.n, bool(self.io.stopped)), error
 
+    def step_in_progress(self):
+        """The macro-step the kernel is making or made last (from t_n, which each step sets first): read
+        by another thread while run_steps runs, it tells how far the call has come."""
+        return int(round(self.io.t / self.io.dt)) if self.io.dt > 0 else 0
+
     def redo_do_steps(self):
         """doSteps of the FMUs in the energy ledger's redos the kernel made so far."""
         return self.lib.dr_redo_do_steps(self._handle)

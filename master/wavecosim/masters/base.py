@@ -74,6 +74,13 @@ class Route(Protocol):
     def keep_ledger(self, ledger, traffic, rtol):
         """The energy ledger's state for the kernel's next steps and blocks."""
 
+    def step_in_progress(self) -> int:
+        """The macro-step the kernel is making now (asked from another thread during run_steps)."""
+
+    def salvage(self, n0):
+        """After the process faulted inside run_steps(n0, ...), which never returned: (the steps it made
+        before the fault, their BlockLog), as run_steps would have given them."""
+
 
 class Master:
     """Base of all masters; see the module docstring for the contract."""

@@ -50,6 +50,7 @@ class FastDRMaster(DRMaster):
         self.fast, self.fast_note = True, "C kernel"
         self.planner = ThreadPlanner(self.kernel, settings.threads, len(self.subsystems))
         self._step_s = 0.0        # seconds per macro-step of the last run_steps call
+        self._call = 0            # n0 of the last kernel call (salvage after a fault inside it)
         self._redo_seen = 0       # the kernel's count of redo doSteps when redo_doSteps last looked
 
     def _send_options(self):
@@ -208,6 +209,7 @@ class FastDRMaster(DRMaster):
         started = time.perf_counter()
         if self._certs is not None:
             self._certs.arm(n0, count)
+        self._call = n0
         done, log, error = self.kernel.run_steps(n0, count, H_cap, measure, at)
         if self._certs is not None:
             error = self._certs.disarm(done) or error
@@ -217,6 +219,16 @@ class FastDRMaster(DRMaster):
             self.planner.end(measure, self._step_s / rounds)
         self._book(n0, done, log)
         return done, log, error
+
+    def step_in_progress(self):
+        return self.kernel.step_in_progress()
+
+    def salvage(self, n0):
+        """The steps from n0 the kernel call in progress (begun at self._call) logged before a fault."""
+        made = self.kernel.step_in_progress()
+        if self._certs is not None:
+            self._certs.disarm(made - self._call)
+        return made - n0, self.kernel.joined_log(made - n0, False)
 
     def redo_doSteps(self):
         """doSteps of the FMUs in the ledger's redos since the last ask (the kernel counts them: a wave

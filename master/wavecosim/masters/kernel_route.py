@@ -91,6 +91,14 @@ class KernelRoute(KernelOwner):
             self.took_block(log, done)
         return done, log, error
 
+    def step_in_progress(self):
+        return self.kernel.base.step_in_progress()
+
+    def salvage(self, n0):
+        """The steps from n0 the kernel call in progress logged before a fault."""
+        made = self.kernel.base.step_in_progress() - n0
+        return made, self.kernel.base.joined_log(made, False)
+
     def step_log(self, log, j):
         """The StepLog of row j of a BlockLog."""
         return StepLog(iterations=int(log.iterations[j]), residual=float(log.residual[j]),

@@ -11,6 +11,7 @@ import csv
 import io
 import json
 import math
+import os
 import re
 import signal
 import threading
@@ -20,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..kernel.csvfmt import block_writer
+from .outputs import cannot
 from .writer import Writer
 
 BLOCK = 1024
@@ -91,9 +93,12 @@ class Table:
         self.rows = 0
         self._file, self._writer = None, None
         if path is not None:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            self._file = open(path, "wb")
-            self._file.write((header(self.columns) + "\r\n").encode())
+            try:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                self._file = open(path, "wb")
+                self._file.write((header(self.columns) + "\r\n").encode())
+            except OSError as exc:
+                raise cannot(path, exc) from None
             self._writer = Writer(self._file)
 
     def _new_slot(self):
@@ -211,9 +216,14 @@ class Table:
         failed = self._writer.wait_quietly()
         try:
             self._file.close()
-        except OSError:
+        except OSError as exc:
             if not failed:
-                raise
+                raise cannot(self.path, exc) from None
+        if failed:                      # what the failed write left of a row goes: whole rows only
+            try:
+                os.truncate(self.path, self._writer.written)
+            except OSError:
+                pass
 
     def array(self):
         """All rows as a 2-D float array (read back from the file when not kept in memory)."""
@@ -251,16 +261,19 @@ def _kind(fmt):
 
 
 class Interrupts:
-    """Holds Ctrl-C (SIGINT) until the step in progress is booked: `pending` says one came, and
-    `check()` raises KeyboardInterrupt between steps. A second Ctrl-C raises at once."""
+    """Holds Ctrl-C (SIGINT) and SIGTERM until the step in progress is booked: `pending` says one came
+    (`signal` which), and `check()` raises KeyboardInterrupt between steps. A second one raises at once."""
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
     def __enter__(self):
-        self.pending, self._old = False, None
+        self.pending, self.signal, self._old = False, None, {}
         if threading.current_thread() is threading.main_thread():
-            self._old = signal.signal(signal.SIGINT, self._hold)
+            for sig in self.SIGNALS:
+                self._old[sig] = signal.signal(sig, self._hold)
         return self
 
     def _hold(self, signum, frame):
+        self.signal = self.signal or signum
         if self.pending:
             raise KeyboardInterrupt
         self.pending = True
@@ -270,8 +283,8 @@ class Interrupts:
             raise KeyboardInterrupt
 
     def __exit__(self, *exc):
-        if self._old is not None:
-            signal.signal(signal.SIGINT, self._old)
+        for sig, old in self._old.items():
+            signal.signal(sig, old)
         return False
 
 
@@ -291,12 +304,20 @@ def clean_json(obj):
 
 
 def write_json(path: Path, data):
-    """Write JSON atomically (a .part file renamed), so a reader never sees half a file."""
+    """Write JSON atomically (a .part file renamed), so a reader never sees half a file; an OSError
+    (disk full, not writable) is an OutputError naming the file."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(".json.part")
-    tmp.write_text(json.dumps(clean_json(data), indent=2) + "\n")
-    tmp.replace(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp.write_text(json.dumps(clean_json(data), indent=2) + "\n")
+        tmp.replace(path)
+    except OSError as exc:
+        try:
+            tmp.unlink()
+        except OSError:
+            pass
+        raise cannot(path, exc) from None
 
 
 def write_mat(path: Path, table: Table):

@@ -13,6 +13,7 @@ A monolithic reference runs in lockstep (its own LiveRun) when asked, so errors 
 both runs stream and memory does not grow with the number of steps.
 """
 import math
+import signal
 import sys
 import time
 from dataclasses import dataclass, field
@@ -21,7 +22,8 @@ from pathlib import Path
 import numpy as np
 
 from ..kernel import blocks, cvalues
-from ..errors import ConfigError, Interrupted, NumericalError, RunFailed, SimulationEnded, WavecosimError
+from ..errors import (ConfigError, Interrupted, NumericalError, OutputError, RunFailed, SimulationEnded, Terminated,
+                      WavecosimError)
 from ..fmi.values import BOOLEAN, INTEGER, category
 from ..kernel.drkernel import REASONS as KERNEL_REASONS
 from ..kernel.linalg import total
@@ -29,6 +31,7 @@ from ..core.gamma import GammaTuner
 from ..masters import MASTERS
 from ..masters.base import REASONS, WaveMaster, require_wave_tuning
 from .bounds import Bounds
+from . import containment
 from .metadata import run_metadata
 from .observers import Observer
 from ..core.certificates import sampling
@@ -39,9 +42,11 @@ from .observers.errors import ErrorTracker, stored_reference, stored_rows
 from .observers.fne_watch import FneWatch
 from .observers.gamma import GammaLog, TunedGammaLog
 from .observers.passivity import Passivity
+from .outputs import cannot
 from .recorder import BLOCK, Interrupts, Labels, Table, Texts, ints, write_json, write_mat
 from ..core.readings import Sampler
 from ..core.scene import build_scene
+from ..fmi.messages import LogFile
 
 FORMATS = ("csv", "mat")
 # The columns of steps.csv every run has, then the observers' (their `described`); docs/outputs.md
@@ -57,6 +62,8 @@ STEP_COLUMNS = tuple(STEP_DESCRIBED)
 OBSERVERS = (EnergyLedger, EnergyGuard, GammaLog, TunedGammaLog, FneWatch, CertificateSampler, CertificatePace,
              Passivity, ErrorTracker)      # every observer, in the order they act (and their columns come)
 BLOCK_STEPS = BLOCK                    # macro-steps per call of the master, at most a table block
+HAND_OVER_S = 1.0                      # rows booked are handed to the writer at least this often
+MAX_STEPS = 10 ** 8                    # more macro-steps than this only when asked (--force, max_steps=None)
 assert REASONS[:len(KERNEL_REASONS)] == KERNEL_REASONS     # the kernel's reason codes are the runner's
 
 
@@ -250,6 +257,9 @@ class LiveRun:
             self.master.enable_trace(True)
         self.out_dir, self.formats = (Path(out_dir) if out_dir is not None else None), formats
         self.suffix = f"_{self.label}" if file_suffix else ""
+        self.fmu_log = LogFile(self.out_dir / f"fmu_log{self.suffix}.txt") if self.out_dir is not None else None
+        for s in self.scene.subsystems + self.scene.signal_only if self.fmu_log is not None else ():
+            s.fmu.messages.attach(self.fmu_log)
         self.every, self.n_steps, self.dt, self.t0 = output_interval, scenario.n_steps, scenario.dt, scenario.start_time
         self.sampler = Sampler(self.scene, self.scene.outputs)
         self.columns = list(self.scene.outputs)
@@ -259,6 +269,8 @@ class LiveRun:
         self.loop_time = 0.0                           # start() to the last row written: the run's own per-step cost
         self.led, self.failure, self.recent = 0, None, {}   # as a lockstep reference (lead)
         self.block_steps = 0                                # macro-steps made in blocks
+        self.in_block = None                                # n0 of the kernel call in progress
+        self.write_error = None                             # an OutputError met while finishing
 
     def add_observer(self, observer: Observer):
         """Before start(): one more observer (e.g. the error tracker), acting last."""
@@ -403,7 +415,9 @@ class LiveRun:
         if self.ledger:
             self.master.keep_ledger(*self.guard.kernel_state())
         t0 = time.perf_counter()
+        self.in_block = n0
         done, log, error = self.master.run_steps(n0, count, self.cap)
+        self.in_block = None
         self.master_time += time.perf_counter() - t0
         self.block_steps += done
         whole = done - 1 if log.stopped and not self.ledger else done      # the ledger's kernel books every step
@@ -480,6 +494,38 @@ class LiveRun:
     def _totals(self):
         return {k: sum(s.calls[k] for s in self.scene.subsystems) for k in ("doStep", "save", "restore")}
 
+    def hand_over(self):
+        """The rows booked so far to the writer threads now (the loop does every second)."""
+        for table in (getattr(self, "trajectory", None), getattr(self, "steps", None)):
+            if table is not None:
+                table.hand_over()
+
+    def step_in_progress(self):
+        """The macro-step being made now (inside a kernel call: the one the kernel is at)."""
+        if self.in_block is not None:
+            return self.master.route().step_in_progress()
+        return self.steps_done
+
+    def salvage(self):
+        """After a fault inside a kernel call (which never returned): book the steps it made before it."""
+        n0, self.in_block = self.in_block, None
+        if n0 is None:
+            return
+        done, log = self.master.route().salvage(n0)
+        if done > 0:
+            self._after_block(n0, log.first(done))
+
+    def catch_up(self, end):
+        """Make the steps up to end - 1 (after a fault in the lockstep reference, which made them)."""
+        n = self.steps_done
+        while n < end:
+            n += self.advance(n, min(self.block_size(n), end - n))
+
+    def rescue(self, error):
+        """After a fault (run/containment.py): the files written with the error's status; the FMUs are
+        left as they are (one of them faulted, and its process ends next)."""
+        self.finish(error.status, str(error), release=False)
+
     def _record(self, n, log, reading):
         self.steps_done = n + 1
         self.iterations[0] += log.iterations
@@ -518,23 +564,25 @@ class LiveRun:
             out.update(self.scene.signal_info())
         return out
 
-    def finish(self, status, message):
-        """Close the tables and parts, write summary.json (and metadata.json, MAT files); the RunResult.
-        The rows still to write count in the run's own time (loop_time_s)."""
+    def finish(self, status, message, release=True):
+        """Close the tables and parts (the FMUs only with release), write summary.json (and metadata.json,
+        MAT files); the RunResult. The rows still to write count in the run's own time (loop_time_s)."""
         started = time.perf_counter()
-        tables = [t for t in (getattr(self, "trajectory", None), getattr(self, "steps", None)) if t is not None]
-        for table in tables:           # both tables' last rows handed to the writer threads at once
-            table.flush()
-        for table in tables:
-            table.close()
+        self.write_error = self._close_tables()
+        if self.write_error is not None and status == "finished":
+            status, message = self.write_error.status, str(self.write_error)
         self.loop_time += time.perf_counter() - started
         summary = self.summary(status, message)
-        self.close()
+        if release:
+            self.close()
         result = RunResult(self.label, self.scenario.master.algorithm, self.scenario.master.K, self.columns,
                            self.sampler.units, list(self.scenario.error), self.trajectory, self.steps,
                            getattr(self, "first", {}), summary, status, message)
         if self.out_dir is not None:
-            self._write_files(result)
+            try:
+                self._write_files(result)
+            except OutputError as exc:
+                self.write_error = self.write_error or exc
         return result
 
     def units(self):
@@ -549,6 +597,23 @@ class LiveRun:
         if "error" in steps:                     # the units of the error columns (one, when they share it)
             steps["error"] = ", ".join(dict.fromkeys(self.sampler.units.get(c, "") for c in self.scenario.error))
         return {"trajectory": {"time": "s", **self.sampler.units}, "steps": steps}
+
+    def _close_tables(self):
+        """Write the last rows and close the files; the first OutputError (disk full, ...) or None.
+        A table that could not write keeps its file to whole rows."""
+        tables = [t for t in (getattr(self, "trajectory", None), getattr(self, "steps", None)) if t is not None]
+        errors = []
+        for close in [t.flush for t in tables] + [t.close for t in tables]:   # both tables' last rows at once
+            try:
+                close()
+            except OutputError as exc:
+                errors.append(exc)
+        if self.fmu_log is not None:
+            try:
+                self.fmu_log.close()
+            except OSError as exc:
+                errors.append(cannot(self.fmu_log.path, exc))
+        return errors[0] if errors else None
 
     def _write_files(self, result):
         name = (lambda kind, ext: self.out_dir / f"{kind}{self.suffix}.{ext}")
@@ -567,13 +632,15 @@ class LiveRun:
 
 
 def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True, progress=None, warn=None,
-        file_suffix=True, output_interval=1, formats=("csv",)) -> RunResult:
+        file_suffix=True, output_interval=1, formats=("csv",), max_steps=MAX_STEPS) -> RunResult:
     """Run `scenario` with its master; stream trajectory.csv and steps.csv into out_dir when given.
 
     reference: None (no errors), a RunResult of the monolithic reference, or "lockstep" (run the
     monolithic reference alongside, writing its files with the label "monolithic"; only where the
     scene has power bonds: without them there is no interface to solve monolithically). Raises
-    RunFailed (with .result) on a failure, Interrupted (with .result) on Ctrl-C."""
+    RunFailed (with .result) on a failure, Interrupted (with .result) on Ctrl-C; a run of more than
+    max_steps macro-steps is refused before anything is opened or allocated."""
+    check_steps(scenario, max_steps)
     warn = _once(warn or _warn_stderr)                 # the lockstep reference repeats set-up notes
     if reference == "lockstep" and not scenario.couplings:
         reference = None
@@ -597,43 +664,71 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
     except BaseException:
         live.close()
         raise
-    status, error = _loop(live, ref, progress)
-    result = live.finish(status, str(error) if error else "")
+    contain = containment.current()
+    if contain is not None:
+        contain.watch(live, ref)
+    status, error = _loop(live, ref, progress, contain)
+    message = str(error) if error else ""
+    if isinstance(error, Interrupted):
+        message = f"{error} after {live.steps_done} steps"
+    result = live.finish(status, message)
     if ref is not None:
-        result.reference = ref.finish(status, str(error) if error else "")
+        result.reference = ref.finish(status, message)
     if status == "interrupted":
-        raise Interrupted(f"interrupted by the user after {result.summary['steps']} steps", result)
-    if status == "failed":
-        raise RunFailed(error, result) from error
+        raise type(error)(message, result)
+    failure = error if status != "finished" else None            # SimulationEnded finishes a run
+    failure = failure or live.write_error or (ref.write_error if ref is not None else None)
+    if failure is not None:
+        raise RunFailed(failure, result) from failure
     return result
 
 
-def _loop(live, ref, progress):
-    """Every macro-step of the run (and of its lockstep reference); returns (status, exception)."""
+def check_steps(scenario, max_steps=MAX_STEPS):
+    """A ConfigError when the scenario has more than max_steps macro-steps (None: no limit)."""
+    if max_steps is not None and scenario.n_steps > max_steps:
+        raise ConfigError(f"{scenario.source}: T / dt = {scenario.n_steps:,} macro-steps, over the limit of "
+                          f"{max_steps:,} (pass --force, or max_steps=None in Python, to run it anyway)")
+
+
+def _loop(live, ref, progress, contain=None):
+    """Every macro-step of the run (and of its lockstep reference); returns (status, exception).
+    Rows go to the writer at least every HAND_OVER_S seconds; a supervised run (contain) is told
+    which run makes the next steps."""
     every = max(1, live.n_steps // 200)
+    active = contain.active if contain is not None else (lambda part: None)
     with Interrupts() as stop:
         try:
             for part in (ref, live):
                 if part is not None:
+                    active(part)
                     part.start()
-            n = 0
+            n, handed = 0, time.perf_counter()
             while n < live.n_steps:
                 count = live.block_size(n)
                 if ref is not None:
+                    active(ref)
                     count = min(count, ref.lead(n, n + count) - n)
                     if count <= 0:
                         raise ref.failure
+                active(live)
                 done = live.advance(n, count)
                 stop.check()
                 if progress and ((n + done) // every > n // every or n + done == live.n_steps):
                     progress(n + done, live.n_steps)
                 n += done
+                if time.perf_counter() - handed > HAND_OVER_S:
+                    for part in (ref, live):
+                        if part is not None:
+                            part.hand_over()
+                    handed = time.perf_counter()
         except KeyboardInterrupt:
-            return "interrupted", None
+            error = Terminated if stop.signal == signal.SIGTERM else Interrupted
+            return "interrupted", error("stopped by SIGTERM" if stop.signal == signal.SIGTERM
+                                        else "interrupted by the user")
         except SimulationEnded as exc:              # an FMU ended it: finished, with the steps before
             return "finished", exc
         except WavecosimError as exc:
-            return "failed", exc
+            return exc.status, exc
     return "finished", None
 
 

@@ -10,6 +10,7 @@ import threading
 from collections import deque
 from concurrent.futures import ThreadPoolExecutor
 
+from ..errors import OutputError
 from ..kernel.drkernel import available_cpus
 
 _pool = None
@@ -49,6 +50,7 @@ class Writer:
 
     def __init__(self, file):
         self.file, self.error = file, None
+        self.written = file.tell()                        # bytes of whole pieces in the file
         self.todo, self.unwritten = deque(), deque()      # pieces nobody has taken; pieces not yet written
         self.lock = threading.Lock()
         self.changed = threading.Condition(self.lock)     # a piece formatted or written
@@ -95,6 +97,7 @@ class Writer:
                             raise piece.data
                         self.file.write(piece.data)
                         self.file.flush()
+                        self.written += len(piece.data)
                     except BaseException as exc:
                         self.error = exc
                 with self.lock:
@@ -110,7 +113,10 @@ class Writer:
                     self.changed.wait_for(lambda: piece.data is not None)
 
     def check(self):
-        """Raise the writer's error, if any."""
+        """Raise the writer's error, if any (an OSError as the OutputError naming the file)."""
+        if isinstance(self.error, OSError):
+            failure = OutputError(f"{self.file.name}: cannot write: {self.error.strerror or self.error}")
+            failure.__cause__, self.error = self.error, failure
         if self.error is not None:
             raise self.error
 

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import yaml
 
-from ..errors import ConfigError
+from ..errors import ConfigError, brief_text
 from ..examples import DEFAULT
 from ..core.gamma import MODES as GAMMA_MODES
 from ..core.interconnection import COUPLINGS, TAKES_RATIO
@@ -21,6 +21,7 @@ from .experiment import from_fmus
 
 DEFAULT_CONFIG = DEFAULT
 GROWTH_BOUND = 1e12
+INT32 = (-2 ** 31, 2 ** 31 - 1)       # an FMI Integer
 COUPLING_TYPES = tuple(COUPLINGS)
 SIGNALS_MASTER = "explicit"            # the master of a system without power bonds
 
@@ -227,6 +228,9 @@ class Scenario:
         "stop it)", "1", "number > 1 or null"))
     output_patterns: list = field(default_factory=list)       # globs narrowing the recorded columns
     order: list = field(default_factory=list)                 # every subsystem's name, in the file's order
+    step_timeout: float = field(default=None, metadata=key(
+        "seconds one call into an FMU may take before the run stops as timed out (`--step-timeout`)", "s",
+        "number > 0 or null", "no limit"))
 
     @property
     def n_steps(self):
@@ -263,10 +267,19 @@ def _fail(where, message):
     raise ConfigError(f"{where}: {message}")
 
 
+MAX_GRID_STEPS = 10 ** 15      # beyond this, n dt no longer tells the steps apart (and no run ends)
+
+
 def check_whole_steps(T, dt, fail, t0=0.0):
-    """The stop time T must be a whole number (>= 1) of macro-steps dt after the start time t0;
-    `fail(message)` raises."""
+    """The stop time T must be a whole number (>= 1) of macro-steps dt after the start time t0, finite
+    and at most MAX_GRID_STEPS of them; `fail(message)` raises."""
+    if not (math.isfinite(dt) and dt > 0):
+        fail(f"dt must be a finite number > 0, got {dt!r}")
+    if not math.isfinite(T):
+        fail(f"T must be a finite number, got {T!r}")
     span, after = T - t0, f" after the start time {t0:g}" if t0 else ""
+    if not span / dt <= MAX_GRID_STEPS:
+        fail(f"dt = {dt!r} is too small for T = {T!r}{after} ({span / dt:.3g} steps; at most {MAX_GRID_STEPS:.0e})")
     if span < dt:
         fail(f"T must be at least one step dt = {dt}{after}, got {T}")
     if abs(span / dt - round(span / dt)) > 1e-9 * (span / dt):
@@ -280,6 +293,7 @@ class _Checker:
         self.source = source
 
     def fail(self, path, message):
+        message = brief_text(message)
         raise ConfigError(f"{self.source}: {path}: {message}" if path else f"{self.source}: {message}")
 
     def mapping(self, value, path, allowed, required=()):
@@ -306,11 +320,13 @@ class _Checker:
             self.fail(path, f"must be >= {minimum}, got {value!r}")
         return value
 
-    def integer(self, value, path, minimum=None):
+    def integer(self, value, path, minimum=None, maximum=None):
         if isinstance(value, bool) or not isinstance(value, int):
             self.fail(path, f"must be an integer, got {value!r}")
         if minimum is not None and value < minimum:
             self.fail(path, f"must be >= {minimum}, got {value!r}")
+        if maximum is not None and value > maximum:
+            self.fail(path, f"must be <= {maximum}, got {value!r}")
         return value
 
     def string(self, value, path, choices=None):
@@ -438,7 +454,8 @@ def _subsystem(ck, name, raw, base_dir):
         spec = _port(ck, f"{path}.port", ck.mapping(raw["port"] or {}, f"{path}.port", PORT_KEYS))
     integers = raw.get("integers") or {}
     ck.mapping(integers, f"{path}.integers", list(integers))
-    integers = {k: ck.integer(v, f"{path}.integers.{k}") for k, v in integers.items()}
+    integers = {k: ck.integer(v, f"{path}.integers.{k}", minimum=INT32[0], maximum=INT32[1])
+                for k, v in integers.items()}
     fmu_path = None
     if fmu.endswith(".fmu") or "/" in fmu:
         fmu_path = (base_dir / fmu).resolve()
@@ -494,6 +511,9 @@ def _coupling(ck, k, raw, subsystem_names):
             if not isinstance(mat, list) or not all(isinstance(r, list) for r in mat):
                 ck.fail(f"{path}.{key}", "must be a matrix (a list of rows)")
             for i, row in enumerate(mat):
+                if len(row) != len(mat[0]) or not row:
+                    ck.fail(f"{path}.{key}[{i}]", f"has {len(row)} entries, row 0 has {len(mat[0])}: "
+                                                  f"a matrix has rows of one length")
                 for j, v in enumerate(row):
                     ck.number(v, f"{path}.{key}[{i}][{j}]")
         c.E, c.F = raw["E"], raw["F"]
@@ -545,7 +565,39 @@ def load_raw(path) -> dict:
         raise ConfigError(f"{path}: not valid YAML ({where}: {getattr(exc, 'problem', exc)})") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"{path}: cannot read: {exc}") from None
+    check_expansion(raw, str(path))
     return expand_repeats(raw, _Checker(str(path)))         # so that --set sees every repeated entry
+
+
+MAX_VALUES = 1_000_000         # values a scenario may hold once its anchors and aliases are expanded
+
+
+def check_expansion(raw, source):
+    """Refuse a YAML whose aliases expand to more than MAX_VALUES values (a "billion laughs" file), or
+    that refers to itself, counting each shared node once per use without expanding anything."""
+    sizes, open_ = {}, set()
+
+    def size(node):
+        if not isinstance(node, (dict, list)):
+            return 1
+        key = id(node)
+        if key in sizes:
+            return sizes[key]
+        if key in open_:
+            raise ConfigError(f"{source}: an anchor refers to itself (a value that contains itself)")
+        open_.add(key)
+        total = 1
+        for child in (node.values() if isinstance(node, dict) else node):
+            total += size(child)
+            if total > MAX_VALUES:
+                break
+        open_.discard(key)
+        sizes[key] = total
+        return total
+
+    if size(raw) > MAX_VALUES:
+        raise ConfigError(f"{source}: its anchors and aliases expand to more than {MAX_VALUES:,} values "
+                          f"(refused before expanding it)")
 
 
 def _master(ck, m, couplings) -> MasterConfig:
@@ -758,7 +810,9 @@ def parse_scenario(raw, source="<scenario>", base_dir=Path("."), settings=None) 
                     fne_watch=ck.boolean(raw.get("fne_watch", True), "fne_watch"),
                     signal_subsystems=signal_subsystems, sources=sources, signals=signals,
                     output_patterns=patterns, order=names, start_time=start_time,
-                    growth_bound=_growth_bound(ck, raw.get("growth_bound", GROWTH_BOUND)))
+                    growth_bound=_growth_bound(ck, raw.get("growth_bound", GROWTH_BOUND)),
+                    step_timeout=(ck.number(raw["step_timeout"], "step_timeout", positive=True)
+                                  if raw.get("step_timeout") is not None else None))
 
 
 def _growth_bound(ck, value):

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from ..scenario.config import DEFAULT_CONFIG
 from ..errors import Interrupted
-from .execute import Task, executor, finished_row, task_scenario
+from .execute import Task, executor, resumed, task_scenario
 from ..run.recorder import write_json
 from ..scenario.overrides import expand, short_label
 from ..run.runner import reference_scenario, run
@@ -46,7 +46,7 @@ def sweep(scenario, Ks, out_dir, progress=None, certificates=True, reference=Non
 
 
 def plan(config, axes, out_dir, fixed=(), sample=None, seed=0, reference=True, certificates=True,
-         output_interval=1):
+         output_interval=1, step_timeout=None):
     """The tasks of a general sweep, every one validated (a bad key or value is a one-line
     ConfigError before anything runs). axes: [(key, values or distribution)] from --set;
     fixed: (key, value) applied to every run (e.g. T from --T)."""
@@ -59,7 +59,7 @@ def plan(config, axes, out_dir, fixed=(), sample=None, seed=0, reference=True, c
     for i, point in enumerate(points):
         label = f"{i:0{width}d}_{short_label(point)}"
         tasks.append(Task(i, config, (*threads, *fixed, *point), str(Path(out_dir) / "runs" / label), label,
-                          keys, reference, certificates, output_interval))
+                          keys, reference, certificates, output_interval, step_timeout))
     scenarios = [task_scenario(t) for t in tasks]
     if scenarios:
         preflight(scenarios[0])
@@ -89,12 +89,18 @@ def write_rows(out_dir, rows, meta):
 
 def run_sweep(tasks, out_dir, meta, workers=1, scheduler=None, resume=False, progress=None):
     """Run the tasks on the chosen executor; rows ordered by task, written as they come in.
-    With resume, a task whose folder holds a finished run is not run again. Ctrl-C keeps the
-    rows done and raises Interrupted."""
-    rows = {}
+    With resume, a task whose folder holds a finished run is not run again, and one that did not
+    finish is tried once more (execute.resumed). Ctrl-C or SIGTERM keeps the rows done and raises
+    Interrupted (Terminated)."""
+    rows, todo = {}, list(tasks)
     if resume:
-        rows = {t.index: row for t in tasks for row in [finished_row(t)] if row is not None}
-    todo = [t for t in tasks if t.index not in rows]
+        todo = []
+        for task in tasks:
+            row, again = resumed(task)
+            if row is not None:
+                rows[task.index] = row
+            else:
+                todo.append(again)
     report = progress(len(tasks), len(rows)) if progress else (lambda row: None)
     ordered = lambda: [rows[i] for i in sorted(rows)]        # noqa: E731
     last_write = 0.0
@@ -106,9 +112,10 @@ def run_sweep(tasks, out_dir, meta, workers=1, scheduler=None, resume=False, pro
                 if time.monotonic() - last_write > 1.0:
                     write_rows(out_dir, ordered(), meta)
                     last_write = time.monotonic()
-    except (KeyboardInterrupt, Interrupted):
+    except (KeyboardInterrupt, Interrupted) as exc:
         write_rows(out_dir, ordered(), meta)
-        raise Interrupted(f"sweep interrupted after {len(rows)} of {len(tasks)} runs") from None
+        stop = type(exc) if isinstance(exc, Interrupted) else Interrupted
+        raise stop(f"sweep stopped after {len(rows)} of {len(tasks)} runs") from None
     write_rows(out_dir, ordered(), meta)
     return ordered()
 

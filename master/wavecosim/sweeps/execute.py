@@ -1,21 +1,25 @@
-"""Sweep tasks as plain data, and three ways to run them: serial, a local process pool, Dask.
+"""Sweep tasks as plain data, and three ways to run them: serial (in this process), local supervised
+child processes, Dask.
 
 A Task names a scenario file, the (key, value) overrides and the run options; the process that
 runs it reads the file, applies the overrides and opens its own FMUs (FMU handles cannot be
 pickled). Every executor yields one row per task as tasks complete; callers order rows by index.
+A local task runs in a child of its own (run/supervisor.py): one that crashes, calls exit() or
+times out is a row with that status and message, and the others go on.
 """
 import json
-import multiprocessing
+import selectors
+import signal
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
 from ..scenario.config import load_raw, parse_scenario
-from ..errors import ConfigError, Interrupted, RunFailed, WavecosimError
+from ..errors import ConfigError, Interrupted, RunFailed, Terminated, WavecosimError
+from ..run.outputs import remove_run_files
 from ..run.recorder import clean_json, write_json
 from ..scenario.overrides import apply_overrides
 
@@ -34,6 +38,8 @@ class Task:
     reference: bool = True
     certificates: bool = True
     output_interval: int = 1
+    step_timeout: float = None                 # seconds a call into an FMU may take (None: the scenario's)
+    attempt: int = 1                           # 2 for a failed run tried again by --resume
 
 
 @lru_cache(maxsize=8)
@@ -89,8 +95,14 @@ def run_task(task):
         summary = {"status": "error", "message": f"{type(exc).__name__}: {exc}"}
     row.update({k: v for k, v in flatten(summary).items() if k not in row and k != "label"})
     row["warnings"] = " | ".join(warnings)
+    return _book_row(task, row, started)
+
+
+def _book_row(task, row, started):
+    """The row with its attempt and time, as a resumed row reads back (nan as "nan"), in ROW_FILE."""
+    row["attempts"] = task.attempt
     row["task_time_s"] = time.perf_counter() - started
-    row = clean_json(row)                               # as a resumed row reads back: nan as "nan"
+    row = clean_json(row)
     write_json(Path(task.out_dir) / ROW_FILE, row)
     return row
 
@@ -111,16 +123,35 @@ def _outcome(future, task):
         return clean_json({**_row_head(task), "status": "error", "message": f"{type(exc).__name__}: {exc}"})
 
 
-def finished_row(task):
-    """The stored row of a task whose folder holds a finished run with the same overrides, else None."""
-    folder = Path(task.out_dir)
+def stored_row(task):
+    """The row a task's folder holds from an earlier sweep with the same overrides, else None."""
     try:
-        summary = json.loads((folder / "summary.json").read_text())
-        row = json.loads((folder / ROW_FILE).read_text())
+        row = json.loads((Path(task.out_dir) / ROW_FILE).read_text())
     except (OSError, ValueError):
         return None
-    same = all(row.get(k) == v for k, v in task.overrides if k in task.columns)
-    return row if summary.get("status") == "finished" and same else None
+    return row if all(row.get(k) == v for k, v in task.overrides if k in task.columns) else None
+
+
+def finished_row(task):
+    """The stored row of a task whose folder holds a finished run with the same overrides, else None."""
+    try:
+        summary = json.loads((Path(task.out_dir) / "summary.json").read_text())
+    except (OSError, ValueError):
+        return None
+    row = stored_row(task)
+    return row if summary.get("status") == "finished" else None
+
+
+def resumed(task):
+    """For --resume: (the stored row to keep, or None and the task to run). A finished run is kept; a
+    run that did not finish is tried once more (attempt 2), and kept as it is after that."""
+    row = finished_row(task)
+    if row is not None:
+        return row, None
+    row = stored_row(task)
+    if row is not None and row.get("attempts", 1) >= 2:
+        return row, None
+    return None, replace(task, attempt=2) if row is not None else task
 
 
 def serial(tasks):
@@ -130,15 +161,78 @@ def serial(tasks):
 
 
 def process_pool(tasks, workers):
-    """A local pool of `workers` processes started with spawn (forking after the C kernel's threads
-    started is unsafe); rows in completion order."""
-    pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"))
-    futures = {pool.submit(run_task, t): t for t in tasks}
+    """Each task in a supervised child process of its own (forked from this one, which runs no FMU
+    and no kernel thread), at most `workers` at once; rows in completion order. SIGINT and SIGTERM
+    reach the running children, which stop between two steps; no task starts after one."""
+    from ..run.supervisor import passing_stops
+    todo, running = list(tasks), {}
+    with passing_stops(list(running.values())) as stops:
+        try:
+            while todo or running:
+                while todo and len(running) < workers and stops.signal is None:
+                    task = todo.pop(0)
+                    running[task.index] = (task, _start_child(task), time.perf_counter())
+                    stops.children[:] = [child for _, child, _ in running.values()]
+                if not running:
+                    break
+                for index in _ended(running):
+                    task, child, started = running.pop(index)
+                    stops.children[:] = [c for _, c, _ in running.values()]
+                    yield _child_row(task, child, started)
+        finally:
+            for _, child, _ in running.values():
+                child.kill()
+    if stops.signal is not None:
+        raise (Terminated if stops.signal == signal.SIGTERM else Interrupted)("stopped")
+
+
+def _start_child(task):
+    from ..run.supervisor import Child
+
+    def body():
+        try:
+            run_task(task)
+        except Interrupted as exc:                      # stopped during its steps: its summary says so
+            return exc.exit_code
+        except KeyboardInterrupt:                       # stopped during its set-up
+            return Interrupted.exit_code
+        return 0
+    remove_run_files(task.out_dir)                      # an earlier attempt's must not stand for this one
+    timeout = task.step_timeout or task_scenario(task).step_timeout
+    return Child(body, summary=Path(task.out_dir) / "summary.json", step_timeout=timeout, relay=False,
+                 announce=False)
+
+
+def _ended(running):
+    """Indices of the running tasks whose child has ended (after a wait of at most 0.2 s)."""
+    selector = selectors.DefaultSelector()
+    for index, (_, child, _) in running.items():
+        child.poll(0)
+        selector.register(child.fileno(), selectors.EVENT_READ, index)
     try:
-        for future in as_completed(futures):
-            yield _outcome(future, futures[future])
+        selector.select(0.2)
     finally:
-        pool.shutdown(wait=True, cancel_futures=True)
+        selector.close()
+    return [index for index, (_, child, _) in running.items() if child.poll(0)]
+
+
+def _child_row(task, child, started):
+    """The row a task's child wrote, or one made from the summary its rescue (or its parent) wrote."""
+    code = child.finish()
+    row = stored_row(task)
+    if row is not None and row.get("attempts", 1) == task.attempt:
+        return row
+    try:
+        summary = json.loads((Path(task.out_dir) / "summary.json").read_text())
+    except (OSError, ValueError):
+        stopped = code in (Interrupted.exit_code, Terminated.exit_code)
+        summary = {"status": "interrupted" if stopped else "crashed",
+                   "message": "stopped before its first step" if stopped
+                   else child.error or "the run's process ended without a summary"}
+    row = _row_head(task)
+    row.update({k: v for k, v in flatten(summary).items() if k not in row and k != "label"})
+    row["warnings"] = ""
+    return _book_row(task, row, started)
 
 
 def dask_cluster(scheduler, workers):
@@ -173,13 +267,11 @@ def dask(tasks, scheduler, workers):
 
 
 def executor(tasks, workers=1, scheduler=None):
-    """The rows of `tasks` from the executor the options pick: Dask when a scheduler is given,
-    else a process pool for workers > 1, else serial."""
+    """The rows of `tasks` from the executor the options pick: Dask when a scheduler is given, else
+    supervised child processes, `workers` at a time."""
     tasks = list(tasks)
     if not tasks:
         return iter(())
     if scheduler:
         return dask(tasks, scheduler, workers)
-    if workers > 1 and len(tasks) > 1:
-        return process_pool(tasks, min(workers, len(tasks)))
-    return serial(tasks)
+    return process_pool(tasks, max(1, min(workers, len(tasks))))

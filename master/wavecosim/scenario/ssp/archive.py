@@ -1,6 +1,6 @@
 """Where an SSP system lives: a `.ssd` file, a folder holding SystemStructure.ssd, or a zipped
 `.ssp` archive (extracted once into a cache folder named by its checksum, so the FMU paths of the
-imported scenario stay valid for the run and for sweep workers)."""
+imported scenario stay valid for the run and for sweep workers; the cache is bounded)."""
 import hashlib
 import os
 import shutil
@@ -8,8 +8,11 @@ import zipfile
 from pathlib import Path
 
 from ...errors import ConfigError
+from ...fmi.unpack import prune, touch, unpack
 
 SSD_NAME = "SystemStructure.ssd"
+CACHE_KEEP = 16                  # unpacked .ssp archives the cache keeps (the ones used last)
+CACHE_BYTES = 4 << 30            # and at most this many bytes of them
 
 
 def is_ssp(path) -> bool:
@@ -38,26 +41,31 @@ def cache_root() -> Path:
 
 
 def extract_ssp(path) -> Path:
-    """Extract a .ssp archive into the cache (once per content), refusing members that would escape."""
+    """Extract a .ssp archive into the cache (once per content), refusing members that would escape and
+    an archive that unpacks to too much (fmi/unpack.py); the cache keeps the CACHE_KEEP archives used
+    last (at most CACHE_BYTES)."""
     path = Path(path)
-    data = path.read_bytes()
-    target = cache_root() / f"{path.stem}-{hashlib.sha256(data).hexdigest()[:16]}"
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            digest.update(chunk)
+    target = cache_root() / f"{path.stem}-{digest.hexdigest()[:16]}"
     if (target / SSD_NAME).exists():
+        touch(target)
         return target
     if not zipfile.is_zipfile(path):
         raise ConfigError(f"{path}: not an SSP archive (not a zip file)")
     with zipfile.ZipFile(path) as archive:
-        names = archive.namelist()
-        if SSD_NAME not in names:
+        if SSD_NAME not in archive.namelist():
             raise ConfigError(f"{path}: the archive has no {SSD_NAME} at its top level")
-        partial = target.with_name(target.name + f".part{os.getpid()}")
-        base = partial.resolve()
-        for member in names:
-            if base not in (partial / member).resolve().parents:
-                raise ConfigError(f"{path}: archive member {member!r} escapes the extraction folder")
-        archive.extractall(partial)
+    partial = target.with_name(target.name + f".part{os.getpid()}")
     try:
+        unpack(path, partial, ConfigError)
         partial.replace(target)
+    except ConfigError:
+        shutil.rmtree(partial, ignore_errors=True)
+        raise
     except OSError:                      # another process extracted the same archive first
         shutil.rmtree(partial, ignore_errors=True)
+    prune(cache_root(), CACHE_KEEP, CACHE_BYTES)
     return target

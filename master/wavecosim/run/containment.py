@@ -1,0 +1,209 @@
+"""The child's side of a supervised run (run/supervisor.py starts it): a fault of an FMU (a crash, an
+exit() call, a call that does not return) must not lose what was computed.
+
+    Containment(channel, step_timeout)     arms kernel/c/guard.c, starts the rescue thread (and the
+                                           watchdog when a step timeout is set)
+    containment.watch(live, ref)           the runner's runs, finished by the rescue
+    containment.active(part) / .leave()    which run is stepping now (the one an FMU fault is in)
+
+A fault parks the faulting thread (an FMU call runs without the GIL); the rescue thread then books
+the steps of a kernel block in progress, writes every run's rows, summary.json and metadata.json
+with status `crashed`, `timed out` or `interrupted`, prints one line and ends the process with the
+error class's exit code. The shared status page tells the parent what happened when even that
+cannot run (a fault holding the GIL, a process killed outright): it then writes the summary itself.
+"""
+import os
+import sys
+import threading
+import time
+
+from ..errors import Interrupted, StepTimeout
+from ..kernel import guard
+from .channel import Channel, DONE, RESCUING, RUNNING, TIMEOUT, describe, locate
+
+_current = None
+POLLS_PER_TIMEOUT = 20            # the watchdog looks this often per step timeout (at most 4 times a second)
+DECLINED_TRIES = 5                # freeze requests the main thread declines (running Python) before it is interrupted
+
+
+def current():
+    """The Containment of this process, or None (an unsupervised run: the API)."""
+    return _current
+
+
+class Containment:
+    """Fault handling of the one supervised run in this process."""
+
+    def __init__(self, channel: Channel, step_timeout=None, announce=True):
+        """announce: the rescue prints the error line (a sweep's runs leave that to the sweep)."""
+        global _current
+        self.channel, self.status = channel, channel.status
+        self.step_timeout, self.announce = step_timeout, announce
+        self.parts, self.current, self.labels = [], None, {}
+        self._rescue_r, self._rescue_w = os.pipe()
+        guard.arm(self.status.fault, self._rescue_w)
+        threading.Thread(target=self._rescue, name="wavecosim-rescue", daemon=True).start()
+        if step_timeout:
+            threading.Thread(target=self._watchdog, name="wavecosim-watchdog", daemon=True).start()
+        _current = self
+
+    def close(self):
+        """The run is over: faults are the process's own again."""
+        global _current
+        guard.disarm()
+        _current = None
+
+    # ---- what the runner tells ----
+    def watch(self, live, ref=None):
+        """The runs to finish on a fault (the run, and its lockstep reference); their FMU binaries and
+        output files go into the channel, for the parent."""
+        self.parts = [p for p in (ref, live) if p is not None]
+        self.labels = {id(live): "", **({id(ref): " (monolithic reference)"} if ref is not None else {})}
+        self.channel.write_layout(self._layout())
+        self.status.state = RUNNING
+
+    def active(self, part):
+        """`part` makes the next steps (an FMU fault is in its subsystems)."""
+        self.current = part
+
+    def _layout(self):
+        parts = []
+        for part in self.parts:
+            files = {kind: str(part.out_dir / f"{kind}{part.suffix}.csv") for kind in ("trajectory", "steps")
+                     if part.out_dir is not None}
+            parts.append({"label": part.label, "suffix": part.suffix, "out_dir": str(part.out_dir or ""),
+                          "scenario": part.scenario.name, "master": part.scenario.master.algorithm,
+                          "K": part.scenario.master.K, "dt": part.dt, "T": part.scenario.T,
+                          "reference": bool(self.labels.get(id(part))), "files": files,
+                          "subsystems": {s.name: str(s.fmu.folder) for s in _fmus(part)}})
+        return {"parts": parts, "libraries": self.libraries()}
+
+    def libraries(self):
+        """The FMU binaries this process has loaded: path, address range and fmi entry points."""
+        return guard.fmu_libraries(FMI_ENTRIES)
+
+    # ---- the watchdog ----
+    def _progress(self):
+        part = self.current
+        if part is None:
+            return None
+        return id(part), part.steps_done, part.step_in_progress()
+
+    def _watchdog(self):
+        """Ask for a rescue when the run makes no progress for step_timeout seconds."""
+        poll = min(0.25, self.step_timeout / POLLS_PER_TIMEOUT)
+        last, since, declined = None, time.monotonic(), 0
+        while True:
+            time.sleep(poll)
+            now = time.monotonic()
+            self.status.heartbeat = now
+            key = self._progress()
+            if key != last or key is None:
+                last, since, declined = key, now, 0
+                continue
+            if now - since < self.step_timeout or self.status.state == RESCUING:
+                continue
+            self.status.request = TIMEOUT
+            if not guard.freeze_main():
+                continue
+            time.sleep(poll)
+            if self.status.fault.kind:
+                return
+            declined += 1
+            if declined >= DECLINED_TRIES:       # the main thread runs Python: stop it there
+                guard.raise_in_main(PythonTimeout)
+
+    # ---- the rescue ----
+    def _rescue(self):
+        """Wait for a fault; then finish every run, print one line and end the process."""
+        os.read(self._rescue_r, 1)
+        self.status.state = RESCUING
+        fault = self.status.fault.summary() or {}
+        code = 1
+        try:
+            crashed = self.current
+            if crashed is not None:
+                crashed.salvage()
+            error = self.error(fault)
+            if crashed is not None and self.labels.get(id(crashed)):
+                crashed.rescue(error)                    # the reference's files first
+                self._catch_up(crashed)
+            for part in self.parts:
+                if part is not crashed or not self.labels.get(id(crashed)):
+                    part.rescue(error)
+            if self.announce:
+                print(announcement(error), file=sys.stderr, flush=True)
+            code = error.exit_code
+        except BaseException as exc:                         # the rescue must end the process anyway
+            print(f"error: the run stopped ({fault.get('kind')}) and could not be written whole: "
+                  f"{type(exc).__name__}: {exc}", file=sys.stderr, flush=True)
+        self.status.exit_code, self.status.state = code, DONE
+        flush_streams()
+        os._exit(code)
+
+    def _catch_up(self, reference):
+        """After a fault in the lockstep reference (which runs ahead): the run makes the steps the
+        reference made, so both end at the step that faulted. Its rows so far are written first: a
+        second fault on the way loses nothing already computed."""
+        live = next((p for p in self.parts if p is not reference), None)
+        if live is None:
+            return
+        live.hand_over()
+        self.current = live
+        try:
+            live.catch_up(reference.steps_done)
+        except Exception:                                 # the run's own failure ends the catch-up
+            pass
+
+    def error(self, fault):
+        """The exception that describes a fault (its class gives the exit code)."""
+        part = self.current
+        where = locate(fault.get("pc", []), self.libraries(),
+                       {k: v for p in self.parts for k, v in self._subsystems(p).items()})
+        step = part.steps_done if part is not None else None
+        t = part.t0 + step * part.dt if part is not None else None
+        return describe(fault, self.status.request, where, step, t, self.step_timeout)
+
+    def _subsystems(self, part):
+        return {str(s.fmu.folder): f"{s.name}{self.labels.get(id(part), '')}" for s in _fmus(part)}
+
+
+def flush_streams():
+    """Flush stdout and stderr before the process ends with os._exit (a closed pipe is no error)."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except Exception:
+            pass
+
+
+class PythonTimeout(StepTimeout):
+    """A step that ran past the step timeout in Python code (raised there by the watchdog)."""
+
+    def __init__(self):
+        super().__init__("a macro-step did not finish within the step timeout (stopped in Python code)")
+
+
+def announcement(error):
+    """The one line a stopped run prints (as the command line does for the same error)."""
+    if isinstance(error, Interrupted):
+        return f"interrupted: {error}; results so far are on disk"
+    return f"error: {error}"
+
+
+def _fmus(part):
+    scene = getattr(part, "scene", None)
+    return [] if scene is None else [s for s in scene.subsystems + scene.signal_only if s.fmu is not None]
+
+
+FMI_ENTRIES = tuple(f"fmi2{n}" for n in (
+    "Instantiate", "FreeInstance", "SetupExperiment", "EnterInitializationMode", "ExitInitializationMode",
+    "Terminate", "Reset", "GetReal", "GetInteger", "GetBoolean", "GetString", "SetReal", "SetInteger", "SetBoolean",
+    "SetString", "GetFMUstate", "SetFMUstate", "FreeFMUstate", "SerializedFMUstateSize", "SerializeFMUstate",
+    "DeSerializeFMUstate", "GetDirectionalDerivative", "SetRealInputDerivatives", "GetRealOutputDerivatives",
+    "DoStep", "CancelStep", "GetStatus", "GetRealStatus", "GetIntegerStatus", "GetBooleanStatus",
+    "GetStringStatus", "SetDebugLogging")) + tuple(f"fmi3{n}" for n in (
+    "InstantiateCoSimulation", "FreeInstance", "EnterInitializationMode", "ExitInitializationMode", "Terminate",
+    "Reset", "GetFloat64", "SetFloat64", "GetFloat32", "SetFloat32", "GetInt32", "SetInt32", "GetBoolean",
+    "SetBoolean", "GetString", "SetString", "GetFMUState", "SetFMUState", "FreeFMUState", "DoStep",
+    "EnterStepMode", "UpdateDiscreteStates", "EnterEventMode"))

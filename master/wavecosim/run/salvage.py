@@ -1,0 +1,72 @@
+"""What the parent of a supervised run writes when the child died without finishing (run/supervisor.py):
+each run's CSV files cut after their last whole line, and a summary.json from the status channel
+(the rows on disk, the status, the fault's subsystem, call and step)."""
+import os
+import signal
+from pathlib import Path
+
+from ..errors import FmuCrashed, Interrupted, StepTimeout
+from ..kernel.guard import signal_name
+from .channel import describe, locate
+from .recorder import write_json
+
+
+def salvage(channel, wait_status, summary_path, step_timeout, killed):
+    """The error that ended the child; the runs' files made whole and their summary.json written."""
+    status, layout = channel.status, channel.layout()
+    fault = status.fault.summary() or _death(wait_status)
+    parts = (layout or {}).get("parts", [])
+    subsystems = {folder: name + (" (monolithic reference)" if part["reference"] else "")
+                  for part in parts for name, folder in part["subsystems"].items()}
+    where = locate(fault.get("pc", []), (layout or {}).get("libraries", []), subsystems)
+    kept = {part["label"]: whole_rows(part["files"].get("trajectory")) for part in parts}
+    error = describe(fault, status.request, where, None, None, step_timeout)
+    if killed and not isinstance(error, (StepTimeout, Interrupted)):
+        error = FmuCrashed(f"{error} ({killed}; the child was ended)")
+    for part in parts:
+        whole_rows(part["files"].get("steps"))
+        steps = max(kept[part["label"]] - 2, 0)        # the header and the row at t = 0
+        message = f"{error}; {steps} steps kept"
+        summary = Path(part["out_dir"]) / f"summary{part['suffix']}.json" if part["out_dir"] else None
+        if summary is not None:
+            write_json(summary, {"label": part["label"], "scenario": part["scenario"], "master": part["master"],
+                                 "K": part["K"], "dt": part["dt"], "T": part["T"], "steps": steps,
+                                 "status": error.status, "message": message, "fault": fault})
+    if not parts and summary_path is not None and summary_path.parent.is_dir():
+        write_json(summary_path, {"steps": 0, "status": error.status, "message": f"{error} (during set-up)",
+                                  "fault": fault})
+    main = next((p for p in parts if not p["reference"]), None)
+    tail = f"; {max(kept[main['label']] - 2, 0)} steps kept" if main is not None else " (during set-up)"
+    return type(error)(f"{error}{tail}")
+
+
+def _death(wait_status):
+    """A fault record for a child that died with no record of its own (killed outright)."""
+    if wait_status is not None and os.WIFSIGNALED(wait_status):
+        number = os.WTERMSIG(wait_status)
+        return {"kind": "signal", "signal": signal_name(number), "code": 0, "pc": [],
+                "killed": number == signal.SIGKILL}
+    code = os.WEXITSTATUS(wait_status) if wait_status is not None else None
+    return {"kind": "exit", "code": code, "pc": []}
+
+
+def whole_rows(path):
+    """Cut a CSV file after its last whole line (a death may leave half a row); its line count."""
+    if not path or not os.path.exists(path):
+        return 0
+    with open(path, "rb+") as f:
+        size = f.seek(0, os.SEEK_END)
+        end, chunk = size, 1 << 16
+        while end > 0:
+            start = max(0, end - chunk)
+            f.seek(start)
+            block = f.read(end - start)
+            at = block.rfind(b"\n")
+            if at >= 0:
+                end = start + at + 1
+                break
+            end = start
+        if end != size:
+            f.truncate(end)
+        f.seek(0)
+        return sum(block.count(b"\n") for block in iter(lambda: f.read(1 << 20), b""))

@@ -1,0 +1,29 @@
+/* A damped mass with an effort port (it can take LinearSide's place) that misbehaves on purpose inside
+ * doStep at a chosen macro-step, so the tests can check that a run contains a crashing, exiting,
+ * hanging or chatty FMU: fault 1 dereferences a null pointer (SIGSEGV), 2 calls exit(0), 3 loops
+ * forever, 4 calls abort(). The fault strikes in the first doStep that starts at t = fault_step * h.
+ * With log_bytes > 0 every successful step logs a warning of that many characters. */
+#define MODEL_IDENTIFIER FaultySide
+#define MODEL_GUID "{3c0f4a52-8e1d-4d2b-9a6e-7f1b2c3d0f17}"
+#define MODEL_DESCRIPTION "Damped mass that segfaults, exits, hangs or aborts in doStep at a chosen step (tests)"
+
+#define REAL_VARIABLES(X) \
+    X(mass, PARAMETER, 4.0, "kg", "the mass") \
+    X(damping, PARAMETER, 0.5, "N.s/m", "viscous damping to ground") \
+    X(gamma, TUNABLE, 0.4, "N.s/m", "scattering impedance of the wave port") \
+    X(x, STATE, 0.0, "m", "position") \
+    X(v, STATE, 0.0, "m/s", "velocity") \
+    X(a, INPUT, 0.0, "", "incident wave (wave mode), scaled by sqrt(dt)") \
+    X(F, INPUT, 0.0, "N", "port effort input: the force pulling the mass towards -x (physical mode)") \
+    X(b, OUTPUT, 0.0, "", "outgoing wave, scaled by sqrt(dt)") \
+    X(e, OUTPUT, 0.0, "N", "port effort held over the step") \
+    X(f, OUTPUT, 0.0, "m/s", "port flow: -v at the stage") \
+    X(H, OUTPUT, 0.0, "J", "kinetic energy")
+
+#define INTEGER_VARIABLES(X) \
+    X(port_mode, 0, "0 = wave port (input a, output b), 1 = physical port (input F)") \
+    X(fault, 0, "0 none, 1 segfault, 2 exit(0), 3 endless loop, 4 abort() in doStep at fault_step") \
+    X(fault_step, -1, "the macro-step whose doStep faults (-1: none)") \
+    X(log_bytes, 0, "characters of the warning logged after every step (0: none, at most 250)")
+
+#define PORT_CHANNELS(X) X(a, b, e, f, F, EFFORT_INPUT)

@@ -1,0 +1,68 @@
+/* FaultySide: a damped mass, mass dv/dt = -F - damping v (implicit midpoint), and the fault of
+ * config.h at step fault_step. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "model.h"
+
+enum { FAULT_NONE, FAULT_SEGFAULT, FAULT_EXIT, FAULT_HANG, FAULT_ABORT };
+
+static int *volatile nowhere = NULL;      /* read at run time, so the compiler keeps the store */
+
+int model_initialize(ModelData *m, char *msg, size_t n) {
+    if (m->i[VRI_fault] < FAULT_NONE || m->i[VRI_fault] > FAULT_ABORT) {
+        snprintf(msg, n, "fault must be 0..4, got %d", m->i[VRI_fault]);
+        return 1;
+    }
+    if (!(m->r[VR_mass] > 0.0) || !(m->r[VR_damping] >= 0.0)) {
+        snprintf(msg, n, "mass must be > 0 and damping >= 0, got %g and %g", m->r[VR_mass], m->r[VR_damping]);
+        return 1;
+    }
+    if (m->i[VRI_log_bytes] < 0 || m->i[VRI_log_bytes] > 250) {
+        snprintf(msg, n, "log_bytes must be 0..250, got %d", m->i[VRI_log_bytes]);
+        return 1;
+    }
+    return 0;
+}
+
+double model_energy(const ModelData *m) {
+    return 0.5 * m->r[VR_mass] * m->r[VR_v] * m->r[VR_v];
+}
+
+/* The fault of this instance, when the step from m->time is fault_step. */
+static void strike(const ModelData *m, double h) {
+    if (m->i[VRI_fault] == FAULT_NONE || floor(m->time / h + 0.5) != (double)m->i[VRI_fault_step]) return;
+    volatile int spin = 1;
+    switch (m->i[VRI_fault]) {
+    case FAULT_SEGFAULT: *nowhere = 1; break;
+    case FAULT_EXIT: exit(0);
+    case FAULT_HANG: while (spin) {} break;
+    default: abort();
+    }
+}
+
+/* A warning note of log_bytes characters for the layer to log after the step. */
+static void note(const ModelData *m, double h, char *msg, size_t n) {
+    size_t want = (size_t)m->i[VRI_log_bytes];
+    if (!want || n < 2) return;
+    if (want > n - 1) want = n - 1;
+    int head = snprintf(msg, n, "step %.0f of FaultySide: ", floor(m->time / h + 0.5));
+    size_t at = head > 0 && (size_t)head < want ? (size_t)head : want;
+    memset(msg + at, '.', want - at);
+    msg[want] = '\0';
+}
+
+int model_step(ModelData *m, double h, const PortClosure *p, double *e, double *f, char *msg, size_t n) {
+    strike(m, h);
+    double *r = m->r;
+    /* mass (v' - v)/h = -F - damping vbar with F = c + s vbar held over the step, v' = 2 vbar - v */
+    double vbar = (2.0 * r[VR_mass] * r[VR_v] / h - p->c[0]) / (2.0 * r[VR_mass] / h + r[VR_damping] + p->s[0]);
+    r[VR_x] += h * vbar;
+    r[VR_v] = 2.0 * vbar - r[VR_v];
+    e[0] = p->c[0] + p->s[0] * vbar;
+    f[0] = -vbar;
+    note(m, h, msg, n);
+    return 0;
+}
