@@ -1,4 +1,4 @@
-"""The DR master's named options (master.relaxation, master.anderson, master.warm_start, gamma: fastest).
+"""The DR master's named options (master.relaxation, master.anderson, master.start, gamma: fastest).
 
 Claims: each option gives the same numbers to the last bit in the C kernel and in the Python
 reference, over whole runs (blocks of macro-steps included) on Table I and the stiff scene; relaxed
@@ -31,7 +31,8 @@ from test_dr import frozen_benchmark  # noqa: F401  (Table I frozen after 40 ste
 
 STIFF = ROOT / "configs" / "two_oscillators_stiff.yaml"
 OPTIONS = [dict(relaxation=1.5), dict(relaxation=0.6), dict(anderson=3), dict(anderson=1),
-           dict(warm_start=True), dict(relaxation=1.3, anderson=2, warm_start=True)]
+           dict(start="extrapolated"), dict(relaxation=1.3, anderson=2, start="extrapolated"), dict(start="previous"),
+           dict(start="paper")]
 
 
 @pytest.fixture(scope="module")
@@ -62,7 +63,7 @@ def test_kernel_bit_identical_to_reference_table_i(table_i, options):
     assert ref.summary["relaxation"] == options.get("relaxation", 1.0)
 
 
-@pytest.mark.parametrize("options", [dict(anderson=4), dict(relaxation=1.8, warm_start=True)])
+@pytest.mark.parametrize("options", [dict(anderson=4), dict(relaxation=1.8, start="extrapolated")])
 def test_kernel_bit_identical_to_reference_stiff(stiff, options):
     same_run(stiff.with_changes(gamma="auto"), K=12, **options)
 
@@ -74,9 +75,11 @@ def test_tolerance_exit_with_anderson_bit_identical(table_i):
 
 def test_options_change_the_numbers(table_i):
     """Each option really acts (the bit-identity above would also hold for a no-op)."""
-    plain = run(table_i.with_master(K=8), certificates=False).outputs
+    plain = run(table_i.with_master(K=8, start="paper"), certificates=False).outputs
     for options in OPTIONS:
-        assert not np.array_equal(run(table_i.with_master(K=8, **options), certificates=False).outputs, plain)
+        if options != dict(start="paper"):
+            changed = run(table_i.with_master(K=8, **{"start": "paper", **options}), certificates=False).outputs
+            assert not np.array_equal(changed, plain), options
 
 
 def test_anderson_reaches_roundoff_with_a_small_budget(table_i):
@@ -134,8 +137,8 @@ def test_anderson_on_a_linear_map_converges_at_once():
     assert np.abs(np.array(fast.a_hat) - exact).max() < 1e-12 < np.abs(np.array(plain.a_hat) - exact).max()
 
 
-def test_warm_start_extrapolates_the_committed_wave(table_i):
-    sc = table_i.with_master(K=3, warm_start=True, fast="false")
+def test_extrapolated_start_extrapolates_the_committed_wave(table_i):
+    sc = table_i.with_master(K=3, start="extrapolated", fast="false")
     scene = build_scene(sc)
     try:
         master = DRMaster(scene, sc.master)
@@ -171,12 +174,15 @@ def test_gamma_fastest_within_the_fne_bounds_and_faster_than_auto(stiff):
 
 def test_dr_options_from_yaml_and_set(table_i):
     raw = load_raw(ROOT / "configs" / "two_oscillators.yaml")
-    for option in ("master.relaxation=auto", "master.anderson=3", "master.warm_start=true"):
+    for option in ("master.relaxation=auto", "master.anderson=3", "master.start=previous"):
         key, values = parse_set(option)
         sc = parse_scenario(apply_overrides(raw, [(key, values[0])]))
         assert getattr(sc.master, key.split(".")[1]) == values[0]
+    old = parse_scenario(apply_overrides(raw, [("master.warm_start", True)]))      # old files
+    assert old.master.start == "extrapolated"
     for key, value, says in (("relaxation", 2.0, "(0, 2)"), ("relaxation", "fast", "number"),
-                             ("anderson", 17, "at most 16"), ("anderson", -1, ">= 0"), ("warm_start", 1, "true or false")):
+                             ("anderson", 17, "at most 16"), ("anderson", -1, ">= 0"), ("warm_start", 1, "true or false"),
+                             ("start", "warm", "one of auto, paper, extrapolated, previous")):
         with pytest.raises(ConfigError, match=f"master.{key}.*{says}" if says[0] != "(" else f"master.{key}"):
             parse_scenario(apply_overrides(raw, [(f"master.{key}", value)]))
 

@@ -1,5 +1,5 @@
 """The named options of the DR master (`master.relaxation`, `master.anderson`, `master.anderson_memory`,
-`master.anderson_extrapolate`, `master.warm_start`),
+`master.anderson_extrapolate`, `master.start`),
 written once in plain Python in the operation order that kernel/c/dr_options.h mirrors, so the
 reference and the C kernel stay bit-identical.
 
@@ -17,8 +17,12 @@ reference and the C kernel stay bit-identical.
   with the weights of the accelerated iterate (exact on an affine map once the differences span it,
   one query before that iterate is queried), as the classical masters commit their last update; it
   is no response of the frozen maps, so like Anderson itself it rests on the ledger guard.
-- warm start: u^{n,0} = P (2 b^n - b^{n-1}) (the committed wave extrapolated linearly) instead
-  of the paper's P b^n (eq. 19).
+- start (u^{n,0}, eq. 19): `paper` P b^n; `previous` the incident wave committed at the previous
+  macro-step, a^{n-1} (the previous step's estimate of its fixed point, held over the step as a
+  zero-order hold); `extrapolated` P (2 b^n - b^{n-1}); `auto` is `previous` unless the energy guard
+  is off (then Algorithm 1 runs as printed). The start changes only u^{n,0}: the iterates stay Fejer
+  monotone from any start, so Theorem 1 keeps holding step by step. The first step, and the step
+  after a change of gamma, start from P b^n.
 """
 from ..kernel.linalg import dot, matvec
 
@@ -34,11 +38,24 @@ def relaxed_update(u, w, b_hat, lam):
     return [ui + lam * (wi - bh) for ui, wi, bh in zip(u, w, b_hat)]
 
 
-def warm_start(P, b_n, b_prev):
-    """u^{n,0} = P (2 b^n - b^{n-1}); without b^{n-1} (first step, after a re-tune) the paper's P b^n."""
-    if b_prev is None:
-        return matvec(P, b_n)
-    return matvec(P, [2.0 * b - bp for b, bp in zip(b_n, b_prev)])
+STARTS = ("paper", "extrapolated", "previous")     # master.start (index: the C kernel's code), and "auto"
+
+
+def resolve_start(start, energy_guard):
+    """master.start as run: `auto` is `previous`, or `paper` when the energy guard is off."""
+    if start != "auto":
+        return start
+    return "paper" if energy_guard == "off" else "previous"
+
+
+def start_point(start, P, b_n, b_prev, a_prev):
+    """u^{n,0}: P b^n (`paper`, and every start without its history: first step, after a re-tune),
+    P (2 b^n - b^{n-1}) (`extrapolated`) or a^{n-1} (`previous`)."""
+    if start == "extrapolated" and b_prev is not None:
+        return matvec(P, [2.0 * b - bp for b, bp in zip(b_n, b_prev)])
+    if start == "previous" and a_prev is not None:
+        return list(a_prev)
+    return matvec(P, b_n)
 
 
 def solve(A, r):

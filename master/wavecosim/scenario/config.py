@@ -15,7 +15,7 @@ from ..examples import DEFAULT
 from ..core.gamma import MODES as GAMMA_MODES
 from ..core.interconnection import COUPLINGS, TAKES_RATIO
 from ..masters import ALGORITHMS
-from ..masters.dr_options import ANDERSON_MAX
+from ..masters.dr_options import ANDERSON_MAX, STARTS
 
 DEFAULT_CONFIG = DEFAULT
 COUPLING_TYPES = tuple(COUPLINGS)
@@ -79,7 +79,7 @@ class MasterConfig:
     anderson: int = 0                  # DR: Anderson window m (0: off)
     anderson_memory: bool = False      # DR: keep the Anderson differences across macro-steps
     anderson_extrapolate: bool = False  # DR: b^* the Anderson combination of the responses
-    warm_start: bool = False           # DR: u^{n,0} = P (2 b^n - b^{n-1}) instead of P b^n
+    start: str = "auto"                # DR: u^{n,0}, one of dr_options.STARTS or auto (masters/dr_options.py)
 
 
 @dataclass
@@ -386,7 +386,7 @@ def load_raw(path) -> dict:
 def _master(ck, m) -> MasterConfig:
     ck.mapping(m, "master", ("algorithm", "K", "eps", "deadline_us", "fast", "threads", "energy_guard",
                              "relaxation", "anderson", "anderson_memory",
-                             "anderson_extrapolate", "warm_start"))
+                             "anderson_extrapolate", "start", "warm_start"))
     master = MasterConfig()
     if "algorithm" in m:
         master.algorithm = ck.string(m["algorithm"], "master.algorithm", ALGORITHMS)
@@ -421,8 +421,10 @@ def _dr_options(ck, m, master):
         master.anderson_memory = ck.boolean(m["anderson_memory"], "master.anderson_memory")
     if "anderson_extrapolate" in m:
         master.anderson_extrapolate = ck.boolean(m["anderson_extrapolate"], "master.anderson_extrapolate")
-    if "warm_start" in m:
-        master.warm_start = ck.boolean(m["warm_start"], "master.warm_start")
+    if "warm_start" in m:                                   # old files: true is the extrapolated start
+        master.start = "extrapolated" if ck.boolean(m["warm_start"], "master.warm_start") else "paper"
+    if "start" in m:
+        master.start = ck.string(m["start"], "master.start", ("auto", *STARTS))
     for key in ("anderson_memory", "anderson_extrapolate"):
         if getattr(master, key) and not master.anderson:
             ck.fail(f"master.{key}", "needs an Anderson window (master.anderson >= 1)")

@@ -30,7 +30,7 @@ DIVERGED_GROWTH = 1e3      # max H(t) / H(0) above this: the interface pumped en
 DR_OPTIONS = {
     "relaxed": (None, {"relaxation": "auto"}, ("tab:cyan", "v")),
     "anderson": (None, {"anderson": 2}, ("navy", "^")),
-    "warm": (None, {"warm_start": True}, ("tab:gray", "<")),
+    "warm": (None, {"start": "extrapolated"}, ("tab:gray", "<")),
     "gamma-auto": ("auto", {}, ("slateblue", ">")),
     "gamma-fastest": ("fastest", {}, ("teal", "d")),
     "fastest-relaxed": ("fastest", {"relaxation": "auto"}, ("tab:green", "*")),
