@@ -28,7 +28,7 @@ Modes (YAML `gamma:` or `--gamma`; they override per-subsystem `gamma:` keys):
   Theorem 1; the run warns and reports the augmented residual.
 """
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -190,7 +190,7 @@ def _reflections(scene, probes, gammas):
     for p, off, s, g in zip(probes, scene.offsets, scene.subsystems, gammas):
         J_S[off:off + s.m, off:off + s.m] = p.jacobian(g)
     channel = [g for g, s in zip(gammas, scene.subsystems) for _ in range(s.m)]
-    J_L = ic.compile_wave_map(scene.E, scene.F, channel).J_L
+    J_L = ic.recompile_wave_map(np.asarray(scene.E, float), np.asarray(scene.F, float), np.asarray(channel, float)).J_L
     return 2.0 * J_L - np.eye(n), 2.0 * J_S - np.eye(n)
 
 
@@ -293,7 +293,26 @@ def _fast_unsafe(rate, probes, finite, ref, count):
     return common * count, best
 
 
+CHOICES = {}            # choose_gamma's results by their inputs (a sweep probes the same x^0 in every run)
+CHOICES_KEPT = 64
+
+
 def choose_gamma(scene, probes, mode, where="gamma", secant=None, ceiling=None):
+    """_choose_gamma, remembered for the same scene structure, probes and mode (the same bits: the
+    search is deterministic), so the runs of a sweep or comparison search once."""
+    key = (mode, scene.scenario.master.relaxation, np.asarray(scene.E, float).tobytes(),
+           np.asarray(scene.F, float).tobytes(), tuple(sorted((secant or {}).items())),
+           tuple(sorted((ceiling or {}).items())),
+           tuple((p.name, p.gamma, p.dE.tobytes(), p.dF.tobytes()) for p in probes))
+    if key not in CHOICES:
+        if len(CHOICES) >= CHOICES_KEPT:
+            CHOICES.pop(next(iter(CHOICES)))
+        CHOICES[key] = _choose_gamma(scene, probes, mode, where, secant, ceiling)
+    kept = CHOICES[key]
+    return replace(kept, gammas=dict(kept.gammas), bounds=dict(kept.bounds))
+
+
+def _choose_gamma(scene, probes, mode, where="gamma", secant=None, ceiling=None):
     """Each subsystem's gamma for `mode` (see the module docstring). Condition 1 is per subsystem
     (gamma_i <= lambda_min(Z_d,i)) and P stays orthogonal for any positive channel impedances
     (paper Remark 1), so auto searches every gamma_i in (0, SAFETY * bound_i] for the fastest

@@ -3,7 +3,7 @@ import time
 
 from ..kernel.linalg import distance, matvec
 from .base import StepLog, WaveMaster
-from .dr_options import Anderson, relaxed_update, resolve_start, start_point
+from .dr_options import Anderson, auto_settings, relaxed_update, resolve_start, start_point
 
 
 class Anchors:
@@ -66,6 +66,7 @@ class DRMaster(WaveMaster):
     default_guard = "ledger"
 
     def __init__(self, scene, settings):
+        settings = auto_settings(settings, scene.n_channels)           # options: auto
         super().__init__(scene, settings)
         self.K, self.eps = settings.K, settings.eps
         self.evaluations = self.K + 1                                  # at most; paces the certificates
@@ -105,7 +106,7 @@ class DRMaster(WaveMaster):
 
     def run_info(self):
         """The DR options in force (relaxation as used; with auto, the predicted rates)."""
-        info = {"relaxation": self.relaxation, "anderson": self.settings.anderson,
+        info = {"options": self.settings.options, "relaxation": self.relaxation, "anderson": self.settings.anderson,
                 "anderson_memory": self.settings.anderson_memory,
                 "anderson_extrapolate": self.settings.anderson_extrapolate, "start": self.start}
         if self.relaxation_choice is not None:

@@ -17,6 +17,11 @@ reference and the C kernel stay bit-identical.
   with the weights of the accelerated iterate (exact on an affine map once the differences span it,
   one query before that iterate is queried), as the classical masters commit their last update; it
   is no response of the frozen maps, so like Anderson itself it rests on the ledger guard.
+- options: `auto` sets the others from the scene instead of from constants: gamma per subsystem
+  from a probe of the port impedances at the start (`gamma: auto`, within each FNE bound), the
+  relaxation lambda with the fastest predicted contraction at those gammas (`relaxation: auto`), and
+  an Anderson window as wide as the interface (one difference per channel, at most ANDERSON_MAX),
+  kept across macro-steps and extrapolating b^* (auto_settings); what was chosen is in the summary.
 - start (u^{n,0}, eq. 19): `paper` P b^n; `previous` the incident wave committed at the previous
   macro-step, a^{n-1} (the previous step's estimate of its fixed point, held over the step as a
   zero-order hold); `extrapolated` P (2 b^n - b^{n-1}); `auto` is `previous` unless the energy guard
@@ -24,6 +29,8 @@ reference and the C kernel stay bit-identical.
   monotone from any start, so Theorem 1 keeps holding step by step. The first step, and the step
   after a change of gamma, start from P b^n.
 """
+from dataclasses import replace
+
 from ..kernel.linalg import dot, matvec
 
 ANDERSON_SAFEGUARD = 0.9     # an accelerated iterate must cut the fixed-point residual at least this much
@@ -39,6 +46,22 @@ def relaxed_update(u, w, b_hat, lam):
 
 
 STARTS = ("paper", "extrapolated", "previous")     # master.start (index: the C kernel's code), and "auto"
+OPTION_MODES = ("manual", "auto")                  # master.options
+
+
+def auto_settings(settings, channels):
+    """The master settings `options: auto` runs with: relaxation auto, an Anderson window of one
+    difference per interface channel (an affine frozen map is then solved once the differences span
+    the channels), memory and extrapolation on; gamma auto is the runner's (auto_gamma)."""
+    if settings.options != "auto":
+        return settings
+    return replace(settings, relaxation="auto", anderson=min(channels, ANDERSON_MAX), anderson_memory=True,
+                   anderson_extrapolate=True)
+
+
+def auto_gamma(gamma, settings):
+    """The scenario's gamma as run: `auto` under `options: auto` unless the scenario names a mode."""
+    return "auto" if settings.options == "auto" and not isinstance(gamma, str) else gamma
 
 
 def resolve_start(start, energy_guard):

@@ -27,6 +27,7 @@ from ..kernel.drkernel import REASONS as KERNEL_REASONS
 from ..core.gamma import GammaTuner
 from ..masters import MASTERS
 from ..masters.base import REASONS, WaveMaster, require_wave_tuning
+from ..masters.dr_options import auto_gamma
 from .metadata import run_metadata
 from .observers import Observer
 from ..core.certificates import sampling
@@ -166,13 +167,14 @@ def open_parts(scenario, warn):
     for note in scene.notes:
         warn(note)
     master = None
+    gamma = auto_gamma(scenario.gamma, scenario.master) if cls.iterates else scenario.gamma
     try:
         tuner = None
-        if cls.wave and isinstance(scenario.gamma, str):
-            tuner = GammaTuner(scene, scenario.gamma, warn if cls.iterates else None)
+        if cls.wave and isinstance(gamma, str):
+            tuner = GammaTuner(scene, gamma, warn if cls.iterates else None)
             tuner.initial([0.0] * scene.n_channels)                # sets the scene's per-subsystem gammas
         master = cls(scene, scenario.master)
-        require_wave_tuning(master, scenario.gamma, scenario.source)
+        require_wave_tuning(master, gamma, scenario.source)
         return scene, master, tuner
     except BaseException:
         if master is not None:

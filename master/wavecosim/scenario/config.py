@@ -15,7 +15,7 @@ from ..examples import DEFAULT
 from ..core.gamma import MODES as GAMMA_MODES
 from ..core.interconnection import COUPLINGS, TAKES_RATIO
 from ..masters import ALGORITHMS
-from ..masters.dr_options import ANDERSON_MAX, STARTS
+from ..masters.dr_options import ANDERSON_MAX, OPTION_MODES, STARTS
 
 DEFAULT_CONFIG = DEFAULT
 COUPLING_TYPES = tuple(COUPLINGS)
@@ -80,6 +80,7 @@ class MasterConfig:
     anderson_memory: bool = False      # DR: keep the Anderson differences across macro-steps
     anderson_extrapolate: bool = False  # DR: b^* the Anderson combination of the responses
     start: str = "auto"                # DR: u^{n,0}, one of dr_options.STARTS or auto (masters/dr_options.py)
+    options: str = "manual"            # DR: auto chooses gamma, relaxation and Anderson from the scene (dr_options.py)
 
 
 @dataclass
@@ -386,7 +387,7 @@ def load_raw(path) -> dict:
 def _master(ck, m) -> MasterConfig:
     ck.mapping(m, "master", ("algorithm", "K", "eps", "deadline_us", "fast", "threads", "energy_guard",
                              "relaxation", "anderson", "anderson_memory",
-                             "anderson_extrapolate", "start", "warm_start"))
+                             "anderson_extrapolate", "start", "warm_start", "options"))
     master = MasterConfig()
     if "algorithm" in m:
         master.algorithm = ck.string(m["algorithm"], "master.algorithm", ALGORITHMS)
@@ -425,6 +426,8 @@ def _dr_options(ck, m, master):
         master.start = "extrapolated" if ck.boolean(m["warm_start"], "master.warm_start") else "paper"
     if "start" in m:
         master.start = ck.string(m["start"], "master.start", ("auto", *STARTS))
+    if "options" in m:
+        master.options = ck.string(m["options"], "master.options", OPTION_MODES)
     for key in ("anderson_memory", "anderson_extrapolate"):
         if getattr(master, key) and not master.anderson:
             ck.fail(f"master.{key}", "needs an Anderson window (master.anderson >= 1)")

@@ -306,7 +306,7 @@ class EnergyLedger(Observer):
     def summary(self):
         out = {"energy_guard_steps": self.acted, "energy_guard_extra_doSteps": self.extra,
                "energy_guard_actions": dict(zip(ACTIONS, self.actions)), "max_ledger": self.max_L,
-               "ledger_final": self.L}
+               "ledger_final": self.L, "ledger_tolerance": self.rtol() * self.traffic}
         if self.step_times:
             out["step_time_us"] = spread([t for t, _, _, _ in self.step_times])
             out["guarded_step_time_us"] = spread([t for t, acted, _, _ in self.step_times if acted])
