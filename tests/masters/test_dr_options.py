@@ -152,6 +152,36 @@ def test_extrapolated_start_extrapolates_the_committed_wave(table_i):
         scene.close()
 
 
+def test_previous_start_is_the_incident_wave_committed_the_step_before(table_i):
+    """master.start: previous: u^{n,0} = a^{n-1} (the first step: the paper's P b^n); auto is previous
+    under the ledger and the paper's start with the guard off."""
+    sc = table_i.with_master(K=3, start="previous", fast="false")
+    scene = build_scene(sc)
+    try:
+        master = DRMaster(scene, sc.master)
+        log0 = master.step(0, 0.0)
+        assert log0.u0 == matvec(master.P, [0.0] * scene.n_channels)
+        log1 = master.step(1, sc.dt)
+        assert log1.u0 == log0.a_hat and log1.u0 != matvec(master.P, master.committed_outputs)
+    finally:
+        scene.close()
+    for guard, start in (("ledger", "previous"), ("off", "paper"), ("monolithic", "previous")):
+        summary = run(table_i.with_master(K=1, energy_guard=guard), certificates=False, reference=None).summary
+        assert summary["start"] == start, guard
+
+
+def test_options_auto_chooses_from_the_scene_and_the_kernel_is_the_reference(table_i):
+    """options: auto: gamma from the probe, lambda from the linearized operator, an Anderson window of one
+    difference per channel with memory and extrapolation, reported; kernel and reference bit for bit."""
+    ref = same_run(table_i, K=4, options="auto")
+    s = ref.summary
+    assert s["options"] == "auto" and s["gamma_mode"] == "auto" and s["gamma_guaranteed"]
+    assert s["anderson"] == 2 and s["anderson_memory"] and s["anderson_extrapolate"]
+    assert 0.0 < s["relaxation"] < 2.0 and "relaxation_rates" in s
+    manual = run(table_i.with_master(K=4), certificates=False).summary
+    assert manual["options"] == "manual" and manual["anderson"] == 0 and manual["gamma_mode"] == "fixed"
+
+
 def test_relaxation_auto_picks_a_faster_lambda(table_i):
     r = run(table_i.with_master(K=8, relaxation="auto"), certificates=False)
     lam, rates = r.summary["relaxation"], r.summary["relaxation_rates"]

@@ -265,3 +265,54 @@ def test_step_time_spread_and_bound_by_nearest_rank():
     bound = energy_ledger.deadline_bound(times, 40.0)
     assert bound["bound_us"] == pytest.approx(41.0) and bound["within"] == 0.41
     assert bound["guarded_within"] == pytest.approx(12 / 71) and bound["on_cpu_within"] is None
+
+
+def redo_once(fast, K, fraction, eps=None, steps=20):
+    """Table I with the paper's start, `steps` macro-steps at budget K, then the ledger's redo of the
+    last one with an allowance `fraction` |I| below its supply I: (the redo's result, b^{n+1}, FMU calls)."""
+    import dataclasses
+    from wavecosim.core.scene import build_scene
+    from wavecosim.masters.dr_fast import FastDRMaster
+    sc = scenario(TABLE_I, "ledger", K, master={"start": "paper"})
+    scene = build_scene(sc)
+    master = FastDRMaster(scene, dataclasses.replace(sc.master, fast=fast, eps=eps))
+    try:
+        for n in range(steps):
+            log = master.step(n, n * sc.dt)
+        inputs, outputs = master.committed_inputs(log), master.committed_outputs
+        supplied = master.supply(inputs, outputs)[0]
+        done = energy_ledger.EnergyLedger(master)._redo(log, inputs, outputs, supplied, supplied - fraction * abs(supplied))
+        return done, list(master.b), [dict(s.calls) for s in master.subsystems], master.kernel is not None
+    finally:
+        master.close()
+        scene.close()
+
+
+@pytest.mark.parametrize("K, fraction, eps, action", [(8, 1e-6, None, "projected"), (3, 1e-6, None, "blended"),
+                                                      (3, 0.5, None, "anchored"), (1, 1e-6, None, "scaled"),
+                                                      (1, 0.1, None, "zero"), (8, 1e-6, 0.5, "iterated")])
+def test_each_stage_of_the_redo_is_the_same_in_the_kernel_and_the_reference(K, fraction, eps, action):
+    """One redo per stage, forced by the allowance it is given: the kernel's (dr_ledger_redo) gives the
+    Python reference's action, scale, supply, rounds, committed inputs, b^{n+1} and FMU calls, bit for bit."""
+    ref, fast = redo_once("false", K, fraction, eps), redo_once("true", K, fraction, eps)
+    assert fast[3] and not ref[3]
+    assert energy_ledger.ACTIONS[ref[0][3]] == action
+    assert repr(ref[0][:5]) == repr(fast[0][:5]) and repr(list(ref[0][5])) == repr(list(fast[0][5]))
+    assert repr(ref[1]) == repr(fast[1]) and ref[2] == fast[2]
+
+
+def test_the_projection_lands_on_the_allowance_of_an_affine_map():
+    """Two subsystems, one channel each, S(a) = rho a + c (slopes in [0, 1]): the secant to the last
+    query is the slope, so the supply of the projected input is the target to roundoff, and the move is
+    against the supply's gradient a - rho S(a)."""
+    rho, c = [0.3, 0.8], [0.5, -0.2]
+    S = (lambda a: [r * x + ci for r, x, ci in zip(rho, a, c)])
+    supply = (lambda a: 0.5 * (sum(x * x for x in a) - sum(y * y for y in S(a))))
+    a, u = [1.0, 2.0], [0.7, 1.1]
+    target = supply(a) - 0.3
+    moved = energy_ledger.projected([(0, 1), (1, 1)], a, S(a), (u, S(u)), supply(a), target)
+    assert supply(moved) == pytest.approx(target, rel=1e-12, abs=1e-12)
+    gradient = [x - r * y for x, r, y in zip(a, rho, S(a))]
+    step = [x - m for x, m in zip(a, moved)]
+    assert step[0] * gradient[1] == pytest.approx(step[1] * gradient[0]) and step[0] * gradient[0] > 0
+    assert energy_ledger.projected([(0, 1), (1, 1)], a, S(a), (u, S(u)), supply(a), -1e9) is None
