@@ -1,7 +1,5 @@
 """The shared FMU harness: the built FMUs, one FMU instance addressed by variable names (fmpy),
 and the discrete-passivity and rollback checks every model family runs."""
-import contextlib
-import dataclasses
 import re
 
 import numpy as np
@@ -191,20 +189,96 @@ def check_rollback(inst, chans, rng):
     assert runs[0] == runs[1] == runs[2]
 
 
-@contextlib.contextmanager
-def python_and_kernel_masters(sc, wave=True):
-    """The scenario's master twice, on its Python reference and on the kernel route, each over a
-    scene of its own; all closed afterwards."""
-    from wavecosim.masters import MASTERS
-    from wavecosim.core.scene import build_scene
-    masters, scenes = [], []
+# FMI type -> the fmpy get/set method suffix that carries it (FMI 2 and FMI 3), for plain fmpy loops
+FMPY_ACCESS = {"Real": "Real", "Integer": "Integer", "Enumeration": "Integer", "Boolean": "Boolean",
+               "String": "String", "Float64": "Float64", "Float32": "Float32",
+               **{f"{s}Int{b}": f"{s}Int{b}" for s in ("", "U") for b in (8, 16, 32, 64)}}
+
+
+def fmpy_loop(path, dt, n_steps, names, start_time=None, tolerance=None, signals=None, unzipdir=None):
+    """The reference of a single-FMU run: fmpy alone, as a plain loop. Set up as fmpy's simulate sets
+    an FMU up (the DefaultExperiment's start time and tolerance unless given), the input `signals`
+    (a structured array for fmpy's Input, or None) applied in initialization mode at t_0 and before
+    every doStep(t_n, dt), t_n = t_0 + n dt; `names` read at t_0 and after each step (before the next
+    inputs are applied). Returns
+    {name: list of values} (Booleans as 0/1, Strings as text), one entry per grid point."""
+    from fmpy import extract, instantiate_fmu, read_model_description
+    from fmpy.simulation import Input
+    md = read_model_description(str(path), validate=False)
+    experiment = md.defaultExperiment
+    if start_time is None:
+        start_time = float(experiment.startTime) if experiment and experiment.startTime is not None else 0.0
+    if tolerance is None and experiment and experiment.tolerance is not None:
+        tolerance = float(experiment.tolerance)
+    fmu = instantiate_fmu(extract(str(path), unzipdir=unzipdir), md, fmi_type="CoSimulation")
+    variables = {v.name: v for v in md.modelVariables}
+    inputs = Input(fmu, md, signals)
+    if md.fmiVersion == "2.0":
+        fmu.setupExperiment(tolerance=tolerance, startTime=start_time)
+        fmu.enterInitializationMode()
+    else:
+        fmu.enterInitializationMode(tolerance=tolerance, startTime=start_time)
+    inputs.apply(start_time)
+    fmu.exitInitializationMode()
+
+    def read():
+        for name in names:
+            v = variables[name]
+            access = "Int64" if v.type == "Enumeration" and md.fmiVersion != "2.0" else FMPY_ACCESS[v.type]
+            value = getattr(fmu, f"get{access}")([v.valueReference])[0]
+            rows[name].append(value.decode() if isinstance(value, bytes) else
+                              value if isinstance(value, str) else float(value))
+
+    rows = {name: [] for name in names}
+    inputs.apply(start_time, after_event=True)
+    read()
+    for n in range(n_steps):
+        t = start_time + n * dt
+        inputs.apply(t, after_event=True)
+        if not _step_goes_on(fmu, t, dt):           # the FMU ended the simulation with this step
+            read()
+            break
+        read()
+    fmu.terminate()
+    fmu.freeInstance()
+    return rows
+
+
+def _step_goes_on(fmu, t, dt):
+    """doStep(t, dt); False when the FMU asks to end the simulation (fmpy's simulate then stops)."""
+    from fmpy.fmi1 import FMICallException
+    from fmpy.fmi2 import fmi2Terminated
     try:
-        for fast in ("false", "true"):
-            scenes.append(build_scene(sc, wave=wave))
-            masters.append(MASTERS[sc.master.algorithm](scenes[-1], dataclasses.replace(sc.master, fast=fast)))
-        yield masters, scenes
-    finally:
-        for m in masters:
-            m.close()
-        for s in scenes:
-            s.close()
+        out = fmu.doStep(t, dt)
+    except FMICallException as exc:
+        if exc.status == 2 and fmu.getBooleanStatus(fmi2Terminated):
+            return False
+        raise
+    return not (isinstance(out, tuple) and out[1])          # FMI 3: terminateSimulation
+
+
+def same_bits(result, component, rows):
+    """Whether every column component.name of a RunResult holds exactly the loop's values."""
+    trajectory = result.trajectory
+    for name, values in rows.items():
+        got = trajectory[f"{component}.{name}"]
+        if got.dtype.kind == "U":
+            assert list(got) == values, name
+        else:
+            assert np.array_equal(got, np.array(values, float)), (name, got[:5], values[:5])
+    return True
+
+
+def input_signals(path):
+    """A CSV input file as the structured array fmpy's Input takes (true/false columns as Booleans)."""
+    import csv
+    with open(path, newline="") as f:
+        rows = [r for r in csv.reader(f, skipinitialspace=True) if r]
+    header, data = [h.strip() for h in rows[0]], rows[1:]
+    words = {"true": True, "false": False}
+    columns = [[c.strip().lower() for c in col] for col in zip(*data)]
+    kinds = [np.bool_ if all(c in words for c in col) else np.float64 for col in columns]
+    out = np.empty(len(data), dtype=list(zip(header, kinds)))
+    for name, kind, col in zip(header, kinds, columns):
+        out[name] = [words[c] for c in col] if kind is np.bool_ else [float(c) for c in col]
+    return out

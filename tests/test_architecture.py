@@ -1,5 +1,6 @@
 """The package's shape: imports flow one way, scenario -> core -> masters -> kernel, never back up;
-no import cycle between modules; at most 12 modules at the top of the package."""
+no import cycle between modules; only the kernel and the FMI layer know the C ABI (import ctypes);
+at most 12 modules at the top of the package."""
 import ast
 from pathlib import Path
 
@@ -7,6 +8,7 @@ import wavecosim
 
 PACKAGE = Path(wavecosim.__file__).resolve().parent
 # Each part may import itself and the parts ranked below it, never one ranked above.
+C_ABI = ("kernel", "fmi")     # the parts that may import ctypes
 RANK = {"errors": 0, "examples": 0, "kernel": 1, "fmi": 2, "masters": 3, "core": 4, "scenario": 5, "run": 6,
         "sweeps": 7, "bench": 7, "api": 8, "cli": 8, "plots": 8, "__init__": 8, "__main__": 8}
 
@@ -89,3 +91,15 @@ def test_no_import_cycle():
 def test_top_level_is_small():
     top = [p.name for p in PACKAGE.glob("*.py")]
     assert len(top) <= 12, top
+
+
+def test_only_the_kernel_and_the_fmi_layer_import_ctypes():
+    """Every other part passes C values made by wavecosim.kernel (cvalues, the bindings)."""
+    found = []
+    for name, path in modules().items():
+        for node in ast.walk(ast.parse(path.read_text())):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                     else [node.module or ""] if isinstance(node, ast.ImportFrom) and not node.level else [])
+            if any(n.split(".")[0] == "ctypes" for n in names) and part(name) not in C_ABI:
+                found.append(name)
+    assert found == []

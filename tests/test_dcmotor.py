@@ -57,6 +57,7 @@ def test_every_classical_master_runs():
             assert error <= 1e-4, (master, error)
 
 
+@pytest.mark.slow  # a long compare: every master and budget
 def test_compare_runs_every_master(tmp_path, capsys):
     with pytest.raises(SystemExit) as info:
         main(["compare", str(CONFIG), "--T", "0.005", "--Ks", "5", "--quiet", "--no-certificates",

@@ -26,24 +26,34 @@ static void print_escaped(const char *text) {
 }
 
 #define PRINT_REAL(name, kind, start, unit, desc) print_real(#name, VR_##name, kind, start, unit, desc);
-#define PRINT_INT(name, start, desc) print_int(#name, INTEGER_VR_BASE + VRI_##name, start, desc);
+#define PRINT_INT(name, start, desc) print_int(#name, INTEGER_VR_BASE + VRI_##name, PARAMETER, start, desc);
+#define PRINT_INT_IO(name, kind, start, desc) print_int(#name, INTEGER_VR_BASE + VRI_##name, kind, start, desc);
+#define PRINT_BOOL(name, kind, start, desc) \
+    print_typed("Boolean", #name, BOOLEAN_VR_BASE + VRB_##name, kind, (start) ? "true" : "false", desc);
+#define PRINT_STRING(name, kind, start, desc) \
+    print_typed("String", #name, STRING_VR_BASE + VRS_##name, kind, start, desc);
 #define REAL_KIND(name, kind, start, unit, desc) kind,
-static const int real_kind[] = {REAL_VARIABLES(REAL_KIND)};
+#define INT_KIND(name, start, desc) PARAMETER,
+#define TYPED_KIND(name, kind, start, desc) kind,
+/* the kind of every variable in the order of ModelVariables: reals, integers, Booleans, strings */
+static const int kinds[] = {REAL_VARIABLES(REAL_KIND) INTEGER_VARIABLES(INT_KIND) INTEGER_IO(TYPED_KIND)
+                            BOOLEAN_VARIABLES(TYPED_KIND) STRING_VARIABLES(TYPED_KIND)};
+enum { N_VARIABLES = N_REALS + N_INTEGERS + N_BOOLEANS + N_STRINGS };
 
-/* Is a real of this kind listed: among the outputs (states are exposed as outputs), or among the
- * initial unknowns (calculated outputs only)? */
+/* Is a variable of this kind listed: among the outputs (states are exposed as outputs), or among
+ * the initial unknowns (calculated outputs only)? */
 static int is_output(int kind) { return kind == STATE || kind == OUTPUT; }
 static int is_initial_unknown(int kind) { return kind == OUTPUT; }
 
-/* Prints <element> with one Unknown per selected real (1-based index), or nothing when none is
+/* Prints <element> with one Unknown per selected variable (1-based index), or nothing when none is
  * selected: the schema does not allow the element empty. */
 static void print_unknowns(const char *element, int (*selected)(int kind)) {
     int any = 0;
-    for (int k = 0; k < N_REALS; k++) any |= selected(real_kind[k]);
+    for (int k = 0; k < N_VARIABLES; k++) any |= selected(kinds[k]);
     if (!any) return;
     printf("    <%s>\n", element);
-    for (int k = 0; k < N_REALS; k++)
-        if (selected(real_kind[k])) printf("      <Unknown index=\"%d\"/>\n", k + 1);
+    for (int k = 0; k < N_VARIABLES; k++)
+        if (selected(kinds[k])) printf("      <Unknown index=\"%d\"/>\n", k + 1);
     printf("    </%s>\n", element);
 }
 
@@ -62,12 +72,37 @@ static void print_real(const char *name, int vr, int kind, double start, const c
     printf("/>\n    </ScalarVariable>\n");
 }
 
-static void print_int(const char *name, int vr, int start, const char *desc) {
-    printf("    <ScalarVariable name=\"%s\" valueReference=\"%d\" causality=\"parameter\" "
-           "variability=\"fixed\" description=\"", name, vr);
+/* The opening of a ScalarVariable of a discrete type (Integer, Boolean, String): a parameter is
+ * fixed, an input or output discrete, an output calculated (and has no start). */
+static void print_head(const char *name, int vr, int kind, const char *desc) {
+    const char *variability = kind == PARAMETER ? "fixed" : kind == TUNABLE ? "tunable" : "discrete";
+    printf("    <ScalarVariable name=\"%s\" valueReference=\"%d\" causality=\"%s\" variability=\"%s\"%s "
+           "description=\"", name, vr, causality(kind), variability, kind == OUTPUT ? " initial=\"calculated\"" : "");
     print_escaped(desc);
-    printf("\">\n      <Integer start=\"%d\"/>\n    </ScalarVariable>\n", start);
+    printf("\">\n");
 }
+
+static void print_int(const char *name, int vr, int kind, int start, const char *desc) {
+    print_head(name, vr, kind, desc);
+    if (kind == OUTPUT) printf("      <Integer/>\n");
+    else printf("      <Integer start=\"%d\"/>\n", start);
+    printf("    </ScalarVariable>\n");
+}
+
+#if HAS_BOOLEANS || HAS_STRINGS
+/* A Boolean or String variable, its start given as the XML text. */
+static void print_typed(const char *type, const char *name, int vr, int kind, const char *start, const char *desc) {
+    print_head(name, vr, kind, desc);
+    if (kind == OUTPUT) {
+        printf("      <%s/>\n", type);
+    } else {
+        printf("      <%s start=\"", type);
+        print_escaped(start);
+        printf("\"/>\n");
+    }
+    printf("    </ScalarVariable>\n");
+}
+#endif
 
 /* The C files fmus/build.py compiles into the binary; sources/ in the FMU holds them and every
  * header they include, so `fmpy compile` can rebuild the binary on another platform. */
@@ -109,10 +144,13 @@ int main(void) {
         for (int k = 0; k < n_units; k++) printf("    <Unit name=\"%s\"/>\n", units[k]);
         printf("  </UnitDefinitions>\n");
     }
-    printf("  <DefaultExperiment startTime=\"0\" stopTime=\"10\" stepSize=\"0.01\"/>\n");
+    printf("  <DefaultExperiment %s/>\n", DEFAULT_EXPERIMENT);
     printf("  <ModelVariables>\n");
     REAL_VARIABLES(PRINT_REAL)
     INTEGER_VARIABLES(PRINT_INT)
+    INTEGER_IO(PRINT_INT_IO)
+    BOOLEAN_VARIABLES(PRINT_BOOL)
+    STRING_VARIABLES(PRINT_STRING)
     printf("  </ModelVariables>\n  <ModelStructure>\n");
     print_unknowns("Outputs", is_output);
     print_unknowns("InitialUnknowns", is_initial_unknown);

@@ -40,8 +40,12 @@ typedef struct {
 #define MASK_fmi2Reset PHASES_ANY
 #define MASK_fmi2GetReal PHASES_ANY
 #define MASK_fmi2GetInteger PHASES_ANY
+#define MASK_fmi2GetBoolean PHASES_ANY
+#define MASK_fmi2GetString PHASES_ANY
 #define MASK_fmi2SetReal PHASES_UNTIL_STEP
-#define MASK_fmi2SetInteger PHASES_BEFORE_STEP
+#define MASK_fmi2SetInteger PHASES_UNTIL_STEP
+#define MASK_fmi2SetBoolean PHASES_UNTIL_STEP
+#define MASK_fmi2SetString PHASES_UNTIL_STEP
 #define MASK_fmi2GetFMUstate PHASES_ANY
 #define MASK_fmi2SetFMUstate PHASES_ANY
 #define MASK_fmi2DoStep (1 << ST_STEP)
@@ -53,10 +57,27 @@ typedef struct {
 #define REAL_KIND(name, kind, start, unit, desc) kind,
 #define REAL_NAME(name, kind, start, unit, desc) #name,
 #define INT_START(name, start, desc) start,
+#define INT_KIND(name, start, desc) PARAMETER,
+#define INT_NAME(name, start, desc) #name,
+#define TYPED_START(name, kind, start, desc) start,
+#define TYPED_KIND(name, kind, start, desc) kind,
+#define TYPED_NAME(name, kind, start, desc) #name,
 static const double real_start[N_REALS] = {REAL_VARIABLES(REAL_START)};
 static const int real_kind[N_REALS] = {REAL_VARIABLES(REAL_KIND)};
 static const char *real_name[N_REALS] = {REAL_VARIABLES(REAL_NAME)};
-static const int int_start[N_INTEGERS] = {INTEGER_VARIABLES(INT_START)};
+static const int int_start[N_INTEGERS] = {INTEGER_VARIABLES(INT_START) INTEGER_IO(TYPED_START)};
+static const int int_kind[N_INTEGERS] = {INTEGER_VARIABLES(INT_KIND) INTEGER_IO(TYPED_KIND)};
+static const char *int_name[N_INTEGERS] = {INTEGER_VARIABLES(INT_NAME) INTEGER_IO(TYPED_NAME)};
+#if HAS_BOOLEANS
+static const int bool_start[N_BOOLEANS] = {BOOLEAN_VARIABLES(TYPED_START)};
+static const int bool_kind[N_BOOLEANS] = {BOOLEAN_VARIABLES(TYPED_KIND)};
+static const char *bool_name[N_BOOLEANS] = {BOOLEAN_VARIABLES(TYPED_NAME)};
+#endif
+#if HAS_STRINGS
+static const char *string_start[N_STRINGS] = {STRING_VARIABLES(TYPED_START)};
+static const int string_kind[N_STRINGS] = {STRING_VARIABLES(TYPED_KIND)};
+static const char *string_name[N_STRINGS] = {STRING_VARIABLES(TYPED_NAME)};
+#endif
 
 static void log_msg(Instance *c, fmi2Status status, const char *category, const char *fmt, ...) PRINTF_LIKE(4, 5);
 static void log_msg(Instance *c, fmi2Status status, const char *category, const char *fmt, ...) {
@@ -104,6 +125,41 @@ static void set_start_values(ModelData *d) {
     memset(d, 0, sizeof *d);
     for (int k = 0; k < N_REALS; k++) d->r[k] = real_start[k];
     for (int k = 0; k < N_INTEGERS; k++) d->i[k] = int_start[k];
+#if HAS_BOOLEANS
+    for (int k = 0; k < N_BOOLEANS; k++) d->b[k] = bool_start[k];
+#endif
+#if HAS_STRINGS
+    for (int k = 0; k < N_STRINGS; k++) snprintf(d->s[k], STRING_SIZE, "%s", string_start[k]);
+#endif
+}
+
+/* Non-zero (after logging an error naming the variable) when a variable of this kind may not be
+ * set now: an output never, in step mode only an input or a tunable parameter. */
+static int not_settable(Instance *c, const char *fn, int kind, const char *name, unsigned vr) {
+    if (kind == OUTPUT || (c->phase == ST_STEP && kind != INPUT && kind != TUNABLE)) {
+        fail(c, fn, "variable %s (value reference %u) cannot be set in %s", name, vr, phase_name(c->phase));
+        return 1;
+    }
+    return 0;
+}
+
+/* Non-zero (after logging an error) when vr is not base .. base + n - 1 or an argument is null. */
+static int bad_refs(Instance *c, const char *fn, const fmi2ValueReference vr[], size_t n, const void *value,
+                    unsigned base, int count) {
+    if (n > 0 && (!vr || !value)) {
+        fail(c, fn, "null argument (%zu values requested)", n);
+        return 1;
+    }
+    for (size_t k = 0; k < n; k++) {
+        if (vr[k] < base || vr[k] >= base + (unsigned)count) {
+            if (count > 0)
+                fail(c, fn, "value reference %u out of range (have %u..%u)", vr[k], base, base + count - 1);
+            else
+                fail(c, fn, "this model has no variables of this type (%zu requested)", n);
+            return 1;
+        }
+    }
+    return 0;
 }
 
 /* Index of the first real that is not finite, or -1. */
@@ -282,10 +338,11 @@ void fmi2FreeInstance(fmi2Component comp) {
 
 fmi2Status fmi2SetupExperiment(fmi2Component comp, fmi2Boolean tolDefined, fmi2Real tol,
                                fmi2Real start, fmi2Boolean stopDefined, fmi2Real stop) {
-    (void)tolDefined; (void)tol; (void)stopDefined; (void)stop;
+    (void)stopDefined; (void)stop;
     Instance *c = comp;
     if (BAD_CALL(c, fmi2SetupExperiment)) return fmi2Error;
     c->d.time = start;
+    c->d.tolerance = tolDefined ? tol : 0.0;
     return fmi2OK;
 }
 
@@ -346,24 +403,29 @@ fmi2Status fmi2GetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t
 fmi2Status fmi2GetInteger(fmi2Component comp, const fmi2ValueReference vr[], size_t n, fmi2Integer value[]) {
     Instance *c = comp;
     if (BAD_CALL(c, fmi2GetInteger)) return fmi2Error;
-    if (n > 0 && (!vr || !value)) return fail(c, "fmi2GetInteger", "null argument (%zu values requested)", n);
-    for (size_t k = 0; k < n; k++) {
-        if (vr[k] < INTEGER_VR_BASE || vr[k] >= INTEGER_VR_BASE + N_INTEGERS)
-            return fail(c, "fmi2GetInteger", "value reference %u out of range (have %d..%d)", vr[k],
-                        INTEGER_VR_BASE, INTEGER_VR_BASE + N_INTEGERS - 1);
-        value[k] = c->d.i[vr[k] - INTEGER_VR_BASE];
-    }
+    if (bad_refs(c, "fmi2GetInteger", vr, n, value, INTEGER_VR_BASE, N_INTEGERS)) return fmi2Error;
+    for (size_t k = 0; k < n; k++) value[k] = c->d.i[vr[k] - INTEGER_VR_BASE];
     return fmi2OK;
 }
 
 fmi2Status fmi2GetBoolean(fmi2Component comp, const fmi2ValueReference vr[], size_t n, fmi2Boolean value[]) {
-    (void)vr; (void)value;
-    return n == 0 ? fmi2OK : fail(comp, "fmi2GetBoolean", "this model has no Boolean variables (%zu requested)", n);
+    Instance *c = comp;
+    if (BAD_CALL(c, fmi2GetBoolean)) return fmi2Error;
+    if (bad_refs(c, "fmi2GetBoolean", vr, n, value, BOOLEAN_VR_BASE, N_BOOLEANS)) return fmi2Error;
+#if HAS_BOOLEANS
+    for (size_t k = 0; k < n; k++) value[k] = c->d.b[vr[k] - BOOLEAN_VR_BASE] ? fmi2True : fmi2False;
+#endif
+    return fmi2OK;
 }
 
 fmi2Status fmi2GetString(fmi2Component comp, const fmi2ValueReference vr[], size_t n, fmi2String value[]) {
-    (void)vr; (void)value;
-    return n == 0 ? fmi2OK : fail(comp, "fmi2GetString", "this model has no String variables (%zu requested)", n);
+    Instance *c = comp;
+    if (BAD_CALL(c, fmi2GetString)) return fmi2Error;
+    if (bad_refs(c, "fmi2GetString", vr, n, value, STRING_VR_BASE, N_STRINGS)) return fmi2Error;
+#if HAS_STRINGS
+    for (size_t k = 0; k < n; k++) value[k] = c->d.s[vr[k] - STRING_VR_BASE];   /* valid until the next call */
+#endif
+    return fmi2OK;
 }
 
 fmi2Status fmi2SetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t n, const fmi2Real value[]) {
@@ -385,24 +447,43 @@ fmi2Status fmi2SetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t
 fmi2Status fmi2SetInteger(fmi2Component comp, const fmi2ValueReference vr[], size_t n, const fmi2Integer value[]) {
     Instance *c = comp;
     if (BAD_CALL(c, fmi2SetInteger)) return fmi2Error;
-    if (n > 0 && (!vr || !value)) return fail(c, "fmi2SetInteger", "null argument (%zu values requested)", n);
+    if (bad_refs(c, "fmi2SetInteger", vr, n, value, INTEGER_VR_BASE, N_INTEGERS)) return fmi2Error;
     for (size_t k = 0; k < n; k++) {
-        if (vr[k] < INTEGER_VR_BASE || vr[k] >= INTEGER_VR_BASE + N_INTEGERS)
-            return fail(c, "fmi2SetInteger", "value reference %u out of range (have %d..%d)", vr[k],
-                        INTEGER_VR_BASE, INTEGER_VR_BASE + N_INTEGERS - 1);
-        c->d.i[vr[k] - INTEGER_VR_BASE] = value[k];
+        int j = (int)(vr[k] - INTEGER_VR_BASE);
+        if (not_settable(c, "fmi2SetInteger", int_kind[j], int_name[j], vr[k])) return fmi2Error;
+        c->d.i[j] = value[k];
     }
     return fmi2OK;
 }
 
 fmi2Status fmi2SetBoolean(fmi2Component comp, const fmi2ValueReference vr[], size_t n, const fmi2Boolean value[]) {
-    (void)vr; (void)value;
-    return n == 0 ? fmi2OK : fail(comp, "fmi2SetBoolean", "this model has no Boolean variables (%zu requested)", n);
+    Instance *c = comp;
+    if (BAD_CALL(c, fmi2SetBoolean)) return fmi2Error;
+    if (bad_refs(c, "fmi2SetBoolean", vr, n, value, BOOLEAN_VR_BASE, N_BOOLEANS)) return fmi2Error;
+#if HAS_BOOLEANS
+    for (size_t k = 0; k < n; k++) {
+        int j = (int)(vr[k] - BOOLEAN_VR_BASE);
+        if (not_settable(c, "fmi2SetBoolean", bool_kind[j], bool_name[j], vr[k])) return fmi2Error;
+        c->d.b[j] = value[k] != fmi2False;
+    }
+#endif
+    return fmi2OK;
 }
 
 fmi2Status fmi2SetString(fmi2Component comp, const fmi2ValueReference vr[], size_t n, const fmi2String value[]) {
-    (void)vr; (void)value;
-    return n == 0 ? fmi2OK : fail(comp, "fmi2SetString", "this model has no String variables (%zu requested)", n);
+    Instance *c = comp;
+    if (BAD_CALL(c, fmi2SetString)) return fmi2Error;
+    if (bad_refs(c, "fmi2SetString", vr, n, value, STRING_VR_BASE, N_STRINGS)) return fmi2Error;
+#if HAS_STRINGS
+    for (size_t k = 0; k < n; k++) {
+        int j = (int)(vr[k] - STRING_VR_BASE);
+        if (not_settable(c, "fmi2SetString", string_kind[j], string_name[j], vr[k])) return fmi2Error;
+        if (!value[k] || strlen(value[k]) >= STRING_SIZE)
+            return fail(c, "fmi2SetString", "%s takes a string of at most %d bytes", string_name[j], STRING_SIZE - 1);
+        strcpy(c->d.s[j], value[k]);
+    }
+#endif
+    return fmi2OK;
 }
 
 /* ---- state: a saved state is a heap copy of ModelData plus the phase ---- */
@@ -513,6 +594,7 @@ fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real t, fmi2Real h, fmi2Boolean no
     ModelData *d = &c->d;
     ModelData backup = *d;
     char msg[300] = "";
+    d->time = t;
     if (advance(d, h, msg, sizeof msg) != 0) {
         *d = backup;
         return fail(c, "fmi2DoStep", "at t = %.17g: %s", t, msg);

@@ -9,8 +9,19 @@
  *   REAL_VARIABLES(X)    X(name, kind, start, unit, description); value reference = position
  *                        kind: PARAMETER (fixed), TUNABLE, STATE (exposed as an output with an
  *                        exact start), INPUT, OUTPUT (calculated)
- *   INTEGER_VARIABLES(X) X(name, start, description); at least one; fixed parameters with value
- *                        reference INTEGER_VR_BASE + position
+ *   INTEGER_VARIABLES(X) X(name, start, description): fixed parameters with value reference
+ *                        INTEGER_VR_BASE + position (at least one integer, here or in INTEGER_IO)
+ *
+ * config.h may declare further variables (all optional):
+ *   INTEGER_IO(X)        X(name, kind, start, description), kind PARAMETER, INPUT or OUTPUT: integers
+ *                        after INTEGER_VARIABLES in the same array (value reference INTEGER_VR_BASE +
+ *                        position in both lists together)
+ *   BOOLEAN_VARIABLES(X) X(name, kind, start, description), start 0 or 1: value reference
+ *                        BOOLEAN_VR_BASE + position
+ *   STRING_VARIABLES(X)  X(name, kind, start, description), start a string literal shorter than
+ *                        STRING_SIZE bytes: value reference STRING_VR_BASE + position
+ *   DEFAULT_EXPERIMENT   the attributes of <DefaultExperiment> as a string literal (default: start at
+ *                        0, stop at 10, step 0.01)
  *
  * config.h may declare (compile-time flags, each 0 or 1, default 1):
  *   HAS_WAVE_PORT        1: the layer closes the port itself, in wave or physical mode. Then
@@ -25,7 +36,9 @@
  *                        initialization and after every step.
  *   MODEL_EXTRA_FIELDS   optional: more state kept in ModelData (arrays of internal DOFs)
  *
- * The layer reads and writes only: every variable by value reference through get/set, `gamma`,
+ * Integer, Boolean and String outputs are written by the model (model_initialize, model_step_io);
+ * inputs of every type are held over the step. The layer reads and writes only: every variable by
+ * value reference through get/set, `gamma`,
  * `port_mode` and the PORT_CHANNELS variables when HAS_WAVE_PORT, `H` when HAS_ENERGY_OUTPUT.
  * After every call below it rejects a state with a non-finite real and restores the old one.
  */
@@ -55,27 +68,73 @@
 #define FLOW_INPUT 0
 #define EFFORT_INPUT 1
 
-/* Integer value references start here so that they never collide with real ones. */
+/* Value references of each type start at their own base, so that they never collide. */
 #define INTEGER_VR_BASE 1000
+#define BOOLEAN_VR_BASE 2000
+#define STRING_VR_BASE 3000
+#define STRING_SIZE 128      /* bytes of a String variable, its terminating zero included */
 
 #define WAVECOSIM_STR_(x) #x
 #define WAVECOSIM_STR(x) WAVECOSIM_STR_(x)
 #define MODEL_IDENTIFIER_STR WAVECOSIM_STR(MODEL_IDENTIFIER)
 
+#ifndef INTEGER_VARIABLES
+#define INTEGER_VARIABLES(X)
+#endif
+#ifndef INTEGER_IO
+#define INTEGER_IO(X)
+#endif
+#ifdef BOOLEAN_VARIABLES
+#define HAS_BOOLEANS 1
+#else
+#define HAS_BOOLEANS 0
+#define BOOLEAN_VARIABLES(X)
+#endif
+#ifdef STRING_VARIABLES
+#define HAS_STRINGS 1
+#else
+#define HAS_STRINGS 0
+#define STRING_VARIABLES(X)
+#endif
+#ifndef DEFAULT_EXPERIMENT
+#define DEFAULT_EXPERIMENT "startTime=\"0\" stopTime=\"10\" stepSize=\"0.01\""
+#endif
+
 #define VR_REAL_ENUM(name, kind, start, unit, desc) VR_##name,
 #define VR_INT_ENUM(name, start, desc) VRI_##name,
+#define VR_TYPED_ENUM(name, kind, start, desc) VRI_##name,
+#define VR_BOOL_ENUM(name, kind, start, desc) VRB_##name,
+#define VR_STRING_ENUM(name, kind, start, desc) VRS_##name,
 enum { REAL_VARIABLES(VR_REAL_ENUM) N_REALS };
-enum { INTEGER_VARIABLES(VR_INT_ENUM) N_INTEGERS };
+enum { INTEGER_VARIABLES(VR_INT_ENUM) INTEGER_IO(VR_TYPED_ENUM) N_INTEGERS };
+enum { BOOLEAN_VARIABLES(VR_BOOL_ENUM) N_BOOLEANS };
+enum { STRING_VARIABLES(VR_STRING_ENUM) N_STRINGS };
 
 #ifndef MODEL_EXTRA_FIELDS
 #define MODEL_EXTRA_FIELDS
 #endif
 
-/* Every simulation variable of an instance; a saved FMU state is a copy of this struct. */
+#if HAS_BOOLEANS
+#define BOOLEAN_FIELDS int b[N_BOOLEANS];
+#else
+#define BOOLEAN_FIELDS
+#endif
+#if HAS_STRINGS
+#define STRING_FIELDS char s[N_STRINGS][STRING_SIZE];
+#else
+#define STRING_FIELDS
+#endif
+
+/* Every simulation variable of an instance; a saved FMU state is a copy of this struct. `time` is
+ * the start of the step being made (the communication point doStep got), then its end; `tolerance`
+ * what fmi2SetupExperiment passed (0 when it passed none). */
 typedef struct {
     double time;
+    double tolerance;
     double r[N_REALS];
     int i[N_INTEGERS];
+    BOOLEAN_FIELDS
+    STRING_FIELDS
     MODEL_EXTRA_FIELDS
 } ModelData;
 

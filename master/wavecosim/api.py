@@ -11,7 +11,7 @@ from typing import Callable, Optional, Sequence, Union
 
 import numpy as np
 
-from .scenario.config import Scenario, load_scenario
+from .scenario.config import Scenario, load_scenario, output_patterns
 from .errors import ConfigError
 from .masters import ALGORITHMS
 from .core.gamma import parse_gamma
@@ -22,23 +22,32 @@ ScenarioLike = Union[str, Path, Scenario]
 
 def load(path: Union[str, Path, None] = None, *, master: Optional[str] = None, K: Optional[int] = None,
          eps: Optional[float] = None, gamma=None, dt: Optional[float] = None, T: Optional[float] = None,
+         start_time: Optional[float] = None, outputs: Optional[Sequence[str]] = None,
          ports: Union[str, Path, None] = None, parameter_set: Optional[str] = None,
-         warn: Optional[Callable[[str], None]] = None) -> Scenario:
-    """Read and validate a scenario file (the built-in Table I scene when `path` is None), or an SSP
+         input: Union[str, Path, None] = None, warn: Optional[Callable[[str], None]] = None) -> Scenario:
+    """Read and validate a scenario file (the built-in Table I scene when `path` is None), an SSP
     system (.ssd, .ssp, folder) with the overlay `ports` and the parameter sets named
-    `parameter_set`, with the given values in place of the file's (the CLI's options). Notes of
-    an SSP import go to `warn` (default: Python warnings)."""
+    `parameter_set`, or one FMU (.fmu) driven by the CSV file `input`, with the given values in
+    place of the file's (the CLI's options; `outputs`: glob patterns of the columns to record).
+    Notes of an SSP or FMU import go to `warn` (default: Python warnings)."""
+    from .scenario.fmu import is_fmu, load_fmu
     from .scenario.ssp import is_ssp, load_ssp
+    times = {"dt": dt, "T": T, "start_time": start_time}
+    if (ports is not None or parameter_set is not None) and not (path is not None and is_ssp(path)):
+        raise ConfigError("ports and parameter_set: only for an SSP input (.ssd, .ssp or a folder)")
+    if input is not None and not is_fmu(path):
+        raise ConfigError("input: only for an FMU (.fmu)")
     if path is not None and is_ssp(path):
-        settings = {"dt": dt, "T": T, "gamma": parse_gamma(gamma, "gamma") if gamma is not None else None}
+        settings = {**times, "gamma": parse_gamma(gamma, "gamma") if gamma is not None else None}
         scenario, imported = load_ssp(path, ports, parameter_set, settings)
         for note in imported.notes:
             (warn or _python_warning)(note)
-    elif ports is not None or parameter_set is not None:
-        raise ConfigError("ports and parameter_set: only for an SSP input (.ssd, .ssp or a folder)")
+    elif is_fmu(path):
+        scenario = load_fmu(path, input, times, warn or _python_warning)
     else:
-        scenario = load_scenario(path)
-    return with_overrides(scenario, master=master, K=K, eps=eps, gamma=gamma, dt=dt, T=T)
+        scenario = load_scenario(path, times)
+    return with_overrides(scenario, master=master, K=K, eps=eps, gamma=gamma, dt=dt, T=T, start_time=start_time,
+                          outputs=outputs)
 
 
 def _python_warning(message):
@@ -47,8 +56,9 @@ def _python_warning(message):
 
 
 def with_overrides(scenario: Scenario, *, master=None, K=None, eps=None, gamma=None, dt=None, T=None,
-                   where="options") -> Scenario:
-    """The scenario with some values replaced, each checked as in a file (one-line ConfigError)."""
+                   start_time=None, outputs=None, where="options") -> Scenario:
+    """The scenario with some values replaced, each checked as in a file (one-line ConfigError);
+    `outputs` (glob patterns) narrows the recorded columns."""
     changes = {k: v for k, v in (("K", K), ("eps", eps), ("algorithm", master)) if v is not None}
     if master is not None and master not in ALGORITHMS:
         raise ConfigError(f"{where}: master: must be one of {', '.join(ALGORITHMS)}, got {master!r}")
@@ -57,16 +67,23 @@ def with_overrides(scenario: Scenario, *, master=None, K=None, eps=None, gamma=N
     if eps is not None and not eps > 0:
         raise ConfigError(f"{where}: eps: must be > 0, got {eps!r}")
     if changes:
-        scenario = scenario.with_master(**changes)
-    top = {k: v for k, v in (("dt", dt), ("T", T)) if v is not None}
+        scenario = scenario.with_master("master" if where == "options" else "--master", **changes)
+    top = {k: v for k, v in (("dt", dt), ("T", T), ("start_time", start_time)) if v is not None}
+    if outputs:
+        top["output_patterns"] = output_patterns(list(outputs), lambda msg: _fail_outputs(where, msg))
     if gamma is not None:
         top["gamma"] = parse_gamma(gamma, f"{where}: gamma" if where != "options" else "gamma")
     return scenario.with_changes(where, **top)
 
 
+def _fail_outputs(where, message):
+    raise ConfigError(f"{'--outputs' if where != 'options' else 'outputs'}: {message}")
+
+
 def _scenario(scenario: ScenarioLike, **overrides) -> Scenario:
-    base = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
-    return with_overrides(base, **overrides)
+    if isinstance(scenario, Scenario):
+        return with_overrides(scenario, **overrides)
+    return load(scenario, **overrides)
 
 
 def _progress_printer(enabled):
@@ -83,16 +100,18 @@ def _progress_printer(enabled):
 
 def simulate(scenario: ScenarioLike = None, *, master: Optional[str] = None, K: Optional[int] = None,
              eps: Optional[float] = None, gamma=None, dt: Optional[float] = None, T: Optional[float] = None,
+             start_time: Optional[float] = None, outputs: Optional[Sequence[str]] = None,
              out_dir: Union[str, Path, None] = None, reference: bool = True, certificates: bool = True,
              progress: Union[bool, Callable[[int, int], None]] = False, output_interval: int = 1,
              formats: Sequence[str] = ("csv",), warn: Optional[Callable[[str], None]] = None) -> RunResult:
     """Run one scenario (a path, a Scenario, or None for Table I) and return its RunResult.
 
-    `result.trajectory` is a structured array whose first field is `time` (the grid n dt), so
+    `result.trajectory` is a structured array whose first field is `time` (the grid t0 + n dt), so
     `fmpy.util.plot_result(result.trajectory)` draws it; `result.steps` holds the per-step figures,
     `result.summary` the figures of summary.json, `result.reference` the monolithic reference run
     alongside (reference=True) or None. Files are written only into `out_dir`."""
-    sc = _scenario(scenario, master=master, K=K, eps=eps, gamma=gamma, dt=dt, T=T)
+    sc = _scenario(scenario, master=master, K=K, eps=eps, gamma=gamma, dt=dt, T=T, start_time=start_time,
+                   outputs=outputs)
     return run(sc, out_dir, label=sc.master.algorithm, reference="lockstep" if reference else None,
                certificates=certificates, progress=_progress_printer(progress), warn=warn,
                file_suffix=False, output_interval=output_interval, formats=tuple(formats))

@@ -2,6 +2,7 @@
 
 Every WavecosimError becomes one line on stderr and its class's exit code (2 for bad input)."""
 import sys
+import time
 from pathlib import Path
 
 import click
@@ -11,31 +12,42 @@ from .errors import ConfigError, Interrupted, WavecosimError
 from . import api
 from .api import simulate, with_overrides
 from .core.gamma import parse_gamma
-from .masters import ALGORITHMS
+from .masters import ALGORITHMS, MASTERS
 from .run.recorder import write_json
 
 
 def _progress(label, quiet):
-    """A progress callback printing about 20 updates per run to stderr."""
+    """A progress callback (n steps done of total) on stderr: on a terminal click's progress bar with
+    the steps, the percentage, the time since the run began and the time left at the pace so far;
+    elsewhere one line when the run is done."""
     if quiet:
         return None
-    state = {"last": -1}
-    tty = sys.stderr.isatty()
+    started, tty, bar, first = time.perf_counter(), sys.stderr.isatty(), None, None
 
     def report(n, total):
-        pct = (20 * n) // total
+        nonlocal bar, first
+        now = time.perf_counter()
+        if not tty:
+            if n == total:
+                click.echo(f"  {label}: {n}/{total} steps done in {now - started:.1f} s", err=True)
+            return
+        if bar is None:
+            bar, first = click.progressbar(length=total, label=f"  {label}", file=sys.stderr, show_pos=True,
+                                           show_percent=True, show_eta=False, item_show_func=str), (now, n)
+        pace = (now - first[0]) / (n - first[1]) if n > first[1] else None        # seconds per step since the first
+        left = f", ETA {pace * (total - n):.1f} s" if pace and n < total else ""
+        bar.update(n - bar.pos, f"{now - started:.1f} s elapsed{left}")
         if n == total:
-            click.echo(f"\r  {label}: {n}/{total} steps done", err=True)
-        elif tty and pct != state["last"]:
-            state["last"] = pct
-            click.echo(f"\r  {label}: {n}/{total} steps ({100 * n // total}%)", err=True, nl=False)
+            bar.render_finish()
     return report
 
 
-def _apply_overrides(scenario, K=None, eps=None, gamma=None, dt=None, T=None, algorithm=None):
+def _apply_overrides(scenario, K=None, eps=None, gamma=None, dt=None, T=None, algorithm=None, start_time=None,
+                     outputs=None):
     """The scenario with the command line's values in place of the file's."""
     gamma = parse_gamma(gamma, "--gamma") if gamma is not None else None
-    return with_overrides(scenario, master=algorithm, K=K, eps=eps, gamma=gamma, dt=dt, T=T, where="--T/--dt")
+    return with_overrides(scenario, master=algorithm, K=K, eps=eps, gamma=gamma, dt=dt, T=T, start_time=start_time,
+                          outputs=outputs, where="--T/--dt")
 
 
 def parse_budgets(ks, option="--Ks"):
@@ -70,8 +82,10 @@ common = [
     click.option("--K", "K", type=click.IntRange(min=0), help="Inner-iteration budget K per macro-step."),
     click.option("--eps", type=click.FloatRange(min=0, min_open=True), help="Inner tolerance: stop when |u_new - u| <= eps."),
     click.option("--gamma", help="Scattering impedance (> 0), or auto / auto-retune / fast-unsafe."),
-    click.option("--dt", type=click.FloatRange(min=0, min_open=True), help="Macro-step size (s)."),
-    click.option("--T", "T", type=click.FloatRange(min=0, min_open=True), help="End time (s)."),
+    click.option("--dt", type=click.FloatRange(min=0, min_open=True),
+                 help="Macro-step size (s); default: the file's, else the smallest DefaultExperiment stepSize of the FMUs."),
+    click.option("--T", "T", type=float,
+                 help="Stop time (s); default: the file's, else the largest DefaultExperiment stopTime of the FMUs."),
     click.option("--quiet", is_flag=True, help="No progress output."),
 ]
 
@@ -115,32 +129,53 @@ ssp_options = options([
 ])
 
 
-def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None):
-    """A scenario file, or an SSP system (.ssd, .ssp, folder) with its overlay; import notes are warnings."""
+experiment_options = options([
+    click.option("--start-time", type=float, help="Start time t0 (s) of the grid t0 + n dt; default: the file's, "
+                 "else the DefaultExperiment startTime of the FMUs, else 0."),
+])
+
+
+def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None, start_time=None, input_csv=None):
+    """A scenario file, an SSP system (.ssd, .ssp, folder) with its overlay, or one FMU (.fmu) with
+    its input file; the command line's times go in before the file's are checked; import notes
+    are warnings."""
+    from .scenario.fmu import is_fmu
     from .scenario.ssp import is_ssp
+    times = {"dt": dt, "T": T, "start_time": start_time}
+    warn = lambda note: click.echo(f"warning: {note}", err=True)        # noqa: E731
     if ports or parameter_set or (config is not None and is_ssp(config)):
-        return api.load(config, ports=ports, parameter_set=parameter_set, dt=dt, T=T, gamma=gamma,
-                        warn=lambda note: click.echo(f"warning: {note}", err=True))
-    return load_scenario(config)
+        return api.load(config, ports=ports, parameter_set=parameter_set, gamma=gamma, warn=warn, **times)
+    if input_csv is not None or is_fmu(config):
+        return api.load(config, input=input_csv, warn=warn, **times)
+    return load_scenario(config, times)
 
 
 @cli.command("run")
 @click.argument("config", required=False, type=click.Path(path_type=Path))
 @with_common
+@experiment_options
 @with_output
 @ssp_options
-@click.option("--master", "algorithm", type=click.Choice(ALGORITHMS), help="Master algorithm (default: from CONFIG).")
+@click.option("--input", "input_csv", type=click.Path(dir_okay=False, path_type=Path),
+              help="FMU input: a CSV file (a time column, one column per input; true/false for Booleans; a time "
+                   "given twice for an event), applied as fmpy applies it.")
+@click.option("--outputs", "outputs", multiple=True, metavar="PATTERN",
+              help="Record only the columns matching this glob (e.g. 'IO.y_*'; repeat for more); default: every "
+                   "output and connected input, named COMPONENT.variable (or the file's outputs).")
+@click.option("--master", "algorithm", type=click.Choice(ALGORITHMS),
+              help="Master algorithm (default: from CONFIG; else dr where there are power bonds, explicit without).")
 @click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("out/run"), show_default=True,
               help="Output folder for trajectory.csv, steps.csv, summary.json and metadata.json.")
 @click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and the Condition 1 watch (faster).")
 @click.option("--no-reference", is_flag=True, help="Skip the monolithic reference run (no error figures).")
 @click.option("--plots", is_flag=True, help="Also write PNG figures into the output folder.")
-def run_cmd(config, K, eps, gamma, dt, T, quiet, output_interval, formats, ports, parameter_set, algorithm, out,
-            no_certificates, no_reference, plots):
-    """Run one scenario (with the monolithic reference alongside) and write its trajectory, per-step
-    certificates, summary and metadata. CONFIG is a scenario file or an SSP system (.ssd, .ssp, folder)."""
-    scenario = _apply_overrides(_read_config(config, ports, parameter_set, dt, T, gamma), K, eps, gamma, dt, T,
-                                algorithm)
+def run_cmd(config, K, eps, gamma, dt, T, quiet, start_time, output_interval, formats, ports, parameter_set, input_csv,
+            outputs, algorithm, out, no_certificates, no_reference, plots):
+    """Run one scenario (with the monolithic reference alongside where there are power bonds) and
+    write its trajectory, per-step certificates, summary and metadata. CONFIG is a scenario file,
+    an SSP system (.ssd, .ssp, folder) or one FMU (.fmu), run as fmpy's simulate runs it."""
+    scenario = _apply_overrides(_read_config(config, ports, parameter_set, dt, T, gamma, start_time, input_csv), K, eps,
+                                gamma, dt, T, algorithm, start_time, outputs)
     result = simulate(scenario, out_dir=out, progress=_progress("run", quiet) or False,
                       certificates=not no_certificates, reference=not no_reference,
                       output_interval=output_interval, formats=("csv", *formats))
@@ -153,7 +188,8 @@ def run_cmd(config, K, eps, gamma, dt, T, quiet, output_interval, formats, ports
 
 def _report_run(scenario, result, out):
     s = result.summary
-    click.echo(f"{scenario.name}: {s['master']} K={s['K']} dt={scenario.dt} T={scenario.T} -> {out}")
+    budget = f" K={s['K']}" if MASTERS[s["master"]].budgets != (None,) else ""
+    click.echo(f"{scenario.name}: {s['master']}{budget} dt={scenario.dt} T={scenario.T} -> {out}")
     if s.get("gamma_mode", "fixed") != "fixed":
         each = lambda d: ", ".join(f"{k} {v:.6g}" for k, v in d.items())      # noqa: E731
         click.echo(f"gamma: {s['gamma_mode']} -> {each(s['gamma_initial'])} (FNE bounds {each(s['gamma_fne_bounds'])}; "
@@ -161,11 +197,13 @@ def _report_run(scenario, result, out):
                    f"{s['gamma_changes']} changes; "
                    f"{'inside the FNE bounds' if s['gamma_guaranteed'] else 'OUTSIDE an FNE bound: Theorem 1 not guaranteed'}"
                    f"{'' if s.get('fne_watch_ok', True) else '; the Condition 1 watch found a violation'})")
-    print_table([s], ["steps", "max_error", "rms_error", "final_error", "max_passivity_pos", "max_augmented_pos",
-                      "min_fne_margin", "iterations_mean", "wall_time_s", "total_time_s",
-                      *(["energy_guard_steps"] if "energy_guard_steps" in s else [])])
+    print_table([s], [f for f in ("steps", "max_error", "rms_error", "final_error", "max_passivity_pos",
+                                  "max_augmented_pos", "min_fne_margin", "iterations_mean", "wall_time_s",
+                                  "total_time_s", "energy_guard_steps") if f in s])
     if "signal_note" in s:
         click.echo(f"note: {s['signal_note']}")
+    if s["status"] == "finished" and s.get("message"):
+        click.echo(f"note: {s['message']}")
 
 
 # sweep: the common options with --K a list, plus those of general sweeps
@@ -269,6 +307,7 @@ def _sweep_progress(total, skipped):
 @cli.command("compare")
 @config_argument
 @with_common
+@experiment_options
 @ssp_options
 @click.option("--masters", default=",".join(ALGORITHMS), show_default=True,
               help="Comma-separated masters to compare.")
@@ -282,8 +321,8 @@ def _sweep_progress(total, skipped):
                    "warm, gamma-auto, gamma-fastest, fastest-relaxed, fastest-relaxed-anderson, "
                    "fastest-relaxed-extrapolated, fastest-relaxed-memory, fastest-memory, "
                    "fastest-memory-eps3, fastest-memory-eps5.")
-def compare_cmd(config, K, eps, gamma, dt, T, quiet, ports, parameter_set, masters, ks, out, no_certificates, plots,
-                dr_options):
+def compare_cmd(config, K, eps, gamma, dt, T, quiet, start_time, ports, parameter_set, masters, ks, out,
+                no_certificates, plots, dr_options):
     """Every master over a grid of budgets against the monolithic reference: error, energy, cost."""
     from .sweeps.comparison import COMPARE_FIELDS, parse_options
     options = parse_options(dr_options)
@@ -296,7 +335,8 @@ def compare_cmd(config, K, eps, gamma, dt, T, quiet, ports, parameter_set, maste
     Ks = [K] if K is not None else None
     if ks is not None:
         Ks = parse_budgets(ks)
-    scenario = _apply_overrides(_read_config(config, ports, parameter_set, dt, T, gamma), None, eps, gamma, dt, T)
+    scenario = _apply_overrides(_read_config(config, ports, parameter_set, dt, T, gamma, start_time), None, eps,
+                                gamma, dt, T, start_time=start_time)
     table = api.compare(scenario, names, Ks, out_dir=out, progress=(lambda label: _progress(label, quiet)),
                         certificates=not no_certificates, options=options)
     reference, results, rows = table.reference, table.results, table.rows
@@ -312,19 +352,24 @@ def compare_cmd(config, K, eps, gamma, dt, T, quiet, ports, parameter_set, maste
 
 
 @cli.command("validate")
-@config_argument
+@click.argument("config", required=False, type=click.Path(path_type=Path))
 @ssp_options
-def validate_cmd(config, ports, parameter_set):
-    """Check a scenario file (or an SSP system) and its FMUs without running it."""
+@click.option("--input", "input_csv", type=click.Path(dir_okay=False, path_type=Path), help="FMU input: a CSV file.")
+@options([opt for opt in common if opt in (common[3], common[4])])
+@experiment_options
+def validate_cmd(config, ports, parameter_set, input_csv, dt, T, start_time):
+    """Check a scenario file (an SSP system, or one FMU) and its FMUs without running it."""
     from .core.scene import build_scene
-    scenario = _read_config(config, ports, parameter_set)
+    scenario = _read_config(config, ports, parameter_set, dt, T, start_time=start_time, input_csv=input_csv)
     scene = build_scene(scenario, wave=True)
     try:
-        wm = scene.wave_map()
+        for note in scene.notes:
+            click.echo(f"warning: {note}", err=True)
         signals = (f", {len(scene.signal_only)} signal-only, {len(scenario.signals)} signals, "
-                   f"{len(scenario.sources)} sources") if scenario.signals else ""
-        click.echo(f"{scenario.source}: OK ({len(scene.subsystems)} subsystems{signals}, {scene.n_channels} channels, "
-                   f"|P^T P - I| = {wm.orthogonality_residual:.1e})")
+                   f"{len(scenario.sources)} sources") if scene.signal_only or scenario.signals else ""
+        waves = f", |P^T P - I| = {scene.wave_map().orthogonality_residual:.1e}" if scene.n_channels else ""
+        click.echo(f"{scenario.source}: OK ({len(scene.subsystems)} subsystems{signals}, {scene.n_channels} channels"
+                   f"{waves})")
     finally:
         scene.close()
 

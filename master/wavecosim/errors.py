@@ -32,6 +32,11 @@ class FmuError(WavecosimError):
         self.subsystem, self.step, self.time, self.variable = subsystem, step, time, variable
 
 
+class SimulationEnded(FmuError):
+    """An FMU asked to end the simulation (fmi2Discard with fmi2Terminated; FMI 3 terminateSimulation):
+    the run ends there, finished, with the steps before it (as fmpy's simulate ends)."""
+
+
 class NumericalError(WavecosimError):
     """A non-finite value or a blow-up was detected."""
     exit_code = 4

@@ -2,9 +2,12 @@
 figures themselves are measured, never asserted against the clock)."""
 import json
 
+import pytest
+
 from wavecosim.cli import main
 
 
+@pytest.mark.slow  # the bench smoke: every row of wavecosim bench --quick
 def test_bench_quick_reports_every_path_and_the_run_over_master_ratio(tmp_path, capsys):
     try:
         main(["bench", "--quick", "--json", str(tmp_path / "b.json")])

@@ -144,8 +144,10 @@ BAD = [
      "sources.A: is also the name of a subsystem"),
     ("csv-missing", lambda r: r["sources"]["push"].update({"csv": "nowhere.csv"}), "sources.push.csv: cannot read"),
     ("csv-no-time", _table("t,force\n0,1\n"), "sources.push.csv: bad.csv: the first column of the header must be `time`"),
-    ("csv-times-not-increasing", _table("time,force\n0,1\n0.5,2\n0.5,3\n"),
-     "sources.push.csv: bad.csv: times must increase, line 4 has 0.5 after 0.5"),
+    ("csv-times-decreasing", _table("time,force\n0,1\n0.5,2\n0.5,3\n0.4,3\n"),
+     "sources.push.csv: bad.csv: times must not decrease, line 5 has 0.4 after 0.5"),
+    ("csv-boolean-time", _table("time,force\n0,1\ntrue,2\n"), "bad.csv: line 3: the time must be a number"),
+    ("csv-mixed-column", _table("time,force\n0,1\n1,true\n"), "bad.csv: column force mixes true/false and numbers"),
     ("csv-not-numbers", _table("time,force\n0,abc\n"), "sources.push.csv: bad.csv: line 2 is not all numbers"),
 ]
 

@@ -90,6 +90,37 @@ def test_non_finite_input_of_a_plain_model_is_named_with_its_value(built_fmus):
 def test_call_in_the_wrong_state_names_the_state(built_fmus):
     fmu = Fmu(built_fmus["ForeignMass"], "test")
     with pytest.raises(FMICallException):
+        fmu.slave.setupExperiment(startTime=0.0)
+    assert fmu.last_message() == "fmi2SetupExperiment: not allowed in the current state (step mode)"
+    with pytest.raises(FMICallException):
         fmu.slave.setInteger([fmu.vr("substeps")], [3])
-    assert fmu.last_message() == "fmi2SetInteger: not allowed in the current state (step mode)"
+    assert fmu.last_message() == "fmi2SetInteger: variable substeps (value reference 1000) cannot be set in step mode"
+    fmu.close()
+
+
+def test_integer_boolean_and_string_variables_by_value_reference(built_fmus):
+    """The layer's get and set of every type: inputs set in step mode, outputs refused, a string
+    longer than the layer holds refused naming the variable, a state restored with its strings."""
+    fmu = Fmu(built_fmus["SignalSink"], "test")
+    fmu.set_values("Integer", [fmu.vr("n")], [4])
+    fmu.set_values("Boolean", [fmu.vr("on")], [True])
+    fmu.set_values("String", [fmu.vr("text")], ["héllo, \"you\""])
+    state = fmu.slave.getFMUstate()
+    fmu.slave.doStep(0.0, 0.1)
+    assert fmu.get_values("Integer", [fmu.vr("shifted"), fmu.vr("length")]) == [14, 13]     # bytes of UTF-8
+    assert fmu.get_values("Boolean", [fmu.vr("off")]) == [False]
+    assert fmu.get_values("String", [fmu.vr("echo")]) == ['héllo, "you"']
+    fmu.set_values("String", [fmu.vr("text")], ["other"])
+    fmu.slave.setFMUstate(state)
+    assert fmu.get_values("String", [fmu.vr("text")]) == ['héllo, "you"']
+    for kind, name, value in (("Boolean", "off", True), ("String", "echo", "x"), ("Integer", "shifted", 1)):
+        with pytest.raises(FmuError, match=f"test: fmi2Set{kind} failed: fmi2Set{kind}: variable {name} "
+                                           fr"\(value reference {fmu.vr(name)}\) cannot be set in step mode"):
+            fmu.set_values(kind, [fmu.vr(name)], [value])
+    with pytest.raises(FmuError, match="fmi2SetString: text takes a string of at most 127 bytes"):
+        fmu.set_values("String", [fmu.vr("text")], ["x" * 200])
+    with pytest.raises(FMICallException):
+        fmu.slave.getBoolean([2999])
+    assert fmu.last_message() == "fmi2GetBoolean: value reference 2999 out of range (have 2000..2001)"
+    fmu.slave.freeFMUState(state)
     fmu.close()

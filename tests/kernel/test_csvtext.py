@@ -26,10 +26,6 @@ def odd_doubles(rng, n):
                            rng.standard_normal(20_000) * 1e-13, rng.standard_normal(20_000) * 1e200])
 
 
-def test_special_values_read_as_repr():
-    assert [csvtext.c_repr(v) for v in SPECIAL] == [repr(v) for v in SPECIAL]
-
-
 def edge_doubles(rng, n):
     """Where a shortest-digits routine goes wrong: subnormals, the ends of the range, integers up to 2^53
     and beyond, dyadic fractions k / 2^j (finite decimals: exact ties and trailing zeros), short digit
@@ -48,7 +44,7 @@ def edge_doubles(rng, n):
 
 
 def fives(rng, n):
-    """Significands that are multiples of 5^j (j = 1 .. 22) times 2^-195 .. 2^84, where the fast route's 10^-k
+    """Significands that are multiples of 5^j (j = 1 .. 22) times 2^-195 .. 2^84, where the table's 10^-k
     is exact or v 10^-k may be an integer (a rounded-up table entry must not make it look otherwise)."""
     p = 5 ** rng.integers(1, 23, n)
     low, high = -(-2 ** 52 // p), (2 ** 53 - 1) // p
@@ -57,16 +53,11 @@ def fives(rng, n):
     return ((exponent << 52) | (m - 2 ** 52)).astype(np.uint64).view(np.float64)
 
 
-def test_random_bit_patterns_read_as_repr():
-    values = odd_doubles(np.random.default_rng(11), 200_000)
-    fast = csvtext.c_reprs(values)
-    assert [(v, t) for v, t in zip(values.tolist(), fast) if t != repr(v)] == []
-
-
-def test_fast_route_agrees_with_the_exact_route_and_repr_on_edge_cases():
-    values = edge_doubles(np.random.default_rng(5), 20_000)
-    expected = list(map(repr, values.tolist()))
-    assert csvtext.c_reprs(values, exact=True) == expected
+def test_random_bit_patterns_and_edge_cases_read_as_repr():
+    """The one check of the formatter: its text is repr's, on the special values, random bit patterns
+    of every exponent and the edge classes (scripts/csvfmt_check.py runs it over many millions)."""
+    rng = np.random.default_rng(11)
+    values = np.concatenate([SPECIAL, odd_doubles(rng, 200_000), edge_doubles(rng, 20_000)])
     assert [(v, t) for v, t in zip(values.tolist(), csvtext.c_reprs(values)) if t != repr(v)] == []
 
 

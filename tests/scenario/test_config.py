@@ -87,11 +87,10 @@ EQ = {"type": "equal_effort_opposite_flow", "ports": ["A", "B"]}
 
 # (id, change to BASE, fragments the one error line must contain)
 CASES = [
-    ("missing-dt", _drop(["dt"]), ["dt: missing required key"]),
-    ("missing-T", _drop(["T"]), ["T: missing required key"]),
-    ("missing-gamma", _drop(["gamma"]), ["gamma: missing required key"]),
     ("missing-subsystems", _drop(["subsystems"]), ["subsystems: missing required key"]),
-    ("missing-couplings", _drop(["couplings"]), ["couplings: missing required key"]),
+    ("couplings-mapping", _couplings({"type": "dirac"}), ["couplings: must be a list of couplings"]),
+    ("dr-without-couplings", _drop(["couplings"]),
+     ["master.algorithm: dr couples power bonds, and this system has none (no couplings); it runs with explicit"]),
     ("missing-fmu", _drop(["subsystems", "A", "fmu"]), ["subsystems.A.fmu: missing required key"]),
     ("unknown-top-key", _set(["dtt"], 0.01), ["dtt: unknown key"]),
     ("unknown-subsystem-key", _set(["subsystems", "A", "params"], {}), ["subsystems.A.params: unknown key"]),
@@ -138,11 +137,13 @@ CASES = [
      ["couplings[0]: A[1] names channel 1 but A has 1 channel(s)"]),
     ("coupling-channel-twice", _couplings([EQ, {"type": "free_end", "ports": ["A"]}]),
      ["couplings[1].ports: channel A[0] is already connected by couplings[0]"]),
-    ("coupling-channel-unconnected", _couplings([{"type": "free_end", "ports": ["A"]}]),
+    ("coupling-channel-unconnected", lambda raw: (raw["subsystems"]["B"].update(port={}),
+                                                  _couplings([{"type": "free_end", "ports": ["A"]}])(raw)),
      ["couplings: port channel(s) B[0] are not connected by any coupling"]),
     ("transformer-without-ratio", _couplings([{"type": "transformer", "ports": ["A", "B"]}]),
      ["couplings[0].ratio: missing required key for a transformer"]),
-    ("couplings-empty", _couplings([]), ["couplings: must be a non-empty list"]),
+    ("couplings-empty", lambda raw: (raw.update(couplings=[]), raw["master"].update(algorithm="explicit")),
+     ["couplings: port channel(s) A[0] are not connected by any coupling"]),
     ("fmu-builtin-unknown", _set(["subsystems", "A", "fmu"], "NoSuchModel"),
      ["subsystems.A.fmu: no built-in FMU named 'NoSuchModel'"]),
     ("fmu-path-missing", _set(["subsystems", "A", "fmu"], "nowhere/Missing.fmu"),
@@ -322,7 +323,7 @@ def test_extraction_folders_are_removed_after_a_run(tmp_path, monkeypatch):
 
 # ---- through the installed executable: exit code and stderr of the real process ----
 
-@pytest.mark.parametrize("case_id", ["missing-dt", "coupling-not-lossless", "fmu-path-missing", "parameter-name-missing"])
+@pytest.mark.parametrize("case_id", ["dt-zero", "coupling-not-lossless", "fmu-path-missing", "parameter-name-missing"])
 def test_executable(case_id, tmp_path):
     change, needles = next((c[1], c[2]) for c in CASES if c[0] == case_id)
     bad = write_yaml(tmp_path / f"{case_id}.yaml", mutate(change))
@@ -332,3 +333,12 @@ def test_executable(case_id, tmp_path):
     assert_one_line_error(proc.returncode, proc.stderr, str(bad), *needles)
     assert proc.stdout == ""
     assert not list(tmp_path.glob("wavecosim-fmu-*"))
+
+
+def test_gamma_is_auto_where_there_is_a_power_bond_and_none_without():
+    from wavecosim.scenario.config import parse_scenario
+    raw = mutate(_drop(["gamma"]))
+    assert parse_scenario(raw, "base").gamma == "auto"
+    alone = {"dt": 0.01, "T": 0.05, "subsystems": {"B": {"fmu": "LinearSide"}}}
+    sc = parse_scenario(alone, "alone")
+    assert sc.gamma is None and sc.master.algorithm == "explicit" and sc.subsystems == []

@@ -15,7 +15,7 @@ import pytest
 from paths import ROOT
 import wavecosim as wc
 from wavecosim.cli import main
-from wavecosim.scenario.config import load_raw, load_scenario
+from wavecosim.scenario.config import load_raw, load_scenario, parse_scenario
 from wavecosim.errors import ConfigError
 from wavecosim.fmi.builtin import builtin_fmus
 from wavecosim.scenario.ssp import import_ssp, load_ssp
@@ -362,13 +362,16 @@ def test_dcmotor_imports_its_bindings_signals_bond_and_outputs():
 @needs_dcmotor
 @pytest.mark.parametrize("master", wc.ALGORITHMS)
 def test_dcmotor_from_the_ssd_runs_as_configs_dcmotor_yaml(master):
-    """Every master on the SSD with the overlay gives configs/dcmotor.yaml's numbers, column by column."""
+    """Every master on the SSD with the overlay gives configs/dcmotor.yaml's numbers, column by column
+    (both at the FMUs' DefaultExperiment tolerance: the file's `tolerance:` keys left out)."""
     yaml_file = ROOT / "configs" / "dcmotor.yaml"
     ssd = dcmotor_scenario(T=0.01)
-    if not yaml_file.exists():
-        pytest.skip("configs/dcmotor.yaml comes with the signals branch")
+    raw = load_raw(yaml_file)
+    for sub in raw["subsystems"].values():
+        sub.pop("tolerance", None)
     ours = trajectory(ssd.with_master(algorithm=master))
-    theirs = trajectory(load_scenario(yaml_file).with_changes(T=0.01).with_master(algorithm=master))
+    theirs = trajectory(parse_scenario(raw, str(yaml_file), yaml_file.parent).with_changes(T=0.01)
+                        .with_master(algorithm=master))
     assert ours.dtype.names == theirs.dtype.names
     assert all(np.array_equal(ours[n], theirs[n]) for n in ours.dtype.names)
 
@@ -469,3 +472,14 @@ def test_power_bonds_of_an_osp_system_structure_stand_for_their_connections(tmp_
     with pytest.raises(ConfigError, match=r"OspSystemStructure.xml line \d+: .*B.v is driven by A.x in "
                                           r"SystemStructure.ssd line \d+"):
         import_ssp(tmp_path)
+
+
+def test_an_ssd_with_power_bonds_and_no_gamma_runs_without_asking_for_one(tmp_path, capsys, built_fmus):
+    """gamma is auto where there is a power bond and none is given; the explicit master has no
+    waves, so it runs without any."""
+    from wavecosim.api import load
+    no_gamma = table_i_copy(tmp_path, [(' gamma="0.4"', "")], "no_gamma.ssd")
+    assert load(no_gamma, warn=lambda m: None).gamma == "auto"
+    code, _, err = run_cli(capsys, "run", no_gamma, "--master", "explicit", "--T", "0.05", "--quiet",
+                           "--no-certificates", "--out", tmp_path / "o")
+    assert code == 0 and "gamma" not in err, err

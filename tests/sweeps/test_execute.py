@@ -52,6 +52,7 @@ def test_process_pool_of_two_gives_the_serial_numbers_bit_for_bit(serial_rows, t
     assert trajectories(tasks) == trajectories(serial_rows[0])
 
 
+@pytest.mark.slow  # starts a Dask LocalCluster
 def test_dask_local_cluster_of_two_processes_gives_the_serial_numbers_bit_for_bit(serial_rows, tmp_path):
     tasks, rows = run_with(lambda t: dask(t, "local", 2), tmp_path)
     assert figures(rows) == figures(serial_rows[1])

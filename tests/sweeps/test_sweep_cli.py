@@ -110,6 +110,7 @@ DCMOTOR = ROOT / "configs" / "dcmotor_shaft.yaml"
 THIRD_PARTY = ROOT.parent / "shared" / "third_party" / "dcmotor"
 
 
+@pytest.mark.slow  # a long sweep
 @pytest.mark.skipif(not THIRD_PARTY.exists(), reason="the third-party FMUs (../shared/third_party) are absent")
 def test_grid_and_monte_carlo_over_both_subsystems_of_the_dcmotor(tmp_path, capsys):
     """The Dymola dcmotor shaft: a grid and a Monte Carlo sweep over a parameter of each FMU (FMU

@@ -1,5 +1,5 @@
 """`wavecosim bench`, classical rows: the fixed-point masters on the kernel route against their
-Python loops (the same numbers, tests/test_classical_kernel.py).
+Python loops (the same numbers, tests/masters/test_routes.py).
 
 On Table I, for explicit and gauss-seidel, and jacobi-iter and gauss-seidel-iter at K = 1, 3, 10:
 master seconds of macro-steps 1 .. steps - 1 from a fresh scene (physical port mode), the best of

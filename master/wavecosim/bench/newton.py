@@ -1,5 +1,5 @@
 """`wavecosim bench`, newton rows: the newton master on the kernel route against its Python loop
-(the same numbers, tests/test_newton_kernel.py).
+(the same numbers, tests/masters/test_routes.py).
 
 On Table I and the stiff scene (k12 = 12000): master seconds of macro-steps 1 .. steps - 1 from a
 fresh scene (wave port mode), `master.fast: false` (the Python reference, wavecosim/masters/monolithic.py)

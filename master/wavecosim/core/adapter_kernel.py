@@ -7,14 +7,8 @@ function table the DR kernel calls as a wave port (set a, doStep solves, get b),
 FMU function table it was given. Queries made from Python (gamma probes, certificates, a redone
 commit) run the same C solve on the same memory, so both routes see one adapter.
 """
-import ctypes
-
-from ..kernel.adapter import AD_FMU, AD_SINGULAR, AD_STALLED, SHIM, AdapterC, load_library
+from ..kernel.adapter import AD_FMU, AD_SINGULAR, AD_STALLED, new_adapter, shim
 from . import ports
-
-
-def _doubles(values):
-    return (ctypes.c_double * len(values))(*values)
 
 
 class KernelAdapter(ports.AdapterPort):
@@ -24,30 +18,23 @@ class KernelAdapter(ports.AdapterPort):
 
     def __init__(self, port, fns, comp, functions):
         super().__init__(port.sub, port.effort_in, port.sign)
-        lib, m, sub = load_library(), self.m, port.sub
-        self.lib, self.functions = lib, functions
-        st = self.struct = AdapterC()
-        self._ref = ctypes.byref(st)
-        ctypes.memmove(st.fn, ctypes.addressof(fns), ctypes.sizeof(st.fn))
-        st.comp, st.state, st.m = comp, sub.state_handle_address(), m
-        st.in_vr, st.out_vr = sub._in_vr, sub._out_vr        # the Subsystem's physical input and output
-        # arrays assigned to the struct's pointers stay alive with it (ctypes keeps them)
-        st.effort_in, st.sign = (ctypes.c_int * m)(*self.effort_in), _doubles(self.sign)
-        st.u, st.y = _doubles(port.u), _doubles(port.y or [0.0] * m)
-        st.D, st.J_inv = _doubles(_flat(port.D, m)), _doubles(_flat(port.J_inv, m))
-        st.wu, st.wy, st.a, st.e, st.f, st.b, st.failed_r = [_doubles([0.0] * m) for _ in range(7)]
-        st.work = _doubles([0.0] * lib.adapter_work_size(m))
+        m, sub = self.m, port.sub
+        self.functions = functions
+        memory = {"u": port.u, "y": port.y or [0.0] * m, "D": _flat(port.D, m), "J_inv": _flat(port.J_inv, m),
+                  "have_slope": port.D is not None, "h2": port.h2, "u_scale": port.u_scale,
+                  "evaluations": port.evaluations, "do_steps": port.doSteps, "accepted": port.accepted,
+                  "worst_accepted": port.worst_accepted}
+        # the Subsystem's x_i^n handle and its physical input and output value references
+        self.lib, self.struct, self._ref = new_adapter(fns, comp, sub.state_handle_address(), sub._in_vr,
+                                                       sub._out_vr, self.effort_in, self.sign, memory)
+        st = self.struct
         st.tol, st.accept, st.slope_rel = ports.TOL, ports.ACCEPT, ports.SLOPE_REL
         st.max_iter, st.stall = ports.MAX_ITER, ports.STALL
-        st.have_slope, st.h2, st.u_scale = port.D is not None, port.h2, port.u_scale
-        st.evaluations, st.do_steps, st.accepted = port.evaluations, port.doSteps, port.accepted
-        st.worst_accepted = port.worst_accepted
         self._set_weights(port.gamma)
 
     def shim(self):
         """(function table, component) of the adapter as an fmi2 wave port, for the DR kernel."""
-        return [ctypes.cast(getattr(self.lib, f"adapter_{name}"), ctypes.c_void_p).value for name in SHIM], \
-            ctypes.addressof(self.struct)
+        return shim(self.lib, self.struct)
 
     def _set_weights(self, gamma):
         self.weights(gamma)

@@ -7,14 +7,14 @@ FMI 3 FMU, wavecosim/fmi3.py puts its fmi3 functions behind the same signatures)
 the subsystem's port (wavecosim/core/ports.py): the FMU's own wave mode, or the wave adapter for an FMU
 with only a physical port.
 """
-import ctypes
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..kernel.build import helper_library
-from ..errors import FmuError
-from ..kernel.drkernel import FMI_NAMES, FUNCTIONS, DRFunctions
+from ..kernel import cvalues, queries
+from ..errors import FmuError, SimulationEnded
+from ..kernel.drkernel import FUNCTIONS
 from .adapter_kernel import KernelAdapter
 from .ports import DirectPort, WaveAdapter
 
@@ -52,8 +52,8 @@ class Subsystem:
         self.m = port.m
         self.step_index = 0
         m = self.m
-        self._comp = ctypes.c_void_p(fmu.component)
-        self._h = ctypes.c_double(dt)
+        self._comp = cvalues.pointer(fmu.component)
+        self._h = cvalues.double(dt)
         self._get_state = fmu.raw_function("fmi2GetFMUstate")
         self._set_state = fmu.raw_function("fmi2SetFMUstate")
         self._set_real = fmu.raw_function("fmi2SetReal")
@@ -62,16 +62,16 @@ class Subsystem:
         in_names = port.wave_in if wave and not port.physical else port.physical_in
         out_names = port.wave_out if wave and not port.physical else [e if flow_in else f for e, f, flow_in in
                                                                       zip(port.effort, port.flow, port.input_is_flow)]
-        self._in_vr = (ctypes.c_uint * m)(*fmu.real_vrs(in_names))
-        self._out_vr = (ctypes.c_uint * m)(*fmu.real_vrs(out_names))
-        self._in_val = (ctypes.c_double * m)()
-        self._out_val = (ctypes.c_double * m)()
-        self._m = ctypes.c_size_t(m)
-        self._state = ctypes.c_void_p()
+        self._in_vr = cvalues.uints(fmu.real_vrs(in_names))
+        self._out_vr = cvalues.uints(fmu.real_vrs(out_names))
+        self._in_val = cvalues.doubles(m)
+        self._out_val = cvalues.doubles(m)
+        self._m = cvalues.size(m)
+        self._state = cvalues.pointer()
         self._dirty = False
-        self._batch = None                   # (queries library or None, its DRFunctions), on first raw_queries
+        self._batch = None                   # kernel.queries.Queries (False without it), on first raw_queries
         self.t = 0.0
-        self._t = ctypes.c_double(0.0)
+        self._t = cvalues.double(0.0)
         self.calls = {"doStep": 0, "save": 0, "restore": 0}
         self.map = self._port_map(gamma)
 
@@ -119,19 +119,29 @@ class Subsystem:
 
     def begin(self, step_index, t):
         """Start macro-step n at time t without saving the state (masters that never roll back)."""
-        self.step_index, self.t, self._t = step_index, t, ctypes.c_double(t)
+        self.step_index, self.t, self._t = step_index, t, cvalues.double(t)
 
     def step_alone(self, step_index, t):
         """One doStep from the current state with the inputs already set: a subsystem without a port
         (signals only), stepped once per macro-step and never frozen or rolled back."""
         self.begin(step_index, t)
-        self._call(self._do_step, "fmi2DoStep", self._comp, self._t, self._h, 1)     # never rolled back
+        status = self._do_step(self._comp, self._t, self._h, 1)                     # never rolled back
+        reached = self.fmu.asked_to_end(status) if status > 1 else None
+        if reached is not None:
+            done = math.isclose(reached, t + self.dt, rel_tol=1e-12, abs_tol=1e-12 * self.dt)
+            where = "after the step to" if done else "in the step from"
+            error = SimulationEnded(f"subsystem {self.name} ended the simulation {where} t = "
+                                    f"{t + self.dt if done else t:.6g}", subsystem=self.name, step=step_index, time=t)
+            error.step_done = done
+            raise error
+        if status > 1:
+            raise self.fmu.status_error("fmi2DoStep", status, step_index, t)
         self.calls["doStep"] += 1
 
     def freeze(self, step_index, t):
         """Save x_i^n, the state every query of this macro-step starts from."""
         self.begin(step_index, t)
-        self._call(self._get_state, "fmi2GetFMUstate", self._comp, ctypes.byref(self._state))
+        self._call(self._get_state, "fmi2GetFMUstate", self._comp, cvalues.ref(self._state))
         self.calls["save"] += 1
         self._dirty = False
         self.map.new_step()
@@ -187,23 +197,17 @@ class Subsystem:
         """raw_query of each row of a 2-D array, in order, as rows of outputs: one C call
         (kernel/c/queries.c) making the same FMU calls, or raw_query row by row without it."""
         if self._batch is None:
-            lib = helper_library("queries")
-            self._batch = (lib, lib and DRFunctions(*[self.fmu.function_pointer(name) for name in FMI_NAMES]))
-        lib, fns = self._batch
-        if lib is None:
+            self._batch = queries.batch(self.fmu) or False
+        if not self._batch:
             return np.array([self.raw_query(list(r)) for r in rows], float).reshape(len(rows), self.m)
-        inputs = np.ascontiguousarray(rows, dtype=float)
-        out, failed, p = np.empty_like(inputs), (ctypes.c_int * 2)(), ctypes.c_void_p
-        done = lib.fq_queries(ctypes.byref(fns), self._comp, ctypes.byref(self._state), self._in_vr, self._out_vr,
-                              self.m, self._t, self._h, p(inputs.ctypes.data), len(inputs), p(out.ctypes.data),
-                              int(self._dirty), failed)
-        fn = failed[0] if done < len(inputs) else 0
+        out, done, fn, status = self._batch(self._comp, self._state, self._in_vr, self._out_vr, self.m, self._t,
+                                            self._h, rows, self._dirty)
         restore_fn = FUNCTIONS.index("fmi2SetFMUstate")
         self.calls["restore"] += max(0, done + (fn > 0) - (not self._dirty)) - (fn == restore_fn)
         self.calls["doStep"] += done + (fn == FUNCTIONS.index("fmi2GetReal"))
         self._dirty = self._dirty or done > 0 or fn > restore_fn
         if fn:
-            raise self.fmu.status_error(FUNCTIONS[fn], failed[1], self.step_index, self.t)
+            raise self.fmu.status_error(FUNCTIONS[fn], status, self.step_index, self.t)
         return out
 
     def raw_advance(self, u):
@@ -232,10 +236,10 @@ class Subsystem:
         return self.fmu.get_real(self.fmu.vrs(names))
 
     def reader(self, names):
-        """(read, buffer): read() fills the fixed ctypes buffer with `names` in one raw fmi2GetReal."""
+        """(read, buffer): read() fills the fixed C buffer with `names` in one raw fmi2GetReal."""
         k = len(names)
-        vr = (ctypes.c_uint * k)(*self.fmu.real_vrs(names))
-        buf, size = (ctypes.c_double * k)(), ctypes.c_size_t(k)
+        vr = cvalues.uints(self.fmu.real_vrs(names))
+        buf, size = cvalues.doubles(k), cvalues.size(k)
         get_real, comp, call = self._get_real, self._comp, self._call
 
         def read():
@@ -244,13 +248,13 @@ class Subsystem:
         return read, buf
 
     def port_vrs(self):
-        """The value references (ctypes arrays) of the inputs a query sets and the outputs it reads."""
+        """The value references (C arrays) of the inputs a query sets and the outputs it reads."""
         return self._in_vr, self._out_vr
 
     def state_handle_address(self):
         """Address of the handle x_i^n is saved into; the C kernel saves into it too, so after a
         kernel macro-step this Subsystem holds x_i^n exactly as after a Python one."""
-        return ctypes.addressof(self._state)
+        return cvalues.address(self._state)
 
     def note_kernel_step(self, step_index, t, iterations, steps=1, redone=0):
         """Book `steps` macro-steps the C kernel made, the last one step n at t (frozen at x^n):
@@ -265,7 +269,7 @@ class Subsystem:
     def release(self):
         if self._state.value:
             self.fmu.free_state_handle(self._state)
-            self._state = ctypes.c_void_p()
+            self._state = cvalues.pointer()
 
     def close(self):
         try:

@@ -224,7 +224,7 @@ def dr_eigenvalues(scene, probes, gammas):
 def choose_relaxation(scene, b, P):
     """`master.relaxation: auto`: probe the frozen maps at x^0 around u^0 = P b, predict the contraction
     of each lambda from the linearized operator and pick the fastest (best_relaxation)."""
-    probes = probe_scene(scene, b, 0, 0.0, P)
+    probes = probe_scene(scene, b, 0, scene.scenario.start_time, P)
     mu = dr_eigenvalues(scene, probes, [scene.gammas[s.name] for s in scene.subsystems])
     lam, rate = best_relaxation(mu)
     return {"relaxation": lam, "rate_plain": relaxed_rate(mu, 1.0), "rate_relaxed": rate}
@@ -387,7 +387,7 @@ class GammaTuner:
         conditioned), set the FMUs' gammas and return the choice."""
         choice = None
         for _ in range(2):
-            probes = probe_scene(self.scene, b0, 0, 0.0, check=True)
+            probes = probe_scene(self.scene, b0, 0, self.scene.scenario.start_time, check=True)
             choice = choose_gamma(self.scene, probes, self.mode, self.where)
             self.scene.set_gammas(choice.gammas)
         self.choices.append((0, choice))

@@ -282,11 +282,12 @@ def _probe_slope(sub, u0, y0, j):
     return None, list(zip(steps, slopes))
 
 
-def probe_signs(sub, where):
-    """The sign of dy/du over one doStep from the restored initial state, per channel: the sign that
-    makes the port passive (FACTS.md, port orientation). Returns (signs, slopes, what was probed)."""
+def probe_signs(sub, where, t0=0.0):
+    """The sign of dy/du over one doStep (at the start time t0) from the restored initial state, per
+    channel: the sign that makes the port passive (FACTS.md, port orientation). Returns (signs,
+    slopes, what was probed)."""
     u0 = np.asarray(sub.read(sub.port.physical_in), float)
-    sub.freeze(0, 0.0)
+    sub.freeze(0, t0)
     y0 = np.asarray(sub.raw_query(list(u0)))
     signs, slopes, probed = [], [], []
     for j in range(sub.m):

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..fmi.values import BINARY, STRING, category
 from ..kernel.linalg import DOT_EXACT
 
 
@@ -72,12 +73,20 @@ def as_index(indices):
 
 class Sampler:
     """Reads a Reading from every subsystem of a scene; buffers and value references are fixed at
-    set-up, so a step costs one C call per subsystem."""
+    set-up, so a step costs one C call per subsystem for its Real (Float64) values. Recorded
+    outputs of other types (Integer, Boolean, String, ...) are read per subsystem and type in one
+    call each and recorded as numbers (texts as the index of the text in `texts`)."""
 
     def __init__(self, scene, outputs):
         self.parts, self.observed = [], []        # observed: per subsystem the names read, H_i first
+        everyone = scene.subsystems + scene.signal_only
+        by_name = {s.name: s for s in everyone}
+        refs = [ref.split(".", 1) for ref in outputs.values()]
+        self.types = [by_name[name].fmu.kind(var) for name, var in refs]      # every column's FMI type
+        raw = [by_name[name].fmu.real_type == kind for (name, _), kind in zip(refs, self.types)]
+        self.typed = TypedReads(by_name, list(outputs), refs, raw, self.types)
         for s in scene.subsystems:
-            cols = [var for ref in outputs.values() for name, var in [ref.split(".", 1)] if name == s.name]
+            cols = [var for (name, var), r in zip(refs, raw) if name == s.name and r]
             if s.port.physical:
                 self.parts.append(self._physical_part(s, cols))
                 continue
@@ -85,18 +94,22 @@ class Sampler:
             read, buf = s.reader(names + cols)
             self.parts.append((read, s.m, len(names)))
             self.observed.append(names + cols)
-        self.alone = [s.reader([var for ref in outputs.values() for name, var in [ref.split(".", 1)]
-                                if name == s.name])[0] for s in scene.signal_only]
-        owner = [ref.split(".", 1)[0] for ref in outputs.values()]
-        everyone = scene.subsystems + scene.signal_only
-        order = [(i, sum(1 for o in owner[:k] if o == s.name)) for k, o in enumerate(owner)
-                 for i, s in enumerate(everyone) if s.name == o]
+        self.alone = [s.reader([var for (name, var), r in zip(refs, raw) if name == s.name and r])[0]
+                      for s in scene.signal_only]
+        index = {s.name: i for i, s in enumerate(everyone)}
+        seen = {}                                  # per subsystem, its raw columns so far
+        order = []
+        for k, ((name, _), r) in enumerate(zip(refs, raw)):
+            if r:
+                order.append((index[name], seen.get(name, 0)))
+                seen[name] = seen.get(name, 0) + 1
+            else:
+                order.append((-1, self.typed.slot[k]))
         self._order = order
-        whole = len(self.observed) == len(self.parts) and not self.alone   # else no kernel blocks
-        self._columns = {key: as_index(cols) for key, cols in self._block_columns(order).items()} if whole else None
-        by_name = {s.name: s for s in everyone}
-        self.units = {col: by_name[ref.split(".", 1)[0]].fmu.variable(ref.split(".", 1)[1]).unit or ""
-                      for col, ref in outputs.items()}
+        self.whole = len(self.observed) == len(self.parts) and not self.alone and not self.typed.groups
+        self._columns = ({key: as_index(cols) for key, cols in self._block_columns(order).items()}
+                         if self.whole else None)      # no kernel blocks without them
+        self.units = {col: by_name[name].fmu.variable(var).unit or "" for col, (name, var) in zip(outputs, refs)}
 
     def _block_columns(self, order):
         """Where H, E, F, B and the outputs sit in the concatenated observed values of all subsystems."""
@@ -139,4 +152,49 @@ class Sampler:
             B.extend(v[1 + 2 * m:k])
             own.append(v[k:])
         own.extend(read()[:] for read in self.alone)         # signal-only subsystems: outputs only
+        own.append(self.typed.read())                       # own[-1]: the outputs of other types
         return Reading(H, E, F, B, [own[i][j] for i, j in self._order])
+
+
+class TypedReads:
+    """The recorded outputs whose type the raw fmi2GetReal does not read: per subsystem and FMI type
+    one call; numbers (Integer, Boolean as 0 and 1, Float32) as floats, a String (a Binary as hex)
+    as the index of its text in `texts[column]`, the distinct texts in the order first met."""
+
+    def __init__(self, by_name, columns, refs, raw, types):
+        self.groups, self.slot, self.texts = {}, {}, {}
+        self._encode = []
+        for k, ((name, var), r, kind) in enumerate(zip(refs, raw, types)):
+            if r:
+                continue
+            self.slot[k] = len(self._encode)
+            fmu = by_name[name].fmu
+            vrs, slots = self.groups.setdefault((fmu, kind), ([], []))
+            vrs.append(fmu.vr(var))
+            slots.append(self.slot[k])
+            text = category(kind) in (STRING, BINARY)
+            if text:
+                self.texts[columns[k]] = []
+            self._encode.append(TextCodes(self.texts[columns[k]]) if text else float)
+
+    def read(self):
+        values = [0.0] * len(self._encode)
+        for (fmu, kind), (vrs, slots) in self.groups.items():
+            for slot, v in zip(slots, fmu.get_values(kind, vrs)):
+                values[slot] = self._encode[slot](v)
+        return values
+
+
+class TextCodes:
+    """A text as its index in `texts` (a String output's recorded value; bytes as hex)."""
+
+    def __init__(self, texts):
+        self.texts, self.index = texts, {}
+
+    def __call__(self, value):
+        text = value.hex() if isinstance(value, bytes) else value
+        code = self.index.get(text)
+        if code is None:
+            code = self.index[text] = len(self.texts)
+            self.texts.append(text)
+        return float(code)

@@ -5,12 +5,13 @@ import numpy as np
 
 from . import interconnection as ic
 from ..fmi.builtin import builtin_fmus
-from ..errors import ConfigError, CouplingError, FmuError
+from ..errors import ConfigError, CouplingError, FmuError, SimulationEnded
 from ..fmi.fmu import Fmu
 from .frozen_port_map import PortSpec, Subsystem
 from .gamma import choose_relaxation, initial_gammas
 from .ports import probe_signs
-from .signals import Signals
+from .recording import output_columns
+from .signals import Signals, table_inputs
 
 
 def resolve_fmu(sub, source="<scenario>") -> str:
@@ -87,6 +88,8 @@ class Scene:
     port_signs: dict = field(default_factory=dict)   # {subsystem: {"sign": [...], "probed": bool}}
     signal_only: list = field(default_factory=list)  # Subsystems without a port (signals only)
     signals: Signals = None                          # the held signal inputs (None: the scenario has none)
+    outputs: dict = field(default_factory=dict)      # the recorded columns {column: SUBSYSTEM.variable}
+    ended: Exception = None                          # an FMU ended the simulation after the step just made
 
     @property
     def n_channels(self):
@@ -113,10 +116,24 @@ class Scene:
             s.set_gamma(gammas[s.name])
         self.gammas = {s.name: float(gammas[s.name]) for s in self.subsystems}
 
-    def begin_step(self, n):
-        """Before anything of macro-step n: hold the signal inputs, step the signal-only subsystems."""
+    def begin_step(self, n, t):
+        """Before anything of macro-step n (at t = t_n): hold the signal inputs, then one doStep of
+        every signal-only subsystem (stepped once per macro-step, never frozen or rolled back)."""
         if self.signals is not None:
-            self.signals.begin_step(n)
+            self.signals.hold(n)
+        for s in self.signal_only:
+            try:
+                s.step_alone(n, t)
+            except SimulationEnded as exc:          # the step done: the run ends after it (runner)
+                if not exc.step_done:
+                    raise
+                self.ended = exc
+
+    @property
+    def steps_in_python(self):
+        """Whether Python acts between the macro-steps (held signals, signal-only subsystems), so a
+        master cannot make many of them in one kernel call."""
+        return self.signals is not None or bool(self.signal_only)
 
     def freeze(self, n, t):
         """Save every x_i^n (Algorithm 1, line 3)."""
@@ -150,6 +167,8 @@ class Scene:
     def input_map(self):
         """G with inputs = G outputs for physical masters, from E e + F f = 0 split by causality."""
         n = self.n_channels
+        if n == 0:
+            return np.zeros((0, 0))
         is_flow_in = np.zeros(n, bool)
         for s, off in zip(self.subsystems, self.offsets):
             if len(s.port.input_is_flow) != s.m or len(s.port.physical_in) != s.m:
@@ -175,8 +194,8 @@ class Scene:
     def signal_info(self, fast_note=None):
         """Summary fields when signals drive inputs: which subsystems, and why their energy is not a
         violation; the kernel runs one macro-step per call (the signals are set between calls)."""
-        if self.signals is None:
-            return {}
+        if self.signals is None or not self.n_channels:      # no port: no energy to account for
+            return {"signals": len(self.scenario.signals)} if self.signals is not None else {}
         driven = ", ".join(self.signals.driven)
         out = {"signals": len(self.scenario.signals), "signal_driven_subsystems": self.signals.driven,
                "signal_note": f"signals and sources drive inputs of {driven}: the energy they bring in is "
@@ -221,7 +240,9 @@ def _channels(ref, index, offsets, sizes, where):
 
 
 def coupling_structure(scenario, sizes):
-    """Global E, F over all channels from the scenario's list of couplings."""
+    """Global E, F over all channels from the scenario's list of couplings (empty without ports)."""
+    if not scenario.subsystems:
+        return np.zeros((0, 0)), np.zeros((0, 0)), []
     names = [s.name for s in scenario.subsystems]
     index = {n: i for i, n in enumerate(names)}
     offsets = list(np.cumsum([0] + list(sizes))[:-1])
@@ -259,7 +280,8 @@ def _open_fmu(scenario, sub, path, gamma, wave, pool=None):
     reals = {**sub.parameters, **sub.start, "gamma": gamma}
     integers = {**sub.integers, "port_mode": 0 if wave else 1}
     try:
-        return Fmu(path, sub.name, reals, integers, optional=("gamma", "port_mode"), pool=pool)
+        return Fmu(path, sub.name, reals, integers, optional=("gamma", "port_mode"), pool=pool,
+                   start_time=scenario.start_time, tolerance=sub.tolerance, initialize=table_inputs(scenario, sub.name))
     except FmuError as exc:
         key = next((f"{k}.{exc.variable}" for k in ("parameters", "start", "integers")
                     if exc.variable in getattr(sub, k)), "fmu")
@@ -288,7 +310,8 @@ def _orient(scenario, subsystem, notes):
                           f"{subsystem.fmu.path.name} cannot restore its state for the orientation probe; give the sign")
     if not probed:
         return {"sign": list(port.sign), "probed": probed}
-    signs, slopes, steps = probe_signs(subsystem, f"{scenario.source}: subsystems.{subsystem.name}.port")
+    signs, slopes, steps = probe_signs(subsystem, f"{scenario.source}: subsystems.{subsystem.name}.port",
+                                       scenario.start_time)
     subsystem.orient(signs)
     for j, (sign, slope, step) in enumerate(zip(signs, slopes, steps)):
         notes.append(f"{scenario.source}: subsystems.{subsystem.name}.port.sign not given: one doStep from the "
@@ -318,27 +341,20 @@ def _signals(scenario, opened):
     probes see them); None when the scenario has no signals."""
     if not scenario.signals:
         return None
-    signals = Signals(scenario, {s.name: s for s in opened}, opened[len(scenario.subsystems):])
+    signals = Signals(scenario, {s.name: s for s in opened})
     signals.hold(0)
     return signals
-
-
-def _check_outputs(scenario, subsystems):
-    by_name = {s.name: s for s in subsystems}
-    for col, ref in scenario.outputs.items():
-        name, var = ref.split(".", 1)
-        if var not in by_name[name].fmu.variables:
-            raise ConfigError(f"{scenario.source}: outputs.{col}: subsystem {name} has no variable {var!r}")
 
 
 def build_scene(scenario, wave=True, needs_rollback=True) -> Scene:
     """Instantiate every subsystem (wave or physical port mode) at its initial gamma and compile the coupling."""
     gammas = initial_gammas(scenario)
-    opened, notes, signs, pool = [], [], {}, {}
+    opened, signs, pool = [], {}, {}
     try:
         for sub in scenario.subsystems + scenario.signal_subsystems:
             opened.append(_subsystem(scenario, sub, gammas.get(sub.name, 1.0), wave, needs_rollback, pool))
-        _check_outputs(scenario, opened)
+        outputs, notes = output_columns(scenario, opened)
+        notes[:0] = list(dict.fromkeys(note for s in opened for note in s.fmu.notes))
         signals = _signals(scenario, opened)
         subsystems = opened[:len(scenario.subsystems)]
         for subsystem in subsystems:
@@ -347,8 +363,8 @@ def build_scene(scenario, wave=True, needs_rollback=True) -> Scene:
                 signs[subsystem.name] = sign
         E, F, offsets = coupling_structure(scenario, [s.m for s in subsystems])
         scene = Scene(scenario, subsystems, offsets, E, F, wave, gammas, notes, signs,
-                      opened[len(subsystems):], signals)
-        if wave:
+                      opened[len(subsystems):], signals, outputs)
+        if wave and scene.n_channels:
             scene.wave_map()
         return scene
     except BaseException:

@@ -12,6 +12,7 @@ import ctypes
 from fmpy import platform_tuple
 from fmpy.fmi3 import FMU3Slave
 
+from ..kernel.abi import mirrors
 from ..kernel.build import kernel_library
 from .values import is_number
 
@@ -26,6 +27,7 @@ FUNCTIONS = {"fmi2GetFMUstate": ("fmi3GetFMUState", "fmi3shim_getFMUstate"),
 _OUT = ("eventHandlingNeeded", "terminateSimulation", "earlyReturn", "lastSuccessfulTime")
 
 
+@mirrors("fmi3shim", "Fmi3Shim")
 class Shim(ctypes.Structure):
     """kernel/c/fmi3shim.c, Fmi3Shim: the instance, its fmi3 functions, the last doStep's out-arguments."""
     _fields_ = [("instance", ctypes.c_void_p), *[(FUNCTIONS[k][0], ctypes.c_void_p) for k in FUNCTIONS],
@@ -56,6 +58,10 @@ class Fmi3:
     real = "Float64"
     platform = PLATFORM
     setters = setters(is_number)
+    access = {**{t: t for t in ("Float64", "Float32", "Boolean", "String", "Binary")},
+              **{f"{sign}Int{bits}": f"{sign}Int{bits}" for sign in ("", "U") for bits in (8, 16, 32, 64)},
+              "Enumeration": "Int64"}     # FMI type -> the get/set pair of FMU3Slave that carries it
+    enumeration_bits = 64
 
     def __init__(self, fmu, model_identifier):
         def log(env, status, category, message):
@@ -74,11 +80,12 @@ class Fmi3:
         except AttributeError:
             return None
 
-    def setup_experiment(self, fmu, start_time):
-        """FMI 3 has no fmi2SetupExperiment: the start time goes to enter_initialization."""
+    def setup_experiment(self, fmu, start_time, tolerance):
+        """FMI 3 has no fmi2SetupExperiment: start time and tolerance go to enter_initialization."""
 
-    def enter_initialization(self, fmu, start_time):
-        fmu.checked(self.slave.enterInitializationMode, "fmi3EnterInitializationMode", startTime=start_time)
+    def enter_initialization(self, fmu, start_time, tolerance):
+        fmu.checked(self.slave.enterInitializationMode, "fmi3EnterInitializationMode", tolerance=tolerance,
+                    startTime=start_time)
 
     def get_real(self, vrs):
         return self.slave.getFloat64(vrs)
@@ -123,6 +130,10 @@ class Fmi3:
     def name(fname):
         """The fmi3 function called for an fmi2 name."""
         return FUNCTIONS.get(fname, (fname,))[0]
+
+    def asked_to_end(self, fmu, status):
+        """The lastSuccessfulTime of a doStep that set terminateSimulation, else None."""
+        return self.shim.lastSuccessfulTime if self.shim.terminateSimulation else None
 
     def failure(self, fname, status_text):
         """(function name, what happened) for a call in fmi2 form that returned an error status."""

@@ -3,7 +3,7 @@
 Keeps FMI names, converts arguments, turns bad statuses into FmuError carrying the FMU's own
 log message, and exposes the raw C function pointers for the fast path, all in fmi2 form; the
 FMI 3 specifics (instantiation, typed setters, the fmi2-signature shim) live in wavecosim/fmi/fmi3.py.
-Nothing above this module imports ctypes except the hot paths (frozen_port_map.py, fast_path.py).
+Only kernel/ and fmi/ import ctypes; the parts above pass C values made by wavecosim.kernel.cvalues.
 """
 import atexit
 import ctypes
@@ -16,11 +16,13 @@ from pathlib import Path
 import numpy as np
 from fmpy import platform as fmpy_platform
 from fmpy import read_model_description, sharedLibraryExtension
+from fmpy.model_description import ValidationError
 from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
-from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, fmi2StepFinishedTYPE
+from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, fmi2StepFinishedTYPE, fmi2Terminated
+from fmpy.fmi2 import fmi2LastSuccessfulTime
 
 from ..errors import FmuError
-from .values import is_number, is_whole
+from .values import BOOLEAN, REAL, as_python, category, integer_range, is_number, is_whole
 
 _STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
 _libc = ctypes.CDLL(None)
@@ -99,15 +101,44 @@ def check_version(path, folder) -> str:
 
 def check_runnable(path, folder, description, platform=fmpy_platform):
     """One line naming the FMU and the reason when this build cannot run it: no co-simulation
-    interface, or no binary for this platform (binaries/<platform>: linux64 in FMI 2, x86_64-linux in 3)."""
+    interface, no binary for this platform (binaries/<platform>: linux64 in FMI 2, x86_64-linux in 3),
+    or a binary for it whose name is not the modelIdentifier's."""
     cs = description.coSimulation
     if cs is None:
         raise FmuError(f"{path}: the FMU has no co-simulation interface")
-    binary = folder / "binaries" / platform / f"{cs.modelIdentifier}{sharedLibraryExtension}"
-    if not binary.exists():
-        have = sorted(p.name for p in (folder / "binaries").iterdir()) if (folder / "binaries").is_dir() else []
-        raise FmuError(f"{path.name} has no binary for this platform ({platform}; it has: "
-                       f"{', '.join(have) or 'none'})")
+    name = f"{cs.modelIdentifier}{sharedLibraryExtension}"
+    binary = folder / "binaries" / platform / name
+    if binary.exists():
+        return
+    others = sorted(p.name for p in binary.parent.glob(f"*{sharedLibraryExtension}")) if binary.parent.is_dir() else []
+    if others:
+        raise FmuError(f"{path.name}: binaries/{platform} holds {', '.join(others)}, but the modelIdentifier "
+                       f"{cs.modelIdentifier!r} asks for {name}: the library must be named after the modelIdentifier")
+    have = sorted(p.name for p in (folder / "binaries").iterdir()) if (folder / "binaries").is_dir() else []
+    raise FmuError(f"{path.name} has no binary for this platform ({platform}; it has: {', '.join(have) or 'none'})")
+
+
+_schema_checked = {}
+
+
+def schema_note(path, folder, version):
+    """A one-line warning when modelDescription.xml fails its FMI schema (fmpy reads it all the same
+    without validation, as many tools' files need), else None; checked once per FMU file."""
+    st = path.resolve().stat()
+    key = (str(path.resolve()), st.st_mtime_ns, st.st_size)
+    if key not in _schema_checked:
+        note = None
+        try:
+            read_model_description(str(folder), validate=True)
+        except ValidationError as exc:
+            first = exc.problems[0] if exc.problems else str(exc).splitlines()[0]
+            more = f" and {len(exc.problems) - 1} more" if len(exc.problems) > 1 else ""
+            note = (f"{path.name}: modelDescription.xml does not conform to the FMI {version} schema ({first}"
+                    f"{more}); read without validation, as fmpy's validate=False reads it")
+        except Exception:                  # not a schema problem: the unvalidated read reports it
+            pass
+        _schema_checked[key] = note
+    return _schema_checked[key]
 
 
 # FMI type -> (FMU2Slave setter, (accepts the YAML value, converts it))
@@ -126,6 +157,9 @@ class Fmi2:
     real = "Real"
     platform = fmpy_platform
     setters = SETTERS
+    access = {"Real": "Real", "Integer": "Integer", "Enumeration": "Integer", "Boolean": "Boolean",
+              "String": "String"}             # FMI type -> the get/set pair of FMU2Slave that carries it
+    enumeration_bits = 32
 
     def __init__(self, fmu, model_identifier):
         self._callbacks = self._make_callbacks(fmu.messages)
@@ -148,10 +182,10 @@ class Fmi2:
         cb.componentEnvironment = None
         return cb
 
-    def setup_experiment(self, fmu, start_time):
-        fmu.checked(self.slave.setupExperiment, "fmi2SetupExperiment", startTime=start_time)
+    def setup_experiment(self, fmu, start_time, tolerance):
+        fmu.checked(self.slave.setupExperiment, "fmi2SetupExperiment", tolerance=tolerance, startTime=start_time)
 
-    def enter_initialization(self, fmu, start_time):
+    def enter_initialization(self, fmu, start_time, tolerance):
         fmu.checked(self.slave.enterInitializationMode, "fmi2EnterInitializationMode")
 
     def get_real(self, vrs):
@@ -178,16 +212,31 @@ class Fmi2:
         """(function name, what happened) for a call that returned an error status."""
         return fname, f"returned {status_text}"
 
+    def asked_to_end(self, fmu, status):
+        """fmi2Discard with fmi2GetBooleanStatus(fmi2Terminated) true: the fmi2LastSuccessfulTime."""
+        try:
+            if status != 2 or not self.slave.getBooleanStatus(fmi2Terminated):
+                return None
+        except Exception:                  # an FMU without the call: an ordinary Discard
+            return None
+        try:
+            return float(self.slave.getRealStatus(fmi2LastSuccessfulTime))
+        except Exception:
+            return math.nan
+
 
 class Fmu:
     """One instantiated, initialized FMU (FMI 2.0 or 3.0); `name` is the subsystem name used in messages."""
 
-    def __init__(self, path, name, values=None, integer_values=None, start_time=0.0, optional=(), pool=None):
+    def __init__(self, path, name, values=None, integer_values=None, start_time=0.0, optional=(), pool=None,
+                 tolerance=None, initialize=None):
         """Load, instantiate and initialize; `values` (and `integer_values`) are start values and
         parameters by name, each set with the FMI type its variable declares (Real, Integer,
         Enumeration, Boolean, String; in FMI 3 also Float32 and every IntN/UIntN); names in
         `optional` are skipped when the FMU lacks them. Instances opened with one `pool` share the
-        extracted FMU (see shared_folder)."""
+        extracted FMU (see shared_folder). The experiment starts at `start_time` with `tolerance`
+        (None: the DefaultExperiment's, or none when it gives none), as fmpy sets it up;
+        `initialize(fmu)`, when given, runs in initialization mode (e.g. to set inputs)."""
         self.path, self.name = Path(path), name
         self._pool = pool
         self._key, self.folder = shared_folder(self.path, pool)
@@ -196,6 +245,7 @@ class Fmu:
             self.description = read_model_description(str(self.folder), validate=False)
         except Exception as exc:  # fmpy raises bare exceptions for malformed XML
             raise FmuError(f"{self.path}: cannot read modelDescription.xml: {exc}") from None
+        self.notes = [note] if (note := schema_note(self.path, self.folder, self.fmi_version)) else []
         binding = Fmi2
         if self.fmi_version != "2.0":
             from .fmi3 import Fmi3 as binding
@@ -211,7 +261,11 @@ class Fmu:
         self.component = self._fmi.component
         drop = [k for k in optional if k not in self.variables]
         given = {k: v for k, v in {**(values or {}), **(integer_values or {})}.items() if k not in drop}
-        self._setup(given, start_time)
+        experiment = self.description.defaultExperiment
+        if tolerance is None and experiment is not None and experiment.tolerance is not None:
+            tolerance = float(experiment.tolerance)
+        self.start_time, self.tolerance = start_time, tolerance
+        self._setup(given, initialize)
 
     def last_message(self) -> str:
         return self.messages[-1][1] if self.messages else "no message from the FMU"
@@ -223,9 +277,9 @@ class Fmu:
         except Exception as exc:
             raise FmuError(f"{self.name}: {fname} failed: {self.last_message()}", subsystem=self.name) from exc
 
-    def _setup(self, given, start_time):
-        fmi = self._fmi
-        fmi.setup_experiment(self, start_time)
+    def _setup(self, given, initialize):
+        fmi, start_time = self._fmi, self.start_time
+        fmi.setup_experiment(self, start_time, self.tolerance)
         by_type = {}
         for name, value in given.items():
             kind = self.scalar(name).type
@@ -238,7 +292,9 @@ class Fmu:
             by_type[setter][1].append(convert[1](value))
         for setter, (vrs, vals) in by_type.items():
             self.checked(getattr(fmi.slave, setter), f"{fmi.prefix}{setter[0].upper()}{setter[1:]}", vrs, vals)
-        fmi.enter_initialization(self, start_time)
+        fmi.enter_initialization(self, start_time, self.tolerance)
+        if initialize is not None:
+            initialize(self)
         self.checked(fmi.slave.exitInitializationMode, f"{fmi.prefix}ExitInitializationMode")
 
     def variable(self, name):
@@ -261,6 +317,11 @@ class Fmu:
     def vrs(self, names) -> np.ndarray:
         return np.array([self.vr(n) for n in names], dtype=np.uint32)
 
+    @property
+    def real_type(self):
+        """The FMI type ports, readings and the raw fmi2GetReal exchange: Real (FMI 2), Float64 (FMI 3)."""
+        return self._fmi.real
+
     def real_vrs(self, names) -> list:
         """Value references of scalar Real (FMI 2) or Float64 (FMI 3) variables, the types ports and
         readings exchange; another type is refused in one line."""
@@ -271,6 +332,39 @@ class Fmu:
                                f"needs a {self._fmi.real}", subsystem=self.name, variable=name)
         return [self.vr(n) for n in names]
 
+    def kind(self, name):
+        """The FMI type of a scalar variable, refused in one line when wavecosim cannot carry it."""
+        v = self.scalar(name)
+        if v.type not in self._fmi.access:
+            raise FmuError(f"{self.name}: {name} is a {v.type} variable of {self.path.name}; wavecosim carries "
+                           f"{', '.join(self._fmi.access)}", subsystem=self.name, variable=name)
+        return v.type
+
+    def integer_range(self, fmi_type):
+        """(lowest, highest) value of an integer type of this FMU's FMI version."""
+        return integer_range(fmi_type, self._fmi.enumeration_bits)
+
+    def get_values(self, fmi_type, vrs) -> list:
+        """Values of variables of one FMI type as Python values (float, int, bool, str, bytes)."""
+        kind, suffix = category(fmi_type), self._fmi.access[fmi_type]
+        got = self.checked(getattr(self._fmi.slave, f"get{suffix}"), f"{self._fmi.prefix}Get{suffix}",
+                           list(map(int, vrs)))
+        return [as_python(kind, v) for v in got]
+
+    def set_values(self, fmi_type, vrs, values):
+        """Set variables of one FMI type from Python values (a Real must be finite)."""
+        if category(fmi_type) == REAL:
+            self._finite([float(v) for v in values])
+        elif category(fmi_type) == BOOLEAN:
+            values = [bool(v) for v in values]
+        suffix = self._fmi.access[fmi_type]
+        self.checked(getattr(self._fmi.slave, f"set{suffix}"), f"{self._fmi.prefix}Set{suffix}",
+                     list(map(int, vrs)), list(values))
+
+    def _finite(self, values):
+        if not all(math.isfinite(v) for v in values):
+            raise FmuError(f"{self.name}: refusing to set a non-finite input {values}", subsystem=self.name)
+
     # ---- the calls a master makes, status-checked ----
     def get_real(self, vrs) -> np.ndarray:
         return np.array(self.checked(self._fmi.get_real, self._fmi.name("fmi2GetReal"),
@@ -278,8 +372,7 @@ class Fmu:
 
     def set_real(self, vrs, values):
         values = [float(v) for v in values]
-        if not all(math.isfinite(v) for v in values):
-            raise FmuError(f"{self.name}: refusing to set a non-finite input {values}", subsystem=self.name)
+        self._finite(values)
         self.checked(self._fmi.set_real, self._fmi.name("fmi2SetReal"), list(map(int, vrs)), values)
 
     def free_state_handle(self, handle):
@@ -305,6 +398,11 @@ class Fmu:
     def function_name(self, fname):
         """The FMU's own function behind an fmi2 name (fmi3SetFloat64 for fmi2SetReal in FMI 3)."""
         return self._fmi.name(fname)
+
+    def asked_to_end(self, status):
+        """None, or the time the FMU reached when a doStep that returned `status` is the FMU asking to
+        end the simulation (its last successful time; NaN when it cannot say)."""
+        return self._fmi.asked_to_end(self, status)
 
     def status_error(self, fname, status, step=None, time=None):
         """The FmuError for a call in fmi2 form (`fname`) that returned `status`."""

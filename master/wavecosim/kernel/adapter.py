@@ -4,8 +4,8 @@ that uses it is wavecosim.core.adapter_kernel.KernelAdapter.
 """
 import ctypes
 
+from .abi import mirrors
 from .build import kernel_library
-from ..errors import FmuError
 
 LIBRARY_NAME = "adapter"                   # libadapter.so, from kernel/c/adapter.c
 SHIM = ("getFMUstate", "setFMUstate", "freeFMUstate", "setReal", "doStep", "getReal")   # drkernel.h DRFunctions
@@ -13,6 +13,7 @@ AD_OK, AD_FMU, AD_SINGULAR, AD_STALLED = range(4)
 _D, _L = ctypes.POINTER(ctypes.c_double), ctypes.c_long
 
 
+@mirrors("adapter", "WaveAdapterC")
 class AdapterC(ctypes.Structure):
     """adapter.h: WaveAdapterC, field for field."""
     _fields_ = [("fn", ctypes.c_void_p * len(SHIM)), ("comp", ctypes.c_void_p), ("state", ctypes.c_void_p),
@@ -33,7 +34,8 @@ _lib = None
 
 
 def load_library():
-    """The adapter library, built (with the FMUs) if missing or stale; raises FmuError if it cannot be."""
+    """The adapter library, built if missing or stale; raises FmuError if it cannot be (LayoutError if its
+    struct differs from AdapterC)."""
     global _lib
     if _lib is None:
         lib = kernel_library(LIBRARY_NAME, "the wave adapter library")
@@ -41,9 +43,34 @@ def load_library():
         lib.adapter_work_size.argtypes = [ctypes.c_int]
         lib.adapter_solve.argtypes = [ctypes.POINTER(AdapterC), ctypes.c_double, ctypes.c_double]
         lib.adapter_reinvert.argtypes = [ctypes.POINTER(AdapterC)]
-        lib.adapter_struct_size.restype = ctypes.c_size_t
-        if lib.adapter_struct_size() != ctypes.sizeof(AdapterC):
-            raise FmuError(f"{LIBRARY_NAME}: WaveAdapterC has {lib.adapter_struct_size()} bytes, "
-                           f"wavecosim.kernel.adapter.AdapterC {ctypes.sizeof(AdapterC)} (the layouts differ)")
         _lib = lib
     return _lib
+
+
+def _doubles(values):
+    return (ctypes.c_double * len(values))(*values)
+
+
+def new_adapter(fns, comp, state, in_vr, out_vr, effort_in, sign, memory):
+    """A WaveAdapterC over the FMU function table `fns` (a DRFunctions) and component `comp`, saving
+    x_i^n into the handle at address `state`, with the ports.WaveAdapter memory it takes over
+    (u, y, D, J_inv, h2, u_scale and the figures); the Newton constants are set by the caller.
+    Returns (the library, the struct, a reference to it for the calls)."""
+    lib, m, st = load_library(), len(effort_in), AdapterC()
+    ctypes.memmove(st.fn, ctypes.addressof(fns), ctypes.sizeof(st.fn))
+    st.comp, st.state, st.m, st.in_vr, st.out_vr = comp, state, m, in_vr, out_vr
+    # arrays assigned to the struct's pointers stay alive with it (ctypes keeps them)
+    st.effort_in, st.sign = (ctypes.c_int * m)(*effort_in), _doubles(sign)
+    st.u, st.y = _doubles(memory["u"]), _doubles(memory["y"])
+    st.D, st.J_inv = _doubles(memory["D"]), _doubles(memory["J_inv"])
+    st.wu, st.wy, st.a, st.e, st.f, st.b, st.failed_r = [_doubles([0.0] * m) for _ in range(7)]
+    st.work = _doubles([0.0] * lib.adapter_work_size(m))
+    for key in ("have_slope", "h2", "u_scale", "evaluations", "do_steps", "accepted", "worst_accepted"):
+        setattr(st, key, memory[key])
+    return lib, st, ctypes.byref(st)
+
+
+def shim(lib, struct):
+    """(function table, component) of an adapter as an fmi2 wave port, for the DR kernel to call."""
+    return [ctypes.cast(getattr(lib, f"adapter_{name}"), ctypes.c_void_p).value for name in SHIM], \
+        ctypes.addressof(struct)

@@ -6,12 +6,15 @@ the library is missing, `library()` is None and the runner goes step by step (as
 the kernel needs the compiler too)."""
 import ctypes
 
+from .abi import mirrors
 from .build import helper_library
+from .cvalues import ints  # noqa: F401  (the C int arrays of the passes' arguments)
 
 _lib = None
 _int_p, _double_p = ctypes.POINTER(ctypes.c_int), ctypes.POINTER(ctypes.c_double)
 
 
+@mirrors("blocks", "PassBlock")
 class PassBlock(ctypes.Structure):
     """blocks.c: one block for passivity_block (the log's rows read, the columns written, the figures)."""
     _fields_ = [("count", ctypes.c_int), ("k", ctypes.c_int), ("wave", ctypes.c_int), ("dt", ctypes.c_double),
@@ -20,15 +23,17 @@ class PassBlock(ctypes.Structure):
                 ("prev", _double_p), ("fig", _double_p)]
 
 
+@mirrors("blocks", "BlockRows")
 class BlockRows(ctypes.Structure):
     """blocks.c: one block for block_rows (grid, log rows, the steps' and the trajectory's columns)."""
     _fields_ = [("count", ctypes.c_int), ("n_out", ctypes.c_int), ("n0", ctypes.c_double),
                 ("inverse", ctypes.c_double), ("dt", ctypes.c_double), ("log", ctypes.c_void_p), ("ld", ctypes.c_long),
                 ("outputs", _int_p), ("steps", ctypes.c_void_p), ("lds", ctypes.c_long),
                 ("trajectory", ctypes.c_void_p), ("ldt", ctypes.c_long),
-                ("iterations_sum", ctypes.c_double), ("iterations_max", ctypes.c_double)]
+                ("iterations_sum", ctypes.c_double), ("iterations_max", ctypes.c_double), ("t0", ctypes.c_double)]
 
 
+@mirrors("blocks", "SampledBlock")
 class SampledBlock(ctypes.Structure):
     """blocks.c: one block for sampled_block (CertificateSampler's columns and running figures)."""
     _fields_ = [*[(name, ctypes.c_int) for name in ("count", "k", "n", "nb", "first", "every", "fne", "augmented",
@@ -38,6 +43,7 @@ class SampledBlock(ctypes.Structure):
                 *[(name, _double_p) for name in ("min_fne", "max_aug", "H_prev")]]
 
 
+@mirrors("blocks", "WatchBlock")
 class WatchBlock(ctypes.Structure):
     """blocks.c: one block for watch_block (FneWatch's column and running figures)."""
     _fields_ = [*[(name, ctypes.c_int) for name in ("count", "k", "first", "every")], ("tol", ctypes.c_double),
@@ -59,11 +65,6 @@ def library():
         lib.passivity_block.restype = lib.block_rows.restype = lib.sampled_block.restype = None
         _lib = lib
     return _lib
-
-
-def ints(values):
-    """A C int array of these values (at least one element)."""
-    return (ctypes.c_int * max(1, len(values)))(*values)
 
 
 def columns(array):

@@ -9,6 +9,7 @@ import subprocess
 import tempfile
 from pathlib import Path
 
+from . import abi
 from ..errors import FmuError
 
 SOURCES = Path(__file__).resolve().parent / "c"
@@ -100,12 +101,14 @@ def build_library(name, force=False, log=print) -> Path:
 
 
 def helper_library(name):
-    """lib<name>.so loaded with ctypes (built on first use); None when it cannot be built (no C compiler)."""
+    """lib<name>.so loaded with ctypes (built on first use) and its mirrored structs checked (abi.py;
+    FmuError on a mismatch); None when it cannot be built (no C compiler)."""
     if name not in _loaded:
         try:
-            _loaded[name] = ctypes.CDLL(str(build_library(name, log=lambda msg: None)))
+            lib = ctypes.CDLL(str(build_library(name, log=lambda msg: None)))
         except (BuildError, OSError):
-            _loaded[name] = None
+            lib = None
+        _loaded[name] = lib and abi.loaded(name, lib)
     return _loaded[name]
 
 

@@ -10,11 +10,13 @@ import ctypes
 import numpy as np
 
 from ..errors import FmuError
+from .abi import mirrors
 from .drkernel import FUNCTIONS
 from .linalg import DOT_EXACT
 from .newton import NOT_CONVERGED, WHY, NewtonKernel, failed, library, not_converged
 
 
+@mirrors("drkernel", "DCSettings")
 class DCSettings(ctypes.Structure):
     """certs.h: DCSettings."""
     _fields_ = [("every", ctypes.c_int), ("pairs", ctypes.c_int), ("augmented", ctypes.c_int),

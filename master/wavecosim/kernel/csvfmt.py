@@ -29,9 +29,8 @@ def _load():
     if lib is not None:
         lib.csv_init.restype = None
         lib.csv_init()
-        lib.csv_repr.argtypes = [ctypes.c_double, ctypes.c_char_p]
         lib.csv_lines.restype = ctypes.c_long
-        lib.csv_lines.argtypes = [ctypes.c_void_p, ctypes.c_long, ctypes.c_int, ctypes.c_char_p]
+        lib.csv_lines.argtypes = [ctypes.c_void_p, ctypes.c_long, ctypes.c_char_p]
         lib.csv_rows.restype = ctypes.c_long
         lib.csv_rows.argtypes = [ctypes.c_void_p, ctypes.c_long, ctypes.c_int, ctypes.c_int, ctypes.c_void_p,
                                  ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p]
@@ -39,19 +38,11 @@ def _load():
     return _lib
 
 
-def c_repr(value):
-    """repr(value) of a float, through the C formatter (for tests)."""
-    out = ctypes.create_string_buffer(32)
-    n = library().csv_repr(value, out)
-    return out.raw[:n].decode()
-
-
-def c_reprs(values, exact=False):
-    """repr of every float of a 1-D array, by the C formatter's fast route or its exact reference
-    route (for the checks of one against the other and against repr)."""
+def c_reprs(values):
+    """repr of every float of a 1-D array, through the C formatter (for the checks against repr)."""
     values = np.ascontiguousarray(values, dtype=float)
     out = ctypes.create_string_buffer(len(values) * WIDTH + SLACK)
-    n = library().csv_lines(values.ctypes.data, len(values), int(exact), out)
+    n = library().csv_lines(values.ctypes.data, len(values), out)
     return out.raw[:n].decode().split("\n")[:-1]
 
 

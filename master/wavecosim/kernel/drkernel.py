@@ -16,6 +16,7 @@ import time
 
 import numpy as np
 
+from .abi import LayoutError, mirrors
 from .build import kernel_library
 from ..errors import ConfigError, FmuError
 from .adapter import load_library as load_adapter_library
@@ -58,12 +59,14 @@ class Trace:
         return arr.reshape(self._count, 2, self._n)
 
 
+@mirrors("drkernel", "queries", "DRFunctions")
 class DRFunctions(ctypes.Structure):
     """drkernel.h: the FMU functions the kernel calls."""
     _fields_ = [(name, ctypes.c_void_p) for name in
                 ("getFMUstate", "setFMUstate", "freeFMUstate", "setReal", "doStep", "getReal")]
 
 
+@mirrors("drkernel", "DRStep")
 class DRStep(ctypes.Structure):
     """drkernel.h: inputs and results of one macro-step."""
     _fields_ = [("t", ctypes.c_double), ("dt", ctypes.c_double), ("K", ctypes.c_int), ("eps", ctypes.c_double),
@@ -72,7 +75,7 @@ class DRStep(ctypes.Structure):
                 ("failed_function", ctypes.c_int), ("failed_status", ctypes.c_int), ("stopped", ctypes.c_int),
                 ("ledger_on", ctypes.c_int), ("ledger", ctypes.c_double), ("traffic", ctypes.c_double),
                 ("ledger_rtol", ctypes.c_double), ("step_deadline_s", ctypes.c_double), ("round_s", ctypes.c_double),
-                ("tail_s", ctypes.c_double)]
+                ("tail_s", ctypes.c_double), ("t0", ctypes.c_double)]
 
 
 _lib = None
@@ -141,7 +144,10 @@ class BlockLog:
 
 
 def unusable(scene):
-    """Why the kernel cannot run this scene, or None if it can."""
+    """Why the kernel cannot run this scene, or None if it can; a library whose structs differ from
+    their mirrors is no reason to fall back but an error (abi.LayoutError)."""
+    if not scene.subsystems:
+        return "no subsystem has a port (signals only)"
     for s in scene.subsystems:
         if not s.fmu.can_save_state:
             return f"subsystem {s.name} cannot get and set its FMU state"
@@ -150,12 +156,16 @@ def unusable(scene):
                 s.fmu.function_pointer(name)      # FMI 3: kernel/c/fmi3shim.c's, in fmi2 form
             except AttributeError:
                 return f"subsystem {s.name}: the FMU does not export {s.fmu.function_name(name)}"
+            except LayoutError:
+                raise
             except FmuError as exc:
                 return str(exc)
     try:
         load_library()
         if any(s.adapter for s in scene.subsystems):
             load_adapter_library()
+    except LayoutError:
+        raise
     except FmuError as exc:
         return str(exc)
     return None
@@ -240,7 +250,7 @@ class Kernel:
                                     int(off)):
                 self.close()
                 raise FmuError(f"subsystem {s.name}: the DR kernel refused its port")
-        self.io = DRStep(measure=0, eps=-1.0, deadline_s=0.0)
+        self.io = DRStep(measure=0, eps=-1.0, deadline_s=0.0, t0=scene.scenario.start_time)
         self.at = (None, None)                     # (n, t) of the last macro_step
         self._io = ctypes.byref(self.io)
         self._macro_step = lib.dr_macro_step       # called with pre-converted arguments

@@ -9,6 +9,7 @@ import ctypes
 import numpy as np
 
 from ..errors import FmuError, NumericalError
+from .abi import mirrors
 from .drkernel import Kernel, load_library
 
 _int_p, _double_p = ctypes.POINTER(ctypes.c_int), ctypes.POINTER(ctypes.c_double)
@@ -23,6 +24,7 @@ WHY = {1: NON_FINITE, 2: SINGULAR}          # newton.h: NT_NONFINITE, NT_SINGULA
 NOT_CONVERGED = 3                                                 # newton.h: NT_NOT_CONVERGED
 
 
+@mirrors("drkernel", "NTSettings")
 class NTSettings(ctypes.Structure):
     """newton.h: Newton's constants, monolithic.py's."""
     _fields_ = [("tol", ctypes.c_double), ("accept", ctypes.c_double), ("accept_rel", ctypes.c_double),

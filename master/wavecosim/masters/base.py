@@ -86,7 +86,7 @@ class Master:
     def __init__(self, scene, settings):
         self.scene, self.settings = scene, settings
         self.subsystems = scene.subsystems
-        self.dt = scene.scenario.dt
+        self.dt, self.t0 = scene.scenario.dt, scene.scenario.start_time      # t_n = t0 + n dt
         self.deadline_s = settings.deadline_us * 1e-6 if settings.deadline_us else None
         self.inner_deadline_s = self.deadline_s          # the inner loop's share of the deadline
         self.step_started = 0.0                          # perf_counter() when the last step began

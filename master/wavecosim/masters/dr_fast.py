@@ -256,7 +256,7 @@ class FastDRMaster(DRMaster):
             return
         last = n0 + done - 1
         iterations, redone = int(log.iterations.sum()), int(log.ledger["rounds"].sum())
-        self._note_kernel_steps(last, last * self.dt, iterations, done, redone)
+        self._note_kernel_steps(last, self.t0 + last * self.dt, iterations, done, redone)
         self._b_step_start = log.b[done - 2].tolist() if done > 1 else self._b
         self._b = self.kernel.b[:]
         self._a_step_start = log.a_hat[done - 2].tolist() if done > 1 else self._a_before

@@ -63,7 +63,7 @@ class KernelRoute(KernelOwner):
         if done:
             self._step_s = (time.perf_counter() - started) / done
             last = n0 + done - 1
-            self.book_kernel(last, last * self.dt, int(log.iterations.sum()), done)
+            self.book_kernel(last, self.t0 + last * self.dt, int(log.iterations.sum()), done)
             self.took_block(log, done)
         return done, log, error
 

@@ -7,6 +7,8 @@ beyond that it reads them back from its file when asked. Every float is written 
 (the shortest text that reads back to the same bits): a block at a time in C (wavecosim/kernel/csvfmt.py),
 or with repr itself when the C formatter is not built or a column has a formatter of its own.
 """
+import csv
+import io
 import json
 import math
 import re
@@ -45,6 +47,31 @@ class Labels:
         return [self.names.index(v) for v in cells]
 
 
+class Texts:
+    """A formatter writing code k of a column as the k-th of `texts` (a list that grows as the run
+    meets new texts), quoted as CSV quotes text: in double quotes, a quote doubled."""
+
+    def __init__(self, texts):
+        self.texts = texts
+
+    def __call__(self, col):
+        return [quoted(self.texts[int(v)]) for v in col.tolist()]
+
+    def parse(self, cells):
+        index = {t: k for k, t in enumerate(self.texts)}
+        return [index.setdefault(c, len(index)) for c in cells]
+
+
+def quoted(text):
+    """A CSV cell holding `text` as it is (RFC 4180)."""
+    return '"' + text.replace('"', '""') + '"'
+
+
+def header(columns):
+    """The CSV header line's cells: a name holding a comma, quote or line break is quoted."""
+    return ",".join(quoted(c) if any(ch in c for ch in ',"\r\n') else c for c in columns)
+
+
 class Table:
     """One table of float rows (`columns`), streamed to `path` (CSV) when given.
 
@@ -66,7 +93,7 @@ class Table:
         if path is not None:
             path.parent.mkdir(parents=True, exist_ok=True)
             self._file = open(path, "wb")
-            self._file.write((",".join(self.columns) + "\r\n").encode())
+            self._file.write((header(self.columns) + "\r\n").encode())
             self._writer = Writer(self._file)
 
     def _new_slot(self):
@@ -75,6 +102,11 @@ class Table:
         if self.path is None:
             return block, None
         return block, block_writer(block, [_kind(f) for f in self._fmt]) or self._python_text(block)
+
+    @property
+    def formats(self):
+        """Each column's formatter, in column order."""
+        return list(self._fmt)
 
     def next_row(self):
         """A row to fill in place (the block's next slot); it is booked by `commit_row`."""
@@ -194,14 +226,17 @@ class Table:
 
 
 def _read_csv(path, formats):
-    """A table's CSV back into floats (label columns back to their codes)."""
-    with open(path) as f:
-        f.readline()
-        rows = [line.rstrip("\r\n").split(",") for line in f if line.strip()]
+    """A table's CSV back into floats (label and text columns back to their codes)."""
+    with open(path, newline="") as f:
+        if any(isinstance(fmt, Texts) for fmt in formats):
+            rows = list(csv.reader(io.StringIO(f.read())))[1:]
+        else:
+            f.readline()
+            rows = [line.rstrip("\r\n").split(",") for line in f if line.strip()]
     out = np.empty((len(rows), len(formats)))
     for j, fmt in enumerate(formats):
         col = [r[j] for r in rows]
-        out[:, j] = fmt.parse(col) if isinstance(fmt, Labels) else np.array(col, float)
+        out[:, j] = fmt.parse(col) if isinstance(fmt, (Labels, Texts)) else np.array(col, float)
     return out
 
 
@@ -270,4 +305,6 @@ def write_mat(path: Path, table: Table):
     data = table.array()
     names = [re.sub(r"\W", "_", c) if re.match(r"[A-Za-z]", c) else f"v_{re.sub(r'[^0-9A-Za-z]', '_', c)}"
              for c in table.columns]
-    savemat(str(path), {n: data[:, j] for j, n in enumerate(names)}, oned_as="column")
+    columns = [np.array([fmt.texts[int(v)] for v in data[:, j]], dtype=object) if isinstance(fmt, Texts)
+               else data[:, j] for j, fmt in enumerate(table.formats)]          # texts as cell arrays
+    savemat(str(path), dict(zip(names, columns)), oned_as="column")

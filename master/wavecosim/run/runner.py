@@ -12,7 +12,6 @@ same numbers as step by step, to the last bit, without crossing into Python at e
 A monolithic reference runs in lockstep (its own LiveRun) when asked, so errors are computed as
 both runs stream and memory does not grow with the number of steps.
 """
-import ctypes
 import math
 import sys
 import time
@@ -21,8 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..kernel import blocks
-from ..errors import ConfigError, Interrupted, NumericalError, RunFailed, WavecosimError
+from ..kernel import blocks, cvalues
+from ..errors import ConfigError, Interrupted, NumericalError, RunFailed, SimulationEnded, WavecosimError
+from ..fmi.values import BOOLEAN, INTEGER, category
 from ..kernel.drkernel import REASONS as KERNEL_REASONS
 from ..core.gamma import GammaTuner
 from ..masters import MASTERS
@@ -38,7 +38,7 @@ from .observers.errors import ErrorTracker, stored_reference, stored_rows
 from .observers.fne_watch import FneWatch
 from .observers.gamma import GammaLog, TunedGammaLog
 from .observers.passivity import Passivity
-from .recorder import BLOCK, Interrupts, Labels, Table, ints, write_json, write_mat
+from .recorder import BLOCK, Interrupts, Labels, Table, Texts, ints, write_json, write_mat
 from ..core.readings import Sampler
 from ..core.scene import build_scene
 
@@ -69,12 +69,19 @@ def grid_times(k, dt):
 
 
 def _structured(table):
-    """A table's rows as a NumPy structured array, one float field per column ('reason' as text)."""
+    """A table's rows as a NumPy structured array, one float field per column ('reason' and the
+    recorded String outputs as text)."""
     data = table.array()
-    fields = [(c, "U12" if c == "reason" else "f8") for c in table.columns]
+    texts = {c: f.texts for c, f in zip(table.columns, table.formats) if isinstance(f, Texts)}
+    fields = [(c, "U12" if c == "reason" else f"U{max(map(len, texts[c]), default=1) or 1}" if c in texts
+               else "f8") for c in table.columns]
     out = np.empty(len(data), dtype=fields)
     for j, (name, _) in enumerate(fields):
-        out[name] = [REASONS[int(v)] for v in data[:, j]] if name == "reason" else data[:, j]
+        if name == "reason" or name in texts:
+            names = REASONS if name == "reason" else texts[name]
+            out[name] = [names[int(v)] for v in data[:, j]]
+        else:
+            out[name] = data[:, j]
     return out
 
 
@@ -184,8 +191,11 @@ def open_parts(scenario, warn):
 
 
 def make_observers(scenario, scene, master, tuner, certificates, warn):
-    """The observers this run needs, in the order they act (the energy guard first)."""
+    """The observers this run needs, in the order they act (the energy guard first); none where no
+    subsystem has a port (nothing exchanges energy)."""
     obs, unavailable = [], []
+    if not scene.n_channels:
+        return obs
     has_H = all(s.port.energy is not None for s in scene.subsystems)
     guard = scenario.master.energy_guard or master.default_guard
     if guard == "ledger" and master.guardable:
@@ -227,9 +237,9 @@ class LiveRun:
             self.master.enable_trace(True)
         self.out_dir, self.formats = (Path(out_dir) if out_dir is not None else None), formats
         self.suffix = f"_{self.label}" if file_suffix else ""
-        self.every, self.n_steps, self.dt = output_interval, scenario.n_steps, scenario.dt
-        self.sampler = Sampler(self.scene, scenario.outputs)
-        self.columns = list(scenario.outputs)
+        self.every, self.n_steps, self.dt, self.t0 = output_interval, scenario.n_steps, scenario.dt, scenario.start_time
+        self.sampler = Sampler(self.scene, self.scene.outputs)
+        self.columns = list(self.scene.outputs)
         self.master_time, self.steps_done, self.started = 0.0, 0, time.perf_counter()
         self.iterations = [0, 0]                       # sum and max of the inner iterations per step
         self.loop_time = 0.0                           # start() to the last row written: the run's own per-step cost
@@ -243,7 +253,8 @@ class LiveRun:
     def _tables(self):
         rows = self.n_steps // self.every + 2
         path = (lambda kind: self.out_dir / f"{kind}{self.suffix}.csv") if self.out_dir else (lambda kind: None)
-        self.trajectory = Table(["time", *self.columns], path("trajectory"), expected_rows=rows)
+        self.trajectory = Table(["time", *self.columns], path("trajectory"), expected_rows=rows,
+                                formats=self._output_formats())
         obs_cols = [c for o in self.observers for c in o.columns]
         formats = {"iterations": ints, "reason": Labels(REASONS)}
         for o in self.observers:
@@ -255,7 +266,14 @@ class LiveRun:
             self.slices.append(self.scratch[at:at + len(o.columns)])
             self.spans[id(o)] = slice(at, at + len(o.columns))
             at += len(o.columns)
-        self.time_of = grid_clock(self.dt)
+        clock, t0 = grid_clock(self.dt), self.t0
+        self.time_of = lambda k: t0 + clock(k)          # t_k = t0 + k dt
+
+    def _output_formats(self):
+        """Integer and Boolean outputs written as integers, String (Binary) outputs as quoted text."""
+        texts = self.sampler.typed.texts
+        return {c: Texts(texts[c]) if c in texts else ints for c, kind in zip(self.columns, self.sampler.types)
+                if c in texts or category(kind) in (INTEGER, BOOLEAN)}
 
     def start(self):
         """Read the FMUs at t = 0, start the observers, record the first trajectory row."""
@@ -265,7 +283,7 @@ class LiveRun:
             o.start(first)
         self._check_finite(first, -1)
         row = self.trajectory.next_row()
-        row[0], row[1:] = 0.0, first.outputs
+        row[0], row[1:] = self.t0, first.outputs
         self.trajectory.commit_row()
         self.first = {"H": sum(first.H), "error": next((o.first for o in self.observers
                                                         if isinstance(o, ErrorTracker)), math.nan)}
@@ -281,8 +299,8 @@ class LiveRun:
     def step(self, n):
         """Macro-step n: observers before, the master, observers after (the guard may redo), one row;
         returns the Reading of the FMUs after it."""
-        t = n * self.dt
-        self.scene.begin_step(n)                     # signals held over the step (none: nothing)
+        t = self.t0 + n * self.dt
+        self.scene.begin_step(n, t)                  # signals held, signal-only subsystems stepped
         before = self._totals() if self.bracket else None
         for o in self.observers:
             o.before_step(n, t)
@@ -294,7 +312,10 @@ class LiveRun:
         t0 = time.perf_counter()
         log = self.master.step(n, t)
         self.master_time += time.perf_counter() - t0
-        return self._after_master(n, t, log)
+        reading = self._after_master(n, t, log)
+        if self.scene.ended is not None:            # an FMU ended the simulation with this step
+            raise self.scene.ended
+        return reading
 
     def _after_master(self, n, t, log):
         """After the master made step n: read the FMUs, the guard (it may redo), the observers, one row."""
@@ -326,7 +347,7 @@ class LiveRun:
                        and all(o.blocks for o, _ in self.after)
                        and (guard is None or isinstance(guard, EnergyGuard)
                             or (self.ledger and route.keeps_ledger))          # classical: step by step
-                       and self.scene.signals is None and blocks.library() is not None
+                       and not self.scene.steps_in_python and self.sampler.whole and blocks.library() is not None
                        and sys.version_info < (3, 12))
         self.rows_call = None                    # block_rows' arguments, from the blocks' layout
         self.paced = [o for o in self.observers if o.paced]          # blocks stop before their steps
@@ -376,7 +397,7 @@ class LiveRun:
             self._after_block(n0, log.first(whole))
         if whole < done:
             n = n0 + whole
-            self._after_master(n, n * self.dt, self.master.step_log(log, whole))
+            self._after_master(n, self.t0 + n * self.dt, self.master.step_log(log, whole))
         elif log.stopped:
             self._check_finite(self.sampler.read(), n0 + done - 1)
         self.loop_time = time.perf_counter() - self.loop_started
@@ -423,8 +444,9 @@ class LiveRun:
     def _rows_call(self, log, readings):
         """block_rows' fixed arguments: where the outputs are in the kernel's log, the grid."""
         outputs = blocks.ints([log.observed_at + r for r in readings.rows("outputs")])
-        call = blocks.BlockRows(n_out=len(self.columns), inverse=grid_inverse(self.dt), dt=self.dt, outputs=outputs)
-        return call, ctypes.byref(call)
+        call = blocks.BlockRows(n_out=len(self.columns), inverse=grid_inverse(self.dt), dt=self.dt, outputs=outputs,
+                                t0=self.t0)
+        return call, cvalues.ref(call)
 
     def lead(self, n, end):
         """As the lockstep reference of a run at step n: make the steps up to end - 1 not made yet,
@@ -463,7 +485,7 @@ class LiveRun:
         if not all(map(math.isfinite, reading.outputs)) or not all(map(math.isfinite, H)):
             bad = next((s.name for s, h in zip(self.scene.subsystems, reading.H)
                         if s.port.energy is not None and not math.isfinite(h)), "an output")
-            raise NumericalError(f"non-finite value in {bad} at step {n} (t = {(n + 1) * self.dt:.6g})")
+            raise NumericalError(f"non-finite value in {bad} at step {n} (t = {self.time_of(n + 1):.6g})")
 
     def fmu_calls(self):
         """doStep, save and restore calls the master made (observers' probes excluded)."""
@@ -536,6 +558,8 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
     ref = None
     try:
         rows = None
+        if not scenario.couplings:         # no power bond: no monolithic reference, no errors
+            reference = None
         if reference == "lockstep":
             try:
                 ref = LiveRun(reference_scenario(scenario), out_dir, "monolithic", False, warn, True,
@@ -583,6 +607,8 @@ def _loop(live, ref, progress):
                 n += done
         except KeyboardInterrupt:
             return "interrupted", None
+        except SimulationEnded as exc:              # an FMU ended it: finished, with the steps before
+            return "finished", exc
         except WavecosimError as exc:
             return "failed", exc
     return "finished", None

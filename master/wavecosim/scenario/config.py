@@ -16,9 +16,11 @@ from ..core.gamma import MODES as GAMMA_MODES
 from ..core.interconnection import COUPLINGS, TAKES_RATIO
 from ..masters import ALGORITHMS
 from ..masters.dr_options import ANDERSON_MAX, OPTION_MODES, STARTS
+from .experiment import from_fmus
 
 DEFAULT_CONFIG = DEFAULT
 COUPLING_TYPES = tuple(COUPLINGS)
+SIGNALS_MASTER = "explicit"            # the master of a system without power bonds
 
 
 @dataclass
@@ -31,6 +33,7 @@ class SubsystemConfig:
     port: dict
     fmu_path: Path = None
     gamma: float = None
+    tolerance: float = None            # passed to setupExperiment; None: the FMU's DefaultExperiment tolerance
 
     @property
     def signal_only(self):
@@ -44,8 +47,8 @@ class SourceConfig:
     name: str
     csv: str
     interpolation: str                 # hold (the value at the last time <= t_n) | linear
-    times: tuple
-    columns: dict                      # {column: tuple of values, one per time}
+    times: tuple                       # never decreasing; a time given twice is an event
+    columns: dict                      # {column: tuple of values (floats, or bools), one per time}
 
 
 @dataclass
@@ -98,7 +101,7 @@ class Scenario:
     source: str
     dt: float
     T: float
-    gamma: object
+    gamma: object                      # a number, a mode, or None (no power bond: nothing has waves)
     subsystems: list
     couplings: list
     master: MasterConfig
@@ -110,31 +113,53 @@ class Scenario:
     signal_subsystems: list = field(default_factory=list)     # subsystems without a port (signals only)
     sources: list = field(default_factory=list)               # SourceConfig
     signals: list = field(default_factory=list)               # SignalConfig
+    start_time: float = 0.0                                   # t_0: the grid is t_n = t_0 + n dt; T is the stop time
+    output_patterns: list = field(default_factory=list)       # globs narrowing the recorded columns
+    order: list = field(default_factory=list)                 # every subsystem's name, in the file's order
 
     @property
     def n_steps(self):
-        return int(round(self.T / self.dt))
+        return int(round((self.T - self.start_time) / self.dt))
 
-    def with_master(self, **changes):
-        return replace(self, master=replace(self.master, **changes))
+    def with_master(self, where="master", **changes):
+        """A copy with master settings changed; a master the system cannot run is refused (`where`
+        names the option in the message)."""
+        changed = replace(self, master=replace(self.master, **changes))
+        check_master(changed.master.algorithm, changed.couplings, lambda msg: _fail(where, msg))
+        return changed
 
     def with_changes(self, where="options", **changes):
         """A copy with top-level values changed (dt, T, gamma), checked like the file's own."""
         changed = replace(self, **changes)
-        check_whole_steps(changed.T, changed.dt, lambda msg: _fail(where, msg))
+        check_whole_steps(changed.T, changed.dt, lambda msg: _fail(where, msg), changed.start_time)
         return changed
+
+
+def default_master(couplings):
+    """DR where power bonds make it possible; the explicit (Jacobi) master where there are none."""
+    return "dr" if couplings else SIGNALS_MASTER
+
+
+def check_master(algorithm, couplings, fail):
+    """A system without power bonds has nothing for an iterating or wave master to work on: only the
+    explicit master runs it; `fail(message)` raises."""
+    if not couplings and algorithm != SIGNALS_MASTER:
+        fail(f"{algorithm} couples power bonds, and this system has none (no couplings); it runs with "
+             f"{SIGNALS_MASTER}")
 
 
 def _fail(where, message):
     raise ConfigError(f"{where}: {message}")
 
 
-def check_whole_steps(T, dt, fail):
-    """T must be a whole number (>= 1) of macro-steps dt; `fail(message)` raises."""
-    if T < dt:
-        fail(f"T must be at least one step dt = {dt}, got {T}")
-    if abs(T / dt - round(T / dt)) > 1e-9 * (T / dt):
-        fail(f"T must be a whole number of steps dt = {dt}, got {T}")
+def check_whole_steps(T, dt, fail, t0=0.0):
+    """The stop time T must be a whole number (>= 1) of macro-steps dt after the start time t0;
+    `fail(message)` raises."""
+    span, after = T - t0, f" after the start time {t0:g}" if t0 else ""
+    if span < dt:
+        fail(f"T must be at least one step dt = {dt}{after}, got {T}")
+    if abs(span / dt - round(span / dt)) > 1e-9 * (span / dt):
+        fail(f"T must be a whole number of steps dt = {dt}{after}, got {T}")
 
 
 class _Checker:
@@ -272,7 +297,7 @@ def _port(ck, path, port):
 
 def _subsystem(ck, name, raw, base_dir):
     path = f"subsystems.{name}"
-    ck.mapping(raw, path, ("fmu", "parameters", "start", "integers", "port", "gamma"), required=("fmu",))
+    ck.mapping(raw, path, ("fmu", "parameters", "start", "integers", "port", "gamma", "tolerance"), required=("fmu",))
     fmu = ck.string(raw["fmu"], f"{path}.fmu")
     spec = None                        # no port key: a signal-only subsystem unless a coupling names it
     if "port" in raw:
@@ -286,7 +311,9 @@ def _subsystem(ck, name, raw, base_dir):
     return SubsystemConfig(name=name, fmu=fmu, parameters=ck.values(raw.get("parameters"), f"{path}.parameters"),
                            start=ck.values(raw.get("start"), f"{path}.start"), integers=integers, port=spec,
                            fmu_path=fmu_path,
-                           gamma=ck.number(raw["gamma"], f"{path}.gamma", positive=True) if "gamma" in raw else None)
+                           gamma=ck.number(raw["gamma"], f"{path}.gamma", positive=True) if "gamma" in raw else None,
+                           tolerance=(ck.number(raw["tolerance"], f"{path}.tolerance", positive=True)
+                                      if raw.get("tolerance") is not None else None))
 
 
 ENERGY_GUARDS = ("ledger", "monolithic", "off")
@@ -362,10 +389,11 @@ def _mapping_without_duplicates(loader, node):
 _SafeLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _mapping_without_duplicates)
 
 
-def load_scenario(path=None) -> Scenario:
-    """Read and validate a scenario file (the built-in default when path is None)."""
+def load_scenario(path=None, settings=None) -> Scenario:
+    """Read and validate a scenario file (the built-in default when path is None); `settings` (the
+    command line's dt, T, start_time) stand for the values the file leaves out."""
     path = Path(path) if path else DEFAULT_CONFIG
-    return parse_scenario(load_raw(path), str(path), path.parent)
+    return parse_scenario(load_raw(path), str(path), path.parent, settings)
 
 
 def load_raw(path) -> dict:
@@ -384,13 +412,14 @@ def load_raw(path) -> dict:
     return expand_repeats(raw, _Checker(str(path)))         # so that --set sees every repeated entry
 
 
-def _master(ck, m) -> MasterConfig:
+def _master(ck, m, couplings) -> MasterConfig:
     ck.mapping(m, "master", ("algorithm", "K", "eps", "deadline_us", "fast", "threads", "energy_guard",
                              "relaxation", "anderson", "anderson_memory",
                              "anderson_extrapolate", "start", "warm_start", "options"))
-    master = MasterConfig()
+    master = MasterConfig(algorithm=default_master(couplings))
     if "algorithm" in m:
         master.algorithm = ck.string(m["algorithm"], "master.algorithm", ALGORITHMS)
+        check_master(master.algorithm, couplings, lambda msg: ck.fail("master.algorithm", msg))
     if "K" in m:
         master.K = ck.integer(m["K"], "master.K", minimum=0)
     if m.get("eps") is not None:
@@ -450,15 +479,34 @@ def _certificates(ck, c) -> CertificateConfig:
 
 
 def _outputs(ck, raw, names):
-    outputs = raw.get("outputs") or {}
+    """(columns {name: SUBSYSTEM.variable}, patterns, error columns): `outputs:` names its columns
+    (a mapping) or narrows the default ones with glob patterns (a list); left out, every output."""
+    outputs, patterns = raw.get("outputs") or {}, []
+    if isinstance(outputs, list):
+        patterns, outputs = output_patterns(outputs, lambda msg: ck.fail("outputs", msg)), {}
     ck.mapping(outputs, "outputs", list(outputs))
     for col, ref in outputs.items():
         if not isinstance(ref, str) or "." not in ref or ref.split(".", 1)[0] not in names:
             ck.fail(f"outputs.{col}", f"must be SUBSYSTEM.variable with a known subsystem, got {ref!r}")
+        if str(col) == "time" or any(ch in str(col) for ch in NOT_IN_COLUMNS):
+            ck.fail(f"outputs.{col}", "a column name cannot be `time` or hold a comma, quote or line break")
     error = raw.get("error", [])
-    if not isinstance(error, list) or not all(e in outputs for e in error):
-        ck.fail("error", f"must list output columns (have: {', '.join(outputs)}), got {error!r}")
-    return dict(outputs), list(error)
+    if not isinstance(error, list) or not all(isinstance(e, str) and (e in outputs or not outputs) for e in error):
+        ck.fail("error", f"must list output columns (have: {', '.join(outputs) or 'every output'}), got {error!r}")
+    return {str(c): r for c, r in outputs.items()}, patterns, list(error)
+
+
+NOT_IN_COLUMNS = (",", '"', "\n", "\r")
+
+
+def output_patterns(patterns, fail):
+    """Glob patterns over the recorded columns (`outputs:` as a list, `--outputs`): non-empty text."""
+    if isinstance(patterns, str):
+        patterns = [patterns]
+    if not isinstance(patterns, (list, tuple)) or not patterns or not all(isinstance(p, str) and p.strip()
+                                                                          for p in patterns):
+        fail(f"must be a list of patterns like [A.*, B.y], got {patterns!r}")
+    return [p.strip() for p in patterns]
 
 
 REPEAT_SECTIONS = ("subsystems", "couplings", "outputs", "error")
@@ -528,88 +576,136 @@ def _substitute(node, var, i):
     return INDEX_EXPR.sub(lambda m: m.group(0) if value(m) is None else str(value(m)), node)
 
 
-def parse_scenario(raw, source="<scenario>", base_dir=Path(".")) -> Scenario:
-    """Check a parsed scenario mapping key by key; the first problem is a ConfigError naming the key."""
+def parse_scenario(raw, source="<scenario>", base_dir=Path("."), settings=None) -> Scenario:
+    """Check a parsed scenario mapping key by key; the first problem is a ConfigError naming the key.
+    `settings` ({key: value}, None values ignored; the command line's dt, T, start_time) stand for
+    top-level values the file leaves out, before the FMUs' DefaultExperiment is asked (the values
+    the file gives are replaced afterwards, by api.with_overrides)."""
     ck = _Checker(source)
     raw = expand_repeats(raw, ck)
-    top = ("name", "description", "dt", "T", "gamma", "subsystems", "couplings", "master", "certificates",
-           "outputs", "error", "fne_watch", "sources", "signals")
-    ck.mapping(raw, "", top, required=("dt", "T", "gamma", "subsystems", "couplings"))
-    dt = ck.number(raw["dt"], "dt", positive=True)
-    T = ck.number(raw["T"], "T", positive=True)
-    check_whole_steps(T, dt, lambda msg: ck.fail("T", msg.removeprefix("T ")))
-    gamma = raw["gamma"]
-    if isinstance(gamma, str):
-        ck.string(gamma, "gamma", GAMMA_MODES)
-    else:
-        gamma = ck.number(gamma, "gamma", positive=True)
+    top = ("name", "description", "start_time", "dt", "T", "gamma", "subsystems", "couplings", "master",
+           "certificates", "outputs", "error", "fne_watch", "sources", "signals")
+    ck.mapping(raw, "", top, required=("subsystems",))
+    raw = {**raw, **{k: v for k, v in (settings or {}).items() if v is not None and raw.get(k) is None}}
     subs = raw["subsystems"]
     ck.mapping(subs, "subsystems", list(subs) if isinstance(subs, dict) else [])
     if len(subs) < 1:
         ck.fail("subsystems", "must name at least one subsystem")
     subsystems = [_subsystem(ck, str(n), s, base_dir) for n, s in subs.items()]
     names = [s.name for s in subsystems]
-    couplings = raw["couplings"]
-    if not isinstance(couplings, list) or not couplings:
-        ck.fail("couplings", "must be a non-empty list of couplings")
+    start_time, dt, T = _times(ck, raw, subsystems)
+    couplings = raw.get("couplings") or []
+    if not isinstance(couplings, list):
+        ck.fail("couplings", "must be a list of couplings (or left out: a system without power bonds)")
     couplings = [_coupling(ck, k, c, names) for k, c in enumerate(couplings)]
-    subsystems, signal_subsystems = _split_signal_only(ck, subsystems, couplings, raw.get("signals"))
+    gamma = _gamma(ck, raw.get("gamma"), couplings)
+    subsystems, signal_subsystems = _split_signal_only(subsystems, couplings)
     sources = _sources(ck, raw.get("sources"), names, base_dir)
     signals = _signals(ck, raw.get("signals"), subsystems + signal_subsystems, sources)
-    master, certs = _master(ck, raw.get("master") or {}), _certificates(ck, raw.get("certificates") or {})
-    outputs, error = _outputs(ck, raw, names)
+    master, certs = _master(ck, raw.get("master") or {}, couplings), _certificates(ck, raw.get("certificates") or {})
+    outputs, patterns, error = _outputs(ck, raw, names)
     return Scenario(name=str(raw.get("name", Path(source).stem)), source=source, dt=dt, T=T, gamma=gamma,
                     subsystems=subsystems, couplings=couplings, master=master, certificates=certs,
                     outputs=outputs, error=error, description=str(raw.get("description", "")),
                     fne_watch=ck.boolean(raw.get("fne_watch", True), "fne_watch"),
-                    signal_subsystems=signal_subsystems, sources=sources, signals=signals)
+                    signal_subsystems=signal_subsystems, sources=sources, signals=signals,
+                    output_patterns=patterns, order=names, start_time=start_time)
 
 
-def _split_signal_only(ck, subsystems, couplings, raw_signals):
-    """(subsystems with a port, signal-only subsystems): a subsystem without `port:` that no coupling
-    names but a signal does has no port; any other gets the default wave port (our FMUs)."""
+def _times(ck, raw, subsystems):
+    """(start_time, dt, T): as given, else from the FMUs' DefaultExperiments (the start time they
+    agree on, else 0; the smallest stepSize; the largest stopTime); dt or T that nothing gives is
+    refused in one line naming it. T is the stop time: the run makes (T - start_time) / dt steps."""
+    found = from_fmus(subsystems, [k for k in ("start_time", "dt", "T") if raw.get(k) is None])
+    origin = {key: f" ({found[key][1]})" for key in found}
+    if "start_time" in raw:
+        start = ck.number(raw["start_time"], "start_time")
+    elif found.get("start_time", (0.0,))[0] is None:
+        ck.fail("start_time", f"not given, and the FMUs' DefaultExperiment start times differ "
+                              f"({found['start_time'][1]}); give start_time or --start-time")
+    else:
+        start = found.get("start_time", (0.0,))[0]
+    for key, option in (("dt", "stepSize"), ("T", "stopTime")):
+        if raw.get(key) is None and key not in found:
+            ck.fail(key, f"not given, and no FMU gives a DefaultExperiment {option}; give {key}: or --{key}")
+    dt = ck.number(raw["dt"] if raw.get("dt") is not None else found["dt"][0], "dt", positive=True)
+    T = ck.number(raw["T"] if raw.get("T") is not None else found["T"][0], "T", positive=start == 0.0)
+    if T <= start:
+        ck.fail("T", f"the stop time must be after the start time {start:g}, got {T:g}{origin.get('T', '')}")
+    check_whole_steps(T, dt, lambda msg: ck.fail("T", msg.removeprefix("T ") + origin.get("T", "")), start)
+    return start, dt, T
+
+
+def _gamma(ck, gamma, couplings):
+    """gamma: a number > 0 or a mode; left out, `auto` where there is a power bond, and None (nothing
+    has waves) where there is none."""
+    if gamma is None:
+        return "auto" if couplings else None
+    if isinstance(gamma, str):
+        return ck.string(gamma, "gamma", GAMMA_MODES)
+    return ck.number(gamma, "gamma", positive=True)
+
+
+def _split_signal_only(subsystems, couplings):
+    """(subsystems with a port, signal-only subsystems): a subsystem without `port:` that a coupling
+    names gets the default wave port (our FMUs); one that no coupling names has no port."""
     coupled = {PORT_REF.match(p).group(1) for c in couplings for p in c.ports}
-    signalled = {ref.split(".", 1)[0] for sig in (raw_signals if isinstance(raw_signals, list) else [])
-                 if isinstance(sig, dict) for ref in (sig.get("from"), sig.get("to")) if isinstance(ref, str)}
     for s in subsystems:
-        if s.port is None and (s.name in coupled or s.name not in signalled):
-            s.port = _port(ck, f"subsystems.{s.name}.port", {})
-    ported = [s for s in subsystems if not s.signal_only]
-    if not ported:
-        ck.fail("subsystems", "must have at least one subsystem with a port")
-    return ported, [s for s in subsystems if s.signal_only]
+        if s.port is None and s.name in coupled:
+            s.port = _port(_Checker("<default port>"), f"subsystems.{s.name}.port", {})
+    return [s for s in subsystems if not s.signal_only], [s for s in subsystems if s.signal_only]
 
 
 INTERPOLATIONS = ("hold", "linear")
 
 
+BOOLEAN_WORDS = {"true": True, "false": False}
+
+
+def _cell(text):
+    """One value of a CSV table: a number, or true/false (any case) for a Boolean; None otherwise."""
+    word = BOOLEAN_WORDS.get(text.strip().lower())
+    if word is not None:
+        return word
+    try:
+        return float(text)
+    except ValueError:
+        return None
+
+
 def _read_table(ck, path, csv_path):
-    """(times, {column: values}) of a CSV time table: a header, first column `time`, numbers,
-    strictly increasing times."""
+    """(times, {column: values}) of a CSV time table as the FMI cross-check files write them: a
+    header (names may be quoted), first column `time`, numbers or true/false, times that never
+    decrease (a repeated time is an event: the rows before and after it)."""
+    where = lambda: f"{path}.csv"                      # noqa: E731
     try:
         with open(csv_path, newline="") as f:
-            rows = [r for r in csv.reader(f) if r and any(x.strip() for x in r)]
-    except (OSError, UnicodeDecodeError) as exc:
-        ck.fail(f"{path}.csv", f"cannot read {csv_path}: {exc}")
-    if not rows or rows[0][0].strip() != "time":
-        ck.fail(f"{path}.csv", f"{csv_path.name}: the first column of the header must be `time`, got "
-                               f"{rows[0][0].strip() if rows else 'an empty file'!r}")
+            rows = [r for r in csv.reader(f, skipinitialspace=True) if r and any(x.strip() for x in r)]
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        ck.fail(where(), f"cannot read {csv_path}: {exc}")
+    if not rows or rows[0][0].strip().lower() != "time":
+        ck.fail(where(), f"{csv_path.name}: the first column of the header must be `time`, got "
+                         f"{rows[0][0].strip() if rows else 'an empty file'!r}")
     header = [h.strip() for h in rows[0]]
     if len(rows) < 2 or len(header) < 2:
-        ck.fail(f"{path}.csv", f"{csv_path.name}: needs a `time` column, at least one value column and one row")
+        ck.fail(where(), f"{csv_path.name}: needs a `time` column, at least one value column and one row")
     data = []
     for k, row in enumerate(rows[1:], start=2):
-        try:
-            values = [float(x) for x in row]
-        except ValueError:
-            ck.fail(f"{path}.csv", f"{csv_path.name}: line {k} is not all numbers: {','.join(row)}")
-        if len(values) != len(header) or not all(map(math.isfinite, values)):
-            ck.fail(f"{path}.csv", f"{csv_path.name}: line {k} needs {len(header)} finite numbers, got {len(values)}")
-        if data and values[0] <= data[-1][0]:
-            ck.fail(f"{path}.csv", f"{csv_path.name}: times must increase, line {k} has {values[0]!r} after "
-                                   f"{data[-1][0]!r}")
+        values = [_cell(x) for x in row]
+        if None in values:
+            ck.fail(where(), f"{csv_path.name}: line {k} is not all numbers or true/false: {','.join(row)}")
+        if len(values) != len(header) or not all(isinstance(v, bool) or math.isfinite(v) for v in values):
+            ck.fail(where(), f"{csv_path.name}: line {k} needs {len(header)} finite numbers, got {len(values)}")
+        if isinstance(values[0], bool):
+            ck.fail(where(), f"{csv_path.name}: line {k}: the time must be a number, got {row[0]!r}")
+        if data and values[0] < data[-1][0]:
+            ck.fail(where(), f"{csv_path.name}: times must not decrease, line {k} has {values[0]!r} after "
+                             f"{data[-1][0]!r}")
         data.append(values)
     columns = {h: tuple(row[j] for row in data) for j, h in enumerate(header) if j}
+    for name, values in columns.items():
+        if len({isinstance(v, bool) for v in values}) > 1:
+            ck.fail(where(), f"{csv_path.name}: column {name} mixes true/false and numbers")
     return tuple(row[0] for row in data), columns
 
 

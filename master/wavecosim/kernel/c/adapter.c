@@ -5,15 +5,14 @@
 
 #include "adapter.h"
 #include "linalg.h"
+#include "abi.h"
 
 /* The scratch vectors of one query, carved out of w->work. */
 typedef struct {
     double *target, *u_new, *y_new, *r, *s, *du, *dy, *best_u, *best_y, *miss, *aug;
 } Scratch;
 
-size_t adapter_struct_size(void) {
-    return sizeof(WaveAdapterC);
-}
+MIRRORED(WaveAdapterC)
 
 size_t adapter_work_size(int m) {
     return 10 * (size_t)m + 2 * (size_t)m * (size_t)m;

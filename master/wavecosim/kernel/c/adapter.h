@@ -54,9 +54,6 @@ typedef struct {
     double *work;                    /* scratch: adapter_work_size(m) doubles */
 } WaveAdapterC;
 
-/* sizeof(WaveAdapterC), for the caller to check its copy of the layout. */
-size_t adapter_struct_size(void);
-
 /* Doubles of scratch a WaveAdapterC of m channels needs in `work`. */
 size_t adapter_work_size(int m);
 

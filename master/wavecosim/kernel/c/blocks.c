@@ -12,6 +12,8 @@
 #include <math.h>
 #include <stddef.h>
 
+#include "abi.h"
+
 /* Python's grow_max_pos: the running max(0, x), NaN ignored (NaN until a number arrives). Over a
  * block it is applied once, to the largest number of the block: max(0, x) is never -0, so the
  * running maximum does not depend on the order of the numbers. */
@@ -130,6 +132,7 @@ typedef struct {
     double *trajectory;
     long ldt;
     double iterations_sum, iterations_max;
+    double t0;          /* the start time: grid point k is t0 + k / inverse (or t0 + k dt) */
 } BlockRows;
 
 void block_rows(BlockRows *p) {
@@ -137,7 +140,7 @@ void block_rows(BlockRows *p) {
     const double *iterations = p->log, *reason = p->log + ld, *residual = p->log + 2 * ld;
     double sum = 0.0, most = -INFINITY;
     for (size_t s = 0; s < count; s++) {
-        double k = p->n0 + 1.0 + (double)s, t = p->inverse > 0.0 ? k / p->inverse : k * p->dt;
+        double k = p->n0 + 1.0 + (double)s, t = p->t0 + (p->inverse > 0.0 ? k / p->inverse : k * p->dt);
         p->steps[s] = t;
         p->steps[lds + s] = iterations[s];
         p->steps[2 * lds + s] = residual[s];
@@ -263,3 +266,8 @@ int watch_block(WatchBlock *p) {
     }
     return 0;
 }
+
+MIRRORED(PassBlock)
+MIRRORED(BlockRows)
+MIRRORED(SampledBlock)
+MIRRORED(WatchBlock)

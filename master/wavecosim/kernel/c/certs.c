@@ -8,6 +8,7 @@
 
 #include "certs.h"
 #include "kernel_internal.h"
+#include "abi.h"
 
 struct DCCerts {
     DRKernel *k, *q;               /* the master's kernel; the certificates' own (FMU calls, counts) */
@@ -246,3 +247,5 @@ void dc_destroy(DCCerts *c) {
     free(c->stage_vr);
     free(c);
 }
+
+MIRRORED(DCSettings)

@@ -1,93 +1,14 @@
 /* CSV rows as Python writes them: every double as repr() does (the shortest decimal that reads
  * back to the same bits, the closest such one, ties to an even last digit, in repr's layout), whole
  * columns as integers or as labels. Used by wavecosim/run/recorder.py through ctypes on a
- * block of rows at a time. Two routes give the same digits: the fast one (Schubfach's method, below
- * `shortest_fast`) writes the files; the exact one, slower, is the reference it is checked against
- * (csv_lines; tests/test_csvtext.py, scripts/csvfmt_check.py).
- *
- * Shortest digits, exactly (the reference route): v = m 2^e has the rounding interval (m -+ 1/2) 2^e (the lower half
- * 1/4 for a power of two); scaled by 4 its ends and centre are X 2^(e-2) with X = 4m-2|4m-1, 4m,
- * 4m+2. Times 10^k (k chosen so the interval is at least 2 units wide) they are computed exactly
- * with 64-bit limbs; then decimal digits are dropped while a multiple of 10 stays in the interval,
- * and the last kept digit is rounded to the centre. Values of 2^59 and above take a slower exact
- * route through printf and strtod (both correctly rounded in glibc).
+ * block of rows at a time. One route makes the digits, Schubfach's method (below), exact for every
+ * double: tests/kernel/test_csvtext.py and scripts/csvfmt_check.py check it against repr.
  */
-#if defined(__SSE2__) && !defined(CSVFMT_PORTABLE)
-#include <emmintrin.h>
-#define CSVFMT_SSE2 1
-#endif
-#include <math.h>
 #include <stdint.h>
-#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
-#define MAX_K 345                    /* 10^k for k = 0 .. MAX_K: enough for the smallest subnormal */
-#define LIMBS 20                     /* 10^345 < 2^1147: 18 limbs, and one more for the product */
-
 typedef unsigned __int128 u128;
-
-static void pow10_table(void);
-static uint64_t pow10_limbs[MAX_K + 1][LIMBS];
-static int pow10_len[MAX_K + 1];
-static int ready = 0;
-
-/* The table of 10^k in limbs (least significant first); called once before any formatting. */
-void csv_init(void)
-{
-    if (ready)
-        return;
-    memset(pow10_limbs, 0, sizeof pow10_limbs);
-    pow10_limbs[0][0] = 1;
-    pow10_len[0] = 1;
-    for (int k = 1; k <= MAX_K; k++) {
-        uint64_t carry = 0;
-        int n = pow10_len[k - 1];
-        for (int i = 0; i < n; i++) {
-            u128 p = (u128)pow10_limbs[k - 1][i] * 10u + carry;
-            pow10_limbs[k][i] = (uint64_t)p;
-            carry = (uint64_t)(p >> 64);
-        }
-        if (carry)
-            pow10_limbs[k][n++] = carry;
-        pow10_len[k] = n;
-    }
-    pow10_table();
-    ready = 1;
-}
-
-/* x 10^k 2^-s (s may be negative, then |s| <= 8): the integer part (< 2^64 by the choice of k), and
- * whether the fraction is zero, or its first bit (half) and whether anything follows it. */
-typedef struct { uint64_t q; int exact; int half; int sticky; } Scaled;
-
-static Scaled scale(uint64_t x, int k, int s)
-{
-    uint64_t p[LIMBS + 1];
-    int n = pow10_len[k];
-    uint64_t carry = 0;
-    Scaled r = {0, 1, 0, 0};
-    for (int i = 0; i < n; i++) {
-        u128 t = (u128)pow10_limbs[k][i] * x + carry;
-        p[i] = (uint64_t)t;
-        carry = (uint64_t)(t >> 64);
-    }
-    p[n++] = carry;
-    p[n] = 0;
-    if (s <= 0) {
-        r.q = p[0] << -s;            /* e in 2..6: the product is below 2^59, shifted by at most 4 */
-        return r;
-    }
-    int w = s >> 6, b = s & 63;
-    r.q = b ? (p[w] >> b) | (w + 1 < n + 1 ? p[w + 1] << (64 - b) : 0) : p[w];
-    int hb = s - 1;
-    r.half = (int)((p[hb >> 6] >> (hb & 63)) & 1u);
-    uint64_t below = (hb & 63) ? (p[hb >> 6] & ((UINT64_C(1) << (hb & 63)) - 1)) : 0;
-    for (int i = 0; i < (hb >> 6) && !below; i++)
-        below |= p[i];
-    r.sticky = below != 0;
-    r.exact = !r.half && !r.sticky;
-    return r;
-}
 
 /* floor(x log10 2) for |x| < 1700. */
 static int floor_log10_pow2(int x)
@@ -95,48 +16,7 @@ static int floor_log10_pow2(int x)
     return (int)(((int64_t)x * 78913) >> 18);
 }
 
-/* Shortest round-trip digits of a positive finite v (m, e: v = m 2^e, m < 2^53) for e < 7:
- * the digits as an integer and the decimal exponent of its last digit. */
-static uint64_t shortest(uint64_t m, int e, int even, int asym, int *dexp)
-{
-    int k = floor_log10_pow2(-e) + 2;
-    if (k < 0)
-        k = 0;
-    int s = 2 - e;
-    Scaled L = scale(4 * m - 1 - !asym, k, s), V = scale(4 * m, k, s), H = scale(4 * m + 2, k, s);
-    uint64_t lo = L.q + (!L.exact || !even), hi = H.q - (H.exact && !even);
-    uint64_t vq = V.q;
-    int removed = 0, last = 0, tail_zero = V.exact;
-    for (;;) {                       /* four digits at a time while a multiple of 10^4 fits, then one */
-        uint64_t dropped;
-        if (hi / 10000 >= (lo + 9999) / 10000) {
-            dropped = vq % 10000;
-            tail_zero = tail_zero && last == 0 && dropped % 1000 == 0;
-            last = (int)(dropped / 1000);
-            vq /= 10000, lo = (lo + 9999) / 10000, hi /= 10000, removed += 4;
-        } else if (hi / 10 >= (lo + 9) / 10) {
-            dropped = vq % 10;
-            tail_zero = tail_zero && last == 0;
-            last = (int)dropped;
-            vq /= 10, lo = (lo + 9) / 10, hi /= 10, removed += 1;
-        } else {
-            break;
-        }
-    }
-    int up;
-    if (removed == 0)
-        up = V.half && (V.sticky || (vq & 1));
-    else
-        up = last > 5 || (last == 5 && (!tail_zero || (vq & 1)));
-    if (vq < lo)
-        up = 1;
-    else if (vq + 1 > hi)
-        up = 0;
-    *dexp = removed - k;
-    return vq + (uint64_t)up;
-}
-
-/* The fast route (after Giulietti's Schubfach): with v = c 2^q and k = floor(log10 of the interval's
+/* Schubfach's method (after Giulietti): with v = c 2^q and k = floor(log10 of the interval's
  * width), the interval's ends and centre times 4 10^-k are each one 64 x 128-bit product with a table
  * entry g, 10^-k normalized to 128 bits (exact for 10^0 .. 10^55, else rounded up: the product is then
  * above the true value by less than 2^-6 of its fraction's top word, so a top word of 0 or 1 means an
@@ -218,6 +98,17 @@ static void pow10_table(void)
     }
 }
 
+static int ready = 0;
+
+/* The table of 10^k and 10^-k; called once before any formatting. */
+void csv_init(void)
+{
+    if (ready)
+        return;
+    pow10_table();
+    ready = 1;
+}
+
 /* floor(g cp / 2^128), with the lowest bit set when the product is not an integer (round to odd; a
  * fraction's top word of 0 or 1 counts as zero, see above). */
 static inline uint64_t round_to_odd(u128 g, uint64_t cp)
@@ -256,7 +147,7 @@ static inline uint64_t drop_zeros(uint64_t d, int *k)
 
 /* Shortest round-trip digits of a positive finite v = m2 2^(e2 + 2) (m2 < 2^53; below a power of two
  * the lower neighbour is half as far: asym) as an integer and the decimal exponent of its last digit. */
-static inline __attribute__((always_inline)) uint64_t shortest_fast(uint64_t m2, int e2, int asym, int *dexp)
+static inline __attribute__((always_inline)) uint64_t shortest(uint64_t m2, int e2, int asym, int *dexp)
 {
     int q = e2 + 2, k = asym ? (q * 1262611 - 524031) >> 22 : floor_log10_pow2(q);   /* log10 of 3/4 2^q */
     int h = q + ((-k * 1741647) >> 19) + 1;           /* floor(-k log2 10): 1 .. 4 (checked for every q) */
@@ -277,41 +168,6 @@ static inline __attribute__((always_inline)) uint64_t shortest_fast(uint64_t m2,
         return s + win;
     int64_t cmp = (int64_t)(vb - (4 * s + 2));
     return s + (cmp > 0 || (cmp == 0 && (s & 1)));
-}
-
-static int reads_back(const char *text, double v)
-{
-    return strtod(text, NULL) == v;
-}
-
-/* Shortest digits through printf for large normal values (see the file's comment). */
-static uint64_t shortest_printf(double v, int power_of_two, int *dexp)
-{
-    char buf[40];
-    for (int p = 15; p <= 17; p++) {
-        snprintf(buf, sizeof buf, "%.*e", p - 1, v);
-        int ok = reads_back(buf, v);
-        char *e = strchr(buf, 'e');
-        int x = atoi(e + 1);
-        uint64_t d = 0;
-        for (const char *c = buf; c < e; c++)
-            if (*c >= '0' && *c <= '9')
-                d = d * 10 + (uint64_t)(*c - '0');
-        if (!ok && p == 16 && power_of_two && strtod(buf, NULL) < v) {
-            snprintf(buf, sizeof buf, "%llue%d", (unsigned long long)(d + 1), x - 15);
-            ok = reads_back(buf, v);
-            d += 1;
-        }
-        if (ok) {
-            *dexp = x - (p - 1);
-            while (d % 10 == 0) {
-                d /= 10;
-                (*dexp)++;
-            }
-            return d;
-        }
-    }
-    return 0;
 }
 
 static const char DIGIT_PAIRS[] =
@@ -370,46 +226,13 @@ static int write_digits(uint64_t d, char *out)
     return n;
 }
 
-#ifdef CSVFMT_SSE2
-/* 8 digits (values 0 .. 9, the first in lane 0) from 16-bit lanes 4a 4a 4a 4a 4b 4b 4b 4b, a and b < 10^4:
- * two multiplies keeping the high half divide the lanes by 1000, 100, 10, 1 (constants checked on every
- * 4-digit value), and each lane less 10 times its left neighbour is a digit. */
-static inline __m128i digit_lanes(__m128i v)
-{
-    const __m128i div = _mm_setr_epi16(8389, 5243, 3277, -32768, 8389, 5243, 3277, -32768);
-    const __m128i shift = _mm_setr_epi16(128, 2048, -32768, -32768, 128, 2048, -32768, -32768);
-    v = _mm_mulhi_epu16(_mm_mulhi_epu16(v, div), shift);
-    return _mm_sub_epi16(v, _mm_slli_epi64(_mm_mullo_epi16(v, _mm_set1_epi16(10)), 16));
-}
-
-/* x < 10^16 as 16 ASCII digits, the first in byte 0: x = 10^8 u + w, and u, w = 10^4 a + b in two
- * 64-bit lanes at once (a = x 0xd1b71759 >> 45, exact below 10^8), then a and b spread over 16-bit lanes. */
-static inline __m128i digits16(uint64_t x)
-{
-    uint64_t u = x / 100000000;
-    __m128i v = _mm_set_epi64x((long long)(x - u * 100000000), (long long)u);
-    __m128i a = _mm_srli_epi64(_mm_mul_epu32(v, _mm_set1_epi32((int)0xd1b71759)), 45);
-    __m128i b = _mm_sub_epi32(v, _mm_mul_epu32(a, _mm_set1_epi32(10000)));
-    __m128i ab = _mm_slli_epi16(_mm_packs_epi32(_mm_or_si128(a, _mm_slli_epi64(b, 32)), a), 2);
-    ab = _mm_unpacklo_epi16(ab, ab);
-    __m128i lanes = _mm_packus_epi16(digit_lanes(_mm_unpacklo_epi32(ab, ab)), digit_lanes(_mm_unpackhi_epi32(ab, ab)));
-    return _mm_add_epi8(lanes, _mm_set1_epi8('0'));
-}
-
-/* digits16 into two words (the first 8 digits in w[0]). */
-static inline void digits16_words(uint64_t x, uint64_t w[2])
-{
-    _mm_storeu_si128((__m128i *)w, digits16(x));
-}
-#else
-/* Without SSE2 (or with CSVFMT_PORTABLE): the two halves of x < 10^16 by digits8, the first in w[0]. */
+/* The 16 digits of x < 10^16 as two words of 8 (digits8), the first in w[0]. */
 static inline void digits16_words(uint64_t x, uint64_t w[2])
 {
     uint64_t u = x / 100000000;
     w[0] = digits8((uint32_t)u);
     w[1] = digits8((uint32_t)(x - u * 100000000));
 }
-#endif
 
 /* The n <= 17 digits of d at o, with a '.' after the first `point` of them when 0 < point < n;
  * returns the characters written. d is scaled to exactly 17 digits and stored in words: the first
@@ -463,9 +286,8 @@ static int layout(uint64_t d, int n, int decpt, char *out)
     return (int)(o - out);
 }
 
-/* repr(v) into out (at most 25 characters) by the fast route, or by the exact reference route
- * (`exact`, kept to check the fast one against); returns the length. */
-static int repr_by(double v, char *out, int exact)
+/* repr(v) into out (at most 25 characters); returns the length. */
+int csv_repr(double v, char *out)
 {
     uint64_t bits;
     memcpy(&bits, &v, sizeof bits);
@@ -484,24 +306,18 @@ static int repr_by(double v, char *out, int exact)
     }
     uint64_t m = be ? frac | (UINT64_C(1) << 52) : frac;
     int e = (be ? be : 1) - 1075, asym = frac == 0 && be > 1, dexp = 0;
-    uint64_t d = !exact ? shortest_fast(m, e - 2, asym, &dexp)
-               : e < 7 ? shortest(m, e, !(m & 1), asym, &dexp) : shortest_printf(fabs(v), frac == 0, &dexp);
+    uint64_t d = shortest(m, e - 2, asym, &dexp);
     int n = d >= UINT64_C(1000000000000000) ? 16 + (d >= UINT64_C(10000000000000000)) : digit_count(d);
     return (int)(o - out) + layout(d, n, n + dexp, o);
 }
 
-int csv_repr(double v, char *out)
-{
-    return repr_by(v, out, 0);
-}
-
-/* v[0 .. n-1], one repr a line ending in \n, by the fast or the exact route (for the checks of the
- * one against the other and against Python's repr); out must hold n * 26 characters and 64 bytes. */
-long csv_lines(const double *v, long n, int exact, char *out)
+/* v[0 .. n-1], one repr a line ending in \n (for the checks against Python's repr); out must hold
+ * n * 26 characters and 64 bytes. */
+long csv_lines(const double *v, long n, char *out)
 {
     char *o = out;
     for (long i = 0; i < n; i++) {
-        o += repr_by(v[i], o, exact);
+        o += csv_repr(v[i], o);
         *o++ = '\n';
     }
     return (long)(o - out);

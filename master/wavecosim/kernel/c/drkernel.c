@@ -14,6 +14,7 @@
 #include "kernel_internal.h"
 #include "linalg.h"
 #include "dr_options.h"
+#include "abi.h"
 
 /* A thread waiting for the other spins this long, then sleeps on a condition variable: spinning
  * answers within a microsecond when both have a core, sleeping leaves the core to the other
@@ -855,7 +856,7 @@ int dr_run_steps_of(DRKernel *k, DRStep *io, int n0, int count, double *rows, lo
     size_t m = (size_t)ld, first_observed = (3 + 2 * k->n) * m;
     io->stopped = 0;
     for (int s = 0; s < count; s++) {
-        io->t = (double)(n0 + s) * io->dt;
+        io->t = io->t0 + (double)(n0 + s) * io->dt;
         if (k->hook_before && k->hook_before(k->hook_ctx, io, n0 + s)) return s;    /* not the step's time */
         double c0 = io->ledger_on && io->step_deadline_s > 0.0 ? cpu_ns() : 0.0, t0 = clocked(io) ? now_ns() : 0.0;
         double caller = io->deadline_s;
@@ -1097,3 +1098,6 @@ double dr_now_ns(void) { return now_ns(); }
 double *dr_outputs(DRKernel *k) { return k->b; }
 
 double *dr_inputs(DRKernel *k) { return k->a_hat; }
+
+MIRRORED(DRFunctions)
+MIRRORED(DRStep)

@@ -69,6 +69,7 @@ typedef struct {
     double step_deadline_s; /* in (dr_run_steps, ledger): wall-clock budget of a step, redo included; <= 0 = none */
     double round_s;      /* in/out (dr_run_steps, ledger): running time of one evaluation round (all subsystems) */
     double tail_s;       /* in/out (dr_run_steps, ledger): running time a step takes past its inner loop's deadline */
+    double t0;           /* in (dr_run_steps): the start time; step n is at t0 + n dt */
 } DRStep;
 
 typedef struct DRKernel DRKernel;

@@ -10,6 +10,7 @@
  */
 #include "fmi2FunctionTypes.h"
 #include "fmi3FunctionTypes.h"
+#include "abi.h"
 
 typedef struct {
     fmi3Instance instance;
@@ -58,3 +59,5 @@ fmi2Status fmi3shim_doStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean 
     if (status <= fmi3Warning && (s->terminateSimulation || s->earlyReturn)) return fmi2Error;
     return (fmi2Status)status;
 }
+
+MIRRORED(Fmi3Shim)

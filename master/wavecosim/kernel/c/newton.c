@@ -10,6 +10,7 @@
 
 #include "kernel_internal.h"
 #include "newton.h"
+#include "abi.h"
 
 struct NTKernel {
     DRKernel *k;
@@ -237,3 +238,5 @@ void nt_destroy(NTKernel *c) {
     free(c->J);
     free(c);
 }
+
+MIRRORED(NTSettings)

@@ -2,6 +2,7 @@
  * Subsystem.raw_queries): each restores x_i^n, sets the inputs, makes one doStep and reads the
  * outputs, the same FMU calls in the same order as that many Subsystem.raw_query calls. */
 #include "drkernel.h"
+#include "abi.h"
 
 /* Queries q = 0 .. count-1 with inputs[q m ..] into outputs[q m ..]; the first restores x_i^n (from
  * *state) only when dirty. Returns how many were made; on a failed FMU call (status worse than
@@ -32,3 +33,5 @@ int fq_queries(const DRFunctions *fn, fmi2Component comp, fmi2FMUstate *state, c
     }
     return count;
 }
+
+MIRRORED(DRFunctions)

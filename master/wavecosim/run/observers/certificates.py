@@ -1,12 +1,11 @@
 """Sampled certificates before the sampled macro-steps (certificates.Sampling: n % every == 0):
 Condition 1 margins of every frozen map S_i^n on random pairs, and a DR fixed point u* = P b*
 (eq. 18) for the Theorem 1 residual after the step; NaN in their columns at the other steps."""
-import ctypes
 import math
 
 import numpy as np
 
-from ...kernel import blocks
+from ...kernel import blocks, cvalues
 from ...core.certificates import augmented_residual, fne_margins
 from ...kernel.drkernel import LEDGER_LOG
 from ...kernel.linalg import matvec
@@ -88,14 +87,14 @@ class CertificateSampler(Observer):
         B, H_i, the ledger's rounds) and the running figures (min_fne, max_aug, H_prev)."""
         at, k, ints = logs.observed_at, len(self.names), blocks.ints
         b = [at + r for r in readings.rows("B")]
-        fig = (ctypes.c_double * (k + 2))()
-        place = (lambda i: ctypes.cast(ctypes.addressof(fig) + 8 * i, ctypes.POINTER(ctypes.c_double)))
+        fig = cvalues.doubles(k + 2)
+        place = (lambda i: cvalues.element(fig, i))
         call = blocks.SampledBlock(k=k, n=len(logs.a_rows), nb=len(b), every=self.pace.every,
                                    fne=int(bool(self.settings.fne_pairs)), augmented=int(self.augmented),
                                    rounds=logs.ledger_at + LEDGER_LOG.index("rounds"), a=ints(logs.a_rows),
                                    b=ints(b), h=ints([at + r for r in readings.rows("H")]),
                                    min_fne=place(0), max_aug=place(k), H_prev=place(k + 1))
-        return call, ctypes.byref(call), fig
+        return call, cvalues.ref(call), fig
 
     def after_block(self, n0, logs, readings, rows):
         """The kernel's certificates of the block's steps, in one C pass (a redo's log has no iterates:

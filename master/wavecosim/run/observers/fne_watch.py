@@ -11,12 +11,11 @@ is FNE; rho - rho^2 for b = rho a) comes from:
   lambda_min(sym J_S - J_S^T J_S), at the sampled steps only (certificates.Sampling).
 The first failure (margin < -TOL) is reported once, naming the step, the time and the subsystem.
 """
-import ctypes
 import math
 
 import numpy as np
 
-from ...kernel import blocks
+from ...kernel import blocks, cvalues
 from ...core import gamma as gt
 from ...kernel.linalg import matvec
 from ...core.readings import row_dots
@@ -131,7 +130,7 @@ class FneWatch(Observer):
         if self.kernel is not None:
             self.kernel.create()
             self.call = blocks.WatchBlock(k=len(self.names), tol=self.tol,
-                                          min_margin=(ctypes.c_double * len(self.names))())
+                                          min_margin=cvalues.doubles(len(self.names)))
 
     def after_block(self, n0, logs, readings, rows):
         """The kernel's secant margins of each step, in one C pass (record() of every step at once),
@@ -148,7 +147,7 @@ class FneWatch(Observer):
         call.certs, call.ldc, call.out = found.ctypes.data, found.strides[0] // 8, blocks.columns(rows)[0]
         for i, name in enumerate(self.names):
             call.min_margin[i] = self.min_margin[name]
-        if blocks.library().watch_block(ctypes.byref(call)):
+        if blocks.library().watch_block(cvalues.ref(call)):
             self._step_by_step(n0, rows, found, range(call.first, len(rows), call.every))
             return
         self.min_margin = dict(zip(self.names, call.min_margin[:len(self.names)]))

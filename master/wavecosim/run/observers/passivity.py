@@ -4,10 +4,9 @@
 A subsystem whose FMU has no stored-energy output (H) gets no r_i: its columns are the energy
 supplied through its port in the step and cumulated (port_energy_<name>, port_energy_cum_<name>),
 and the summary lists what could not be computed (certificates_unavailable)."""
-import ctypes
 import math
 
-from ...kernel import blocks
+from ...kernel import blocks, cvalues
 from ...core.waves import physical_port_energy, port_energy
 from . import Observer
 
@@ -84,11 +83,11 @@ class Passivity(Observer):
         channels' a_hat, b, e, f, the subsystems' H), the ports' first channels, the running figures."""
         at, k, ints = logs.observed_at, len(self.names), blocks.ints
         rows = {key: ints([at + r for r in readings.rows(key)]) for key in ("B", "E", "F", "H")}
-        prev, fig = (ctypes.c_double * k)(), (ctypes.c_double * (k + 4))()
+        prev, fig = cvalues.doubles(k), cvalues.doubles(k + 4)
         call = blocks.PassBlock(k=k, wave=int(self.wave), dt=self.dt, a=ints(logs.a_rows), b=rows["B"], e=rows["E"],
                                 f=rows["F"], h=rows["H"], prev=prev, fig=fig,
                                 port=ints([*self.scene.offsets, self.scene.n_channels]))
-        return call, ctypes.byref(call), prev, fig
+        return call, cvalues.ref(call), prev, fig
 
     def prepare_block(self, logs, readings):
         self.call = self._block_call(logs, readings)

@@ -212,7 +212,7 @@ def load_ssp(path, ports=None, parameter_set=None, settings=None):
         raise ConfigError(f"{imported.ssd}: couplings: no power bond found; declare which connectors form ports "
                           f"(an OSP-IS model description, the annotation org.wavecosim.port or --ports FILE; "
                           f"README, \"SSP in\")")
-    for key in ("dt", "gamma"):
+    for key in ("dt",):                   # gamma: auto where there is a power bond (config.py)
         if key not in imported.raw:
             raise ConfigError(f"{imported.ssd}: {key}: an SSD has none; give it in the overlay (--ports FILE) "
                               f"or on the command line (--{key})")

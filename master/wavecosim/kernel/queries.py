@@ -1,0 +1,33 @@
+"""Many queries of one frozen port map in one C call (kernel/c/queries.c, the kernel library
+libqueries.so): the FMU calls of as many Subsystem.raw_query calls, made in C over the FMU's own
+function table (wavecosim/core/frozen_port_map.py, Subsystem.raw_queries)."""
+import ctypes
+
+import numpy as np
+
+from .build import helper_library
+from .drkernel import FMI_NAMES, DRFunctions
+
+
+class Queries:
+    """fq_queries over one FMU's function table."""
+
+    def __init__(self, lib, fmu):
+        self.lib, self.fns = lib, DRFunctions(*[fmu.function_pointer(name) for name in FMI_NAMES])
+        self.failed = (ctypes.c_int * 2)()
+
+    def __call__(self, comp, state, in_vr, out_vr, m, t, h, rows, dirty):
+        """Each row of `rows` as a query from x_i^n (held in the handle `state`; restored first only
+        when dirty): (outputs as rows, queries made, the FMU function that failed as an index into
+        drkernel.FUNCTIONS (0: none), its status)."""
+        inputs = np.ascontiguousarray(rows, dtype=float)
+        out, p = np.empty_like(inputs), ctypes.c_void_p
+        done = self.lib.fq_queries(ctypes.byref(self.fns), comp, ctypes.byref(state), in_vr, out_vr, m, t, h,
+                                   p(inputs.ctypes.data), len(inputs), p(out.ctypes.data), int(dirty), self.failed)
+        return out, done, self.failed[0] if done < len(inputs) else 0, self.failed[1]
+
+
+def batch(fmu):
+    """Queries over this FMU's function table, or None without the library (no C compiler)."""
+    lib = helper_library("queries")
+    return lib and Queries(lib, fmu)
