@@ -10,20 +10,22 @@ H^N <= H^0 + tol + (work of sources inside the FMUs), for every budget, scene an
 and no interface solve are needed. K = 0 keeps the ledger by itself (L^n = -|b^{n+1}|^2 / 2).
 
 A step that would lift L above tol is undone (x^n restored) and made again, spending budget
-before accuracy, each stage only when the one before does not fit (I <= the allowance, tol - L):
-1. `iterated`: the inner iteration goes on from where it stopped, to the rest of its budget K (a
-   step that stopped on its tolerance or deadline; within master.deadline_us), and commits anew;
-2. `blended`: the commit moves from a_hat towards an anchor, a query of the step whose supply is
-   known and fits (the last query, or the latest with supply <= 0): along the segment the outputs
-   are interpolated from the two known ones (exact for FMUs affine in their inputs), the supply is a
-   quadratic in the fraction s, and the anchor of the two whose crossing of TARGET * allowance lies
-   nearest a_hat is taken; the commit is checked;
-3. `anchored`: that anchor's own input (its outputs, and so its supply, are known: it fits);
-4. with no anchor (K = 0, or no query fits): `scaled`, the inputs scaled by s in [0, 1) towards
-   zero (matched loads, zero power), s fitted from one probe at s = 0 as in stage 2;
-5. `zero`: zero inputs, which only dissipate, so they always fit (the last resort).
-Under a deadline a stage runs only when the time it needs is left (stage 1: three evaluation
-rounds, stages 2 and 4: two; else the next stage), so a step ends within a round of it.
+before accuracy, each stage only when the one before does not fit (I <= the allowance, tol - L),
+every commit checked (docs/energy.md):
+1. `iterated`: the inner iteration goes on from where it stopped (tolerance or deadline) to the
+   rest of its budget K, and commits anew (Master.remaining_iterations, iterate_on);
+2. `projected`: a_hat moves against the gradient of the step's supply to where a model of it
+   reaches TARGET * allowance (projected; the model's slopes from the secant to the last query);
+3. `blended`: the commit moves from a_hat towards an anchor, a query of the step whose supply is
+   known and fits (Master.anchors: the last query, or the latest with supply <= 0); along the
+   segment the outputs are interpolated from the two known ones, the supply is a quadratic in the
+   fraction s, and the anchor whose crossing lies nearest a_hat is taken (best_anchor);
+4. `anchored`: that anchor's own input (its outputs, and so its supply, are known: it fits);
+5. `scaled`: the inputs scaled by s in [0, 1) towards zero, s fitted from one probe at zero inputs
+   as in stage 3 (what the classical masters, which have no anchors, do first);
+6. `zero`: zero inputs, which only dissipate, so they always fit (the last resort).
+Under a deadline a stage runs only when the rounds it needs are left (stage 1: three evaluation
+rounds; 2, 3 and 5: two; the redo's own rounds counted), so a step ends within about a round of it.
 """
 import math
 import time
@@ -36,7 +38,7 @@ from ..recorder import Labels
 from . import Observer
 
 RTOL = 1e-12            # roundoff allowance per unit of energy through the interface
-TARGET = 0.9            # the scaled step spends this fraction of the remaining budget (docs/scenes.md)
+TARGET = 0.9            # a fitted correction spends this fraction of the remaining budget (docs/energy.md)
 ACTIONS = ("kept", "scaled", "zero", "iterated", "projected", "blended", "anchored")   # codes (drkernel.h)
 KEPT, SCALED, ZERO, ITERATED, PROJECTED, BLENDED, ANCHORED = range(len(ACTIONS))
 SMOOTH = 0.1            # weight of the newest measurement in the running evaluation-round times
