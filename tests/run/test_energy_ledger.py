@@ -267,13 +267,13 @@ def test_step_time_spread_and_bound_by_nearest_rank():
     assert bound["guarded_within"] == pytest.approx(12 / 71) and bound["on_cpu_within"] is None
 
 
-def redo_once(fast, K, fraction, eps=None, steps=20):
-    """Table I with the paper's start, `steps` macro-steps at budget K, then the ledger's redo of the
+def redo_once(fast, K, fraction, eps=None, steps=20, path=TABLE_I):
+    """A scene with the paper's start, `steps` macro-steps at budget K, then the ledger's redo of the
     last one with an allowance `fraction` |I| below its supply I: (the redo's result, b^{n+1}, FMU calls)."""
     import dataclasses
     from wavecosim.core.scene import build_scene
     from wavecosim.masters.dr_fast import FastDRMaster
-    sc = scenario(TABLE_I, "ledger", K, master={"start": "paper"})
+    sc = scenario(path, "ledger", K, master={"start": "paper"})
     scene = build_scene(sc)
     master = FastDRMaster(scene, dataclasses.replace(sc.master, fast=fast, eps=eps))
     try:
@@ -288,15 +288,27 @@ def redo_once(fast, K, fraction, eps=None, steps=20):
         scene.close()
 
 
-@pytest.mark.parametrize("K, fraction, eps, action", [(8, 1e-6, None, "projected"), (3, 1e-6, None, "blended"),
-                                                      (3, 0.5, None, "anchored"), (1, 1e-6, None, "scaled"),
-                                                      (1, 0.1, None, "zero"), (8, 1e-6, 0.5, "iterated")])
-def test_each_stage_of_the_redo_is_the_same_in_the_kernel_and_the_reference(K, fraction, eps, action):
+STAGES = {     # (scene, K, steps, allowance below the supply by fraction |I|, eps): the redo's action
+    "projected": (TABLE_I, 8, 20, 1e-6, None),
+    "blended": (CHAIN, 6, 20, 1.0, None),
+    "anchored": (TABLE_I, 3, 20, 0.5, None),
+    "scaled": (CHAIN, 3, 20, 1.0, None),
+    "zero": (TABLE_I, 1, 20, 0.1, None),
+    "iterated": (TABLE_I, 8, 20, 1e-6, 0.5),
+}
+
+
+@pytest.mark.parametrize("action", STAGES)
+def test_each_stage_of_the_redo_is_the_same_in_the_kernel_and_the_reference(action):
     """One redo per stage, forced by the allowance it is given: the kernel's (dr_ledger_redo) gives the
-    Python reference's action, scale, supply, rounds, committed inputs, b^{n+1} and FMU calls, bit for bit."""
-    ref, fast = redo_once("false", K, fraction, eps), redo_once("true", K, fraction, eps)
+    Python reference's action, scale, supply, rounds, committed inputs, b^{n+1} and FMU calls, bit for
+    bit; the blend and the scaling land strictly inside their segments."""
+    path, K, steps, fraction, eps = STAGES[action]
+    ref, fast = (redo_once(f, K, fraction, eps, steps, path) for f in ("false", "true"))
     assert fast[3] and not ref[3]
     assert energy_ledger.ACTIONS[ref[0][3]] == action
+    if action in ("blended", "scaled"):
+        assert 0.0 < ref[0][0] < 1.0
     assert repr(ref[0][:5]) == repr(fast[0][:5]) and repr(list(ref[0][5])) == repr(list(fast[0][5]))
     assert repr(ref[1]) == repr(fast[1]) and ref[2] == fast[2]
 
