@@ -180,6 +180,9 @@ def test_options_auto_chooses_from_the_scene_and_the_kernel_is_the_reference(tab
     assert 0.0 < s["relaxation"] < 2.0 and "relaxation_rates" in s
     manual = run(table_i.with_master(K=4), certificates=False).summary
     assert manual["options"] == "manual" and manual["anderson"] == 0 and manual["gamma_mode"] == "fixed"
+    from wavecosim.masters.dr_options import ANDERSON_MAX, auto_settings
+    auto = dataclasses.replace(table_i.master, options="auto")
+    assert [auto_settings(auto, n).anderson for n in (1, 5, 16, 40)] == [1, 5, 16, ANDERSON_MAX]
 
 
 def test_relaxation_auto_picks_a_faster_lambda(table_i):
