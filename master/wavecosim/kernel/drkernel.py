@@ -109,6 +109,8 @@ def load_library():
         lib.dr_run_steps.argtypes = [p, ctypes.POINTER(DRStep), i, i, p, ctypes.c_long, ctypes.c_double]
         lib.dr_set_options.argtypes = [p, ctypes.c_double, i, i]
         lib.dr_set_anderson_modes.argtypes = [p, i, i]
+        lib.dr_set_anchors.argtypes = [p, i]
+        lib.dr_set_anchors.restype = None
         lib.dr_set_previous.argtypes = [p, d]
         lib.dr_set_previous.restype = None
         lib.dr_ledger_redo.argtypes = [p, ctypes.POINTER(DRStep), ctypes.c_double, ctypes.c_double, ctypes.c_double,
@@ -311,6 +313,10 @@ class Kernel:
         if (self.lib.dr_set_options(self._handle, float(relaxation), int(anderson), int(start))
                 or self.lib.dr_set_anderson_modes(self._handle, int(bool(memory)), int(bool(extrapolate)))):
             raise FmuError(f"the DR kernel refused its options (relaxation {relaxation}, anderson {anderson})")
+
+    def set_anchors(self, on):
+        """Keep the energy ledger's anchors in the inner loop (a run with the ledger needs them)."""
+        self.lib.dr_set_anchors(self._handle, int(bool(on)))
 
     def set_previous(self, a_prev):
         """a^{n-1} for the start of the next macro-step after an undo (None: the step undone was the first)."""

@@ -52,6 +52,7 @@ class FastDRMaster(DRMaster):
             return
         self.kernel = Kernel(scene, self.P, self.J_L)
         self.kernel.configure(self.dt, self.K, self.eps, self.deadline_s)
+        self.kernel.set_anchors((settings.energy_guard or self.default_guard) == "ledger")
         self._send_options()
         self.fast, self.fast_note = True, "C kernel"
         self.thread_mode = str(settings.threads)

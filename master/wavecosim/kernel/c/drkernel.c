@@ -62,6 +62,7 @@ struct DRKernel {
     double *u_last, *safe;         /* the energy ledger's anchors: the last query (u_last, b_hat), the latest safe one */
     double last_supply, safe_supply;
     int last_it, safe_it;          /* their iterations (-1: none this step) */
+    int anchors_on;                /* keep them (a run with the ledger; dr_set_anchors) */
     double *trace;                 /* the caller's, or NULL */
     double *redo;                  /* the ledger's redo: a, b^{n+1}, the probe's b, zeros (4 n) */
     double *obs;                   /* one subsystem's observed values, read before they are logged */
@@ -363,6 +364,8 @@ int dr_set_options(DRKernel *k, double relaxation, int anderson, int start) {
     return k->opt ? 0 : -1;
 }
 
+void dr_set_anchors(DRKernel *k, int on) { k->anchors_on = on; }
+
 void dr_set_previous(DRKernel *k, const double *a_prev) {
     if (!k->opt) return;
     k->opt->have_prev = a_prev != NULL;
@@ -419,7 +422,7 @@ static int iterate(DRKernel *k, DRStep *io, int it, int K, int use_eps, double d
             memcpy(k->trace + 2 * n * (size_t)it, u, n * sizeof *u);
             memcpy(k->trace + 2 * n * (size_t)it + n, k->b_hat, n * sizeof *u);
         }
-        add_anchor(k, u, it);
+        if (k->anchors_on) add_anchor(k, u, it);
         for (size_t j = 0; j < n; j++) k->z[j] = 2.0 * k->b_hat[j] - u[j];
         csr_matvec(k->J_L, k->z, k->w, n);                           /* line 11, eq. (17): w = J_L(2b - u) */
         for (size_t j = 0; j < n; j++) u_next[j] = u[j] + k->w[j] - k->b_hat[j]; /* line 12, eq. (17) update */

@@ -113,6 +113,11 @@ enum { DR_START_PAPER = 0, DR_START_EXTRAPOLATED = 1, DR_START_PREVIOUS = 2 };
  * and a^{n-1}; (1, 0, DR_START_PAPER) is the paper's Algorithm 1. Returns 0, or -1 on bad values or
  * no memory. */
 int dr_set_options(DRKernel *k, double relaxation, int anderson, int start);
+/* Keep the energy ledger's anchors (each query's supply, the latest with supply <= 0) in the inner
+ * loop: on in a run with the ledger, whose redo (dr_ledger_redo, dr_run_steps) needs them; off (the
+ * default) saves that arithmetic. */
+void dr_set_anchors(DRKernel *k, int on);
+
 /* After a macro-step was undone: a^{n-1} again (what the caller's a_hat holds when the step begins), or
  * NULL when the step undone was the first (no a^{n-1}: the start is then P b^n). */
 void dr_set_previous(DRKernel *k, const double *a_prev);
