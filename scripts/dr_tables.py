@@ -2,12 +2,13 @@
 
     .venv/bin/python scripts/dr_tables.py table1            # Table I: the paper (guard off) beside the default
     .venv/bin/python scripts/dr_tables.py pairs             # dcmotor and fmi3_damper, K = 0..10 (third-party FMUs)
-    .venv/bin/python scripts/dr_tables.py targets [--scenes chain,star] [--options all] [--out out/targets]
+    .venv/bin/python scripts/dr_tables.py targets [--scenes chain,star,dcmotor@0.1] [--options all] [--out out/targets]
 
 Each command replaces the text between `<!-- table:NAME -->` and `<!-- /table:NAME -->` in the pages
 (NAME: table1, pairs, targets) and prints it. `targets` runs `wavecosim compare` per scene into
-OUT/SCENE (reusing a compare.json already there) and sets, per target max error, the best classical
-master that evaluates its subsystems side by side (any energy) against the best energy-safe DR run.
+OUT/SCENE (reusing a compare.json already there; SCENE@T shortens the scene to T seconds) and sets,
+per target max error, the best classical master that evaluates its subsystems side by side (any
+energy) against the best energy-safe DR run.
 """
 import argparse
 import json
@@ -106,11 +107,13 @@ def targets(scenes, options, out, Ks=None):
     lines = ["| scene | max error ≤ | best parallel classical (any energy): doSteps/step | best energy-safe DR: "
              "doSteps/step | DR / classical | critical path, DR / gauss-seidel-iter |", "|---|---|---|---|---|---|"]
     for scene in scenes:
+        name, _, T = scene.partition("@")
         folder = Path(out) / scene
         if not (folder / "compare.json").exists():
-            sc = wc.load(ROOT / "configs" / f"{scene}.yaml")
+            sc = wc.load(ROOT / "configs" / f"{name}.yaml", **({"T": float(T)} if T else {}))
             compare(sc, folder, list(MASTERS), Ks, certificates=False, options=parse_options(options))
-        lines += target_rows(scene, json.loads((folder / "compare.json").read_text()))
+        label = f"{name} (T = {T} s)" if T else name
+        lines += target_rows(label, json.loads((folder / "compare.json").read_text()))
     return "\n".join(lines) + "\n"
 
 
