@@ -1,4 +1,4 @@
-"""The DR master's named options (master.relaxation, master.anderson, master.warm_start, gamma: fastest).
+"""The DR master's named options (master.relaxation, master.anderson, master.start, gamma: fastest).
 
 Claims: each option gives the same numbers to the last bit in the C kernel and in the Python
 reference, over whole runs (blocks of macro-steps included) on Table I and the stiff scene; relaxed
@@ -31,7 +31,8 @@ from test_dr import frozen_benchmark  # noqa: F401  (Table I frozen after 40 ste
 
 STIFF = ROOT / "configs" / "two_oscillators_stiff.yaml"
 OPTIONS = [dict(relaxation=1.5), dict(relaxation=0.6), dict(anderson=3), dict(anderson=1),
-           dict(warm_start=True), dict(relaxation=1.3, anderson=2, warm_start=True)]
+           dict(start="extrapolated"), dict(relaxation=1.3, anderson=2, start="extrapolated"), dict(start="previous"),
+           dict(start="paper")]
 
 
 @pytest.fixture(scope="module")
@@ -62,7 +63,7 @@ def test_kernel_bit_identical_to_reference_table_i(table_i, options):
     assert ref.summary["relaxation"] == options.get("relaxation", 1.0)
 
 
-@pytest.mark.parametrize("options", [dict(anderson=4), dict(relaxation=1.8, warm_start=True)])
+@pytest.mark.parametrize("options", [dict(anderson=4), dict(relaxation=1.8, start="extrapolated")])
 def test_kernel_bit_identical_to_reference_stiff(stiff, options):
     same_run(stiff.with_changes(gamma="auto"), K=12, **options)
 
@@ -74,9 +75,11 @@ def test_tolerance_exit_with_anderson_bit_identical(table_i):
 
 def test_options_change_the_numbers(table_i):
     """Each option really acts (the bit-identity above would also hold for a no-op)."""
-    plain = run(table_i.with_master(K=8), certificates=False).outputs
+    plain = run(table_i.with_master(K=8, start="paper"), certificates=False).outputs
     for options in OPTIONS:
-        assert not np.array_equal(run(table_i.with_master(K=8, **options), certificates=False).outputs, plain)
+        if options != dict(start="paper"):
+            changed = run(table_i.with_master(K=8, **{"start": "paper", **options}), certificates=False).outputs
+            assert not np.array_equal(changed, plain), options
 
 
 def test_anderson_reaches_roundoff_with_a_small_budget(table_i):
@@ -134,8 +137,8 @@ def test_anderson_on_a_linear_map_converges_at_once():
     assert np.abs(np.array(fast.a_hat) - exact).max() < 1e-12 < np.abs(np.array(plain.a_hat) - exact).max()
 
 
-def test_warm_start_extrapolates_the_committed_wave(table_i):
-    sc = table_i.with_master(K=3, warm_start=True, fast="false")
+def test_extrapolated_start_extrapolates_the_committed_wave(table_i):
+    sc = table_i.with_master(K=3, start="extrapolated", fast="false")
     scene = build_scene(sc)
     try:
         master = DRMaster(scene, sc.master)
@@ -147,6 +150,39 @@ def test_warm_start_extrapolates_the_committed_wave(table_i):
         assert log1.u0 == matvec(master.P, [2.0 * x - y for x, y in zip(b1, b0)])
     finally:
         scene.close()
+
+
+def test_previous_start_is_the_incident_wave_committed_the_step_before(table_i):
+    """master.start: previous: u^{n,0} = a^{n-1} (the first step: the paper's P b^n); auto is previous
+    under the ledger and the paper's start with the guard off."""
+    sc = table_i.with_master(K=3, start="previous", fast="false")
+    scene = build_scene(sc)
+    try:
+        master = DRMaster(scene, sc.master)
+        log0 = master.step(0, 0.0)
+        assert log0.u0 == matvec(master.P, [0.0] * scene.n_channels)
+        log1 = master.step(1, sc.dt)
+        assert log1.u0 == log0.a_hat and log1.u0 != matvec(master.P, master.committed_outputs)
+    finally:
+        scene.close()
+    for guard, start in (("ledger", "previous"), ("off", "paper"), ("monolithic", "previous")):
+        summary = run(table_i.with_master(K=1, energy_guard=guard), certificates=False, reference=None).summary
+        assert summary["start"] == start, guard
+
+
+def test_options_auto_chooses_from_the_scene_and_the_kernel_is_the_reference(table_i):
+    """options: auto: gamma from the probe, lambda from the linearized operator, an Anderson window of one
+    difference per channel with memory and extrapolation, reported; kernel and reference bit for bit."""
+    ref = same_run(table_i, K=4, options="auto")
+    s = ref.summary
+    assert s["options"] == "auto" and s["gamma_mode"] == "auto" and s["gamma_guaranteed"]
+    assert s["anderson"] == 2 and s["anderson_memory"] and s["anderson_extrapolate"]
+    assert 0.0 < s["relaxation"] < 2.0 and "relaxation_rates" in s
+    manual = run(table_i.with_master(K=4), certificates=False).summary
+    assert manual["options"] == "manual" and manual["anderson"] == 0 and manual["gamma_mode"] == "fixed"
+    from wavecosim.masters.dr_options import ANDERSON_MAX, auto_settings
+    auto = dataclasses.replace(table_i.master, options="auto")
+    assert [auto_settings(auto, n).anderson for n in (1, 5, 16, 40)] == [1, 5, 16, ANDERSON_MAX]
 
 
 def test_relaxation_auto_picks_a_faster_lambda(table_i):
@@ -171,12 +207,15 @@ def test_gamma_fastest_within_the_fne_bounds_and_faster_than_auto(stiff):
 
 def test_dr_options_from_yaml_and_set(table_i):
     raw = load_raw(ROOT / "configs" / "two_oscillators.yaml")
-    for option in ("master.relaxation=auto", "master.anderson=3", "master.warm_start=true"):
+    for option in ("master.relaxation=auto", "master.anderson=3", "master.start=previous"):
         key, values = parse_set(option)
         sc = parse_scenario(apply_overrides(raw, [(key, values[0])]))
         assert getattr(sc.master, key.split(".")[1]) == values[0]
+    old = parse_scenario(apply_overrides(raw, [("master.warm_start", True)]))      # old files
+    assert old.master.start == "extrapolated"
     for key, value, says in (("relaxation", 2.0, "(0, 2)"), ("relaxation", "fast", "number"),
-                             ("anderson", 17, "at most 16"), ("anderson", -1, ">= 0"), ("warm_start", 1, "true or false")):
+                             ("anderson", 17, "at most 16"), ("anderson", -1, ">= 0"), ("warm_start", 1, "true or false"),
+                             ("start", "warm", "one of auto, paper, extrapolated, previous")):
         with pytest.raises(ConfigError, match=f"master.{key}.*{says}" if says[0] != "(" else f"master.{key}"):
             parse_scenario(apply_overrides(raw, [(f"master.{key}", value)]))
 
@@ -194,7 +233,7 @@ def test_compare_with_dr_options_finds_the_cheapest_budget(table_i, tmp_path):
     best = cheapest(rows, (1e-6,))["1e-06"]
     for name, entry in best.items():
         reached = [r for r in rows if (r["master"] + (":" + r["option"] if r["option"] else "")) == name
-                   and r["max_error"] <= 1e-6]
+                   and r["max_error"] <= 1e-6 and r["energy_safe"] == "yes"]
         assert entry["doSteps_per_step"] == min(r["doSteps_per_step"] for r in reached)
     assert "dr:anderson" in best and "dr" not in best          # plain DR at K = 5 stays above 1e-6
     paths = compare_plots(rows, results, reference, tmp_path)

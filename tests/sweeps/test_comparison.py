@@ -98,3 +98,31 @@ def test_cli_compare_rejects_bad_options_in_one_line(tmp_path, capsys, args, wor
     assert exc.value.code == 2
     err = capsys.readouterr().err.strip()
     assert words in err and len(err.splitlines()) == 1
+
+
+def test_energy_safe_is_the_interface_ledger_and_H_within_roundoff(tmp_path):
+    """IQN-ILS at K = 2 on the stiff scene ends at 946 H(0): under the old filter (H below 1000 H(0))
+    it passed as not diverged; the interface supplied net energy, so it is not energy-safe and
+    `cheapest` skips it (it is kept in cheapest_any_energy). DR with its ledger is safe."""
+    from wavecosim.sweeps.comparison import cheapest
+    ref, results, rows = compare(scenario(STIFF, 10.0), tmp_path, masters=["iqn-ils", "dr"], Ks=[2],
+                                 certificates=False)
+    iqn, dr = rows
+    assert iqn["diverged"] == "no" and 100 < iqn["H_growth"] < 1e3
+    assert iqn["energy_safe"] == "no" and iqn["ledger_max"] > 1e3 * iqn["energy_allowance"]
+    assert dr["energy_safe"] == "yes" and dr["ledger_max"] <= dr["energy_allowance"] and dr["H_growth"] <= 1.0
+    loose = {**iqn, "max_error": 0.5 * dr["max_error"]}                  # were it accurate, still not picked
+    assert "iqn-ils" not in cheapest([loose, dr], (dr["max_error"],))[f"{dr['max_error']:g}"]
+    assert "iqn-ils" in cheapest([loose, dr], (dr["max_error"],), safe=False)[f"{dr['max_error']:g}"]
+    saved = json.loads((tmp_path / "compare.json").read_text())
+    assert set(saved) >= {"cheapest", "cheapest_any_energy"}
+
+
+def test_critical_path_counts_a_sequential_masters_calls_whole():
+    from wavecosim.sweeps.comparison import compare_row
+    import wavecosim as wc
+    sc = scenario(ROOT / "configs" / "chain.yaml", 0.2)
+    gs, jac = (compare_row(wc.simulate(sc, master=m, K=2, certificates=False), 2, subsystems=8)
+               for m in ("gauss-seidel-iter", "jacobi-iter"))
+    assert gs["critical_path_doSteps"] == gs["doSteps_per_step"] == 24.0
+    assert jac["critical_path_doSteps"] == jac["doSteps_per_step"] / 8 == 3.0

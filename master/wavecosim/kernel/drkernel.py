@@ -121,7 +121,12 @@ def load_library():
         lib.dr_run_steps.argtypes = [p, ctypes.POINTER(DRStep), i, i, p, ctypes.c_long, ctypes.c_double]
         lib.dr_set_options.argtypes = [p, ctypes.c_double, i, i]
         lib.dr_set_anderson_modes.argtypes = [p, i, i]
-        lib.dr_ledger_redo.argtypes = [p, ctypes.POINTER(DRStep), ctypes.c_double, ctypes.c_double, i, d]
+        lib.dr_set_anchors.argtypes = [p, i]
+        lib.dr_set_anchors.restype = None
+        lib.dr_set_previous.argtypes = [p, d]
+        lib.dr_set_previous.restype = None
+        lib.dr_ledger_redo.argtypes = [p, ctypes.POINTER(DRStep), ctypes.c_double, ctypes.c_double, ctypes.c_double,
+                                       ctypes.c_double, d]
         _lib = lib
     return _lib
 
@@ -369,12 +374,20 @@ class Kernel:
         """The log's first `steps` columns as one BlockLog (a call and the calls it went on after)."""
         return BlockLog(self.log[:, :steps], self.n, stopped)
 
-    def set_options(self, relaxation, anderson, warm_start, memory=False, extrapolate=False):
-        """The DR master's named options (wavecosim/masters/dr_options.py); forgets b^{n-1} and the
-        Anderson differences."""
-        if (self.lib.dr_set_options(self._handle, float(relaxation), int(anderson), int(bool(warm_start)))
+    def set_options(self, relaxation, anderson, start, memory=False, extrapolate=False):
+        """The DR master's named options (wavecosim/masters/dr_options.py; start: an index of STARTS);
+        forgets b^{n-1}, a^{n-1} and the Anderson differences."""
+        if (self.lib.dr_set_options(self._handle, float(relaxation), int(anderson), int(start))
                 or self.lib.dr_set_anderson_modes(self._handle, int(bool(memory)), int(bool(extrapolate)))):
             raise FmuError(f"the DR kernel refused its options (relaxation {relaxation}, anderson {anderson})")
+
+    def set_anchors(self, on):
+        """Keep the energy ledger's anchors in the inner loop (a run with the ledger needs them)."""
+        self.lib.dr_set_anchors(self._handle, int(bool(on)))
+
+    def set_previous(self, a_prev):
+        """a^{n-1} for the start of the next macro-step after an undo (None: the step undone was the first)."""
+        self.lib.dr_set_previous(self._handle, None if a_prev is None else (ctypes.c_double * self.n)(*a_prev))
 
     def set_maps(self, P, J_L):
         """P and J_L (linalg.Sparse, or dense rows) for the next macro-steps, copied by the kernel."""
@@ -415,11 +428,12 @@ class Kernel:
             raise self.failure(n, t)
         return io
 
-    def redo(self, supplied, budget, fitted):
-        """The energy ledger's redo of the step macro_step just made (drkernel.h, dr_ledger_redo):
-        (s, supply, traffic, action, rounds); b and a_hat become the redo's."""
+    def redo(self, supplied, budget, left_s, round_s):
+        """The energy ledger's redo of the step macro_step just made (drkernel.h, dr_ledger_redo), with
+        left_s seconds to the step's deadline (inf: none): (s, supply, traffic, action, rounds); b and
+        a_hat become the redo's."""
         out = (ctypes.c_double * 5)()
-        if self.lib.dr_ledger_redo(self._handle, self._io, supplied, budget, int(fitted), out):
+        if self.lib.dr_ledger_redo(self._handle, self._io, supplied, budget, left_s, round_s, out):
             raise self.failure(*self.at)
         return out[0], out[1], out[2], int(out[3]), int(out[4])
 

@@ -117,10 +117,21 @@ class Master:
         """After undo_step: the outputs of macro-step n from x^n with `inputs` (stacked); state discarded."""
         return self.scene.S(inputs)
 
-    def redo_in_kernel(self, supplied, budget, fitted):
-        """The energy ledger's redo of the step just made, done in C: (s, supply, traffic, action,
-        rounds); None where there is no kernel (the ledger then redoes it through the methods above)."""
+    def redo_in_kernel(self, supplied, budget, left_s, round_s):
+        """The energy ledger's redo of the step just made, done in C with left_s seconds to its
+        deadline and round_s per evaluation round: (s, supply, traffic, action, rounds); None where
+        there is no kernel (the ledger then redoes it through the methods above)."""
         return None
+
+    def anchors(self):
+        """Inputs of the step just made whose outputs from x^n are known, as (inputs, outputs, supply),
+        that the energy ledger may commit instead (DR: its queries); none by default."""
+        return []
+
+    def remaining_iterations(self, log):
+        """Inner iterations the step's budget has left after it stopped, that the energy ledger may
+        spend (iterate_on) before it changes the inputs; none by default."""
+        return 0
 
     def kernel_certificates(self, floor):
         """The sampled certificates computed inside this master's blocks of steps (certs_path), or

@@ -21,6 +21,7 @@ from ..kernel.newton import NewtonKernel
 from .base import StepLog
 from .dr import DRMaster
 from .threads import ThreadPlanner
+from .dr_options import STARTS
 
 BLOCK_SECONDS = 0.25      # run_steps makes about this much work at most, so Ctrl-C and progress stay prompt
 
@@ -46,6 +47,7 @@ class FastDRMaster(DRMaster):
             return
         self.kernel = Kernel(scene, self.P, self.J_L)
         self.kernel.configure(self.dt, self.K, self.eps, self.deadline_s)
+        self.kernel.set_anchors((settings.energy_guard or self.default_guard) == "ledger")
         self._send_options()
         self.fast, self.fast_note = True, "C kernel"
         self.planner = ThreadPlanner(self.kernel, settings.threads, len(self.subsystems))
@@ -56,7 +58,8 @@ class FastDRMaster(DRMaster):
     def _send_options(self):
         """The named options to the kernel (it forgets b^{n-1} and the Anderson differences)."""
         s = self.settings
-        self.kernel.set_options(self.relaxation, s.anderson, self.warm_start, s.anderson_memory, s.anderson_extrapolate)
+        self.kernel.set_options(self.relaxation, s.anderson, STARTS.index(self.start), s.anderson_memory,
+                                s.anderson_extrapolate)
 
     @staticmethod
     def _kernel_refusal(scene, mode):
@@ -67,6 +70,18 @@ class FastDRMaster(DRMaster):
         super()._set_b(b)
         if self.kernel is not None:
             self.kernel.b[:] = [float(x) for x in b]
+
+    def commit(self, a_hat):
+        """A commit made from Python (a guard's redo): the kernel's a_hat, a^{n-1} of its next start, too."""
+        super().commit(a_hat)
+        if self.kernel is not None:
+            self.kernel.a_hat[:] = [float(x) for x in a_hat]
+
+    def undo_step(self):
+        """x^n, b^n and a^{n-1} back (the kernel's start too)."""
+        super().undo_step()
+        if self.kernel is not None:
+            self.kernel.set_previous(self._a_before)
 
     def _compile(self):
         super()._compile()
@@ -124,6 +139,7 @@ class FastDRMaster(DRMaster):
         n_ch = kernel.n
         out = kernel.results[:]                  # b^{n+1}, a, u^0, u^K
         self._b_step_start, self._b = self._b, out[:n_ch]
+        self._a_step_start, self._a_before = self._a_before, out[n_ch:2 * n_ch]
         if self._trace is not None:
             self._trace = kernel.recorded(k)
         u0, uK = (None, None) if redone else (out[2 * n_ch:3 * n_ch], out[3 * n_ch:])   # a redo's log has none
@@ -142,15 +158,16 @@ class FastDRMaster(DRMaster):
             raise error
         return self.kernel.io, int(self.guarded.ledger["rounds"][0])
 
-    def redo_in_kernel(self, supplied, budget, fitted):
+    def redo_in_kernel(self, supplied, budget, left_s, round_s):
         """The energy ledger's redo of the step just made, by the kernel (fast_path.Kernel.redo); its
-        rounds are booked on the Subsystems and b^{n+1} becomes the redo's."""
+        rounds are booked on the Subsystems and b^{n+1} becomes the redo's. Returns (s, supply,
+        traffic, action, rounds, inputs committed)."""
         if self.kernel is None:
             return None
-        done = self.kernel.redo(supplied, budget, fitted)
-        self._b = self.kernel.b[:]
+        done = self.kernel.redo(supplied, budget, left_s, round_s)
+        self._b, self._a_before = self.kernel.b[:], self.kernel.a_hat[:]
         self._note_kernel_steps(self.subsystems[0].step_index, self.subsystems[0].t, 0, 0, done[4])
-        return done
+        return (*done, self.kernel.a_hat[:])
 
     keeps_ledger = True
 
@@ -245,6 +262,8 @@ class FastDRMaster(DRMaster):
         self._note_kernel_steps(last, self.t0 + last * self.dt, iterations, done, redone)
         self._b_step_start = log.b[done - 2].tolist() if done > 1 else self._b
         self._b = self.kernel.b[:]
+        self._a_step_start = log.a_hat[done - 2].tolist() if done > 1 else self._a_before
+        self._a_before = self.kernel.a_hat[:]
         if self._trace is not None:
             self._trace = self.kernel.recorded(int(log.iterations[-1]))
 

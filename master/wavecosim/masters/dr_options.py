@@ -1,5 +1,5 @@
 """The named options of the DR master (`master.relaxation`, `master.anderson`, `master.anderson_memory`,
-`master.anderson_extrapolate`, `master.warm_start`),
+`master.anderson_extrapolate`, `master.start`),
 written once in plain Python in the operation order that kernel/c/dr_options.h mirrors, so the
 reference and the C kernel stay bit-identical.
 
@@ -17,9 +17,20 @@ reference and the C kernel stay bit-identical.
   with the weights of the accelerated iterate (exact on an affine map once the differences span it,
   one query before that iterate is queried), as the classical masters commit their last update; it
   is no response of the frozen maps, so like Anderson itself it rests on the ledger guard.
-- warm start: u^{n,0} = P (2 b^n - b^{n-1}) (the committed wave extrapolated linearly) instead
-  of the paper's P b^n (eq. 19).
+- options: `auto` sets the others from the scene instead of from constants: gamma per subsystem
+  from a probe of the port impedances at the start (`gamma: auto`, within each FNE bound), the
+  relaxation lambda with the fastest predicted contraction at those gammas (`relaxation: auto`), and
+  an Anderson window as wide as the interface (one difference per channel, at most ANDERSON_MAX),
+  kept across macro-steps and extrapolating b^* (auto_settings); what was chosen is in the summary.
+- start (u^{n,0}, eq. 19): `paper` P b^n; `previous` the incident wave committed at the previous
+  macro-step, a^{n-1} (the previous step's estimate of its fixed point, held over the step as a
+  zero-order hold); `extrapolated` P (2 b^n - b^{n-1}); `auto` is `previous` unless the energy guard
+  is off (then Algorithm 1 runs as printed). The start changes only u^{n,0}: the iterates stay Fejer
+  monotone from any start, so Theorem 1 keeps holding step by step. The first step, and the step
+  after a change of gamma, start from P b^n.
 """
+from dataclasses import replace
+
 from ..kernel.linalg import dot, matvec
 
 ANDERSON_SAFEGUARD = 0.9     # an accelerated iterate must cut the fixed-point residual at least this much
@@ -34,11 +45,40 @@ def relaxed_update(u, w, b_hat, lam):
     return [ui + lam * (wi - bh) for ui, wi, bh in zip(u, w, b_hat)]
 
 
-def warm_start(P, b_n, b_prev):
-    """u^{n,0} = P (2 b^n - b^{n-1}); without b^{n-1} (first step, after a re-tune) the paper's P b^n."""
-    if b_prev is None:
-        return matvec(P, b_n)
-    return matvec(P, [2.0 * b - bp for b, bp in zip(b_n, b_prev)])
+STARTS = ("paper", "extrapolated", "previous")     # master.start (index: the C kernel's code), and "auto"
+OPTION_MODES = ("manual", "auto")                  # master.options
+
+
+def auto_settings(settings, channels):
+    """The master settings `options: auto` runs with: relaxation auto, an Anderson window of one
+    difference per interface channel (an affine frozen map is then solved once the differences span
+    the channels), memory and extrapolation on; gamma auto is the runner's (auto_gamma)."""
+    if settings.options != "auto":
+        return settings
+    return replace(settings, relaxation="auto", anderson=min(channels, ANDERSON_MAX), anderson_memory=True,
+                   anderson_extrapolate=True)
+
+
+def auto_gamma(gamma, settings):
+    """The scenario's gamma as run: `auto` under `options: auto` unless the scenario names a mode."""
+    return "auto" if settings.options == "auto" and not isinstance(gamma, str) else gamma
+
+
+def resolve_start(start, energy_guard):
+    """master.start as run: `auto` is `previous`, or `paper` when the energy guard is off."""
+    if start != "auto":
+        return start
+    return "paper" if energy_guard == "off" else "previous"
+
+
+def start_point(start, P, b_n, b_prev, a_prev):
+    """u^{n,0}: P b^n (`paper`, and every start without its history: first step, after a re-tune),
+    P (2 b^n - b^{n-1}) (`extrapolated`) or a^{n-1} (`previous`)."""
+    if start == "extrapolated" and b_prev is not None:
+        return matvec(P, [2.0 * b - bp for b, bp in zip(b_n, b_prev)])
+    if start == "previous" and a_prev is not None:
+        return list(a_prev)
+    return matvec(P, b_n)
 
 
 def solve(A, r):

@@ -25,6 +25,7 @@ from ..core.gamma import initial_gammas
 from ..core.scene import coupling_structure, open_subsystems
 from ..errors import ConfigError, WavecosimError
 from ..masters.dr import algorithm1
+from ..masters.dr_options import resolve_start
 from .runner import grid_clock
 
 ENGINES = ("shm", "dask")
@@ -303,9 +304,9 @@ def _check(scenario):
     m = scenario.master
     if m.algorithm != "dr":
         raise ConfigError(f"{scenario.source}: master.algorithm: worker processes run dr only")
-    if (m.relaxation, m.anderson, m.warm_start, m.deadline_us) != (1.0, 0, False, None):
+    if (m.relaxation, m.anderson, resolve_start(m.start, m.energy_guard), m.deadline_us) != (1.0, 0, "paper", None):
         raise ConfigError(f"{scenario.source}: master: worker processes run Algorithm 1 as the paper gives it "
-                          f"(no relaxation, anderson, warm_start or deadline_us yet)")
+                          f"(no relaxation, anderson, start other than paper, or deadline_us yet)")
 
 
 def groups_of(scenario, workers):

@@ -107,7 +107,7 @@ SUMMARY = {
     "anderson": ("DR: the Anderson window", "1"),
     "anderson_memory": ("DR: whether the Anderson differences are kept across steps", "boolean"),
     "anderson_extrapolate": ("DR: whether b* is the Anderson combination of the responses", "boolean"),
-    "warm_start": ("DR: whether the inner loop starts from the extrapolated wave", "boolean"),
+    "start": ("DR: the start of the inner loop as run (`paper`, `extrapolated`, `previous`)", "text"),
     # ports and signals (core/scene.py)
     "port_signs": ("per physical port, `sign` per channel (power into the FMU = sign·e·f), whether it was "
                    "`probed`, and the `probe` (`step`, `slope`, `check_step`, `check_slope`, `steps_tried`)",

@@ -32,6 +32,7 @@ from ..masters import MASTERS
 from ..masters.base import REASONS, WaveMaster, require_wave_tuning
 from .bounds import Bounds
 from . import containment
+from ..masters.dr_options import auto_gamma
 from .metadata import run_metadata
 from .observers import Observer
 from ..core.certificates import sampling
@@ -195,13 +196,14 @@ def open_parts(scenario, warn, share=None):
     for note in scene.notes:
         warn(note)
     master = None
+    gamma = auto_gamma(scenario.gamma, scenario.master) if cls.iterates else scenario.gamma
     try:
         tuner = None
-        if cls.wave and isinstance(scenario.gamma, str):
-            tuner = GammaTuner(scene, scenario.gamma, warn if cls.iterates else None)
+        if cls.wave and isinstance(gamma, str):
+            tuner = GammaTuner(scene, gamma, warn if cls.iterates else None)
             tuner.initial([0.0] * scene.n_channels)                # sets the scene's per-subsystem gammas
         master = cls(scene, scenario.master)
-        require_wave_tuning(master, scenario.gamma, scenario.source)
+        require_wave_tuning(master, gamma, scenario.source)
         return scene, master, tuner
     except BaseException:
         if master is not None:

@@ -16,7 +16,7 @@ from ..core.gamma import MODES as GAMMA_MODES
 from ..core.interconnection import COUPLINGS, TAKES_RATIO
 from ..core.quirks import KEYS as QUIRK_KEYS
 from ..masters import ALGORITHMS
-from ..masters.dr_options import ANDERSON_MAX
+from ..masters.dr_options import ANDERSON_MAX, OPTION_MODES, STARTS
 from .experiment import from_fmus
 
 DEFAULT_CONFIG = DEFAULT
@@ -162,8 +162,15 @@ class MasterConfig:
         "DR: keep the Anderson differences across macro-steps (needs `anderson` >= 1)", type="boolean"))
     anderson_extrapolate: bool = field(default=False, metadata=key(
         "DR: commit the Anderson combination of the responses as b* (needs `anderson` >= 1)", type="boolean"))
-    warm_start: bool = field(default=False, metadata=key(
-        "DR: start the inner loop at u = P (2 bⁿ − bⁿ⁻¹) instead of P bⁿ", type="boolean"))
+    start: str = field(default="auto", metadata=key(
+        "DR: the start u^{n,0} of the inner loop: `paper` (P bⁿ, Algorithm 1), `extrapolated` (P (2 bⁿ − bⁿ⁻¹)), "
+        "`previous` (the waves committed at the previous macro-step), or `auto` (Masters and DR)",
+        type="auto | paper | extrapolated | previous"))
+    warm_start: bool = field(default=None, metadata=key(
+        "DR: `true` is `start: extrapolated`, `false` is `start: paper`", type="boolean", default="none"))
+    options: str = field(default="manual", metadata=key(
+        "DR: `auto` chooses γ, the relaxation and the Anderson window from the scene (Masters and DR); "
+        "`manual` keeps what the file gives", type="manual | auto"))
 
 
 @dataclass
@@ -650,8 +657,12 @@ def _dr_options(ck, m, master):
         master.anderson_memory = ck.boolean(m["anderson_memory"], "master.anderson_memory")
     if "anderson_extrapolate" in m:
         master.anderson_extrapolate = ck.boolean(m["anderson_extrapolate"], "master.anderson_extrapolate")
-    if "warm_start" in m:
-        master.warm_start = ck.boolean(m["warm_start"], "master.warm_start")
+    if "warm_start" in m:                                   # true is the extrapolated start
+        master.start = "extrapolated" if ck.boolean(m["warm_start"], "master.warm_start") else "paper"
+    if "start" in m:
+        master.start = ck.string(m["start"], "master.start", ("auto", *STARTS))
+    if "options" in m:
+        master.options = ck.string(m["options"], "master.options", OPTION_MODES)
     for key in ("anderson_memory", "anderson_extrapolate"):
         if getattr(master, key) and not master.anderson:
             ck.fail(f"master.{key}", "needs an Anderson window (master.anderson >= 1)")

@@ -5,9 +5,16 @@ have master `dr` and the option's name in `option`. `cheapest` reads the rows ba
 master (and option), the fewest doSteps per macro-step that reach a given max error.
 
 Each run is measured against the monolithic reference (interface Newton). A run that fails
-(non-finite values, outputs past the growth bound, an FMU error) is recorded with the rows it
-computed and marked not finite; a finite run whose stored energy grew past DIVERGED_GROWTH times
-H(0) is marked diverged. Neither stops the comparison.
+(non-finite values, outputs past the growth bound, an FMU error) is recorded with the rows it computed and marked not finite; a
+finite run whose stored energy grew past DIVERGED_GROWTH times H(0) is marked diverged. Neither
+stops the comparison.
+
+A run is energy-safe (`energy_safe`, what `cheapest` asks of a row) when the interface never
+supplied net energy: the largest cumulative interface supply max_n sum_{k<=n} I^k (`ledger_max`) is
+within roundoff (a run with the energy ledger: within the ledger's own tolerance; otherwise
+energy_ledger.RTOL times the energy that went through the ports), and, where every subsystem's H is
+known and no signal drives the scene, H never rose above H(0) by more than that. With signals (their
+work is unknown) the ledger alone decides.
 """
 from pathlib import Path
 
@@ -15,6 +22,7 @@ import numpy as np
 
 from ..errors import ConfigError, RunFailed
 from ..masters import MASTERS
+from ..run.observers.energy_ledger import RTOL
 from ..run.recorder import write_json
 from ..run.runner import run
 from .budget import reference_run
@@ -30,7 +38,7 @@ DIVERGED_GROWTH = 1e3      # max H(t) / H(0) above this: the interface pumped en
 DR_OPTIONS = {
     "relaxed": (None, {"relaxation": "auto"}, ("tab:cyan", "v")),
     "anderson": (None, {"anderson": 2}, ("navy", "^")),
-    "warm": (None, {"warm_start": True}, ("tab:gray", "<")),
+    "warm": (None, {"start": "extrapolated"}, ("tab:gray", "<")),
     "gamma-auto": ("auto", {}, ("slateblue", ">")),
     "gamma-fastest": ("fastest", {}, ("teal", "d")),
     "fastest-relaxed": ("fastest", {"relaxation": "auto"}, ("tab:green", "*")),
@@ -45,12 +53,19 @@ DR_OPTIONS = {
                                         "anderson_extrapolate": True, "eps": 1e-3}, ("yellowgreen", "P")),
     "fastest-memory-eps5": ("fastest", {"relaxation": 1.9, "anderson": 4, "anderson_memory": True,
                                         "anderson_extrapolate": True, "eps": 1e-5}, ("darkolivegreen", "P")),
+    # options: auto chooses gamma, lambda and the Anderson window from the scene; -epsN adds the inner
+    # tolerance 1e-N, a decade below each target error (3, 6, 10)
+    "auto": (None, {"options": "auto"}, ("crimson", "X")),
+    "auto-eps4": (None, {"options": "auto", "eps": 1e-4}, ("orangered", "X")),
+    "auto-eps7": (None, {"options": "auto", "eps": 1e-7}, ("darkred", "X")),
+    "auto-eps11": (None, {"options": "auto", "eps": 1e-11}, ("lightcoral", "X")),
 }
 CERTIFIED = ("", "relaxed", "warm", "gamma-auto", "gamma-fastest", "fastest-relaxed")   # Theorem 1 applies
 TARGETS = (1e-3, 1e-6, 1e-10)      # max errors the cheapest budget is sought for
-COMPARE_FIELDS = ("master", "option", "K", "finite", "diverged", "max_error", "rms_error", "final_error",
-                  "max_interface_injection", "energy_drift", "H_growth", "iterations_mean", "doStep", "doSteps_per_step", "restore",
-                  "wall_time_s", "real_time_factor")
+COMPARE_FIELDS = ("master", "option", "K", "finite", "diverged", "energy_safe", "max_error", "rms_error",
+                  "final_error", "ledger_max", "energy_allowance", "max_interface_injection", "energy_drift", "H_growth",
+                  "iterations_mean", "doStep", "doSteps_per_step", "critical_path_doSteps", "restore", "wall_time_s",
+                  "real_time_factor")
 
 
 def parse_options(names):
@@ -92,19 +107,63 @@ def folder_name(master, option=""):
     return f"{master}-{option}" if option else master
 
 
-def compare_row(result, K, option=""):
-    """One line of the comparison: the run's summary plus its cost, energy growth and finiteness."""
+def column(result, name):
+    """A per-step column of a run (None when the run has none)."""
+    table = result.steps_table
+    if table is None or name not in table.columns:
+        return None
+    return table.array()[:, table.columns.index(name)]
+
+
+def energy_safety(result):
+    """(safe, ledger_max, allowance) of a run (module docstring): the largest cumulative interface
+    supply, and whether it and the stored energy stayed within roundoff."""
+    s, supply = result.summary, column(result, "interface_supply")
+    if supply is None or not len(supply):
+        return False, float("nan"), float("nan")
+    ledger_max = float(np.max(np.cumsum(supply)))
+    if "ledger_tolerance" in s:                                 # the ledger's own tolerance
+        tol = s["ledger_tolerance"]
+        return ledger_max <= tol and _H_within(result, tol), ledger_max, tol
+    ports = [column(result, c) for c in result.steps_table.columns if c.startswith("port_energy_")
+             and not c.startswith("port_energy_cum_")]
+    if "H_initial" in s:
+        scale = len(supply) * max(abs(s["H_initial"]), abs(s["H_initial"] * s.get("H_growth", 1.0)))
+    else:
+        scale = float(sum(np.abs(p).sum() for p in ports)) or float(np.abs(supply).sum())
+    allowance = RTOL * scale
+    return ledger_max <= allowance and _H_within(result, allowance), ledger_max, allowance
+
+
+def _H_within(result, allowance):
+    """H never rose above H(0) + allowance, where every H is known and no signal drives the scene."""
+    s = result.summary
+    if "H_initial" not in s or s.get("signals"):
+        return True
+    H = np.asarray(result.energy, float)
+    scale = RTOL * len(H) * max(abs(s["H_initial"]), 1e-300)
+    return bool(np.all(np.isfinite(H))) and float(H.max()) <= s["H_initial"] + max(allowance, scale)
+
+
+def compare_row(result, K, option="", subsystems=1):
+    """One line of the comparison: the run's summary plus its cost, energy safety and finiteness.
+    critical_path_doSteps: doSteps per macro-step that cannot run side by side (a sequential master's
+    all, a parallel one's divided among its `subsystems`, each making the same calls)."""
     s = result.summary
     finite = result.status == "finished"                 # a run stops at its first non-finite value
     growth = s.get("H_growth", float("nan"))
+    safe, ledger_max, allowance = energy_safety(result) if s["steps"] else (False, float("nan"), float("nan"))
+    per_step = s["fmu_calls"]["doStep"] / max(s["steps"], 1)
+    sequential = getattr(MASTERS.get(result.master), "sequential", False)
     row = {"master": result.master, "option": option, "K": "-" if K is None else K,
            "finite": "yes" if finite else "no",
            "diverged": ("n/a" if s["steps"] == 0 else                # failed before its first step
                         "no" if finite and not growth > DIVERGED_GROWTH else "yes"),
+           "energy_safe": "yes" if finite and safe else "no", "ledger_max": ledger_max, "energy_allowance": allowance,
            "max_error": s.get("max_error", float("nan")), "rms_error": s.get("rms_error", float("nan")),
            "final_error": s.get("final_error", float("nan")), "H_growth": growth,
            "doStep": s["fmu_calls"]["doStep"], "save": s["fmu_calls"]["save"], "restore": s["fmu_calls"]["restore"],
-           "doSteps_per_step": s["fmu_calls"]["doStep"] / max(s["steps"], 1)}
+           "doSteps_per_step": per_step, "critical_path_doSteps": per_step if sequential else per_step / subsystems}
     row.update({k: v for k, v in s.items() if k not in row})
     return row
 
@@ -144,27 +203,30 @@ def compare(scenario, out_dir, masters=None, Ks=None, progress=None, certificate
         result = _one_run(sc, within(folder_name(master, option)), run_label(master, K, option), progress,
                           certificates, reference)
         results.append(result)
-        rows.append(compare_row(result, K, option))
+        rows.append(compare_row(result, K, option, len(scenario.subsystems)))
         if out_dir is not None:
             write_json(out_dir / "compare.json", {"scenario": scenario.name, "source": scenario.source,
                                                   "reference": reference.summary, "runs": rows,
-                                                  "cheapest": cheapest(rows)})
+                                                  "cheapest": cheapest(rows),
+                                                  "cheapest_any_energy": cheapest(rows, safe=False)})
         if on_run:
             on_run(rows[-1])
     return reference, results, rows
 
 
-def cheapest(rows, targets=TARGETS):
+def cheapest(rows, targets=TARGETS, safe=True):
     """{target: {master or master:option: the row with the fewest doSteps per macro-step whose max error
-    is at most target, energy-safe (not diverged)}}, as (K, doSteps_per_step, max_error, wall_time_s)."""
+    is at most target (and, with `safe`, energy-safe; else only finite)}}, as (K, doSteps_per_step,
+    critical_path_doSteps, max_error, wall_time_s)."""
     out = {}
     for target in targets:
         best = {}
         for r in rows:
             name = group_name(r)
-            if r["diverged"] != "no" or not r["max_error"] <= target:
+            if r.get("energy_safe" if safe else "finite") != "yes" or not r["max_error"] <= target:
                 continue
             if name not in best or r["doSteps_per_step"] < best[name]["doSteps_per_step"]:
-                best[name] = {k: r[k] for k in ("K", "doSteps_per_step", "max_error", "wall_time_s")}
+                best[name] = {k: r.get(k) for k in ("K", "doSteps_per_step", "critical_path_doSteps", "max_error",
+                                                    "wall_time_s")}
         out[f"{target:g}"] = best
     return out

@@ -18,7 +18,7 @@
 
 typedef struct {
     double lambda;                 /* relaxation of line 12 (1.0: the paper's update) */
-    int warm_start, have_prev;     /* u^{n,0} = P (2 b^n - b^{n-1}) once b^{n-1} is known */
+    int start_mode, have_prev;     /* u^{n,0} (DR_START_*) once b^{n-1} and a^{n-1} are known */
     int m, count, start;           /* Anderson window (0: off), differences kept, oldest slot */
     int have_acc, candidate;       /* an accepted iterate exists / the last iterate was accelerated */
     int memory, extrapolate;       /* keep the differences across steps / b^* the combined responses */
@@ -36,12 +36,12 @@ static void options_free(DROptions *o) {
 }
 
 /* Options for n channels; NULL on no memory. One block holds every vector. */
-static DROptions *options_create(double lambda, int m, int warm_start, size_t n) {
+static DROptions *options_create(double lambda, int m, int start_mode, size_t n) {
     DROptions *o = calloc(1, sizeof *o);
     if (!o) return NULL;
     o->lambda = lambda;
     o->m = m;
-    o->warm_start = warm_start;
+    o->start_mode = start_mode;
     o->n = n;
     o->b_prev = calloc((7 + 3 * (size_t)m) * n, sizeof(double));
     if (!o->b_prev) {

@@ -63,7 +63,12 @@ struct DRKernel {
     Sub *sub;
     Csr *P, *J_L;                  /* one malloc each (freed with free) */
     double *b, *a_hat, *u0, *uK;   /* the caller's */
-    double *u, *u_next, *b_hat, *z, *w;
+    double *work;                  /* one block: the two iterate buffers, b_hat, z, w, the safe anchor (u, b) */
+    double *u, *u_next, *b_hat, *z, *w; /* u and u_next trade buffers as the loop goes */
+    double *u_last, *safe;         /* the energy ledger's anchors: the last query (u_last, b_hat), the latest safe one */
+    double last_supply, safe_supply;
+    int last_it, safe_it;          /* their iterations (-1: none this step) */
+    int anchors_on;                /* keep them (a run with the ledger; dr_set_anchors) */
     double *trace;                 /* the caller's, or NULL */
     double *redo;                  /* the ledger's redo: a, b^{n+1}, the probe's b, zeros (4 n) */
     double *obs;                   /* one subsystem's observed values, read before they are logged */
@@ -335,16 +340,19 @@ static void begin_macro_step(DRKernel *k, DRStep *io) {
 
 /* ---- the DR master's named options (dr_options.h; wavecosim/masters/dr_options.py) ---- */
 
-/* Start of a macro-step: forget the Anderson history (kept with its memory); with the warm start, u^0 = P (2 b^n - b^{n-1})
- * once b^{n-1} is known (dr_options.warm_start), and b^n is remembered for the next step. */
+/* Start of a macro-step: forget the Anderson history (kept with its memory); u^0 of the start
+ * (dr_options.start_point) once b^{n-1} and a^{n-1} are known: P (2 b^n - b^{n-1}), or a^{n-1}, which
+ * the caller's a_hat still holds; b^n is remembered for the next step. */
 static void options_begin(DRKernel *k, double *u) {
     DROptions *o = k->opt;
     if (!o->memory) o->count = o->start = 0;                     /* the Anderson memory keeps its differences */
     o->have_acc = o->candidate = 0;
-    if (!o->warm_start) return;
-    if (o->have_prev) {
+    if (o->start_mode == DR_START_PAPER) return;
+    if (o->have_prev && o->start_mode == DR_START_EXTRAPOLATED) {
         for (size_t j = 0; j < k->n; j++) o->z[j] = 2.0 * k->b[j] - o->b_prev[j];
         csr_matvec(k->P, o->z, u, k->n);
+    } else if (o->have_prev) {
+        memcpy(u, k->a_hat, k->n * sizeof *u);
     }
     memcpy(o->b_prev, k->b, k->n * sizeof *u);
     o->have_prev = 1;
@@ -358,13 +366,23 @@ static void options_step(DRKernel *k, const double *u, double *u_next, const dou
     if (o->m > 0) options_anderson(o, u, u_next, k->b_hat, b_star);
 }
 
-int dr_set_options(DRKernel *k, double relaxation, int anderson, int warm_start) {
+int dr_set_options(DRKernel *k, double relaxation, int anderson, int start) {
     options_free(k->opt);
     k->opt = NULL;
-    if (relaxation == 1.0 && anderson == 0 && !warm_start) return 0;
-    if (!(relaxation > 0.0 && relaxation < 2.0) || anderson < 0 || anderson > DR_ANDERSON_MAX) return -1;
-    k->opt = options_create(relaxation, anderson, warm_start, k->n);
+    if (relaxation == 1.0 && anderson == 0 && start == DR_START_PAPER) return 0;
+    if (!(relaxation > 0.0 && relaxation < 2.0) || anderson < 0 || anderson > DR_ANDERSON_MAX
+        || start < DR_START_PAPER || start > DR_START_PREVIOUS)
+        return -1;
+    k->opt = options_create(relaxation, anderson, start, k->n);
     return k->opt ? 0 : -1;
+}
+
+void dr_set_anchors(DRKernel *k, int on) { k->anchors_on = on; }
+
+void dr_set_previous(DRKernel *k, const double *a_prev) {
+    if (!k->opt) return;
+    k->opt->have_prev = a_prev != NULL;
+    if (a_prev) memcpy(k->a_hat, a_prev, k->n * sizeof *a_prev);
 }
 
 /* The Anderson memory across macro-steps and the extrapolated b^* (after dr_set_options); -1 without Anderson. */
@@ -378,48 +396,90 @@ int dr_set_anderson_modes(DRKernel *k, int memory, int extrapolate) {
 
 /* ---- the public API ---- */
 
-int dr_macro_step(DRKernel *k, DRStep *io) {
+/* The supply 1/2 (|in|^2 - |out|^2) and traffic 1/2 (|in|^2 + |out|^2) of a commit or query with
+ * inputs `in` and outputs `out` (masters/base.py WaveMaster.supply: sums from 0.0, left to right). */
+static void supply_of(const double *in, const double *out, size_t n, double *supplied, double *traffic) {
+    double aa = 0.0, bb = 0.0;
+    for (size_t j = 0; j < n; j++) aa += in[j] * in[j];
+    for (size_t j = 0; j < n; j++) bb += out[j] * out[j];
+    *supplied = 0.5 * (aa - bb);
+    *traffic = 0.5 * (aa + bb);
+}
+
+/* A query (u, b_hat) of the step as an anchor of the energy ledger (masters/dr.py Anchors.add): the
+ * last query is the one in k->u_last, k->b_hat; the latest with supply <= 0 is copied. */
+static void add_anchor(DRKernel *k, const double *u, int it) {
+    double traffic;
+    supply_of(u, k->b_hat, k->n, &k->last_supply, &traffic);
+    k->last_it = it;
+    if (k->last_supply <= 0.0) {
+        memcpy(k->safe, u, k->n * sizeof *u);
+        memcpy(k->safe + k->n, k->b_hat, k->n * sizeof *u);
+        k->safe_supply = k->last_supply;
+        k->safe_it = it;
+    }
+}
+
+/* Lines 9-17 from the iterate in k->u, iterations it .. K - 1 (the tolerance exit when use_eps; a
+ * deadline in ns, or 0): b_star becomes the last response (line 13), u^K goes to k->uK and the
+ * last query point to k->u_last. Returns the iterations made, or -1 when an FMU call failed. */
+static int iterate(DRKernel *k, DRStep *io, int it, int K, int use_eps, double deadline, const double **b_star) {
     size_t n = k->n;
-    begin_macro_step(k, io);
-    double deadline = io->deadline_s > 0.0 ? now_ns() + 1e9 * io->deadline_s : 0.0;
     double *u = k->u, *u_next = k->u_next;
-    csr_matvec(k->P, k->b, u, n);                                    /* line 6, eq. (19): u^0 = P b^n */
-    if (k->opt) options_begin(k, u);                             /* warm start: u^0 = P (2 b^n - b^{n-1}) */
-    memcpy(k->u0, u, n * sizeof *u);
-    const double *b_star = k->b;                                 /* line 7, eq. (19): b^* = b^n */
-    int it = 0, reason = DR_BUDGET;
-    double residual = NAN;
-    while (it < io->K) {                                         /* line 9 */
+    int first = it;
+    io->reason = DR_BUDGET;
+    while (it < K) {                                             /* line 9 */
         int f = evaluate_all(k, u, k->b_hat, io->t, io->dt, 0, io->measure); /* line 10, eq. (17) response */
         if (f >= 0) return report_failure(k, io, f);
         if (k->trace && it < k->trace_capacity) {
             memcpy(k->trace + 2 * n * (size_t)it, u, n * sizeof *u);
             memcpy(k->trace + 2 * n * (size_t)it + n, k->b_hat, n * sizeof *u);
         }
+        if (k->anchors_on) add_anchor(k, u, it);
         for (size_t j = 0; j < n; j++) k->z[j] = 2.0 * k->b_hat[j] - u[j];
         csr_matvec(k->J_L, k->z, k->w, n);                           /* line 11, eq. (17): w = J_L(2b - u) */
         for (size_t j = 0; j < n; j++) u_next[j] = u[j] + k->w[j] - k->b_hat[j]; /* line 12, eq. (17) update */
-        b_star = k->b_hat;                                       /* line 13, eq. (20): b^* = last b */
-        if (k->opt) options_step(k, u, u_next, &b_star);         /* relaxation, Anderson acceleration */
-        residual = distance(u_next, u, n);
+        *b_star = k->b_hat;                                      /* line 13, eq. (20): b^* = last b */
+        if (k->opt) options_step(k, u, u_next, b_star);          /* relaxation, Anderson acceleration */
+        io->residual = distance(u_next, u, n);
         double *swap = u;
         u = u_next;
         u_next = swap;
         it++;
-        if (io->eps >= 0.0 && residual <= io->eps) {            /* lines 14-16: optional exit */
-            reason = DR_TOLERANCE;
+        if (use_eps && io->eps >= 0.0 && io->residual <= io->eps) { /* lines 14-16: optional exit */
+            io->reason = DR_TOLERANCE;
             break;
         }
         if (deadline > 0.0 && now_ns() >= deadline) {
-            reason = DR_DEADLINE;
+            io->reason = DR_DEADLINE;
             break;
         }
     }
-    csr_matvec(k->P, b_star, k->a_hat, n);                           /* line 19, eq. (21): a = P b^* */
+    if (it > first) {
+        k->u_last = u_next;
+        k->u_next = u_next;                                      /* the next loop leaves the query alone */
+        k->u = u;
+    }
     memcpy(k->uK, u, n * sizeof *u);
+    return it - first;
+}
+
+int dr_macro_step(DRKernel *k, DRStep *io) {
+    size_t n = k->n;
+    begin_macro_step(k, io);
+    double deadline = io->deadline_s > 0.0 ? now_ns() + 1e9 * io->deadline_s : 0.0;
+    double *u = k->u;
+    csr_matvec(k->P, k->b, u, n);                                    /* line 6, eq. (19): u^0 = P b^n */
+    if (k->opt) options_begin(k, u);                             /* other starts (dr_options.start_point) */
+    memcpy(k->u0, u, n * sizeof *u);
+    const double *b_star = k->b;                                 /* line 7, eq. (19): b^* = b^n */
+    k->last_it = k->safe_it = -1;                                /* no anchors yet */
+    io->residual = NAN;
+    int it = iterate(k, io, 0, io->K, 1, deadline, &b_star);
+    if (it < 0) return -1;
+    csr_matvec(k->P, b_star, k->a_hat, n);                           /* line 19, eq. (21): a = P b^* */
     io->iterations = it;
-    io->residual = residual;
-    io->reason = io->K ? reason : DR_EXPLICIT;
+    if (!io->K) io->reason = DR_EXPLICIT;
     /* lines 20-22, eq. (21): commit Phi_i(x_i^n, a_i); the outgoing waves are b^{n+1} */
     int f = evaluate_all(k, k->a_hat, k->b, io->t, io->dt, 1, io->measure);
     return f >= 0 ? report_failure(k, io, f) : 0;
@@ -538,27 +598,18 @@ static int stop_after(const DRKernel *k, const double *obs, size_t ld, double H_
 #define LEDGER_TARGET 0.9          /* energy_ledger.TARGET */
 #define LEDGER_SMOOTH 0.1          /* energy_ledger.SMOOTH */
 #define LEDGER_MIN_INNER_S 1e-9    /* masters/base.py MIN_INNER_S */
-enum { LEDGER_KEPT = 0, LEDGER_SCALED = 1, LEDGER_ZERO = 2 };   /* energy_ledger.ACTIONS */
 
-/* The interface's supply 1/2 (|in|^2 - |out|^2) and traffic 1/2 (|in|^2 + |out|^2) (masters/base.py
- * WaveMaster.supply: sums from 0.0, left to right). */
-static void supply_of(const double *in, const double *out, size_t n, double *supplied, double *traffic) {
-    double aa = 0.0, bb = 0.0;
-    for (size_t j = 0; j < n; j++) aa += in[j] * in[j];
-    for (size_t j = 0; j < n; j++) bb += out[j] * out[j];
-    *supplied = 0.5 * (aa - bb);
-    *traffic = 0.5 * (aa + bb);
-}
-
-/* The supply of the step with inputs s a1, its outputs interpolated between y0 (s = 0) and y1 (s = 1). */
-static double model_supply(const double *a1, const double *y0, const double *y1, size_t n, double s) {
+/* The supply of the input q + s (a - q), its outputs interpolated between yq (at q) and ya (at a)
+ * (energy_ledger.segment_root's model). */
+static double blended_supply(const double *q, const double *a, const double *yq, const double *ya, size_t n,
+                             double s) {
     double aa = 0.0, bb = 0.0;
     for (size_t j = 0; j < n; j++) {
-        double x = s * a1[j];
+        double x = q[j] + s * (a[j] - q[j]);
         aa += x * x;
     }
     for (size_t j = 0; j < n; j++) {
-        double y = y0[j] + s * (y1[j] - y0[j]);
+        double y = yq[j] + s * (ya[j] - yq[j]);
         bb += y * y;
     }
     return 0.5 * (aa - bb);
@@ -610,49 +661,183 @@ static void track(double *estimate, double seconds) {
 
 static void track_round(DRStep *io, double seconds) { track(&io->round_s, seconds); }
 
-/* The probe at s = 0 and the commit at the fitted s (EnergyLedger._scaled); out as in ledger_redo. */
-static int scaled_redo(DRKernel *k, DRStep *io, double supplied_1, double budget, double *out) {
-    size_t n = k->n;
-    double *a1 = k->redo, *y1 = a1 + n, *y0 = y1 + n, *zero = y0 + n;
-    int f = evaluate_all(k, zero, y0, io->t, io->dt, 0, 0);
-    if (f >= 0) return f;
-    double s = largest_root(model_supply(a1, y0, y1, n, 0.0), model_supply(a1, y0, y1, n, 0.5), supplied_1,
-                            LEDGER_TARGET * budget);
-    for (size_t j = 0; j < n; j++) k->a_hat[j] = s * a1[j];
-    f = evaluate_all(k, k->a_hat, k->b, io->t, io->dt, 1, 0);
-    if (f >= 0) return f;
-    out[0] = s;
-    supply_of(k->a_hat, k->b, n, &out[1], &out[2]);
-    out[3] = LEDGER_SCALED;
-    out[4] = 2.0;
-    return -1;
+/* energy_ledger.segment_root: the fraction s in [0, 1) where the supply of q + s (a - q) reaches target. */
+static double segment_root(const double *q, const double *a, const double *yq, const double *ya, size_t n,
+                           double supplied_a, double target) {
+    return largest_root(blended_supply(q, a, yq, ya, n, 0.0), blended_supply(q, a, yq, ya, n, 0.5), supplied_a, target);
 }
 
-/* Undo the step and commit it again with s a (EnergyLedger._redo): the fitted s if `fitted` (two
- * rounds are left), kept if it fits the budget; else, or on a miss, s = 0 (matched loads, always
- * safe). out: s, supply, traffic, action, rounds. k->a_hat ends as s a (the log's), k->b as b^{n+1}.
- * The first failing subsystem, or -1. */
-static int ledger_redo(DRKernel *k, DRStep *io, double supplied_1, double budget, int fitted, double *out) {
+/* One redo (energy_ledger.Redo): the step it corrects (inputs a and outputs y in k->redo, supply),
+ * its allowance, the time left (s) and per round, the rounds made, and the result out[0..4]. */
+typedef struct {
+    DRKernel *k;
+    DRStep *io;
+    double budget, supplied, left, round;
+    int rounds;
+    double *out;
+} Redo;
+
+enum { REDO_DONE = -1, REDO_NEXT = -2 };   /* or >= 0: the first failing subsystem */
+
+/* Redo.has: whether `rounds` evaluation rounds are left before the deadline, the redo's own counted. */
+static int redo_has(const Redo *r, int rounds) { return r->left - r->rounds * r->round >= rounds * r->round; }
+
+/* Redo.kept: the commit just made (k->a_hat -> k->b) is the result if it fits (or is zero); else the
+ * step is undone and, after a continued iteration, that commit is the one the next stages correct. */
+static int redo_kept(Redo *r, double s, int action) {
+    DRKernel *k = r->k;
     size_t n = k->n;
-    double *a1 = k->redo, *y1 = a1 + n, *zero = y1 + 2 * n;
-    memcpy(a1, k->a_hat, n * sizeof *a1);
-    memcpy(y1, k->b, n * sizeof *y1);
-    for (size_t j = 0; j < n; j++) zero[j] = 0.0;
-    int f = restore_all(k), rounds = 0;
-    if (f < 0 && fitted) {
-        f = scaled_redo(k, io, supplied_1, budget, out);
-        if (f >= 0 || out[1] <= budget) return f;
-        rounds = 2;
-        f = restore_all(k);
+    double supplied, traffic;
+    supply_of(k->a_hat, k->b, n, &supplied, &traffic);
+    if (supplied <= r->budget || action == DR_LEDGER_ZERO) {
+        double *out = r->out;
+        out[0] = s, out[1] = supplied, out[2] = traffic, out[3] = action, out[4] = r->rounds;
+        return REDO_DONE;
     }
+    int f = restore_all(k);
     if (f >= 0) return f;
-    f = evaluate_all(k, zero, k->b, io->t, io->dt, 1, 0);
-    for (size_t j = 0; j < n; j++) k->a_hat[j] = 0.0 * a1[j];   /* the reference logs s a with s = 0 */
-    out[0] = 0.0;
-    supply_of(zero, k->b, n, &out[1], &out[2]);
-    out[3] = LEDGER_ZERO;
-    out[4] = rounds + 1;
-    return f;
+    if (action == DR_LEDGER_ITERATED) {
+        memcpy(k->redo, k->a_hat, n * sizeof *k->a_hat);
+        memcpy(k->redo + n, k->b, n * sizeof *k->b);
+        r->supplied = supplied;
+    }
+    return REDO_NEXT;
+}
+
+/* Redo.commit: commit k->a_hat (filled by the caller) after an undo, then redo_kept. */
+static int redo_commit(Redo *r, double s, int action) {
+    DRKernel *k = r->k;
+    int f = evaluate_all(k, k->a_hat, k->b, r->io->t, r->io->dt, 1, 0);
+    if (f >= 0) return f;
+    r->rounds++;
+    return redo_kept(r, s, action);
+}
+
+/* k->a_hat = q + s (a - q) (energy_ledger.blend). */
+static void blend_into(DRKernel *k, const double *q, const double *a, double s) {
+    for (size_t j = 0; j < k->n; j++) k->a_hat[j] = q[j] + s * (a[j] - q[j]);
+}
+
+/* Stage 1 (EnergyLedger._iterated): the rest of the inner budget from u^K (three rounds of the
+ * deadline left), without the tolerance exit, and its commit; the step's residual and reason stay. */
+static int redo_iterated(Redo *r) {
+    DRKernel *k = r->k;
+    DRStep *io = r->io;
+    if (io->K - io->iterations <= 0 || !redo_has(r, 3)) return REDO_NEXT;
+    double deadline = isfinite(r->left) ? now_ns() + 1e9 * (r->left - 2.0 * r->round) : 0.0;
+    double residual = io->residual;
+    int reason = io->reason;
+    const double *b_star = k->b;
+    int made = iterate(k, io, io->iterations, io->K, 0, deadline, &b_star);
+    io->residual = residual, io->reason = reason;
+    if (made < 0) return io->failed_subsystem;
+    csr_matvec(k->P, b_star, k->a_hat, k->n);
+    r->rounds += made;
+    return redo_commit(r, 1.0, DR_LEDGER_ITERATED);
+}
+
+/* energy_ledger.projected into k->a_hat: a (k->redo) moved against the gradient g = a - rho y of the
+ * step's supply (rho per subsystem: the secant to the last query, clamped to [0, 1]) to the smaller
+ * root t of supplied - t |g|^2 + t^2 / 2 sum (1 - rho^2) g^2 = target. 0, or -1 without a root. */
+static int project_into(DRKernel *k, double supplied, double target) {
+    size_t n = k->n;
+    const double *a = k->redo, *y = a + n, *u = k->u_last, *b = k->b_hat;
+    double *g = k->w, *q = k->z;                                 /* the inner loop's scratch, free now */
+    for (int i = 0; i < k->n_sub; i++) {
+        size_t off = k->sub[i].offset, m = k->sub[i].m;
+        double den = 0.0, num = 0.0;
+        for (size_t j = off; j < off + m; j++) den += (a[j] - u[j]) * (a[j] - u[j]);
+        for (size_t j = off; j < off + m; j++) num += (a[j] - u[j]) * (y[j] - b[j]);
+        double rho = den > 0.0 ? num / den : 0.0;
+        if (0.0 > rho) rho = 0.0;                                /* min(max(rho, 0), 1) as Python's */
+        if (1.0 < rho) rho = 1.0;
+        for (size_t j = off; j < off + m; j++) {
+            g[j] = a[j] - rho * y[j];
+            q[j] = 1.0 - rho * rho;
+        }
+    }
+    double curve = 0.0, slope = 0.0, excess = supplied - target;
+    for (size_t j = 0; j < n; j++) curve += q[j] * g[j] * g[j];
+    curve = 0.5 * curve;
+    slope = -dot(g, g, n);
+    if (!(slope < 0.0)) return -1;
+    double disc = slope * slope - 4.0 * curve * excess;
+    if (!(disc >= 0.0)) return -1;
+    double t = 2.0 * excess / (sqrt(disc) - slope);
+    for (size_t j = 0; j < n; j++) k->a_hat[j] = a[j] - t * g[j];
+    return 0;
+}
+
+/* Stage 2 (EnergyLedger._projected): the commit at project_into's input (two rounds left). */
+static int redo_projected(Redo *r) {
+    DRKernel *k = r->k;
+    if (k->last_it < 0 || !redo_has(r, 2) || project_into(k, r->supplied, LEDGER_TARGET * r->budget)) return REDO_NEXT;
+    double s = 1.0 - distance(k->a_hat, k->redo, k->n) / sqrt(dot(k->redo, k->redo, k->n));
+    return redo_commit(r, s, DR_LEDGER_PROJECTED);
+}
+
+/* Stages 3 and 4 (EnergyLedger._anchored, energy_ledger.best_anchor): of the anchors (the last query,
+ * the latest safe one) whose supply fits, the one whose crossing of the target lies nearest a; the
+ * commit there (two rounds left), else, or on a miss, at the anchor itself. */
+static int redo_anchored(Redo *r) {
+    DRKernel *k = r->k;
+    size_t n = k->n;
+    const double *a = k->redo, *y = a + n, *q = NULL;
+    const double *cand[2][2] = {{k->u_last, k->b_hat}, {k->safe, k->safe + n}};
+    double supply[2] = {k->last_supply, k->safe_supply}, target = LEDGER_TARGET * r->budget, best_d = 0.0, best_s = 0.0;
+    int count = (k->last_it >= 0) + (k->safe_it >= 0 && k->safe_it != k->last_it), from = k->last_it >= 0 ? 0 : 1;
+    for (int c = from; c < from + count; c++) {
+        if (!(supply[c] <= target)) continue;
+        double s = segment_root(cand[c][0], a, cand[c][1], y, n, r->supplied, target);
+        double d = (1.0 - s) * distance(a, cand[c][0], n);
+        if (!q || d < best_d) best_d = d, best_s = s, q = cand[c][0];
+    }
+    if (!q) return REDO_NEXT;
+    if (redo_has(r, 2)) {
+        blend_into(k, q, a, best_s);
+        int f = redo_commit(r, best_s, DR_LEDGER_BLENDED);
+        if (f != REDO_NEXT) return f;
+    }
+    memcpy(k->a_hat, q, n * sizeof *q);
+    return redo_commit(r, 0.0, DR_LEDGER_ANCHORED);
+}
+
+/* Stage 5 (EnergyLedger._scaled): a probe at zero inputs and the commit at the fitted s (two rounds left). */
+static int redo_scaled(Redo *r) {
+    DRKernel *k = r->k;
+    size_t n = k->n;
+    double *a = k->redo, *y = a + n, *y0 = y + n, *zero = y0 + n;
+    if (!redo_has(r, 2)) return REDO_NEXT;
+    int f = evaluate_all(k, zero, y0, r->io->t, r->io->dt, 0, 0);
+    if (f >= 0) return f;
+    r->rounds++;
+    double s = segment_root(zero, a, y0, y, n, r->supplied, LEDGER_TARGET * r->budget);
+    blend_into(k, zero, a, s);
+    return redo_commit(r, s, DR_LEDGER_SCALED);
+}
+
+/* Undo the step and make it again (EnergyLedger._redo): iterated, projected, blended or anchored, scaled, and
+ * zero inputs (matched loads, always safe) as the last resort. out: s, supply, traffic, action,
+ * rounds; k->a_hat ends as the inputs committed, k->b as b^{n+1}. The first failing subsystem, or -1. */
+static int ledger_redo(DRKernel *k, DRStep *io, double supplied_1, double budget, double left, double round,
+                       double *out) {
+    size_t n = k->n;
+    double *zero = k->redo + 3 * n;
+    memcpy(k->redo, k->a_hat, n * sizeof *k->a_hat);
+    memcpy(k->redo + n, k->b, n * sizeof *k->b);
+    for (size_t j = 0; j < n; j++) zero[j] = 0.0;
+    Redo r = {k, io, budget, supplied_1, left, round, 0, out};
+    int f = restore_all(k);
+    if (f >= 0) return f;
+    f = redo_iterated(&r);
+    if (f == REDO_NEXT) f = redo_projected(&r);
+    if (f == REDO_NEXT) f = redo_anchored(&r);
+    if (f == REDO_NEXT) f = redo_scaled(&r);
+    if (f == REDO_NEXT) {
+        memcpy(k->a_hat, zero, n * sizeof *zero);
+        f = redo_commit(&r, 0.0, DR_LEDGER_ZERO);
+    }
+    return f == REDO_DONE ? -1 : f;
 }
 
 /* Scene.map_noise: the worst relative residual a wave adapter kept, 0.0 for exact maps. */
@@ -681,7 +866,7 @@ static int clocked(const DRStep *io) { return io->step_deadline_s > 0.0 || io->d
 
 static int ledger_step(DRKernel *k, DRStep *io, double t0, double c0, double *rows, size_t ld, size_t s) {
     double *row = rows + (dr_log_width(k) - DR_LEDGER_COLUMNS) * ld + s;
-    double out[5] = {1.0, NAN, NAN, LEDGER_KEPT, 0.0};
+    double out[5] = {1.0, NAN, NAN, DR_LEDGER_KEPT, 0.0};
     int timed = clocked(io);
     if (io->ledger_on) {
         double now = timed ? now_ns() : 0.0, tol;
@@ -694,7 +879,7 @@ static int ledger_step(DRKernel *k, DRStep *io, double t0, double c0, double *ro
         if (io->ledger + out[1] > tol) {
             double left = io->step_deadline_s > 0.0 ? io->step_deadline_s - 1e-9 * (now - t0) : INFINITY;
             long made = fmu_do_steps(k);
-            int f = ledger_redo(k, io, out[1], tol - io->ledger, left >= 2.0 * io->round_s, out);
+            int f = ledger_redo(k, io, out[1], tol - io->ledger, left, io->round_s, out);
             k->redo_do_steps += fmu_do_steps(k) - made;
             if (f >= 0) return f;
             if (timed)
@@ -713,8 +898,9 @@ static int ledger_step(DRKernel *k, DRStep *io, double t0, double c0, double *ro
     return -1;
 }
 
-int dr_ledger_redo(DRKernel *k, DRStep *io, double supplied, double budget, int fitted, double *out) {
-    int f = ledger_redo(k, io, supplied, budget, fitted, out);
+int dr_ledger_redo(DRKernel *k, DRStep *io, double supplied, double budget, double left_s, double round_s,
+                   double *out) {
+    int f = ledger_redo(k, io, supplied, budget, left_s, round_s, out);
     return f >= 0 ? report_failure(k, io, f) : 0;
 }
 
@@ -801,18 +987,21 @@ DRKernel *dr_create(int n_sub, int n, const double *P, const double *J_L, double
     k->sub = calloc((size_t)(n_sub ? n_sub : 1), sizeof *k->sub);
     k->P = P ? csr_from_dense(P, nn) : csr_alloc(nn, 0);
     k->J_L = J_L ? csr_from_dense(J_L, nn) : csr_alloc(nn, 0);
-    k->u = calloc(5 * room, sizeof(double));
+    k->work = calloc(7 * room, sizeof(double));
     k->redo = calloc(4 * room, sizeof(double));
-    if (!k->sub || !k->P || !k->J_L || !k->u || !k->redo) {
+    if (!k->sub || !k->P || !k->J_L || !k->work || !k->redo) {
         dr_destroy(k);
         return NULL;
     }
     if (!P) memset(k->P->start, 0, (nn + 1) * sizeof(int));
     if (!J_L) memset(k->J_L->start, 0, (nn + 1) * sizeof(int));
-    k->u_next = k->u + nn;
-    k->b_hat = k->u + 2 * nn;
-    k->z = k->u + 3 * nn;
-    k->w = k->u + 4 * nn;
+    k->u = k->work;
+    k->u_next = k->work + nn;
+    k->b_hat = k->work + 2 * nn;
+    k->z = k->work + 3 * nn;
+    k->w = k->work + 4 * nn;
+    k->safe = k->work + 5 * nn;
+    k->last_it = k->safe_it = -1;
     k->b = b;
     k->a_hat = a_hat;
     k->u0 = u0;
@@ -946,7 +1135,7 @@ void dr_destroy(DRKernel *k) {
     free(k->sub);
     free(k->P);
     free(k->J_L);
-    free(k->u);
+    free(k->work);
     free(k->obs);
     free(k->redo);
     free(k->bounded);

@@ -25,13 +25,18 @@
 enum { DR_BUDGET = 0, DR_TOLERANCE = 1, DR_DEADLINE = 2, DR_EXPLICIT = 3, DR_ENERGY_GUARD = 5 };
 
 /* The energy ledger's columns at the end of each dr_run_steps log row: I^n, L^n, the cumulative
- * traffic, s, action (0 kept, 1 scaled, 2 zero), redo rounds (0-3), the step's wall time (s), the
+ * traffic, s, action (DR_LEDGER_*), redo rounds (evaluation rounds of every subsystem the redo made:
+ * continued inner iterations, probes and commits), the step's wall time (s), the
  * running time of one evaluation round (s) and, under a step deadline, the step's CPU time on the
  * calling thread (s; else NaN). Without the ledger: NaN, NaN, NaN, 1, 0, 0, wall time, round, NaN. */
 #define DR_LEDGER_COLUMNS 9
 
 /* DRStep.failed_subsystem when the held signals or a subsystem stepped alone failed (signals.c). */
 #define DR_FAILED_EXTRA (-2)
+
+/* The energy ledger's actions (wavecosim/run/observers/energy_ledger.py ACTIONS). */
+enum { DR_LEDGER_KEPT = 0, DR_LEDGER_SCALED = 1, DR_LEDGER_ZERO = 2, DR_LEDGER_ITERATED = 3, DR_LEDGER_PROJECTED = 4,
+       DR_LEDGER_BLENDED = 5, DR_LEDGER_ANCHORED = 6 };
 
 /* FMU functions, as reported in DRStep.failed_function. */
 enum { DR_FN_NONE = 0, DR_FN_GET_STATE, DR_FN_SET_STATE, DR_FN_SET_REAL, DR_FN_DO_STEP, DR_FN_GET_REAL };
@@ -109,10 +114,24 @@ int dr_set_threads(DRKernel *k, int n_threads, const int *thread_of);
 /* The plan in force: thread_of[i] for each subsystem (n_sub values); returns the number of threads. */
 int dr_thread_plan(const DRKernel *k, int *thread_of);
 
+/* Starts of the inner iteration, u^{n,0} (dr_options.STARTS): the paper's P b^n, P (2 b^n - b^{n-1}),
+ * or a^{n-1}, the incident wave committed at the previous macro-step (a_hat as the caller's buffer
+ * holds it when the step begins). */
+enum { DR_START_PAPER = 0, DR_START_EXTRAPOLATED = 1, DR_START_PREVIOUS = 2 };
+
 /* The DR master's named options (wavecosim/masters/dr_options.py): relaxation lambda in (0, 2) of
- * line 12, Anderson window (0: off, at most 16), warm start of u^0 from b^n and b^{n-1}. Each call
- * forgets b^{n-1}; (1, 0, 0) is the paper's Algorithm 1. Returns 0, or -1 on bad values or no memory. */
-int dr_set_options(DRKernel *k, double relaxation, int anderson, int warm_start);
+ * line 12, Anderson window (0: off, at most 16), the start (DR_START_*). Each call forgets b^{n-1}
+ * and a^{n-1}; (1, 0, DR_START_PAPER) is the paper's Algorithm 1. Returns 0, or -1 on bad values or
+ * no memory. */
+int dr_set_options(DRKernel *k, double relaxation, int anderson, int start);
+/* Keep the energy ledger's anchors (each query's supply, the latest with supply <= 0) in the inner
+ * loop: on in a run with the ledger, whose redo (dr_ledger_redo, dr_run_steps) needs them; off (the
+ * default) saves that arithmetic. */
+void dr_set_anchors(DRKernel *k, int on);
+
+/* After a macro-step was undone: a^{n-1} again (what the caller's a_hat holds when the step begins), or
+ * NULL when the step undone was the first (no a^{n-1}: the start is then P b^n). */
+void dr_set_previous(DRKernel *k, const double *a_prev);
 /* After dr_set_options with an Anderson window: keep its differences across macro-steps (memory) and
  * commit the Anderson combination of the responses (extrapolate). Returns -1 without a window. */
 int dr_set_anderson_modes(DRKernel *k, int memory, int extrapolate);
@@ -167,11 +186,13 @@ int dr_run_steps(DRKernel *k, DRStep *io, int n0, int count, double *rows, long 
 
 /* The energy ledger's redo of the step dr_macro_step just committed (a_hat and b as it left them),
  * whose commit supplied `supplied` beyond the ledger's `budget` (wavecosim/run/observers/energy_ledger.py
- * _redo): every subsystem back at x_i^n, then, if `fitted`, a probe at s = 0 and the commit at the
- * fitted s, kept if it fits the budget; else, or on a miss, the commit at s = 0. a_hat becomes s a,
- * b the new b^{n+1}; out[0..4] = s, supply, traffic, action (1 scaled, 2 zero), rounds. Returns 0,
- * or -1 when an FMU call failed (see io->failed_*). */
-int dr_ledger_redo(DRKernel *k, DRStep *io, double supplied, double budget, int fitted, double *out);
+ * _redo), with left_s seconds to the step's deadline (INFINITY: none) and round_s per evaluation
+ * round: every subsystem back at x_i^n, then the stages iterated, projected, blended, anchored, scaled, zero,
+ * each when the one before did not fit. a_hat becomes the inputs committed, b the new b^{n+1};
+ * out[0..4] = s, supply, traffic, action (DR_LEDGER_*), rounds. Returns 0, or -1 when an FMU call
+ * failed (see io->failed_*). */
+int dr_ledger_redo(DRKernel *k, DRStep *io, double supplied, double budget, double left_s, double round_s,
+                   double *out);
 
 /* The floor: n_steps macro-steps making the same FMU calls as dr_macro_step with K = io->K
  * (serial), with no DR arithmetic; t = io->t + s dt at step s. The inputs of step s are

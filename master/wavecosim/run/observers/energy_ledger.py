@@ -9,24 +9,38 @@ Condition 2 every FMU gains at most what its port took in plus the work of its o
 H^N <= H^0 + tol + (work of sources inside the FMUs), for every budget, scene and horizon; no H
 and no interface solve are needed. K = 0 keeps the ledger by itself (L^n = -|b^{n+1}|^2 / 2).
 
-A step that would lift L above tol is undone (x^n restored) and its commit redone with the inputs
-scaled by s in [0, 1): s = 0 (matched loads, zero power) only dissipates, so it always fits. The
-supply of the scaled step is a quadratic in s when the FMUs are affine in their inputs; it is
-fitted from the committed step (s = 1) and one probe at s = 0, and s is the largest root of
-I(s) = TARGET * budget in [0, 1); the redo at that s is checked, and replaced by s = 0 if it misses.
+A step that would lift L above tol is undone (x^n restored) and made again, spending budget
+before accuracy, each stage only when the one before does not fit (I <= the allowance, tol - L),
+every commit checked (docs/energy.md):
+1. `iterated`: the inner iteration goes on from where it stopped (tolerance or deadline) to the
+   rest of its budget K, and commits anew (Master.remaining_iterations, iterate_on);
+2. `projected`: a_hat moves against the gradient of the step's supply to where a model of it
+   reaches TARGET * allowance (projected; the model's slopes from the secant to the last query);
+3. `blended`: the commit moves from a_hat towards an anchor, a query of the step whose supply is
+   known and fits (Master.anchors: the last query, or the latest with supply <= 0); along the
+   segment the outputs are interpolated from the two known ones, the supply is a quadratic in the
+   fraction s, and the anchor whose crossing lies nearest a_hat is taken (best_anchor);
+4. `anchored`: that anchor's own input (its outputs, and so its supply, are known: it fits);
+5. `scaled`: the inputs scaled by s in [0, 1) towards zero, s fitted from one probe at zero inputs
+   as in stage 3 (what the classical masters, which have no anchors, do first);
+6. `zero`: zero inputs, which only dissipate, so they always fit (the last resort).
+Under a deadline a stage runs only when the rounds it needs are left (stage 1: three evaluation
+rounds; 2, 3 and 5: two; the redo's own rounds counted), so a step ends within about a round of it.
 """
 import math
 import time
 
 import numpy as np
 
+from ...kernel.linalg import distance, dot
 from ...masters.base import StepLog
 from ..recorder import Labels
 from . import Observer
 
 RTOL = 1e-12            # roundoff allowance per unit of energy through the interface
-TARGET = 0.9            # the scaled step spends this fraction of the remaining budget (docs/scenes.md)
-ACTIONS = ("kept", "scaled", "zero")
+TARGET = 0.9            # a fitted correction spends this fraction of the remaining budget (docs/energy.md)
+ACTIONS = ("kept", "scaled", "zero", "iterated", "projected", "blended", "anchored")   # codes (drkernel.h)
+KEPT, SCALED, ZERO, ITERATED, PROJECTED, BLENDED, ANCHORED = range(len(ACTIONS))
 SMOOTH = 0.1            # weight of the newest measurement in the running evaluation-round times
 STEP_TIME = ("wall time of the step and its guard: inner iterations, commit, ledger check and redo (C kernel: "
              "timed in C, one call per step or block); not the observers (certificates, recorder). Python "
@@ -50,11 +64,98 @@ def largest_root(q0, qh, q1, target):
     return max(inside) if inside else 0.0
 
 
+def blend(q, a, s):
+    """q + s (a - q): the input a fraction s of the way from an anchor q to a."""
+    return [qj + s * (aj - qj) for qj, aj in zip(q, a)]
+
+
+def segment_root(supply, q, a, y_q, y_a, supplied_a, target):
+    """The fraction s in [0, 1) where the supply of blend(q, a, s) reaches target, the outputs
+    interpolated between y_q (at q) and y_a (at a): the largest root of that quadratic."""
+    def model(s):
+        return supply(blend(q, a, s), blend(y_q, y_a, s))[0]
+    return largest_root(model(0.0), model(0.5), supplied_a, target)
+
+
+def best_anchor(supply, anchors, a, y_a, supplied_a, target):
+    """(s, anchor) of the anchors (inputs, outputs, supply) whose supply fits target: the one whose
+    crossing of target lies nearest a, the first of equals; None when none fits."""
+    best = None
+    for q in anchors:
+        if not q[2] <= target:
+            continue
+        s = segment_root(supply, q[0], a, q[1], y_a, supplied_a, target)
+        d = (1.0 - s) * distance(a, q[0])
+        if best is None or d < best[0]:
+            best = (d, s, q)
+    return None if best is None else best[1:]
+
+
+def projected(spans, a, y, last, supplied, target):
+    """a moved against the gradient g = a - J^T y of the step's supply to where a model of that supply
+    reaches target. J is a scalar rho per subsystem (spans: each one's channels as (offset, count)),
+    the secant between a and the last query (u, S(u)) clamped to [0, 1] (an FNE map's slopes), so the
+    supply along a - t g is supplied - t |g|^2 + t^2 / 2 sum (1 - rho^2) g^2, and t is its smaller
+    root. Exact for maps affine with such slopes (one channel per subsystem); None without a root."""
+    u, b = last[0], last[1]
+    g, q = [], []
+    for off, m in spans:
+        da = [a[off + j] - u[off + j] for j in range(m)]
+        den = dot(da, da)
+        rho = dot(da, [y[off + j] - b[off + j] for j in range(m)]) / den if den > 0.0 else 0.0
+        rho = min(max(rho, 0.0), 1.0)
+        for j in range(off, off + m):
+            g.append(a[j] - rho * y[j])
+            q.append(1.0 - rho * rho)
+    curve, slope = 0.5 * dot([qj * gj for qj, gj in zip(q, g)], g), -dot(g, g)
+    excess = supplied - target
+    if not slope < 0.0:
+        return None
+    disc = slope * slope - 4.0 * curve * excess
+    if not disc >= 0.0:
+        return None
+    t = 2.0 * excess / (math.sqrt(disc) - slope)
+    return [aj - t * gj for aj, gj in zip(a, g)]
+
+
+class Redo:
+    """One redo: its allowance, the step it corrects (inputs a, outputs y, supply), the rounds made,
+    and each commit checked against the allowance."""
+
+    def __init__(self, master, budget, a, y, supplied, left, round_s):
+        self.master, self.budget, self.rounds = master, budget, 0
+        self.a, self.y, self.supplied = a, y, supplied
+        self.left_s, self.round_s = left, round_s
+
+    def has(self, rounds):
+        """Whether `rounds` evaluation rounds are left before the deadline (the redo's own counted)."""
+        return self.left_s - self.rounds * self.round_s >= rounds * self.round_s
+
+    def commit(self, inputs, s, action):
+        """Commit `inputs` (None: zeros) after an undo; the redo's result if it fits (zeros always do),
+        else None with the step undone again."""
+        inputs = [0.0] * self.master.scene.n_channels if inputs is None else inputs
+        out = self.master.recommit(inputs)
+        self.rounds += 1
+        return self.kept(s, inputs, out, action)
+
+    def kept(self, s, inputs, out, action):
+        """The result when the commit just made fits (or is zero), else None with the step undone and
+        that commit the one the next stages correct."""
+        supplied, traffic = self.master.supply(inputs, out)
+        if supplied <= self.budget or action == ZERO:
+            return s, supplied, traffic, action, self.rounds, inputs
+        self.master.undo_step()
+        if action == ITERATED:
+            self.a, self.y, self.supplied = inputs, out, supplied
+        return None
+
+
 class EnergyLedger(Observer):
     """First of the observers: it may redo the step before anyone reads it. Wave masters' blocks
     (the C kernel books the ledger and makes the redo itself) are taken whole."""
     redoes = True
-    columns = ("interface_energy", "ledger", "scale", "ledger_action")
+    columns = ("interface_energy", "ledger", "scale", "ledger_action", "ledger_rounds")
     formats = {"ledger_action": Labels(ACTIONS)}
     when = "the energy ledger: `master.energy_guard: ledger` (DR's default) on a master that rolls back"
     described = {
@@ -71,7 +172,8 @@ class EnergyLedger(Observer):
         self.master = master
         self.n_inputs = master.scene.n_channels
         self.L, self.traffic, self.max_L = 0.0, 0.0, -math.inf
-        self.acted, self.extra, self.fallbacks = 0, 0, 0
+        self.acted, self.extra = 0, 0
+        self.actions = [0] * len(ACTIONS)               # steps per action
         self.round_s, self.redo_round_s = 0.0, 0.0      # running time of one evaluation round: master's, redo's
         self.step_times = []            # under a deadline, per step: (wall, acted, round it may overrun by, CPU) s
 
@@ -88,12 +190,15 @@ class EnergyLedger(Observer):
         """Book a block the kernel made: it kept the ledger itself, redoing steps as _redo does, bit
         for bit (drkernel.c, ledger_step), and logged each step's I^n, L^n, s, action and redo rounds."""
         led, logged = logs.ledger, logs.ledger_rows
-        rows[:, :2], rows[:, 2:] = logged[0:2].T, logged[3:5].T      # supplied, ledger; scale, action
-        acted, rounds = int(np.count_nonzero(led["action"])), led["rounds"]     # actions: 0 kept, 1 scaled, 2 zero
+        rows[:, :2], rows[:, 2:] = logged[0:2].T, logged[3:6].T      # supplied, ledger; scale, action, rounds
+        action, rounds = led["action"], led["rounds"]
+        acted = int(np.count_nonzero(action))
         if acted:                                                          # only a redone step has rounds
             self.acted += acted
             self.extra += self.master.redo_doSteps()
-            self.fallbacks += int(np.count_nonzero(rounds == 3))
+            for code in range(1, len(ACTIONS)):
+                self.actions[code] += int(np.count_nonzero(action == code))
+        self.actions[KEPT] += len(action) - acted
         self.L, self.traffic = float(led["ledger"][-1]), float(led["traffic"][-1])
         self.max_L = max(self.max_L, float(led["ledger"].max()))
         if self.master.deadline_s is not None:
@@ -112,56 +217,81 @@ class EnergyLedger(Observer):
         supplied, traffic = master.supply(inputs, outputs)
         self._time_round(log)
         tol = self.rtol() * (self.traffic + traffic)
-        s, action = 1.0, 0
+        s, action, rounds = 1.0, KEPT, 0
         if self.L + supplied > tol:
             calls = master.scene.do_step_calls()
-            s, supplied, traffic, action = self._redo(inputs, outputs, supplied, tol - self.L)
+            s, supplied, traffic, action, rounds, committed = self._redo(log, inputs, outputs, supplied, tol - self.L)
             self.acted, self.extra = self.acted + 1, self.extra + master.scene.do_step_calls() - calls
             redo = StepLog(iterations=log.iterations, residual=log.residual, reason="energy-guard",
-                           a_hat=[s * x for x in inputs] if log.a_hat is not None else None)
+                           a_hat=committed if log.a_hat is not None else None)
+        self.actions[action] += 1
         self.L += supplied
         self.traffic += traffic
         self.max_L = max(self.max_L, self.L)
-        row[0], row[1], row[2], row[3] = supplied, self.L, s, action
+        row[0], row[1], row[2], row[3], row[4] = supplied, self.L, s, action, rounds
         if master.deadline_s is not None:
             self.step_times.append((time.perf_counter() - master.step_started, action > 0, self.redo_round_s, math.nan))
         return redo
 
-    def _redo(self, inputs, out_1, supplied_1, budget):
-        """Undo the step and commit it again with s * inputs; (s, supply, traffic, action) of the new commit.
-
-        The fitted s needs two evaluation rounds (probe, commit): under a deadline with less time
-        left, s = 0 is committed at once (one round). A master with a kernel makes the redo in C."""
-        master, fitted = self.master, self._time_left() >= 2.0 * self.redo_round_s
-        started = time.perf_counter()
-        done = master.redo_in_kernel(supplied_1, budget, fitted)
+    def _redo(self, log, inputs, out_1, supplied_1, budget):
+        """Undo the step and make it again by the stages of the module docstring; (s, supply, traffic,
+        action, rounds, inputs committed). A master with a kernel makes the redo in C."""
+        master, left, started = self.master, self._time_left(), time.perf_counter()
+        done = master.redo_in_kernel(supplied_1, budget, left, self.redo_round_s)
         if done is not None:                            # the same operations, in C (drkernel.c ledger_redo)
             self._time_redo(time.perf_counter() - started, done[4])
-            self.fallbacks += done[4] == 3
-            return done[:4]
+            return done
+        redo = Redo(master, budget, inputs, out_1, supplied_1, left, self.redo_round_s)
         master.undo_step()
-        if fitted:
-            s, supplied, traffic = self._scaled(inputs, out_1, supplied_1, budget)
-            if supplied <= budget:
-                return s, supplied, traffic, 1
-            self.fallbacks += 1
-            master.undo_step()
-        started = time.perf_counter()
-        out = master.recommit([0.0] * self.n_inputs)
-        self._time_redo(time.perf_counter() - started, 1)
-        return (0.0, *master.supply([0.0] * self.n_inputs, out), 2)
+        done = (self._iterated(redo, log) or self._projected(redo) or self._anchored(redo) or self._scaled(redo)
+                or redo.commit(None, 0.0, ZERO))
+        self._time_redo(time.perf_counter() - started, done[4])
+        return done
 
-    def _scaled(self, inputs, out_1, supplied_1, budget):
-        """Probe s = 0, fit the quadratic supply I(s), commit at its largest root of TARGET * budget."""
-        started = time.perf_counter()
-        out_0, supply = self.master.probe([0.0] * self.n_inputs), self.master.supply
+    def _iterated(self, redo, log):
+        """Stage 1: the rest of the inner budget (three rounds of the deadline left), committed."""
+        more = self.master.remaining_iterations(log)
+        if more <= 0 or not redo.has(3):
+            return None
+        deadline = time.perf_counter() + redo.left_s - 2.0 * redo.round_s if math.isfinite(redo.left_s) else None
+        new, made = self.master.iterate_on(log, more, deadline)
+        redo.rounds += made + 1
+        return redo.kept(1.0, self.master.committed_inputs(new), self.master.committed_outputs, ITERATED)
 
-        def model(s):
-            return supply([s * x for x in inputs], [y0 + s * (y1 - y0) for y0, y1 in zip(out_0, out_1)])[0]
-        s = largest_root(model(0.0), model(0.5), supplied_1, TARGET * budget)
-        out = self.master.recommit([s * x for x in inputs])
-        self._time_redo(time.perf_counter() - started, 2)
-        return (s, *supply([s * x for x in inputs], out))
+    def _projected(self, redo):
+        """Stage 2: against the supply's gradient (energy_ledger.projected; two rounds left)."""
+        anchors = self.master.anchors()
+        if not anchors or not redo.has(2):
+            return None
+        scene = self.master.scene
+        a = projected([(off, sub.m) for sub, off in zip(scene.subsystems, scene.offsets)], redo.a, redo.y, anchors[0], redo.supplied, TARGET * redo.budget)
+        if a is None:
+            return None
+        return redo.commit(a, 1.0 - distance(a, redo.a) / math.sqrt(dot(redo.a, redo.a)), PROJECTED)
+
+    def _anchored(self, redo):
+        """Stages 3 and 4: towards the best anchor (two rounds left), else, or on a miss, the anchor."""
+        best = best_anchor(self.master.supply, self.master.anchors(), redo.a, redo.y, redo.supplied,
+                           TARGET * redo.budget)
+        if best is None:
+            return None
+        s, q = best
+        if redo.has(2):
+            done = redo.commit(blend(q[0], redo.a, s), s, BLENDED)
+            if done is not None:
+                return done
+        return redo.commit(q[0], 0.0, ANCHORED)
+
+    def _scaled(self, redo):
+        """Stage 5: probe s = 0, fit the quadratic supply I(s), commit at its largest root of TARGET *
+        budget (two rounds left)."""
+        if not redo.has(2):
+            return None
+        zero = [0.0] * self.n_inputs
+        out_0 = self.master.probe(zero)
+        redo.rounds += 1
+        s = segment_root(self.master.supply, zero, redo.a, out_0, redo.y, redo.supplied, TARGET * redo.budget)
+        return redo.commit(blend(zero, redo.a, s), s, SCALED)
 
     def _time_left(self):
         """Seconds to master.deadline_us from now (infinite without a deadline)."""
@@ -188,7 +318,8 @@ class EnergyLedger(Observer):
 
     def summary(self):
         out = {"energy_guard_steps": self.acted, "energy_guard_extra_doSteps": self.extra,
-               "energy_guard_fallbacks": self.fallbacks, "max_ledger": self.max_L, "ledger_final": self.L}
+               "energy_guard_actions": dict(zip(ACTIONS, self.actions)), "max_ledger": self.max_L,
+               "ledger_final": self.L, "ledger_tolerance": self.rtol() * self.traffic}
         if self.step_times:
             out["step_time_us"] = spread([t for t, _, _, _ in self.step_times])
             out["guarded_step_time_us"] = spread([t for t, acted, _, _ in self.step_times if acted])
