@@ -340,7 +340,7 @@ def dual_mass_oscillator(tp, folder):
     path = dual_mass_ssd(tp, folder)
     scenario, _ = load(path, outputs={k: k for k in DMO_PEER}, dt=1e-4)
     result, s = simulate(scenario)
-    parts = [(True, f"explicit, dt = 1e-4 s, T = 10 s: " + ", ".join(
+    parts = [(True, "explicit, dt = 1e-4 s, T = 10 s: " + ", ".join(
         f"{k} = {result.trajectory[k][-1]:.6g} (OMSimulator {v:.6g}, {abs(result.trajectory[k][-1] / v - 1):.1%} apart)"
         for k, v in DMO_PEER.items()))]
     (folder / "ports.yaml").write_text(DMO_PORTS)

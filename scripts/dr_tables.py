@@ -17,7 +17,7 @@ import sys
 from pathlib import Path
 
 import wavecosim as wc
-from wavecosim.sweeps.comparison import TARGETS, cheapest, compare, parse_options
+from wavecosim.sweeps.comparison import TARGETS, compare, parse_options
 
 ROOT = Path(__file__).resolve().parent.parent
 PAGES = (ROOT / "docs" / "masters.md", ROOT / "docs" / "energy.md")

@@ -17,6 +17,8 @@ import yaml
 from wavecosim.scenario.config import parse_scenario
 from wavecosim.run.runner import run
 
+ROOT = Path(__file__).resolve().parent.parent
+
 GUARDS = ("ledger", "monolithic", "off")
 DRIVEN = {("B", "c2"): -3.0}
 STIFF_K12 = {("A", "k12"): 1.2e6}

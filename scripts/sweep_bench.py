@@ -10,14 +10,13 @@ the run's own time (reading the file, unpacking and loading four FMUs, writing t
 import argparse
 import os
 import shutil
-import sys
 import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+from wavecosim.sweeps.budget import plan, run_sweep
 
-from wavecosim.sweeps.budget import plan, run_sweep  # noqa: E402
+ROOT = Path(__file__).resolve().parent.parent
 
 SETUPS = {"table1": (ROOT / "configs" / "two_oscillators.yaml", [("master.K", list(range(64)))], [("T", 10.0)]),
           "heavy": (ROOT / "configs" / "heavy_chain.yaml", [("master.K", list(range(1, 17)))], [("T", 1.0)])}

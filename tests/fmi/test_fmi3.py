@@ -22,7 +22,6 @@ from wavecosim.scenario.config import load_scenario
 from wavecosim.errors import FmuError
 from wavecosim.fmi.fmu import Fmu
 from wavecosim.core.frozen_port_map import PortSpec, Subsystem
-from wavecosim.masters.dr import DRMaster
 from wavecosim.masters.dr_fast import FastDRMaster
 from wavecosim.run.runner import run
 from wavecosim.core.scene import Scene, build_scene, coupling_structure

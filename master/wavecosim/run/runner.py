@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ..kernel import blocks, cvalues
-from ..errors import (ConfigError, Interrupted, NumericalError, OutputError, RunFailed, SimulationEnded, Terminated,
+from ..errors import (ConfigError, Interrupted, OutputError, RunFailed, SimulationEnded, Terminated,
                       WavecosimError)
 from ..fmi.values import BOOLEAN, INTEGER, category
 from ..kernel.drkernel import REASONS as KERNEL_REASONS

@@ -191,9 +191,9 @@ class EnergyLedger(Observer):
         for bit (drkernel.c, ledger_step), and logged each step's I^n, L^n, s, action and redo rounds."""
         led, logged = logs.ledger, logs.ledger_rows
         rows[:, :2], rows[:, 2:] = logged[0:2].T, logged[3:6].T      # supplied, ledger; scale, action, rounds
-        action, rounds = led["action"], led["rounds"]
+        action = led["action"]
         acted = int(np.count_nonzero(action))
-        if acted:                                                          # only a redone step has rounds
+        if acted:
             self.acted += acted
             self.extra += self.master.redo_doSteps()
             for code in range(1, len(ACTIONS)):
