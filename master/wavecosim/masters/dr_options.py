@@ -65,10 +65,11 @@ def auto_gamma(gamma, settings):
 
 
 def resolve_start(start, energy_guard):
-    """master.start as run: `auto` is `previous`, or `paper` when the energy guard is off."""
+    """master.start as run: `auto` is `previous` under the energy ledger, whose redo keeps a start away
+    from the fixed point from supplying energy, and `paper` under any other guard."""
     if start != "auto":
         return start
-    return "paper" if energy_guard == "off" else "previous"
+    return "previous" if energy_guard == "ledger" else "paper"
 
 
 def start_point(start, P, b_n, b_prev, a_prev):

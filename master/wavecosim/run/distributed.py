@@ -304,7 +304,7 @@ def _check(scenario):
     m = scenario.master
     if m.algorithm != "dr":
         raise ConfigError(f"{scenario.source}: master.algorithm: worker processes run dr only")
-    if (m.relaxation, m.anderson, resolve_start(m.start, m.energy_guard), m.deadline_us) != (1.0, 0, "paper", None):
+    if (m.relaxation, m.anderson, resolve_start(m.start, m.energy_guard or "ledger"), m.deadline_us) != (1.0, 0, "paper", None):
         raise ConfigError(f"{scenario.source}: master: worker processes run Algorithm 1 as the paper gives it "
                           f"(no relaxation, anderson, start other than paper, or deadline_us yet)")
 
