@@ -60,10 +60,8 @@ rerun them on your machine with
   `python scripts/csvfmt_check.py 20` compares the two on 20 million doubles), by writer threads
   (as many as CPUs, at most 2) while the master goes on. Without a C compiler the recorder uses
   `repr`.
-- **Memory does not grow with the run.** Rows reach the files in blocks of 1024 steps, a table
-  keeps at most 2.6·10⁵ numbers (2 MB) in memory (beyond that its arrays are read back from the
-  file when asked), and the errors against the reference are computed as both runs stream. Peak
-  RSS (`/usr/bin/time -v`) of `wavecosim run configs/two_oscillators.yaml --K 0 --no-certificates
+- **Memory does not grow with the run** ([output files](outputs.md#memory)). Peak RSS
+  (`/usr/bin/time -v`) of `wavecosim run configs/two_oscillators.yaml --K 0 --no-certificates
   --no-reference --T 100` (10⁴ steps): 48 MB; with `--T 1000` (10⁵ steps, 15 MB of CSV): 47 MB
   (AMD EPYC, 2 CPUs, Python 3.11.7).
 
