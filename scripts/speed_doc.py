@@ -50,12 +50,12 @@ rerun them on your machine with
   its cost grows linearly with the number of subsystems of a chain, like the master's.
 - **Certificates inside the blocks.** On the kernel route the sampled certificates (u* by the
   kernel's interface Newton, the FNE pairs, Theorem 1's Fejér term) and the Condition 1 watch are
-  computed inside the C kernel's blocks of steps (`kernel/c/certs.c`), to the last bit the numbers
+  computed inside the C kernel's blocks of steps (`master/wavecosim/kernel/c/certs.c`), to the last bit the numbers
   of the Python observers. Their FMU calls stay out of the master's `fmu_calls`; their time is
   outside the step time of `master.deadline_us` but inside the master's `wall_time_s`. Where the
   kernel cannot compute them (wave adapters, ports of more than 8 channels) they run in Python at
   the sampled steps, with blocks between them. `--no-certificates` skips them.
-- **Rows written beside the run.** The CSV text is made in C (`kernel/c/csvfmt.c`: every float
+- **Rows written beside the run.** The CSV text is made in C (`master/wavecosim/kernel/c/csvfmt.c`: every float
   exactly as Python's `repr` writes it, about 35 ns a number against 0.9 µs for `repr`;
   `python scripts/csvfmt_check.py 20` compares the two on 20 million doubles), by writer threads
   (as many as CPUs, at most 2) while the master goes on. Without a C compiler the recorder uses
@@ -84,7 +84,7 @@ step and in blocks; the wave adapter per query on its Python and C routes; the d
 - *run*: the whole run per macro-step, as `wavecosim run --no-certificates --no-reference` makes it
   with the rows kept in memory (`loop_time_s / steps`: stepping, reading the FMUs, observers, rows);
 - *floor*: the same FMU calls in the same order with the same arguments, recorded from one run and
-  made again from C alone on fresh instances (`kernel/c/floor.c`);
+  made again from C alone on fresh instances (`master/wavecosim/kernel/c/floor.c`);
 - *libcosim*: libcosim's fixed-step master on the same SSD (`pip install 'wavecosim[bench]'`), in the
   same process; `-` where libcosimpy is missing or refuses the file (the note says why).
 
