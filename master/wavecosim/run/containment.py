@@ -158,8 +158,9 @@ class Containment:
     def error(self, fault):
         """The exception that describes a fault (its class gives the exit code)."""
         part = self.current
-        where = locate(fault.get("pc", []), self.libraries(),
-                       {k: v for p in self.parts for k, v in self._subsystems(p).items()})
+        order = [p for p in self.parts if p is not part] + ([part] if part is not None else [])
+        where = locate(fault.get("pc", []), self.libraries(),       # a binary both runs share: the active one's
+                       {k: v for p in order for k, v in self._subsystems(p).items()})
         step = part.steps_done if part is not None else None
         t = part.t0 + step * part.dt if part is not None else None
         return describe(fault, self.status.request, where, step, t, self.step_timeout)
