@@ -1,4 +1,4 @@
-"""The certificates under each DR option (docs/masters.md, "Faster DR"): a table, about a minute.
+"""The certificates under each DR option (docs/masters.md, "Options"): a table, about a minute.
 
     .venv/bin/python scripts/dr_options_certificates.py [OPTION,OPTION K,K,K]
 

@@ -1,4 +1,4 @@
-"""Energy guards side by side (docs/scenes.md): ledger, monolithic and off on every shipped scene and
+"""Energy guards side by side (docs/energy.md): ledger, monolithic and off on every shipped scene and
 on the runs where a small budget pumps energy in; prints a Markdown table.
 
     .venv/bin/python scripts/ledger_table.py [--quick]
