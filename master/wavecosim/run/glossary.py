@@ -42,10 +42,13 @@ SUMMARY = {
     # the energy guard (observers/energy_ledger.py, energy_guard.py)
     "energy_guard_steps": ("macro-steps the energy guard redid", "1"),
     "energy_guard_extra_doSteps": ("doStep calls the redos cost", "1"),
-    "energy_guard_fallbacks": ("ledger redos whose fitted scale missed, committed with s = 0 instead", "1"),
     "max_ledger": ("the largest ledger value Lⁿ over the run (at or below roundoff: the interface never supplied "
                    "net energy)", "J"),
     "ledger_final": ("the ledger at the end, L_N", "J"),
+    "ledger_tolerance": ("the roundoff the ledger allows: 10⁻¹² (plus a wave adapter's map noise) times the "
+                         "energy that went through the interface", "J"),
+    "energy_guard_actions": ("steps per ledger action: `kept` and each redo stage (`iterated`, `projected`, "
+                             "`blended`, `anchored`, `scaled`, `zero`)", "1"),
     "step_time_us": ("under `master.deadline_us`: the time of a step and its guard, `median`, `p99`, `max` (by "
                      "nearest rank) and `count`", "µs"),
     "guarded_step_time_us": ("the same over the steps the ledger redid (empty when none)", "µs"),
@@ -101,6 +104,7 @@ SUMMARY = {
     "fast_note": ("why it ran on the route it did", "text"),
     "threads": ("threads that evaluated the subsystems", "1"),
     "thread_note": ("why that many", "text"),
+    "options": ("DR: `manual`, or `auto` (γ, λ and the Anderson window chosen from the scene)", "text"),
     "relaxation": ("DR: the relaxation λ used", "1"),
     "relaxation_rates": ("DR with `relaxation: auto`: the predicted contraction without (`rate_plain`) and with "
                          "(`rate_relaxed`) the λ chosen", "1"),

@@ -163,9 +163,13 @@ class EnergyLedger(Observer):
                              "wave masters, Δt Σ e·f on the physical ones (after a redo: the redone step's)", "J"),
         "ledger": ("Lⁿ = Σ_{k≤n} Iᵏ, the energy the interface has supplied since the start; kept at or below "
                    "roundoff (10⁻¹² of the interface's traffic)", "J"),
-        "scale": ("s, the factor the step's inputs were scaled by when it was redone; 1 when it was kept", "1"),
-        "ledger_action": (f"{', '.join(ACTIONS)}: the step as committed, redone with its inputs scaled by s, or "
-                          "redone with s = 0 (matched loads)", "text"),
+        "scale": ("s, where the redone step's inputs lie on the segment from the correction's anchor (s = 0) to "
+                  "the inputs first committed (s = 1); 1 when the step was kept", "1"),
+        "ledger_action": (f"{', '.join(ACTIONS)}: the step as committed, or the redo stage that made it (the "
+                          "rest of the inner budget, a projection against the supply's gradient, a blend towards "
+                          "or the input of an anchor, a scaling towards zero, zero inputs)", "text"),
+        "ledger_rounds": ("evaluation rounds (every subsystem's doStep once) the redo made; 0 when the step "
+                          "was kept", "1"),
     }
 
     def __init__(self, master):
