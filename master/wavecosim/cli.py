@@ -484,8 +484,12 @@ def examples_cmd(name):
         raise ConfigError(str(exc)) from None
 
 
+BENCH_S = {"quick": 35, "full": 600}     # measured wall time of `bench` (2 CPUs, warm build cache)
+
+
 @cli.command("bench")
-@click.option("--quick", is_flag=True, help="Fewer steps and repeats (a few seconds instead of about a minute).")
+@click.option("--quick", is_flag=True, help=f"Fewer steps and repeats: about {BENCH_S['quick']} s instead of about "
+                                           f"{BENCH_S['full'] // 60} minutes (2 CPUs).")
 @click.option("--json", "json_file", type=click.Path(dir_okay=False, path_type=Path), help="Also write the figures here.")
 @click.option("--only", type=click.Choice(["parallel_threads", "real_fmus"]),
               help="Measure this part alone (real_fmus: systems of real FMUs against the floor of their FMU "
@@ -494,7 +498,12 @@ def bench_cmd(quick, json_file, only):
     """Time the inner iteration: plain fmpy loop, Python reference, C fast path and the C floor; the deadline
     bound; threads; real FMUs against their floor and libcosim."""
     from .bench.main import report, run_bench, run_part
-    progress = lambda msg: click.echo(msg, err=True)      # noqa: E731
+    started = time.monotonic()
+    progress = lambda msg: click.echo(f"[{time.monotonic() - started:5.0f} s] {msg}", err=True)      # noqa: E731
+    if not only:
+        seconds = BENCH_S["quick" if quick else "full"]
+        click.echo(f"bench: about {seconds} s on 2 CPUs{'' if quick else ' (--quick: about %d s)' % BENCH_S['quick']}; "
+                   f"the figures follow at the end", err=True)
     if only:
         result, lines = run_part(only, quick, progress)
     else:
