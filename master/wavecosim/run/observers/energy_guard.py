@@ -1,7 +1,7 @@
 """Energy guard: the total stored energy of a source-free scene never rises above its start value.
 
 Theorem 1 bounds one macro-step at a time; it does not chain across steps, so a small budget can
-pump energy in over many steps (docs/scenes.md). No passive, losslessly coupled, source-free
+pump energy in over many steps (docs/energy.md). No passive, losslessly coupled, source-free
 system can hold more energy than it started with, and the monolithic step cannot raise H
 (eq. 27 summed with a = P b). So a DR step whose committed H exceeds H(0) is undone (x^n restored)
 and redone as the monolithic step (interface Newton), which keeps H <= H^n <= H(0).
