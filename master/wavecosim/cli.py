@@ -484,12 +484,12 @@ def examples_cmd(name):
         raise ConfigError(str(exc)) from None
 
 
-BENCH_S = {"quick": 35, "full": 600}     # measured wall time of `bench` (2 CPUs, warm build cache)
+BENCH_S = {"quick": 35, "full": 110}     # measured wall time of `bench` (2 CPUs, warm build cache)
 
 
 @cli.command("bench")
 @click.option("--quick", is_flag=True, help=f"Fewer steps and repeats: about {BENCH_S['quick']} s instead of about "
-                                           f"{BENCH_S['full'] // 60} minutes (2 CPUs).")
+                                           f"{BENCH_S['full']} s (2 CPUs).")
 @click.option("--json", "json_file", type=click.Path(dir_okay=False, path_type=Path), help="Also write the figures here.")
 @click.option("--only", type=click.Choice(["parallel_threads", "real_fmus"]),
               help="Measure this part alone (real_fmus: systems of real FMUs against the floor of their FMU "

@@ -2,8 +2,10 @@
 misuse of an instance or a saved state, as the least forgiving real exports crash on it. Each
 misuse is made by a few raw FMI calls in a child process, which must die with the strict layer's
 one line; used by the book, the FMU validates, steps exactly and restores bit for bit."""
+import os
 import subprocess
 import sys
+import tempfile
 import textwrap
 
 import numpy as np
@@ -55,8 +57,11 @@ MISUSES = {
 
 
 def child(path, case):
-    return subprocess.run([sys.executable, "-c", CHILD.format(case=textwrap.dedent(case)), str(path)],
-                          capture_output=True, text=True, timeout=60)
+    """Run `case` in a child process; its unpacked FMUs go to a temporary folder removed afterwards (an
+    aborted child cannot remove them itself)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        return subprocess.run([sys.executable, "-c", CHILD.format(case=textwrap.dedent(case)), str(path)],
+                              capture_output=True, text=True, timeout=60, env={**os.environ, "TMPDIR": tmp})
 
 
 @pytest.mark.parametrize("why", list(MISUSES))
