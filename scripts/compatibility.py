@@ -174,7 +174,7 @@ def same_as_plain_loop(scenario, result):
     worst = [(col, float(np.max(np.abs(traj[col] - expected[col]))) if traj[col].dtype.kind == "f" else math.nan)
              for col in columns if not np.array_equal(traj[col], expected[col])]
     if not worst:
-        return True, f"equal to a plain fmpy loop, bit for bit ({len(columns)} columns, {len(traj)} rows)"
+        return True, f"equal to a plain fmpy loop, bit for bit ({len(columns)} column{'s' if len(columns) != 1 else ''}, {len(traj)} rows)"
     col, diff = max(worst, key=lambda w: w[1])
     return False, f"differs from a plain fmpy loop in {len(worst)} columns (worst {col}: {diff:.3g})"
 
