@@ -44,6 +44,7 @@ def test_the_signals_reach_the_machine_and_the_inertia():
     assert result.trajectory["w"][-1] > 1.0
 
 
+@pytest.mark.slow
 def test_every_classical_master_runs():
     """Each on physical ports (newton on waves through the adapter); the iterating ones meet newton."""
     sc = wc.load(CONFIG, T=0.01)

@@ -69,7 +69,7 @@ def test_a_fault_in_dostep_keeps_every_step_before_it(name, tmp_path, tmp_env, f
     assert list(temp.iterdir()) == []                 # no extracted FMU, no channel folder
 
 
-@pytest.mark.parametrize("name", ["segfault", "hang"])
+@pytest.mark.parametrize("name", ["segfault", pytest.param("hang", marks=pytest.mark.slow)])
 def test_without_the_reference_the_kernel_block_in_progress_is_kept(name, tmp_path, tmp_env, faulty_scenario):
     """The C kernel makes the steps in blocks; the rescue books the block's steps before the fault."""
     fault, code, what = FAULTS[name]
@@ -115,7 +115,7 @@ def _child_when_hung(parent, trajectory, timeout=60):
     pytest.fail("the run never wrote a block of rows")
 
 
-@pytest.mark.parametrize("hung", [False, True], ids=["between-steps", "inside-a-hung-call"])
+@pytest.mark.parametrize("hung", [False, pytest.param(True, marks=pytest.mark.slow)], ids=["between-steps", "inside-a-hung-call"])
 def test_sigterm_ends_the_run_cleanly(hung, tmp_path, tmp_env, faulty_scenario):
     """SIGTERM: exit 143, one line, every committed step on disk and in summary.json (status
     interrupted), also when the run is stuck in an FMU call (the parent asks for a rescue)."""

@@ -61,6 +61,7 @@ def test_pwmtest_builds_its_source_fmus_and_integrates_the_model_exchange_circui
     assert np.array_equal(traj["circuit.u"][1:], traj["pulse.y"][:-1])           # held over each step
 
 
+@pytest.mark.slow
 def test_embrace_runs_a_second_with_the_pipe_lengths_its_mapping_gives(tmp_path):
     code, err, traj = run(tmp_path, OMS / "embrace" / "SystemStructure.ssd", "--T", "1")
     assert code == 0, err
