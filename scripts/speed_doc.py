@@ -127,7 +127,9 @@ def fixed_tax_table(tax):
             f"| 10-step run of configs/foreign_pair.yaml, gamma choice in the cache | {tax['run_warm_s']:.2f} |",
             f"| the same, first run (gamma searched) | {tax['run_cold_s']:.2f} |",
             f"| run minus import (cached / first) | {tax['warm_over_import_s']:.2f} / {tax['cold_over_import_s']:.2f} |",
-            "", f"Best of {tax['rounds']} rounds, load average {tax['load_average_1min']:.2f}."]
+            "", f"Best of {tax['rounds']} rounds, load average {tax['load_average_1min']:.2f}, with Python's bytecode caches "
+                "(as pip installs a package). Most of the first run's extra time is importing scipy.optimize for "
+                "the search of γ, whose result the build cache then keeps."]
 
 
 def chain_table(folder):
