@@ -175,15 +175,6 @@ static int non_finite_input(const ModelData *d, int k, char *msg, size_t n) {
     return 1;
 }
 
-/* H = model_energy of the current state, for models that expose their stored energy. */
-static void write_energy(ModelData *d) {
-#if HAS_ENERGY_OUTPUT
-    d->r[VR_H] = model_energy(d);
-#else
-    (void)d;
-#endif
-}
-
 #if HAS_WAVE_PORT
 #define PORT_MODE_WAVE 0
 #define PORT_MODE_PHYSICAL 1

@@ -220,14 +220,6 @@ static void set_start_values(ModelData *d) {
     for (int k = 0; k < N_INTEGERS; k++) d->i[k] = int_start[k];
 }
 
-static void write_energy(ModelData *d) {
-#if HAS_ENERGY_OUTPUT
-    d->r[VR_H] = model_energy(d);
-#else
-    (void)d;
-#endif
-}
-
 static int quirk(const Instance *c, int which) {
     return which >= 0 && c->d->i[which] != 0;
 }

@@ -149,6 +149,16 @@ int model_initialize(ModelData *m, char *msg, size_t msg_size);
 double model_energy(const ModelData *m);
 #endif
 
+/* The layers' update of the output H = model_energy of the current state (nothing for a model
+ * that does not expose its stored energy). */
+static inline void write_energy(ModelData *m) {
+#if HAS_ENERGY_OUTPUT
+    m->r[VR_H] = model_energy(m);
+#else
+    (void)m;
+#endif
+}
+
 #if HAS_WAVE_PORT
 #define COUNT_CHANNEL(ain, bout, eff, flo, phys, kind) +1
 enum { N_CHANNELS = 0 PORT_CHANNELS(COUNT_CHANNEL) };

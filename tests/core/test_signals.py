@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import wavecosim as wc
+from scenes import SIGNAL_SCENE
 from wavecosim.cli import main
 from wavecosim.scenario.config import parse_scenario
 from wavecosim.errors import ConfigError
@@ -19,17 +20,7 @@ DT = 0.01
 STEP_AT = 0.05            # the table steps from 0 to 1 here: macro-step 5 is the first to hold 1
 
 BASE = {
-    "name": "signals", "dt": DT, "T": 0.2, "gamma": 0.4,
-    "subsystems": {
-        "A": {"fmu": "DuffingSide", "start": {"q1": 0.4, "d": -0.4},
-              "port": {"wave_in": "a", "wave_out": "b", "effort": "e", "flow": "f", "physical_in": "u",
-                       "input": "flow"}},
-        "B": {"fmu": "Oscillator", "parameters": {"m": 4.0, "k": 50.0},
-              "port": {"wave_in": "a_left", "wave_out": "b_left", "effort": "e_left", "flow": "f_left",
-                       "physical_in": "F_left", "input": "effort"}},
-        "S": {"fmu": "LinearSide", "parameters": {"m2": 1.0, "k2": 10.0}},
-    },
-    "couplings": [{"type": "equal_effort_opposite_flow", "ports": ["A", "B"]}],
+    **SIGNAL_SCENE, "dt": DT,
     "sources": {"push": {"csv": "push.csv"}},
     "signals": [{"from": "push.force", "to": "B.a_right"},
                 {"from": "A.q1", "to": "S.F", "factor": 2.0, "offset": 0.5}],

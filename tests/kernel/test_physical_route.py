@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from paths import CONFIGS, THIRD_PARTY
+from scenes import SIGNAL_SCENE
 from wavecosim.errors import RunFailed
 from wavecosim.bench.real_fmus import signal_pair
 from wavecosim.run.runner import LiveRun, _loop, run
@@ -66,17 +67,7 @@ def test_the_dcmotor_runs_in_blocks_bit_for_bit(master):
 
 
 SIGNALS = {
-    "name": "signals", "dt": 0.01, "T": 0.2, "gamma": 0.4,
-    "subsystems": {
-        "A": {"fmu": "DuffingSide", "start": {"q1": 0.4, "d": -0.4},
-              "port": {"wave_in": "a", "wave_out": "b", "effort": "e", "flow": "f", "physical_in": "u",
-                       "input": "flow"}},
-        "B": {"fmu": "Oscillator", "parameters": {"m": 4.0, "k": 50.0},
-              "port": {"wave_in": "a_left", "wave_out": "b_left", "effort": "e_left", "flow": "f_left",
-                       "physical_in": "F_left", "input": "effort"}},
-        "S": {"fmu": "LinearSide", "parameters": {"m2": 1.0, "k2": 10.0}},
-    },
-    "couplings": [{"type": "equal_effort_opposite_flow", "ports": ["A", "B"]}],
+    **SIGNAL_SCENE,
     "sources": {"push": {"csv": "push.csv", "interpolation": "linear"}},
     "signals": [{"from": "push.force", "to": "B.F_right", "factor": 3.0, "offset": -0.25},
                 {"from": "A.q1", "to": "S.F", "factor": 2.0, "offset": 0.5}],

@@ -195,7 +195,7 @@ def _reflections(scene, probes, gammas):
     for p, off, s, g in zip(probes, scene.offsets, scene.subsystems, gammas):
         J_S[off:off + s.m, off:off + s.m] = p.jacobian(g)
     channel = [g for g, s in zip(gammas, scene.subsystems) for _ in range(s.m)]
-    J_L = ic.recompile_wave_map(np.asarray(scene.E, float), np.asarray(scene.F, float), np.asarray(channel, float)).J_L
+    J_L = ic.compile_wave_map(scene.E, scene.F, channel).J_L
     return 2.0 * J_L - np.eye(n), 2.0 * J_S - np.eye(n)
 
 

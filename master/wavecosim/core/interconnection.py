@@ -203,17 +203,10 @@ def _checked_components(E, F, where):
 def compile_wave_map(E, F, gammas, where="coupling") -> WaveInterconnection:
     """P from E e + F f = 0 for channel impedances `gammas` (one per channel, all > 0)."""
     E, F = np.asarray(E, float), np.asarray(F, float)
-    _checked_components(E, F, where)
+    parts = _checked_components(E, F, where)
     g = np.asarray(gammas, float)
     if g.shape != (E.shape[0],) or not np.all(g > 0) or not np.all(np.isfinite(g)):
         raise CouplingError(f"{where}: gamma must be finite and > 0 on each of the {E.shape[0]} channels")
-    return recompile_wave_map(E, F, g, where)
-
-
-def recompile_wave_map(E, F, g, where="coupling") -> WaveInterconnection:
-    """compile_wave_map for a structure already checked (arrays E, F, g): the same numbers, without
-    checking E, F again (the gamma tuner compiles one structure at many impedances)."""
-    parts = _checked_components(E, F, where)           # remembered per E, F
     left = F / np.sqrt(g) + E * np.sqrt(g)
     right = F / np.sqrt(g) - E * np.sqrt(g)
     P_parts, J_parts, ortho = [], [], 0.0
