@@ -209,6 +209,7 @@ def test_the_route_makes_the_steps_of_the_reference(scenario, name, scene, setti
             assert error is None and done == min(7, STEPS - n) and not log.stopped
             for j in range(done):
                 same_block_logs(ref.step(n + j, (n + j) * sc.dt), route.step_log(log, j), f"step {n + j}")
+            assert plain_ledger(log), f"the ledger's rows of the block from step {n}"
             n += done
             same_state(ref, fast, scenes, f"block ending at step {n - 1}")
         observed = samplers[1].block(log.observed).outputs[-1]
@@ -222,6 +223,15 @@ def test_the_route_makes_the_steps_of_the_reference(scenario, name, scene, setti
             same_state(ref, fast, scenes, "undo after a block")
             same_block_logs(ref.step(n, n * sc.dt), route.step_log(route.run_steps(n, 1)[1], 0), "step after the undo")
             same_state(ref, fast, scenes, "step after the undo")
+
+
+def plain_ledger(log):
+    """Every step of a block made without the ledger or a deadline logs the ledger's defaults: nothing
+    supplied, booked or timed, scale 1, kept, no redo round."""
+    led = log.ledger
+    return (all(np.isnan(led[k]).all() for k in ("supplied", "ledger", "traffic", "step_s", "cpu_s"))
+            and (led["scale"] == 1.0).all() and (led["action"] == 0).all() and (led["rounds"] == 0).all()
+            and np.array_equal(led["round_s"], np.full(len(log), led["round_s"][0]), equal_nan=True))
 
 
 def same_run(ref, fast, skip=()):

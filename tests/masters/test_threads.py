@@ -141,6 +141,19 @@ def test_auto_stays_serial_when_a_thread_would_not_pay(kernel):
     assert planner.note.startswith("serial: a second thread would take over 120 µs per round")
 
 
+def test_auto_stays_serial_on_a_round_too_short_to_share(kernel):
+    """A round under 2 PARALLEL_MIN_US cannot give a second thread its share, whatever the costs: the
+    planner tries no plan and reads the costs only when asked; a longer round is planned as usual."""
+    planner = ThreadPlanner(kernel, "auto", 8)
+    assert planner.begin() == (True, True)
+    planner.end(True, 250e-6)
+    assert not planner.on_trial and planner.threads == 1 and kernel.threads == 1
+    assert planner.note == "serial: a round takes 250 µs, a second thread pays from 300 µs"
+    assert planner.costs == [0.0] * 8                            # no evaluation was timed: read as zeros
+    planner.measured([300.0] * 8, 2400e-6)
+    assert planner.trial[0] == 2
+
+
 def test_auto_gives_threads_back_when_the_costs_fall(kernel):
     planner = ThreadPlanner(kernel, "auto", 8)
     planner.measured([400.0] * 8, 3200e-6)

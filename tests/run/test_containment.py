@@ -86,7 +86,7 @@ def test_a_process_killed_outright_still_gets_its_summary(tmp_path, tmp_env, fau
     the rows already on disk (handed over at least every second), cut after the last whole row."""
     env, temp = tmp_env
     scenario = tmp_path / "scenario.yaml"
-    scenario.write_text(yaml.safe_dump(faulty_scenario(3, 2000), sort_keys=False))
+    scenario.write_text(yaml.safe_dump(faulty_scenario(3, 2900), sort_keys=False))
     out = tmp_path / "out"
     proc = subprocess.Popen([*CLI, "run", str(scenario), "--out", str(out), "--quiet"], env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -105,7 +105,7 @@ def test_a_process_killed_outright_still_gets_its_summary(tmp_path, tmp_env, fau
 
 def _child_when_hung(parent, trajectory, timeout=60):
     """The pid of the parent's child once its run has written more than a block of rows (it then
-    hangs in the reference's step 2000)."""
+    hangs in the reference's step 2900, after at least 1876 rows: the blocks are at most 1024 steps)."""
     deadline = time.time() + timeout
     while time.time() < deadline:
         children = open(f"/proc/{parent}/task/{parent}/children").read().split()

@@ -15,7 +15,7 @@ import time
 import pytest
 import yaml
 
-from paths import CLI, CONFIGS
+from paths import CLI, CONFIGS, THIRD_PARTY
 from wavecosim.cli import main
 from wavecosim.scenario.config import DEFAULT_CONFIG, parse_scenario
 from wavecosim.run.runner import RunFailed, run
@@ -128,6 +128,22 @@ def test_non_finite_state_stops_the_run(tmp_path, capsys):
     assert all(x < float("inf") for x in last) and max(last) > 1e100
 
 
+def test_an_fmu_that_overflows_without_an_error_stops_the_kernel_block(tmp_path, capsys):
+    """The Reference FMUs' Dahlquist (x' = -k x, forward Euler) with k = -1e300 reaches x = inf at step 1
+    and says nothing: without a growth bound the kernel's block stops after that step on its own
+    finiteness check, and the run fails there with the rows before it."""
+    fmu = THIRD_PARTY / "reference_fmus" / "fmi2" / "Dahlquist.fmu"
+    if not fmu.exists():
+        pytest.skip("the Reference FMUs are not beside this clone")
+    raw = {"name": "dahlquist_overflow", "dt": 0.1, "T": 1.0, "growth_bound": None,
+           "subsystems": {"D": {"fmu": str(fmu), "parameters": {"k": -1e300}}}, "outputs": {"x": "D.x"}}
+    code, err, out = run_cli(tmp_path, raw, capsys)
+    assert code == 4 and err.strip().splitlines()[-1] == "error: subsystem D: x = inf is not finite at step 1 (t = 0.2)"
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["fast_path"] and summary["block_steps"] == 2 and summary["steps"] == 2
+    assert [r[1] for r in rows(out / "trajectory.csv")] == ["1.0", "1e+299", "inf"]
+
+
 def test_run_failed_carries_the_result():
     """The library API: RunFailed.result holds the committed rows, the step and the message."""
     with pytest.raises(RunFailed) as info:
@@ -169,8 +185,8 @@ def test_ctrl_c_stops_cleanly_with_everything_on_disk(tmp_path):
 
 
 def test_explicit_master_on_an_unstable_stiff_scene_fails_instead_of_finishing(tmp_path, capsys):
-    """configs/two_oscillators_stiff.yaml with m1 = -8 under the explicit master used to reach
-    q1 = 2.4e25 and report "finished": now it stops where its outputs pass the growth bound."""
+    """configs/two_oscillators_stiff.yaml with m1 = -8 under the explicit master grows without bound
+    (q1 = 2.4e25 by the end): the run stops where its outputs pass the growth bound."""
     raw = yaml.safe_load((CONFIGS / "two_oscillators_stiff.yaml").read_text())
     raw["subsystems"]["A"]["parameters"]["m1"] = -8.0
     code, err, out = run_cli(tmp_path, raw, capsys, "--no-reference", "--master", "explicit")

@@ -60,6 +60,7 @@ class ClassicalKernel:
             self.base.close()
             raise FmuError("the classical kernel could not be created (out of memory)")
         self._handle, self._step = ctypes.c_void_p(self.handle), self.lib.cl_fixed_point_step
+        self._b = np.frombuffer(self.base.b, dtype=np.float64)          # y^n for cl_run_steps, in place
         # the DR kernel's block call, log and observed values, with the classical step in it
         self.base._run_steps = functools.partial(self._blocks, int(explicit), int(sequential))
 
@@ -70,7 +71,7 @@ class ClassicalKernel:
         """Macro-steps n0 .. n0 + count - 1 from outputs y in one call (classical.h, cl_run_steps):
         (steps done, their fast_path.BlockLog, the FmuError of the step after them or None);
         measure: time the evaluations (Kernel.costs)."""
-        self.base.b[:] = [float(x) for x in y]
+        self._b[:] = y
         return self.base.run_steps(n0, count, H_cap, measure)
 
     def configure(self, K, eps, deadline_s):

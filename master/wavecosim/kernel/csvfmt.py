@@ -71,7 +71,7 @@ class BlockWriter:
         writer thread formats while the runner goes on; pieces of one block at different `start` use
         disjoint parts of the text buffer, so two threads may format them at once)."""
         out = ctypes.addressof(self.out) + start * self.stride
-        n = self.lib.csv_rows(self.block.ctypes.data + 8 * start, self.block.shape[0], rows, self.block.shape[1],
+        n = self.lib.csv_rows(self.block.ctypes.data + 8 * start, self.block.strides[1] // 8, rows, self.block.shape[1],
                               self.kinds, self.names, self.starts, out)
         if n < 0:
             raise MemoryError("out of memory while formatting CSV rows")

@@ -24,6 +24,7 @@ from .linalg import Sparse
 from .portview import ObservedPort, PortView, SignedPort
 from .signals import SignalPlan
 
+LOG_PAD = 8               # a log's rows steps + LOG_PAD apart: 8 KiB apart, a step's values would share cache sets
 PARALLEL_MIN_US = 150.0   # a thread pays only when it takes over at least this much work per evaluation round
 DR_MAX_THREADS = 64       # drkernel.h
 CPUS_ENV = "WAVECOSIM_CPUS"
@@ -288,7 +289,7 @@ class Kernel:
         self._macro_step = lib.dr_macro_step       # called with pre-converted arguments
         self.threads = 1
         self.trace, self.trace_capacity = None, 0
-        self.width, self.log = lib.dr_log_width(self._handle), np.empty((0, 0))
+        self.width, self.log, self._log_at = lib.dr_log_width(self._handle), np.empty((0, 0)), None
         self._run_steps = lib.dr_run_steps
 
     def observe(self, names, steps=0, bound=None):
@@ -332,10 +333,10 @@ class Kernel:
         touched inside a block), its first `keep` columns kept."""
         if self.log.shape[0] == self.width and self.log.shape[1] >= steps:
             return
-        log = np.full((self.width, max(steps, 1)), math.nan)
+        log = np.full((self.width, max(steps, 1) + LOG_PAD), math.nan)
         if keep:
             log[:, :keep] = self.log[:, :keep]
-        self.log = log
+        self.log, self._log_at = log, log.ctypes.data
 
     def keep_ledger(self, ledger, traffic, rtol, step_deadline_s=None):
         """From the next run_steps on, the kernel books the interface energy ledger from (L, traffic)
@@ -354,7 +355,7 @@ class Kernel:
         log, ld = self.log, self.log.shape[1]
         if self.plan is not None:
             self.plan.prepare(n0, count)
-        done = self._run_steps(self._handle, self._io, n0, count, log.ctypes.data + 8 * at, ld, H_cap)
+        done = self._run_steps(self._handle, self._io, n0, count, self._log_at + 8 * at, ld, H_cap)
         n, failed = n0 + done, self.io.failed_subsystem != -1
         if self.plan is not None:
             self.plan.book(n0, done, failed)

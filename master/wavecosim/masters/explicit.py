@@ -25,6 +25,10 @@ class ExplicitMaster(KernelRoute, PhysicalMaster):
         self.y = self.sweep(self.y, lambda sub, inputs: step_forward(sub, n, t, inputs))
         return StepLog(iterations=0, reason="explicit")
 
+    def block_iterations(self, log):
+        """None: an explicit step has no inner loop."""
+        return 0
+
     def configure_kernel(self):
         """Nothing to set: an explicit step has no inner loop."""
 

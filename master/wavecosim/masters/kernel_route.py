@@ -49,6 +49,10 @@ class KernelRoute(KernelOwner):
 
     keeps_ledger = False          # the ledger is kept step by step for these masters
 
+    def block_iterations(self, log):
+        """The inner iterations of a block of kernel steps, all steps together."""
+        return int(log.iterations.sum())
+
     @property
     def fast(self):
         """Whether the kernel route runs (the runner makes blocks of steps only then)."""
@@ -80,14 +84,16 @@ class KernelRoute(KernelOwner):
         if self._step_s > 0.0:
             count = max(1, min(count, int(BLOCK_SECONDS / self._step_s)))
         self.configure_kernel()
-        measure, _ = self.planner.begin()
+        measure, timed = self.planner.begin()
         started = time.perf_counter()
         done, log, error = self.kernel.run_steps(n0, count, self.y, H_cap, measure)
         if done:
             self._step_s = (time.perf_counter() - started) / done
-            self.planner.end(measure, self._step_s / (1.0 + float(log.iterations.mean())))
+            iterations = self.block_iterations(log)
+            if timed:
+                self.planner.end(measure, self._step_s * done / (done + iterations))
             last = n0 + done - 1
-            self.book_kernel(last, self.t0 + last * self.dt, int(log.iterations.sum()), done)
+            self.book_kernel(last, self.t0 + last * self.dt, iterations, done)
             self.took_block(log, done)
         return done, log, error
 

@@ -43,16 +43,38 @@ class ThreadPlanner:
         asked = n_sub if self.auto else int(mode)
         self.cpus = available_cpus()
         self.limit = max(1, min(asked, self.cpus, n_sub, DR_MAX_THREADS)) if independent else 1
-        self.threads, self.plan, self.costs = 1, [0] * n_sub, None
+        self.threads, self.plan, self._costs = 1, [0] * n_sub, None
         self.round_s = None            # the measured round of the plan in force (s)
         self.trial = None              # (threads, plan, predicted ratio, rounds so far) on trial
         self.refused_at = None         # (total cost, perf_counter()) when auto last found no more threads paying
+        self._note = None              # why: a text, or a function making it when read (note)
         self._next_measure = None      # perf_counter() of the next timing (None: the first macro-step)
         self.note = "serial" if independent else "serial: each subsystem reads its predecessors' new outputs"
         self._asked = "as set" if asked == self.limit else \
             f"threads: {asked} capped at {self.limit}: {self.cpus} CPUs, {n_sub} subsystems"
         if independent and self.limit == 1 and asked > 1:
             self.note = f"serial ({self._asked})" if not self.auto else f"serial: {self.cpus} CPU"
+
+    @property
+    def costs(self):
+        """µs per evaluation of each subsystem, as last timed (None before); after a round too short to
+        share they are read from the kernel when first asked for."""
+        if callable(self._costs):
+            self._costs = list(self._costs())
+        return self._costs
+
+    @costs.setter
+    def costs(self, costs):
+        self._costs = costs
+
+    @property
+    def note(self):
+        """Why this many threads (a serial reason quoting the timed costs is written when read)."""
+        return self._note() if callable(self._note) else self._note
+
+    @note.setter
+    def note(self, why):
+        self._note = why
 
     @property
     def on_trial(self):
@@ -78,10 +100,27 @@ class ThreadPlanner:
 
     def end(self, measure, round_s):
         """After a macro-step or block begun with `begin`: its seconds per evaluation round."""
-        if measure:
+        if measure and self._too_short(round_s):
+            self._stay_serial(round_s)
+        elif measure:
             self.measured(self.kernel.costs(), round_s)
         elif self.trial is not None:
             self.tried(round_s)
+
+    def _too_short(self, round_s):
+        """auto, serial: the whole round is too short for a second thread to take PARALLEL_MIN_US of it,
+        whatever the costs (so they are not read)."""
+        return self.auto and self.threads == 1 and 1e6 * round_s < 2 * PARALLEL_MIN_US
+
+    def _stay_serial(self, round_s):
+        """Serial on a round too short to share (auto looks again in REMEASURE_S)."""
+        now = time.perf_counter()
+        self._next_measure, self.round_s, self.costs = now + REMEASURE_S, round_s, self.kernel.costs
+        self.refused_at = (1e6 * round_s, now)
+        self.note = self._short_round
+
+    def _short_round(self):
+        return f"serial: a round takes {1e6 * self.round_s:.3g} µs, a second thread pays from {2 * PARALLEL_MIN_US:g} µs"
 
     def measured(self, costs_us, round_s):
         """After a timed macro-step or block: µs per evaluation of each subsystem, seconds per round."""
@@ -142,12 +181,10 @@ class ThreadPlanner:
                     self.note = f"{self.note}; a worker thread could not be started"
                 return
         self._refuse()
-        if self.threads == 1:
-            self.note = self._serial_reason()
+        if self.threads == 1 and self.limit > 1:
+            self.note = self._serial_reason
 
     def _serial_reason(self):
-        if self.limit == 1:
-            return self.note
         plan, load = thread_plan(self.costs, 2)
         return (f"serial: a second thread would take over {min(load):.3g} µs per round "
                 f"(< {PARALLEL_MIN_US:g} µs)")

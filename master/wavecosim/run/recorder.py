@@ -25,6 +25,7 @@ from .outputs import cannot
 from .writer import Writer
 
 BLOCK = 1024
+PAD = 8                           # columns BLOCK + PAD apart: 8 KiB apart they would share cache sets
 KEEP_VALUES = 262_144             # 2 MB of rows per table at most stays in memory
 
 
@@ -103,7 +104,7 @@ class Table:
 
     def _new_slot(self):
         """A block of BLOCK rows (columns contiguous) and what formats its rows for the file."""
-        block = np.empty((BLOCK, len(self.columns)), order="F")
+        block = np.full((BLOCK + PAD, len(self.columns)), np.nan, order="F")[:BLOCK]    # touched here, not in the loop
         if self.path is None:
             return block, None
         return block, block_writer(block, [_kind(f) for f in self._fmt]) or self._python_text(block)

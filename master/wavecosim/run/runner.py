@@ -442,9 +442,10 @@ class LiveRun:
         rows = self.steps.reserve(count) if every else np.empty((count, len(self.steps.columns)), order="F")
         trajectory = self.trajectory.reserve(count) if every else np.empty((count, 1 + len(self.columns)), order="F")
         iterations = self._block_rows(n0, log, readings, rows, trajectory)
-        with np.errstate(over="ignore", invalid="ignore"):     # as Python floats overflow: inf, nan, silently
-            for o, span in self.block_observers:
-                o.after_block(n0, log, readings, rows[:, span])
+        if self.block_observers:
+            with np.errstate(over="ignore", invalid="ignore"):     # as Python floats overflow: inf, nan, silently
+                for o, span in self.block_observers:
+                    o.after_block(n0, log, readings, rows[:, span])
         self.steps_done = n0 + count
         self.iterations[0] += int(iterations[0])
         self.iterations[1] = max(self.iterations[1], int(iterations[1]))

@@ -187,6 +187,7 @@ static int failed(Sub *s, int function, fmi2Status status) {
  * save x_i^n on the first call of the macro-step (line 3), restore it if an earlier query moved
  * the instance, set the incident waves, one doStep, read the outgoing waves. */
 static int evaluate(Sub *s, const double *in, double *out, double t, double h, int commit, int measure) {
+    measure = measure && s->n_samples < MAX_SAMPLES;       /* a clock read costs tens of ns: only those kept */
     double t0 = measure ? now_ns() : 0.0;
     if (!s->frozen) {
         if (failed(s, DR_FN_GET_STATE, s->fn.getFMUstate(s->comp, s->state))) return 1;
@@ -205,7 +206,7 @@ static int evaluate(Sub *s, const double *in, double *out, double t, double h, i
     if (failed(s, DR_FN_DO_STEP, s->fn.doStep(s->comp, t, h, s->no_prior ? fmi2True : fmi2False))) return 1;
     s->n_do_step++;
     if (failed(s, DR_FN_GET_REAL, s->fn.getReal(s->comp, s->out_vr, s->m, out + s->offset))) return 1;
-    if (measure && s->n_samples < MAX_SAMPLES) s->sample_ns[s->n_samples++] = now_ns() - t0;
+    if (measure) s->sample_ns[s->n_samples++] = now_ns() - t0;
     return 0;
 }
 
@@ -549,9 +550,12 @@ size_t dr_log_width(const DRKernel *k) {
     return width + k->extra.rows + DR_LEDGER_COLUMNS;
 }
 
-/* Log step s after its commit, column-major: value c at rows[c ld + s]; the first failing subsystem's read, or -1. */
-static int log_step(DRKernel *k, const DRStep *io, double *rows, size_t ld, size_t s) {
+/* Log step s after its commit, column-major: value c at rows[c ld + s]; the first failing subsystem's
+ * read, or -1. *finite: whether every observed value checked by stop_after is finite (v * 0 is NaN for
+ * an infinite or NaN v, else a zero: one sum tells). */
+static int log_step(DRKernel *k, const DRStep *io, double *rows, size_t ld, size_t s, int *finite) {
     size_t n = k->n, c = 3 + 2 * n;
+    double poison = 0.0;
     rows[s] = (double)io->iterations;
     rows[ld + s] = (double)io->reason;
     rows[2 * ld + s] = io->residual;
@@ -564,33 +568,35 @@ static int log_step(DRKernel *k, const DRStep *io, double *rows, size_t ld, size
         if (!s_i->n_obs) continue;
         if (failed(s_i, DR_FN_GET_REAL, s_i->obs_get(s_i->obs_comp, s_i->obs_vr, s_i->n_obs, k->obs))) return i;
         for (size_t j = 0; j < s_i->n_obs; j++) rows[(c + j) * ld + s] = k->obs[j];
+        for (size_t j = (size_t)s_i->obs_no_H; j < s_i->n_obs; j++) poison += k->obs[j] * 0.0;
         c += s_i->n_obs;
     }
     if (k->extra.rows && k->extra.observe(k->extra.ctx, rows + c * ld + s, ld)) return DR_FAILED_EXTRA;
+    for (size_t j = 0; j < k->extra.rows; j++) poison += rows[(c + j) * ld + s] * 0.0;
+    *finite = poison == poison;
     return -1;
 }
 
-/* Stop after this step? When an observed value (obs: the step's column of them, stride ld) is
- * not finite, when a bounded one is above the bound (dr_set_bound), or when the stored energy (the
- * sum of every subsystem's first observed value) may exceed H_cap: the bound 4 n_sub eps sum|H_i|
- * covers any order of summation, so the caller's exact test never sees a step above the cap go by. */
-static int stop_after(const DRKernel *k, const double *obs, size_t ld, double H_cap) {
-    double sum = 0.0, magnitude = 0.0;
+/* Stop after this step? When an observed value is not finite (log_step's `finite`), when a bounded
+ * one (obs: the step's column of them, stride ld) is above the bound (dr_set_bound), or when the
+ * stored energy (the sum of every subsystem's first observed value) may exceed H_cap: the bound
+ * 4 n_sub eps sum|H_i| covers any order of summation, so the caller's exact test never sees a step
+ * above the cap go by. */
+static int stop_after(const DRKernel *k, const double *obs, size_t ld, double H_cap, int finite) {
+    if (!finite) return 1;
     for (int b = 0; b < k->n_bounded; b++)
         if (fabs(obs[(size_t)k->bounded[b] * ld]) > k->bound) return 1;
+    if (!isfinite(H_cap)) return 0;
+    double sum = 0.0, magnitude = 0.0;
     for (int i = 0; i < k->n_sub; i++) {
         const Sub *s = &k->sub[i];
-        for (size_t j = s->obs_no_H && s->n_obs; j < s->n_obs; j++)
-            if (!isfinite(obs[j * ld])) return 1;
         if (s->n_obs && !s->obs_no_H) {
             sum += obs[0];
             magnitude += fabs(obs[0]);
         }
         obs += s->n_obs * ld;
     }
-    for (size_t j = 0; j < k->extra.rows; j++)
-        if (!isfinite(obs[j * ld])) return 1;
-    return isfinite(H_cap) && sum + 4.0 * k->n_sub * DBL_EPSILON * magnitude > H_cap;
+    return sum + 4.0 * k->n_sub * DBL_EPSILON * magnitude > H_cap;
 }
 
 /* ---- the interface energy ledger and its scaled redo (wavecosim/run/observers/energy_ledger.py) ---- */
@@ -864,10 +870,10 @@ static long fmu_do_steps(const DRKernel *k) {
  * ~30 ns, a tenth of a macro-step at K = 0). */
 static int clocked(const DRStep *io) { return io->step_deadline_s > 0.0 || io->deadline_s > 0.0; }
 
-static int ledger_step(DRKernel *k, DRStep *io, double t0, double c0, double *rows, size_t ld, size_t s) {
-    double *row = rows + (dr_log_width(k) - DR_LEDGER_COLUMNS) * ld + s;
-    double out[5] = {1.0, NAN, NAN, DR_LEDGER_KEPT, 0.0};
+static int ledger_step(DRKernel *k, DRStep *io, double t0, double c0, double *row, size_t ld) {
     int timed = clocked(io);
+    if (!io->ledger_on && !timed) return -1;                    /* its row: plain_ledger_rows */
+    double out[5] = {1.0, NAN, NAN, DR_LEDGER_KEPT, 0.0};
     if (io->ledger_on) {
         double now = timed ? now_ns() : 0.0, tol;
         if (timed)
@@ -896,6 +902,14 @@ static int ledger_step(DRKernel *k, DRStep *io, double t0, double c0, double *ro
                                         out[0], out[3], out[4], wall, io->round_s, cpu};
     for (int c = 0; c < DR_LEDGER_COLUMNS; c++) row[(size_t)c * ld] = logged[c];
     return -1;
+}
+
+/* The ledger's row of every step of a call without the ledger or a clock: the same each step (ledger_step's
+ * defaults), so written for all `count` steps at once, row by row, before the steps. */
+static void plain_ledger_rows(const DRStep *io, double *rows, size_t ld, int count) {
+    const double logged[DR_LEDGER_COLUMNS] = {NAN, NAN, NAN, 1.0, DR_LEDGER_KEPT, 0.0, NAN, io->round_s, NAN};
+    for (int c = 0; c < DR_LEDGER_COLUMNS; c++)
+        for (int s = 0; s < count; s++) rows[(size_t)c * ld + (size_t)s] = logged[c];
 }
 
 int dr_ledger_redo(DRKernel *k, DRStep *io, double supplied, double budget, double left_s, double round_s,
@@ -928,7 +942,10 @@ int dr_run_steps(DRKernel *k, DRStep *io, int n0, int count, double *rows, long 
 int dr_run_steps_of(DRKernel *k, DRStep *io, int n0, int count, double *rows, long ld, double H_cap, DRStepFn step,
                     void *ctx) {
     size_t m = (size_t)ld, first_observed = (3 + 2 * k->n) * m;
+    double *ledger_rows = rows + (dr_log_width(k) - DR_LEDGER_COLUMNS) * m;
     io->stopped = 0;
+    for (int i = 0; io->measure && i < k->n_sub; i++) k->sub[i].n_samples = 0;   /* dr_costs: this call's */
+    if (!io->ledger_on && !clocked(io)) plain_ledger_rows(io, ledger_rows, m, count);
     for (int s = 0; s < count; s++) {
         io->t = io->t0 + (double)(n0 + s) * io->dt;
         if (k->extra.before && k->extra.before(k->extra.ctx, io, n0 + s)) {      /* held signals: failed */
@@ -939,10 +956,11 @@ int dr_run_steps_of(DRKernel *k, DRStep *io, int n0, int count, double *rows, lo
         double c0 = io->ledger_on && io->step_deadline_s > 0.0 ? cpu_ns() : 0.0, t0 = clocked(io) ? now_ns() : 0.0;
         double caller = io->deadline_s;
         int failure = step(ctx, io);
-        int f = failure ? -1 : ledger_step(k, io, t0, c0, rows, m, (size_t)s);
+        int f = failure ? -1 : ledger_step(k, io, t0, c0, ledger_rows + s, m);
         io->deadline_s = caller;
         if (failure) return s;
-        if (f < 0) f = log_step(k, io, rows, m, (size_t)s);
+        int finite = 1;
+        if (f < 0) f = log_step(k, io, rows, m, (size_t)s, &finite);
         if (f == DR_FAILED_EXTRA) {                                  /* a subsystem stepped alone */
             io->failed_subsystem = DR_FAILED_EXTRA;
             return s;
@@ -952,7 +970,7 @@ int dr_run_steps_of(DRKernel *k, DRStep *io, int n0, int count, double *rows, lo
             return s;
         }
         if (k->hook_after) k->hook_after(k->hook_ctx, io, n0 + s);
-        if (stop_after(k, rows + first_observed + s, m, H_cap)) {
+        if (stop_after(k, rows + first_observed + s, m, H_cap, finite)) {
             io->stopped = 1;
             return s + 1;
         }

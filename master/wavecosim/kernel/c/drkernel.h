@@ -202,7 +202,8 @@ int dr_ledger_redo(DRKernel *k, DRStep *io, double supplied, double budget, doub
 int dr_floor(DRKernel *k, DRStep *io, const double *inputs, int n_steps);
 
 /* Median wall time (microseconds) of one evaluation of each subsystem over the macro-steps run
- * with io->measure set (the first 64 evaluations), then resets the measurement. */
+ * with io->measure set (the first 64 evaluations; a dr_run_steps call with it set starts afresh),
+ * then resets the measurement. */
 void dr_costs(DRKernel *k, double *us_per_eval);
 
 /* Calls made so far per subsystem: counts[3 i + 0..2] = doStep, getFMUstate, setFMUstate. */
