@@ -1,6 +1,10 @@
 """Our Nelder-Mead (core/simplex.py) against scipy.optimize.minimize(method="Nelder-Mead") with the
 gamma search's options: the same point, value and number of evaluations to the last bit, on smooth,
-kinked, flat-outside-a-box and budget-limited problems (the gammas of every scene depend on it)."""
+kinked, flat-outside-a-box and budget-limited problems (the gammas of every scene depend on it);
+and the gamma search runs without importing scipy.optimize (the reason it exists)."""
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 from scipy.optimize import minimize
@@ -78,3 +82,13 @@ def test_the_simplex_is_left_alone():
         return value
     x, fun, _ = nelder_mead(scribbling, simplex, xatol=1e-4, fatol=1e-9, maxfev=600)
     assert np.array_equal(simplex, before) and fun == pytest.approx(0.25, abs=1e-8)
+
+
+def test_the_gamma_search_imports_no_scipy_optimize():
+    """In a fresh process (this one has imported scipy.optimize): a whole search, then sys.modules."""
+    code = ("import sys; from wavecosim.core import gamma; "
+            "g, r = gamma._search(lambda g: (g[0] - 1.0) ** 2 + (g[1] - 2.0) ** 2, [0.1, 0.1], [10.0, 10.0], [[0.5, 0.5]]); "
+            "assert abs(g[0] - 1.0) < 1e-3 and abs(g[1] - 2.0) < 1e-3, g; "
+            "print('scipy.optimize' in sys.modules)")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == "False"
