@@ -3,7 +3,7 @@ the lockstep reference, certificates: every default) against `python -c "import 
 in a fresh process, in rounds (best of each), with the gamma choice in the build cache (warm) and
 without it (cold: a copy of the cache without its gamma folder). The children use and write Python's
 bytecode caches, as a package installed by pip has them (PYTHONDONTWRITEBYTECODE is dropped: without
-the caches every import of scipy compiles it again). Prints one JSON object.
+the caches every import compiles its modules again). Prints one JSON object.
 
     python scripts/fixed_tax.py [--rounds 5]
 """

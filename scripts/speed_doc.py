@@ -42,8 +42,9 @@ rerun them on your machine with
   passes do, so builtin `sum()`'s compensated summation (Python 3.12 and later) changes nothing.
 - **Set-up.** The gamma search of `gamma: auto` runs once per process for a run and its lockstep
   reference (same probes, same choice) and its result is kept in the build cache
-  (`~/.cache/wavecosim/gamma`), so the next run of the same system reads it instead of searching
-  (and of importing scipy.optimize). matplotlib, scipy, dask and sympy are imported only where used.
+  (`~/.cache/wavecosim/gamma`), so the next run of the same system reads it instead of searching.
+  The search is a Nelder–Mead of our own (`core/simplex.py`), so a run imports no scipy.optimize;
+  matplotlib, scipy, dask and sympy are imported only where used.
 - **The monolithic reference.** `wavecosim run` runs it alongside (lockstep) where the system has
   power bonds, the only place it means something; `--no-reference` skips it. Its interface Newton
   is sparse (a block-diagonal Jacobian, the Newton matrix I - J_S P as sparse rows, a sparse LU):
@@ -128,8 +129,8 @@ def fixed_tax_table(tax):
             f"| the same, first run (gamma searched) | {tax['run_cold_s']:.2f} |",
             f"| run minus import (cached / first) | {tax['warm_over_import_s']:.2f} / {tax['cold_over_import_s']:.2f} |",
             "", f"Best of {tax['rounds']} rounds, load average {tax['load_average_1min']:.2f}, with Python's bytecode caches "
-                "(as pip installs a package). Most of the first run's extra time is importing scipy.optimize for "
-                "the search of γ, whose result the build cache then keeps."]
+                "(as pip installs a package). What the first run adds is the search of γ (a few hundred predictions "
+                "of the inner rate), whose result the build cache then keeps."]
 
 
 def chain_table(folder):

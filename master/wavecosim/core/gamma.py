@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from . import interconnection as ic
+from . import simplex
 from .waves import outgoing_wave
 from ..errors import ConfigError, NumericalError
 from ..kernel.build import cache_dir
@@ -272,7 +273,6 @@ class GammaChoice:
 def _search(rate, lo, hi, starts):
     """Minimize rate(gammas) over the box [lo_i, hi_i]: the best start, then Nelder-Mead in log gamma
     (the spectral radius has kinks where eigenvalues cross, which coordinate searches stall on)."""
-    from scipy.optimize import minimize
     lo, hi = np.log(lo), np.log(hi)
 
     def f(x):
@@ -280,10 +280,9 @@ def _search(rate, lo, hi, starts):
     x0 = min((np.clip(np.log(s), lo, hi) for s in starts), key=f)
     if np.all(hi - lo <= 0):
         return [float(v) for v in np.exp(x0)], f(x0)
-    res = minimize(f, x0, method="Nelder-Mead",
-                   options={"xatol": 1e-4, "fatol": 1e-9, "maxfev": 300 * len(x0), "initial_simplex":
-                            np.vstack([x0] + [x0 - 0.5 * np.eye(len(x0))[i] for i in range(len(x0))])})
-    x = np.clip(res.x, lo, hi) if res.fun <= f(x0) else x0
+    vertices = np.vstack([x0] + [x0 - 0.5 * np.eye(len(x0))[i] for i in range(len(x0))])
+    xmin, fmin, _ = simplex.nelder_mead(f, vertices, xatol=1e-4, fatol=1e-9, maxfev=300 * len(x0))
+    x = np.clip(xmin, lo, hi) if fmin <= f(x0) else x0
     return [float(v) for v in np.exp(x)], f(x)
 
 
@@ -310,7 +309,7 @@ def _choice_key(scene, probes, mode, secant, ceiling):
                              [(p.name, p.gamma) for p in probes], np.__version__)).encode())
     for part in (scene.E, scene.F, *[m for p in probes for m in (p.dE, p.dF)]):
         h.update(np.ascontiguousarray(part, dtype=np.float64).tobytes())
-    for source in (__file__, ic.__file__):
+    for source in (__file__, ic.__file__, simplex.__file__):
         h.update(Path(source).read_bytes())
     return h.hexdigest()[:32]
 
@@ -343,7 +342,7 @@ def choose_gamma(scene, probes, mode, where="gamma", secant=None, ceiling=None):
     """_choose_gamma, remembered for the same inputs (the scene's coupling, the probes, the mode): it
     is a pure function of them, so a run and its lockstep reference, probed alike at x^0, search once,
     and a later process with the same FMUs and scene reads the choice from the build cache (JSON keeps
-    every float exactly) instead of searching (and importing scipy.optimize)."""
+    every float exactly) instead of searching."""
     key = _choice_key(scene, probes, mode, secant, ceiling)
     if key not in _CHOICES:
         choice = _cached_choice(key)
