@@ -112,6 +112,8 @@ def _child_when_hung(parent, trajectory, timeout=60):
         if children and trajectory.exists() and trajectory.read_bytes().count(b"\n") > 1025:
             return int(children[0])
         time.sleep(0.1)
+    for pid in [*open(f"/proc/{parent}/task/{parent}/children").read().split(), parent]:
+        os.kill(int(pid), signal.SIGKILL)                # nothing left spinning after the failure
     pytest.fail("the run never wrote a block of rows")
 
 
