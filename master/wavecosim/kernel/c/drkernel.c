@@ -567,8 +567,12 @@ static int log_step(DRKernel *k, const DRStep *io, double *rows, size_t ld, size
         Sub *s_i = &k->sub[i];
         if (!s_i->n_obs) continue;
         if (failed(s_i, DR_FN_GET_REAL, s_i->obs_get(s_i->obs_comp, s_i->obs_vr, s_i->n_obs, k->obs))) return i;
-        for (size_t j = 0; j < s_i->n_obs; j++) rows[(c + j) * ld + s] = k->obs[j];
-        for (size_t j = (size_t)s_i->obs_no_H; j < s_i->n_obs; j++) poison += k->obs[j] * 0.0;
+        size_t j = 0;
+        if (s_i->obs_no_H) rows[c * ld + s] = k->obs[j++];          /* no stored energy: NaN, not checked */
+        for (; j < s_i->n_obs; j++) {
+            rows[(c + j) * ld + s] = k->obs[j];
+            poison += k->obs[j] * 0.0;
+        }
         c += s_i->n_obs;
     }
     if (k->extra.rows && k->extra.observe(k->extra.ctx, rows + c * ld + s, ld)) return DR_FAILED_EXTRA;
