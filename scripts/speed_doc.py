@@ -86,15 +86,19 @@ step and in blocks; the wave adapter per query on its Python and C routes; the d
   with the rows kept in memory (`loop_time_s / steps`: stepping, reading the FMUs, observers, rows);
 - *floor*: the same FMU calls in the same order with the same arguments, recorded from one run and
   made again from C alone on fresh instances (`master/wavecosim/kernel/c/floor.c`);
+- *added*: run minus floor, what the master adds to each macro-step whatever its FMUs cost;
 - *libcosim*: libcosim's fixed-step master on the same SSD (`pip install 'wavecosim[bench]'`), in the
   same process; `-` where libcosimpy is missing or refuses the file (the note says why).
 
-Reading the ratios: where an FMU call costs a tenth of a microsecond (our own foreign pair: a whole
-explicit step is 0.5 µs of calls), the run's own work between blocks (the first reading, the
-observers' pass over each block, the rows) shows as a few tenths of a microsecond per step; with
-FMUs exported by other tools (the dcmotor) the run is the floor within the machine's noise. On a
-shared machine single figures move by tens of percent between rounds, so a run can come out below
-its floor.
+Reading the ratios: what the master adds is a few tenths of a microsecond per macro-step, whatever
+the FMUs cost. In the kernel, each step logs its values (the inputs and outputs, the readings of H
+and the ports, a few dozen numbers) and checks them; after each block of up to 1024 steps, the
+runner's passes over the log write the rows and Condition 2's columns (tens of microseconds a
+block, in C, plus their calls from Python). Where a whole step costs half a microsecond of FMU calls
+(our own foreign pair, whose FMUs make a handful of floating-point operations per call), that is
+half as much again; with FMUs exported by other tools (the dcmotor: 8 µs of calls a step) the run
+is the floor within the machine's noise. On a shared machine single figures move by tens of
+percent between rounds, so a run can come out below its floor.
 """
 
 
@@ -106,8 +110,8 @@ def machine():
 
 
 def real_fmus_table(rf):
-    lines = ["| system | master | run µs/step | floor µs/step | run / floor | libcosim µs/step |",
-             "|---|---|---|---|---|---|"]
+    lines = ["| system | master | run µs/step | floor µs/step | run / floor | added µs/step | libcosim µs/step |",
+             "|---|---|---|---|---|---|---|"]
     notes = []
     for r in rf["rows"]:
         if r.get("skipped"):
@@ -116,7 +120,7 @@ def real_fmus_table(rf):
         master = r["master"] + (f" K = {r['K']}" if r.get("K") is not None else "")
         lc = r.get("libcosim_us_per_step")
         lines.append(f"| {r['name']} | {master} | {r['run_us_per_step']:.1f} | {r['floor_us_per_step']:.1f} | "
-                     f"{r['run_over_floor']:.2f} | {f'{lc:.1f}' if lc else '-'} |")
+                     f"{r['run_over_floor']:.2f} | {r['added_us_per_step']:.2f} | {f'{lc:.1f}' if lc else '-'} |")
         if r.get("libcosim_note"):
             notes.append(f"- {r['name']}: {r['libcosim_note']}")
     return lines + ([""] + notes if notes else [])
@@ -155,7 +159,8 @@ def main():
     when = time.strftime("%Y-%m-%d", time.localtime(args.bench.stat().st_mtime))
     lines = [INTRO, "## Real FMUs against the floor of their calls", "",
              f"Measured on {when}, {machine()}; load average {rf['load_average_1min']:.2f}; best of "
-             f"{rf['repeats']} rounds, every row in each round (`wavecosim bench --json`, `real_fmus`).", "",
+             f"{rf['repeats']} rounds, every row in each round ({rf['short_tries']} times a round where its run takes "
+             f"under {1e3 * rf['short_run_s']:.0f} ms; `wavecosim bench --json`, `real_fmus`).", "",
              *real_fmus_table(rf), ""]
     if args.fixed_tax:
         lines += ["## The fixed tax of a short run", "", *fixed_tax_table(json.loads(args.fixed_tax.read_text())), ""]

@@ -8,7 +8,8 @@ kernel timed on the first macro-step, timed again about every REMEASURE_S while 
 re-balanced when they drift. `N` uses min(N, CPUs, subsystems) threads at once. `auto` adds threads
 one plan at a time, each tried alone on the next macro-step and kept only while it pays: its
 round must realise KEEP_SHARE of the gain the costs predict, and every thread must take over at
-least PARALLEL_MIN_US per round (below that a hand-off costs more than it saves); when the costs
+least PARALLEL_MIN_US per round (below that a hand-off costs more than it saves: a round shorter
+than twice that gives no second thread its share, so auto stays serial without planning); when the costs
 fall below that later, it gives threads back, and it tries again when they grow or after RETRY_S.
 """
 import time
@@ -120,6 +121,7 @@ class ThreadPlanner:
         self.note = self._short_round
 
     def _short_round(self):
+        """The note of _stay_serial."""
         return f"serial: a round takes {1e6 * self.round_s:.3g} µs, a second thread pays from {2 * PARALLEL_MIN_US:g} µs"
 
     def measured(self, costs_us, round_s):
