@@ -484,7 +484,7 @@ def examples_cmd(name):
         raise ConfigError(str(exc)) from None
 
 
-BENCH_S = {"quick": 35, "full": 110}     # measured wall time of `bench` (2 CPUs, warm build cache)
+BENCH_S = {"quick": 40, "full": 160}     # measured wall time of `bench` (2 CPUs, warm build cache)
 
 
 @cli.command("bench")
