@@ -13,7 +13,7 @@ venv=.venv-$version
 [ -x "$venv/bin/python" ] || "$PY" -m venv "$venv"
 "$venv/bin/python" -m pip install --quiet -e ".[test]"
 if [ $# -eq 0 ]; then
-  set -- tests/run/test_runner.py tests/kernel/test_physical_route.py tests/kernel/test_classical_kernel.py \
-         tests/kernel/test_fast_path.py tests/run/test_certificates.py
+  set -- tests/run/test_runner.py tests/kernel/test_physical_route.py tests/masters/test_routes.py \
+         tests/kernel/test_drkernel.py tests/run/test_certificates.py
 fi
 "$venv/bin/python" -m pytest -q "$@"
