@@ -26,7 +26,7 @@ class ExplicitMaster(KernelRoute, PhysicalMaster):
         return StepLog(iterations=0, reason="explicit")
 
     def block_iterations(self, log):
-        """None: an explicit step has no inner loop."""
+        """0: an explicit step has no inner loop."""
         return 0
 
     def configure_kernel(self):
