@@ -874,10 +874,20 @@ static long fmu_do_steps(const DRKernel *k) {
  * ~30 ns, a tenth of a macro-step at K = 0). */
 static int clocked(const DRStep *io) { return io->step_deadline_s > 0.0 || io->deadline_s > 0.0; }
 
+/* A step's ledger row: out = {scale, supplied, traffic, action, redo rounds} (LEDGER_UNTOUCHED before
+ * the ledger sees the step), the wall and CPU seconds it took (NaN: not timed). */
+#define LEDGER_UNTOUCHED {1.0, NAN, NAN, DR_LEDGER_KEPT, 0.0}
+static void ledger_row(const DRStep *io, const double out[5], double wall, double cpu, double *logged) {
+    const double row[DR_LEDGER_COLUMNS] = {out[1], io->ledger_on ? io->ledger : NAN,
+                                           io->ledger_on ? io->traffic : NAN, out[0], out[3], out[4], wall,
+                                           io->round_s, cpu};
+    memcpy(logged, row, sizeof row);
+}
+
 static int ledger_step(DRKernel *k, DRStep *io, double t0, double c0, double *row, size_t ld) {
     int timed = clocked(io);
     if (!io->ledger_on && !timed) return -1;                    /* its row: plain_ledger_rows */
-    double out[5] = {1.0, NAN, NAN, DR_LEDGER_KEPT, 0.0};
+    double out[5] = LEDGER_UNTOUCHED;
     if (io->ledger_on) {
         double now = timed ? now_ns() : 0.0, tol;
         if (timed)
@@ -902,16 +912,18 @@ static int ledger_step(DRKernel *k, DRStep *io, double t0, double c0, double *ro
     /* the wall clock is read between the CPU clock's reads (system calls), which it so leaves out */
     double wall = timed ? 1e-9 * (now_ns() - t0) : NAN;
     double cpu = c0 > 0.0 ? 1e-9 * (cpu_ns() - c0) : NAN;
-    double logged[DR_LEDGER_COLUMNS] = {out[1], io->ledger_on ? io->ledger : NAN, io->ledger_on ? io->traffic : NAN,
-                                        out[0], out[3], out[4], wall, io->round_s, cpu};
+    double logged[DR_LEDGER_COLUMNS];
+    ledger_row(io, out, wall, cpu, logged);
     for (int c = 0; c < DR_LEDGER_COLUMNS; c++) row[(size_t)c * ld] = logged[c];
     return -1;
 }
 
-/* The ledger's row of every step of a call without the ledger or a clock: the same each step (ledger_step's
- * defaults), so written for all `count` steps at once, row by row, before the steps. */
+/* The ledger's row of every step of a call without the ledger or a clock: the same each step (untouched,
+ * untimed), so written for all `count` steps at once, row by row, before the steps. */
 static void plain_ledger_rows(const DRStep *io, double *rows, size_t ld, int count) {
-    const double logged[DR_LEDGER_COLUMNS] = {NAN, NAN, NAN, 1.0, DR_LEDGER_KEPT, 0.0, NAN, io->round_s, NAN};
+    const double out[5] = LEDGER_UNTOUCHED;
+    double logged[DR_LEDGER_COLUMNS];
+    ledger_row(io, out, NAN, NAN, logged);
     for (int c = 0; c < DR_LEDGER_COLUMNS; c++)
         for (int s = 0; s < count; s++) rows[(size_t)c * ld + (size_t)s] = logged[c];
 }
