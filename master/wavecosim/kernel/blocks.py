@@ -72,8 +72,3 @@ def columns(array):
     if array.strides[0] != 8:
         raise ValueError("blocks: a column's values must be contiguous")
     return array.ctypes.data, array.strides[1] // 8
-
-
-def rows(array):
-    """(address, doubles between rows) of a 2-D float array whose rows are contiguous."""
-    return columns(array.T)

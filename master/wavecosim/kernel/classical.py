@@ -23,12 +23,11 @@ def _library():
     if not hasattr(lib, "_classical_ready"):
         p, ip = ctypes.c_void_p, ctypes.POINTER(ctypes.c_int)
         lib.cl_create.restype = p
-        lib.cl_create.argtypes = [p, ip, ip, _double_p]
+        lib.cl_create.argtypes = [p, ip, ip, _double_p, ctypes.c_int, ctypes.c_int]
         lib.cl_fixed_point_step.argtypes = [p, p, p, p, p, ctypes.c_int]      # arrays by address
         lib.cl_explicit_step.argtypes = [p, p, p, p, ctypes.c_int]
         lib.cl_pass.argtypes = [p, p, p, p, p, ctypes.c_int, ctypes.c_int]
-        lib.cl_run_steps.argtypes = [p, p, ctypes.c_int, ctypes.c_int, p, ctypes.c_long, ctypes.c_double,
-                                     ctypes.c_int, ctypes.c_int]
+        lib.cl_run_steps.argtypes = [p, p, ctypes.c_int, ctypes.c_int, p, ctypes.c_long, ctypes.c_double]
         lib.cl_destroy.argtypes = [p]
         lib.cl_destroy.restype = None
         lib._classical_ready = True
@@ -55,17 +54,14 @@ class ClassicalKernel:
         self.n = scene.n_channels
         ptr = ctypes.POINTER(ctypes.c_int)
         self.handle = self.lib.cl_create(self.base.handle, G.start.ctypes.data_as(ptr), G.col.ctypes.data_as(ptr),
-                                         G.val.ctypes.data_as(_double_p))
+                                         G.val.ctypes.data_as(_double_p), int(explicit), int(sequential))
         if not self.handle:
             self.base.close()
             raise FmuError("the classical kernel could not be created (out of memory)")
         self._handle, self._step = ctypes.c_void_p(self.handle), self.lib.cl_fixed_point_step
         self._b = np.frombuffer(self.base.b, dtype=np.float64)          # y^n for cl_run_steps, in place
         # the DR kernel's block call, log and observed values, with the classical step in it
-        self.base._run_steps = functools.partial(self._blocks, int(explicit), int(sequential))
-
-    def _blocks(self, explicit, sequential, _, io, n0, count, rows, ld, H_cap):
-        return self.lib.cl_run_steps(self._handle, io, n0, count, rows, ld, H_cap, explicit, sequential)
+        self.base._run_steps = functools.partial(self.lib.cl_run_steps, self._handle)
 
     def run_steps(self, n0, count, y, H_cap=math.inf, measure=False):
         """Macro-steps n0 .. n0 + count - 1 from outputs y in one call (classical.h, cl_run_steps):

@@ -10,6 +10,7 @@ An FMI 3 FMU is handed over in fmi2 form: `Fmu.function_pointer` gives the funct
 kernel/c/fmi3shim.c, which take the FMU's shim (`Fmu.component`) as their fmi2Component.
 """
 import ctypes
+import functools
 import math
 import os
 import time
@@ -137,25 +138,44 @@ class BlockLog:
     REASONS), residual, a (steps x n), b^{n+1} (steps x n); `observed` holds the observed values one
     per row (values x steps), as the kernel logs them (each value contiguous), and `ledger` the energy
     ledger's (LEDGER_LOG x steps). `stopped`: the kernel stopped early after the last step (its H may
-    exceed the cap, or a value is not finite)."""
+    exceed the cap, or a value is not finite). `address`, `ld`: where the log lives for the C passes
+    (its first value, doubles between rows); the views are made when first read."""
 
-    def __init__(self, columns, n, stopped=False):
+    __slots__ = ("columns", "n", "stopped", "address", "ld")
+
+    def __init__(self, columns, n, stopped=False, address=None, ld=None):
         self.columns, self.n, self.stopped = columns, n, stopped     # one row per logged value
-        self.iterations, self.reason, self.residual = columns[0], columns[1], columns[2]
-        end = len(columns) - len(LEDGER_LOG)
-        self.a_hat, self.b, self.observed = columns[3:3 + n].T, columns[3 + n:3 + 2 * n].T, columns[3 + 2 * n:end]
-        self.a_rows, self.observed_at = range(3, 3 + n), 3 + 2 * n       # where a_hat and observed start
-        self.ledger_rows, self.ledger_at = columns[end:], end            # LEDGER_LOG x steps, from row end
-        self.ledger = dict(zip(LEDGER_LOG, self.ledger_rows))
+        self.address = columns.ctypes.data if address is None else address
+        self.ld = columns.strides[0] // 8 if ld is None else ld
+
+    a_rows = property(lambda self: range(3, 3 + self.n))                 # the rows of a_hat
+    observed_at = property(lambda self: 3 + 2 * self.n)                  # the first observed value's row
+    ledger_at = property(lambda self: len(self.columns) - len(LEDGER_LOG))   # LEDGER_LOG x steps, from this row
+    iterations = property(lambda self: self.columns[0])
+    reason = property(lambda self: self.columns[1])
+    residual = property(lambda self: self.columns[2])
+    a_hat = property(lambda self: self.columns[3:3 + self.n].T)
+    b = property(lambda self: self.columns[3 + self.n:3 + 2 * self.n].T)
+    observed = property(lambda self: self.columns[3 + 2 * self.n:self.ledger_at])
+    ledger_rows = property(lambda self: self.columns[self.ledger_at:])
+    ledger = property(lambda self: dict(zip(LEDGER_LOG, self.ledger_rows)))
 
     def __len__(self):
         return self.columns.shape[1]
+
+    def a_hat_at(self, j):
+        """a of step j, a copy."""
+        return self.columns[3:3 + self.n, j].copy()
+
+    def b_at(self, j):
+        """b^{n+1} of step j, a copy."""
+        return self.columns[3 + self.n:3 + 2 * self.n, j].copy()
 
     def first(self, k):
         """The first k steps (not stopped): this log when that is all of it."""
         if k == len(self) and not self.stopped:
             return self
-        return BlockLog(self.columns[:, :k], self.n)
+        return BlockLog(self.columns[:, :k], self.n, address=self.address, ld=self.ld)
 
 
 def unusable(scene):
@@ -290,7 +310,7 @@ class Kernel:
         self.threads = 1
         self.trace, self.trace_capacity = None, 0
         self.width, self.log, self._log_at = lib.dr_log_width(self._handle), np.empty((0, 0)), None
-        self._run_steps = lib.dr_run_steps
+        self._run_steps = functools.partial(lib.dr_run_steps, self._handle)     # (io, n0, count, log, ld, H_cap)
 
     def observe(self, names, steps=0, bound=None):
         """Read these variables of each subsystem (names[i], H_i first) after every commit of run_steps,
@@ -355,12 +375,12 @@ class Kernel:
         log, ld = self.log, self.log.shape[1]
         if self.plan is not None:
             self.plan.prepare(n0, count)
-        done = self._run_steps(self._handle, self._io, n0, count, self._log_at + 8 * at, ld, H_cap)
+        done = self._run_steps(self._io, n0, count, self._log_at + 8 * at, ld, H_cap)
         n, failed = n0 + done, self.io.failed_subsystem != -1
         if self.plan is not None:
             self.plan.book(n0, done, failed)
         error = self.failure(n, n * self.io.dt) if failed else None
-        return done, BlockLog(log[:, at:at + done], self.n, bool(self.io.stopped)), error
+        return done, BlockLog(log[:, at:at + done], self.n, bool(self.io.stopped), self._log_at + 8 * at, ld), error
 
     def step_in_progress(self):
         """The macro-step the kernel is making or made last (from t_n, which each step sets first): read

@@ -40,4 +40,4 @@ class ExplicitMaster(KernelRoute, PhysicalMaster):
 
     def took_block(self, log, done):
         """After a block of kernel steps: its last y^{n+1} (copied: the next call overwrites the log)."""
-        self.y = log.b[done - 1].copy()
+        self.y = log.b_at(done - 1)

@@ -92,8 +92,8 @@ class JacobiIterMaster(KernelRoute, RollbackPhysicalMaster):
     def took_block(self, log, done):
         """After a block of kernel steps: y^n and y^{n+1} of its last step and its committed inputs
         (copied: the next call overwrites the log), so undo_step works as after step()."""
-        self.y_step_start = log.b[done - 2].copy() if done > 1 else self.y
-        self.y, self.u = log.b[done - 1].copy(), log.a_hat[done - 1].copy()
+        self.y_step_start = log.b_at(done - 2) if done > 1 else self.y
+        self.y, self.u = log.b_at(done - 1), log.a_hat_at(done - 1)
 
     def restart(self):
         """A new macro-step's iteration begins (accelerators forget what they learnt)."""

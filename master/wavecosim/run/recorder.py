@@ -89,7 +89,7 @@ class Table:
         self._slots = [self._new_slot(), None]        # (block, its formatter); the second made when first needed
         self._pending = [[], []]                      # each block's hand-overs not yet settled (writer Pieces)
         self._at, self._fill, self._handed = 0, 0, 0  # block in use, rows filled, rows of it handed over
-        self._block = self._slots[0][0]
+        self._block, self._block_at = self._slots[0][0], self._slots[0][0].ctypes.data
         self._kept = [] if path is None or expected_rows * len(self.columns) <= KEEP_VALUES else None
         self.rows = 0
         self._file, self._writer = None, None
@@ -133,6 +133,10 @@ class Table:
         if self._block is None:
             self._take_block()
         return self._block[self._fill:self._fill + k]
+
+    def reserved_at(self):
+        """(address, doubles between columns) of the rows `reserve` gave, for a pass in C to fill."""
+        return self._block_at + 8 * self._fill, BLOCK + PAD
 
     def commit_rows(self, k):
         self._fill += k
@@ -182,6 +186,7 @@ class Table:
         """Rows go next into the current slot's block, made when first needed (after a flush)."""
         self._slots[self._at] = self._slots[self._at] or self._new_slot()
         self._block = self._slots[self._at][0]
+        self._block_at = self._block.ctypes.data
 
     def _python_text(self, block):
         """Rows start .. start + rows - 1 of `block` as CSV lines, formatted in Python."""

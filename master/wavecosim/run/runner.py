@@ -322,8 +322,8 @@ class LiveRun:
         self.after = [(o, row) for o, row in zip(self.observers, self.slices) if o is not self.guard]
         self.recent = {0: first.outputs}
         self._plan_blocks()
-        self.loop_started = time.perf_counter()
         self.calls_at_start = self._totals()
+        self.loop_started = time.perf_counter()
 
     def step(self, n):
         """Macro-step n: observers before, the master, observers after (the guard may redo), one row;
@@ -439,13 +439,17 @@ class LiveRun:
         """The observers and the rows of a block of steps (all finite: the kernel stops at a non-finite
         value); with an output interval the rows kept are picked afterwards."""
         count, readings, every = len(log), self.sampler.block(log.observed), self.every == 1
-        rows = self.steps.reserve(count) if every else np.empty((count, len(self.steps.columns)), order="F")
-        trajectory = self.trajectory.reserve(count) if every else np.empty((count, 1 + len(self.columns)), order="F")
-        iterations = self._block_rows(n0, log, readings, rows, trajectory)
-        if self.block_observers:
-            with np.errstate(over="ignore", invalid="ignore"):     # as Python floats overflow: inf, nan, silently
-                for o, span in self.block_observers:
-                    o.after_block(n0, log, readings, rows[:, span])
+        if every:
+            rows, trajectory = self.steps.reserve(count), self.trajectory.reserve(count)
+            at = self.steps.reserved_at(), self.trajectory.reserved_at()
+        else:
+            rows = np.empty((count, len(self.steps.columns)), order="F")
+            trajectory = np.empty((count, 1 + len(self.columns)), order="F")
+            at = blocks.columns(rows), blocks.columns(trajectory)
+        iterations = self._block_rows(n0, log, readings, *at)
+        address, ld = at[0]
+        for o, span in self.block_observers:
+            o.after_block(n0, log, readings, rows[:, span], (address + 8 * ld * span.start, ld))
         self.steps_done = n0 + count
         self.iterations[0] += int(iterations[0])
         self.iterations[1] = max(self.iterations[1], int(iterations[1]))
@@ -460,15 +464,16 @@ class LiveRun:
         self.steps.hand_over()
         self.trajectory.hand_over()
 
-    def _block_rows(self, n0, log, readings, rows, trajectory):
+    def _block_rows(self, n0, log, readings, rows_at, trajectory_at):
         """The steps' grid time, iterations, residual and reason, and the trajectory's rows, in one C
-        pass over the kernel's log (kernel/c/blocks.c, block_rows); (sum, max) of the iterations."""
+        pass over the kernel's log (kernel/c/blocks.c, block_rows) into the columns at rows_at and
+        trajectory_at ((address, doubles between columns)); (sum, max) of the iterations."""
         if self.rows_call is None:
             self.rows_call = self._rows_call(log, readings)
         call, ref = self.rows_call
         call.count, call.n0 = len(log), n0
-        (call.log, call.ld), (call.steps, call.lds) = blocks.rows(log.columns), blocks.columns(rows)
-        call.trajectory, call.ldt = blocks.columns(trajectory)
+        call.log, call.ld = log.address, log.ld
+        (call.steps, call.lds), (call.trajectory, call.ldt) = rows_at, trajectory_at
         blocks.library().block_rows(ref)
         return call.iterations_sum, call.iterations_max
 

@@ -93,20 +93,27 @@ static fmi2Status fail(WaveAdapterC *w, int failure, double rel, const double *r
 /* _invert: J_inv = (diag(wu) + diag(wy) D)^-1, or AD_SINGULAR when it is not finite. */
 static fmi2Status invert(WaveAdapterC *w, Scratch *s) {
     size_t m = (size_t)w->m, n2 = 2 * m;
-    for (size_t i = 0; i < m; i++)
-        for (size_t j = 0; j < m; j++) {
-            s->aug[i * n2 + j] = (i == j ? w->wu[i] : 0.0) + w->wy[i] * w->D[i * m + j];
-            s->aug[i * n2 + m + j] = i == j ? 1.0 : 0.0;
-        }
-    int finite = gauss_jordan(s->aug, m);
-    for (size_t i = 0; finite && i < m; i++)
-        for (size_t j = 0; j < m; j++) finite = finite && isfinite(s->aug[i * n2 + m + j]);
+    int finite;
+    if (m == 1) {                     /* gauss_jordan on [M | 1] is its one division by the pivot */
+        double pivot = w->wu[0] + w->wy[0] * w->D[0];
+        s->aug[1] = 1.0 / pivot;
+        finite = pivot != 0.0 && isfinite(s->aug[1]);
+    } else {
+        for (size_t i = 0; i < m; i++)
+            for (size_t j = 0; j < m; j++) {
+                s->aug[i * n2 + j] = (i == j ? w->wu[i] : 0.0) + w->wy[i] * w->D[i * m + j];
+                s->aug[i * n2 + m + j] = i == j ? 1.0 : 0.0;
+            }
+        finite = gauss_jordan(s->aug, m);
+        for (size_t i = 0; finite && i < m; i++)
+            for (size_t j = 0; j < m; j++) finite = finite && isfinite(s->aug[i * n2 + m + j]);
+    }
     if (!finite) {
         for (size_t j = 0; j < m; j++) s->target[j] = 0.0;
         residual(w, w->u, w->y, s->target, s->r);
         return fail(w, AD_SINGULAR, NAN, s->r);
     }
-    for (size_t i = 0; i < m; i++) memcpy(w->J_inv + i * m, s->aug + i * n2 + m, m * sizeof(double));
+    for (size_t i = 0; i < m; i++) copy_doubles(w->J_inv + i * m, s->aug + i * n2 + m, m);
     return fmi2OK;
 }
 
@@ -120,7 +127,7 @@ fmi2Status adapter_reinvert(WaveAdapterC *w) {
 static fmi2Status estimate_slope(WaveAdapterC *w, Scratch *s, double t, double h) {
     size_t m = (size_t)w->m;
     if (eval(w, w->u, w->y, t, h)) return (fmi2Status)w->failed_status;
-    memset(w->D, 0, m * m * sizeof(double));
+    for (size_t j = 0; j < m * m; j++) w->D[j] = 0.0;
     w->have_slope = 1;
     w->h2 = w->u_scale = 0.0;
     for (size_t j = 0; j < m; j++) {
@@ -129,7 +136,7 @@ static fmi2Status estimate_slope(WaveAdapterC *w, Scratch *s, double t, double h
         w->u_scale += scale;
         double step = w->slope_rel * scale;
         w->h2 += step * step;
-        memcpy(s->du, w->u, m * sizeof(double));
+        copy_doubles(s->du, w->u, m);
         s->du[j] += step;
         if (eval(w, s->du, s->y_new, t, h)) return (fmi2Status)w->failed_status;
         for (size_t i = 0; i < m; i++) w->D[i * m + j] = (s->y_new[i] - w->y[i]) / step;
@@ -179,8 +186,8 @@ static fmi2Status accept(WaveAdapterC *w, Scratch *s, double best_rel, int best_
     w->worst_accepted = best_rel > w->worst_accepted ? best_rel : w->worst_accepted;
     if (!best_is_last) {
         if (eval(w, s->best_u, s->best_y, t, h)) return (fmi2Status)w->failed_status;
-        memcpy(w->u, s->best_u, (size_t)w->m * sizeof(double));
-        memcpy(w->y, s->best_y, (size_t)w->m * sizeof(double));
+        copy_doubles(w->u, s->best_u, (size_t)w->m);
+        copy_doubles(w->y, s->best_y, (size_t)w->m);
     }
     return stage(w);
 }
@@ -199,7 +206,7 @@ static int newton_step(WaveAdapterC *w, Scratch *s, double *rel, double t, doubl
 
 /* _solve */
 fmi2Status adapter_solve(WaveAdapterC *w, double t, double h) {
-    size_t m = (size_t)w->m, bytes = m * sizeof(double);
+    size_t m = (size_t)w->m;
     Scratch s = scratch(w);
     w->failure = AD_OK;
     w->evaluations++;
@@ -218,8 +225,8 @@ fmi2Status adapter_solve(WaveAdapterC *w, double t, double h) {
             }
             if ((status = secant(w, &s)) != fmi2OK) return status;
         }
-        memcpy(w->u, s.u_new, bytes);
-        memcpy(w->y, s.y_new, bytes);
+        copy_doubles(w->u, s.u_new, m);
+        copy_doubles(w->y, s.y_new, m);
         last = it;
         if (rel <= w->tol) return stage(w);
         stalled = have_best && rel > 0.5 * best_rel ? stalled + 1 : 0;
@@ -227,8 +234,8 @@ fmi2Status adapter_solve(WaveAdapterC *w, double t, double h) {
             best_rel = rel;
             best_at = it;
             have_best = 1;
-            memcpy(s.best_u, s.u_new, bytes);
-            memcpy(s.best_y, s.y_new, bytes);
+            copy_doubles(s.best_u, s.u_new, m);
+            copy_doubles(s.best_y, s.y_new, m);
         }
         if (stalled >= w->stall) break;
     }

@@ -24,9 +24,9 @@ static double grow_max_pos(double current, double x) {
 }
 
 /* Energy into port i over step s: 1/2 (|a|^2 - |b|^2) (wave) or dt e.f, channel j's values at
- * x[j][s] (x: a, b, e, f); `all` gathers the sums of squares over every channel so far (wave). */
+ * x[j][s] (x: a, b, e, f); all0, all1 gather the sums of squares over every channel so far (wave). */
 static double port_supply(const double *const *x[4], size_t s, int first, int last, int wave, double dt,
-                          double all[2]) {
+                          double *all0, double *all1) {
     double in = 0.0, out = 0.0;
     if (!wave) {
         for (int j = first; j < last; j++) in += x[2][j][s] * x[3][j][s];
@@ -35,12 +35,12 @@ static double port_supply(const double *const *x[4], size_t s, int first, int la
     for (int j = first; j < last; j++) {
         double v = x[0][j][s] * x[0][j][s];
         in += v;
-        all[0] += v;
+        *all0 += v;
     }
     for (int j = first; j < last; j++) {
         double v = x[1][j][s] * x[1][j][s];
         out += v;
-        all[1] += v;
+        *all1 += v;
     }
     return 0.5 * (in - out);
 }
@@ -65,15 +65,63 @@ typedef struct {
     double *ledger;
 } PassBlock;
 
+enum { CHUNK = 128 };          /* steps per round of the subsystems: the step sums stay in L1 */
+
+/* The sums over the subsystems of steps s0 .. s0 + m - 1, in subsystem order as Passivity.after_step. */
+typedef struct {
+    double physical[CHUNK], total[CHUNK], all0[CHUNK], all1[CHUNK];
+} StepSums;
+
+/* Subsystem i's columns over steps s0 .. s0 + m - 1, its terms added into the step sums; last: its
+ * H before s0, left at the last step's. */
+static inline void subsystem_steps_of(const PassBlock *p, const double *const *x[4], const double *H, int i,
+                                      size_t s0, size_t m, double *last, double *r, double *cum, double *worst,
+                                      int *seen, StepSums *sums, const int wave, const int has_h) {
+    int first = p->port[i], end = p->port[i + 1];
+    double dt = p->dt, before = *last, ledger = p->ledger[i], most = *worst;
+    int numbers = 0;
+    for (size_t j = 0; j < m; j++) {
+        size_t s = s0 + j;
+        double supplied = port_supply(x, s, first, end, wave, dt, &sums->all0[j], &sums->all1[j]);
+        double Hi = H[s], ri = (Hi - before) - supplied;
+        sums->physical[j] += supplied;
+        sums->total[j] += Hi;
+        before = Hi;
+        if (!has_h) {                                           /* the port's own ledger */
+            ledger += supplied;
+            r[s] = supplied;
+            cum[s] = ledger;
+            continue;
+        }
+        r[s] = ri;
+        most = ri > most ? ri : most;                           /* branch-free (maxsd), NaN skipped */
+        numbers += ri == ri;
+    }
+    *last = before;
+    *worst = most;
+    *seen += numbers;
+    p->ledger[i] = ledger;
+}
+
+static void subsystem_steps(const PassBlock *p, const double *const *x[4], const double *H, int i, size_t s0,
+                            size_t m, double *last, double *r, double *cum, double *worst, int *seen,
+                            StepSums *sums) {
+    int wave = p->wave, has_h = p->has_h[i];
+    if (wave && has_h) subsystem_steps_of(p, x, H, i, s0, m, last, r, cum, worst, seen, sums, 1, 1);
+    else if (wave) subsystem_steps_of(p, x, H, i, s0, m, last, r, cum, worst, seen, sums, 1, 0);
+    else if (has_h) subsystem_steps_of(p, x, H, i, s0, m, last, r, cum, worst, seen, sums, 0, 1);
+    else subsystem_steps_of(p, x, H, i, s0, m, last, r, cum, worst, seen, sums, 0, 0);
+}
+
 void passivity_block(const PassBlock *p) {
     int count = p->count, k = p->k, wave = p->wave;
-    double dt = p->dt, *prev = p->prev, *fig = p->fig;
+    double *prev = p->prev, *fig = p->fig;
     const double *log = p->log;
-    const int *port = p->port, *a = p->a, *b = p->b, *e = p->e, *f = p->f, *h = p->h;
+    const int *a = p->a, *b = p->b, *e = p->e, *f = p->f;
     size_t ld = (size_t)p->ld;
-    int n = port[k];
+    int n = p->port[k];
     const double *rows[4][n > 0 ? n : 1], *H[k], *const *x[4] = {rows[0], rows[1], rows[2], rows[3]};
-    double *r[k + 2], *cum[k], last[k], worst[k + 1], drift = fig[k + 1], H_max = fig[k + 2], total = fig[k + 3];
+    double *r[k + 2], *cum[k], worst[k + 1], drift = fig[k + 1], H_max = fig[k + 2], total = fig[k + 3];
     int seen[k + 1], complete = 1, c = 0;
     for (int j = 0; j < n; j++) {
         rows[0][j] = log + (size_t)a[j] * ld;
@@ -81,52 +129,41 @@ void passivity_block(const PassBlock *p) {
         rows[2][j] = wave ? NULL : log + (size_t)e[j] * ld;
         rows[3][j] = wave ? NULL : log + (size_t)f[j] * ld;
     }
-    for (int i = 0; i < k; i++) {
-        H[i] = log + (size_t)h[i] * ld;
-        last[i] = prev[i];
-    }
+    for (int i = 0; i < k; i++) H[i] = log + (size_t)p->h[i] * ld;
     for (int i = 0; i < k; i++)                                /* Passivity.columns */
         if (p->has_h[i]) r[i] = p->out + (size_t)c++ * (size_t)p->ldo;
-    for (int i = 0; i < k; i++)
+    for (int i = 0; i < k; i++) {
+        cum[i] = NULL;
         if (!p->has_h[i]) {
             r[i] = p->out + (size_t)c++ * (size_t)p->ldo;
             cum[i] = p->out + (size_t)c++ * (size_t)p->ldo;
             complete = 0;
         }
+    }
     for (int i = 0; i <= k; i++) {
         worst[i] = -INFINITY;
         seen[i] = 0;
     }
     r[k] = p->out + (size_t)c * (size_t)p->ldo;
     r[k + 1] = complete ? p->out + (size_t)(c + 1) * (size_t)p->ldo : NULL;
-    for (size_t s = 0; s < (size_t)count; s++) {
-        double all[2] = {0.0, 0.0}, physical = 0.0;
-        total = 0.0;
-        for (int i = 0; i < k; i++) {
-            double supplied = port_supply(x, s, port[i], port[i + 1], wave, dt, all);
-            double Hi = H[i][s], ri = (Hi - last[i]) - supplied;
-            physical += supplied;
-            total += Hi;
-            last[i] = Hi;
-            if (!p->has_h[i]) {                                 /* the port's own ledger */
-                p->ledger[i] += supplied;
-                r[i][s] = supplied;
-                cum[i][s] = p->ledger[i];
-                continue;
-            }
-            r[i][s] = ri;
-            worst[i] = ri > worst[i] ? ri : worst[i];          /* branch-free (maxsd), NaN skipped */
-            seen[i] += ri == ri;
+    StepSums sums;
+    for (size_t s0 = 0; s0 < (size_t)count; s0 += CHUNK) {
+        size_t m = (size_t)count - s0 < CHUNK ? (size_t)count - s0 : CHUNK;
+        for (size_t j = 0; j < m; j++) sums.physical[j] = sums.total[j] = sums.all0[j] = sums.all1[j] = 0.0;
+        for (int i = 0; i < k; i++)
+            subsystem_steps(p, x, H[i], i, s0, m, &prev[i], r[i], cum[i], &worst[i], &seen[i], &sums);
+        for (size_t j = 0; j < m; j++) {
+            size_t s = s0 + j;
+            double supply = wave ? 0.5 * (sums.all0[j] - sums.all1[j]) : sums.physical[j];
+            total = sums.total[j];
+            r[k][s] = supply;
+            if (complete) r[k + 1][s] = total;
+            worst[k] = supply > worst[k] ? supply : worst[k];
+            seen[k] += supply == supply;
+            drift += supply;
+            H_max = total == total ? (total > H_max ? total : H_max) : total;
         }
-        double supply = wave ? 0.5 * (all[0] - all[1]) : physical;
-        r[k][s] = supply;
-        if (complete) r[k + 1][s] = total;
-        worst[k] = supply > worst[k] ? supply : worst[k];
-        seen[k] += supply == supply;
-        drift += supply;
-        H_max = total == total ? (total > H_max ? total : H_max) : total;
     }
-    for (int i = 0; i < k; i++) prev[i] = last[i];
     for (int i = 0; i <= k; i++)
         if (seen[i]) fig[i] = grow_max_pos(fig[i], worst[i]);
     fig[k + 1] = drift;
@@ -156,20 +193,21 @@ typedef struct {
 void block_rows(BlockRows *p) {
     size_t ld = (size_t)p->ld, lds = (size_t)p->lds, ldt = (size_t)p->ldt, count = (size_t)p->count;
     const double *iterations = p->log, *reason = p->log + ld, *residual = p->log + 2 * ld;
-    double sum = 0.0, most = -INFINITY;
+    const double n0 = p->n0, inverse = p->inverse, dt = p->dt, t0 = p->t0;   /* locals: no store aliases them */
+    double *steps = p->steps, *trajectory = p->trajectory, sum = 0.0, most = -INFINITY;
     for (size_t s = 0; s < count; s++) {
-        double k = p->n0 + 1.0 + (double)s, t = p->t0 + (p->inverse > 0.0 ? k / p->inverse : k * p->dt);
-        p->steps[s] = t;
-        p->steps[lds + s] = iterations[s];
-        p->steps[2 * lds + s] = residual[s];
-        p->steps[3 * lds + s] = reason[s];
-        p->trajectory[s] = t;
+        double k = n0 + 1.0 + (double)s, t = t0 + (inverse > 0.0 ? k / inverse : k * dt);
+        steps[s] = t;
+        steps[lds + s] = iterations[s];
+        steps[2 * lds + s] = residual[s];
+        steps[3 * lds + s] = reason[s];
+        trajectory[s] = t;
         sum += iterations[s];
         most = iterations[s] > most ? iterations[s] : most;
     }
     for (int j = 0; j < p->n_out; j++) {
         const double *from = p->log + (size_t)p->outputs[j] * ld;
-        double *to = p->trajectory + (size_t)(j + 1) * ldt;
+        double *to = trajectory + (size_t)(j + 1) * ldt;
         for (size_t s = 0; s < count; s++) to[s] = from[s];
     }
     p->iterations_sum = sum;

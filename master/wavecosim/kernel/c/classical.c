@@ -6,24 +6,27 @@
  * linalg.matvec_rows, the residual by linalg.distance), so the numbers are bit-identical. */
 #include <math.h>
 #include <stdlib.h>
-#include <string.h>
 
 #include "classical.h"
 #include "kernel_internal.h"
+#include "linalg.h"
 
 struct CLKernel {
     DRKernel *k;
     Csr *G;                        /* inputs = G outputs */
     double *y, *y_new, *inputs;    /* scratch: the iterate, its image, a pass's inputs */
     double *y_out;                 /* scratch of cl_run_steps: y^{n+1} before it becomes y^n */
-    int explicit_, sequential;     /* the master cl_run_steps runs */
+    int explicit_, sequential;     /* the master cl_run_steps runs (cl_create) */
 };
 
-CLKernel *cl_create(DRKernel *k, const int *G_start, const int *G_col, const double *G_val) {
+CLKernel *cl_create(DRKernel *k, const int *G_start, const int *G_col, const double *G_val, int explicit_,
+                    int sequential) {
     CLKernel *c = calloc(1, sizeof *c);
     if (!c) return NULL;
     size_t n = dr_channels(k);
     c->k = k;
+    c->explicit_ = explicit_;
+    c->sequential = sequential;
     c->G = dr_csr_copy(G_start, G_col, G_val, n);
     c->y = calloc(4 * n + 1, sizeof(double));                  /* n = 0: signals only */
     if (!c->G || !c->y) {
@@ -47,7 +50,7 @@ enum { QUERY = DR_QUERY, COMMIT = DR_COMMIT, FORWARD = DR_FORWARD };
 static int sweep(CLKernel *c, const double *y, double *y_new, double *inputs, double t, double h, int how,
                  int sequential, int measure) {
     DRKernel *k = c->k;
-    memcpy(y_new, y, dr_channels(k) * sizeof *y);
+    copy_doubles(y_new, y, dr_channels(k));
     if (!sequential) {
         dr_csr_rows(c->G, y, inputs, 0, dr_channels(k));
         return dr_evaluate_all(k, inputs, y_new, t, h, how, measure);
@@ -69,7 +72,7 @@ int cl_fixed_point_step(CLKernel *c, DRStep *io, const double *y_n, double *y_ne
     dr_begin(k, io);
     double deadline = io->deadline_s > 0.0 ? dr_now_ns() + 1e9 * io->deadline_s : 0.0;
     double *y = c->y, *y_new = c->y_new;
-    memcpy(y, y_n, n * sizeof *y);                               /* y^0 = y^n */
+    copy_doubles(y, y_n, n);                                     /* y^0 = y^n */
     int it = 0, reason = DR_BUDGET;
     double residual = NAN;
     while (it < io->K) {
@@ -120,15 +123,12 @@ static int block_step(void *ctx, DRStep *io) {
     int f = c->explicit_ ? cl_explicit_step(c, io, y, c->y_out, c->sequential)
                          : cl_fixed_point_step(c, io, y, c->y_out, u, c->sequential);
     if (f) return f;
-    if (c->explicit_) memcpy(u, c->inputs, n * sizeof *u);
-    memcpy(y, c->y_out, n * sizeof *y);
+    if (c->explicit_) copy_doubles(u, c->inputs, n);
+    copy_doubles(y, c->y_out, n);
     return 0;
 }
 
-int cl_run_steps(CLKernel *c, DRStep *io, int n0, int count, double *rows, long ld, double H_cap, int explicit_,
-                 int sequential) {
-    c->explicit_ = explicit_;
-    c->sequential = sequential;
+int cl_run_steps(CLKernel *c, DRStep *io, int n0, int count, double *rows, long ld, double H_cap) {
     return dr_run_steps_of(c->k, io, n0, count, rows, ld, H_cap, block_step, c);
 }
 

@@ -9,8 +9,10 @@
 typedef struct CLKernel CLKernel;
 
 /* On kernel k (which must outlive it), with the input map G (inputs = G outputs, n x n) in
- * compressed rows (columns ascending), copied. NULL on malformed rows or no memory. */
-CLKernel *cl_create(DRKernel *k, const int *G_start, const int *G_col, const double *G_val);
+ * compressed rows (columns ascending), copied; cl_run_steps makes the steps of the explicit (explicit_ = 1)
+ * or fixed-point master, sequential (Gauss-Seidel) or not. NULL on malformed rows or no memory. */
+CLKernel *cl_create(DRKernel *k, const int *G_start, const int *G_col, const double *G_val, int explicit_,
+                    int sequential);
 
 /* One macro-step of fixed-point iteration with rollback from the outputs y_n (n): K passes (all
  * subsystems from the old iterate, or sequential: Gauss-Seidel), stopped by io->K, io->eps (>= 0)
@@ -31,13 +33,12 @@ int cl_pass(CLKernel *c, DRStep *io, const double *y, double *y_new, double *inp
  * Returns like cl_fixed_point_step. */
 int cl_explicit_step(CLKernel *c, DRStep *io, const double *y_n, double *y_next, int sequential);
 
-/* Macro-steps n0 .. n0 + count - 1 of the explicit (explicit_ = 1) or fixed-point master in one call,
+/* Macro-steps n0 .. n0 + count - 1 of the master named in cl_create in one call,
  * from y^n in the DR kernel's b buffer (updated step by step to y^{n+1}), each exactly the step
  * function above at t = (double)n dt, logged as dr_run_steps logs (a: the inputs handed out, b: y^{n+1};
  * the ledger's columns as without it: io->ledger_on must be 0), with its stop after a non-finite
  * observed value or a stored energy that may exceed H_cap. Returns the steps done, as dr_run_steps. */
-int cl_run_steps(CLKernel *c, DRStep *io, int n0, int count, double *rows, long ld, double H_cap, int explicit_,
-                 int sequential);
+int cl_run_steps(CLKernel *c, DRStep *io, int n0, int count, double *rows, long ld, double H_cap);
 
 void cl_destroy(CLKernel *c);
 

@@ -353,9 +353,9 @@ static void options_begin(DRKernel *k, double *u) {
         for (size_t j = 0; j < k->n; j++) o->z[j] = 2.0 * k->b[j] - o->b_prev[j];
         csr_matvec(k->P, o->z, u, k->n);
     } else if (o->have_prev) {
-        memcpy(u, k->a_hat, k->n * sizeof *u);
+        copy_doubles(u, k->a_hat, k->n);
     }
-    memcpy(o->b_prev, k->b, k->n * sizeof *u);
+    copy_doubles(o->b_prev, k->b, k->n);
     o->have_prev = 1;
 }
 
@@ -414,8 +414,8 @@ static void add_anchor(DRKernel *k, const double *u, int it) {
     supply_of(u, k->b_hat, k->n, &k->last_supply, &traffic);
     k->last_it = it;
     if (k->last_supply <= 0.0) {
-        memcpy(k->safe, u, k->n * sizeof *u);
-        memcpy(k->safe + k->n, k->b_hat, k->n * sizeof *u);
+        copy_doubles(k->safe, u, k->n);
+        copy_doubles(k->safe + k->n, k->b_hat, k->n);
         k->safe_supply = k->last_supply;
         k->safe_it = it;
     }
@@ -433,8 +433,8 @@ static int iterate(DRKernel *k, DRStep *io, int it, int K, int use_eps, double d
         int f = evaluate_all(k, u, k->b_hat, io->t, io->dt, 0, io->measure); /* line 10, eq. (17) response */
         if (f >= 0) return report_failure(k, io, f);
         if (k->trace && it < k->trace_capacity) {
-            memcpy(k->trace + 2 * n * (size_t)it, u, n * sizeof *u);
-            memcpy(k->trace + 2 * n * (size_t)it + n, k->b_hat, n * sizeof *u);
+            copy_doubles(k->trace + 2 * n * (size_t)it, u, n);
+            copy_doubles(k->trace + 2 * n * (size_t)it + n, k->b_hat, n);
         }
         if (k->anchors_on) add_anchor(k, u, it);
         for (size_t j = 0; j < n; j++) k->z[j] = 2.0 * k->b_hat[j] - u[j];
@@ -461,7 +461,7 @@ static int iterate(DRKernel *k, DRStep *io, int it, int K, int use_eps, double d
         k->u_next = u_next;                                      /* the next loop leaves the query alone */
         k->u = u;
     }
-    memcpy(k->uK, u, n * sizeof *u);
+    copy_doubles(k->uK, u, n);
     return it - first;
 }
 
@@ -472,7 +472,7 @@ int dr_macro_step(DRKernel *k, DRStep *io) {
     double *u = k->u;
     csr_matvec(k->P, k->b, u, n);                                    /* line 6, eq. (19): u^0 = P b^n */
     if (k->opt) options_begin(k, u);                             /* other starts (dr_options.start_point) */
-    memcpy(k->u0, u, n * sizeof *u);
+    copy_doubles(k->u0, u, n);
     const double *b_star = k->b;                                 /* line 7, eq. (19): b^* = b^n */
     k->last_it = k->safe_it = -1;                                /* no anchors yet */
     io->residual = NAN;

@@ -6,6 +6,11 @@
 #include <math.h>
 #include <stddef.h>
 
+/* to = from, n doubles: a loop, not a call of memcpy, as the vectors of a step are a few values long. */
+static inline void copy_doubles(double *to, const double *from, size_t n) {
+    for (size_t j = 0; j < n; j++) to[j] = from[j];
+}
+
 /* y_i = sum_j M_ij x_j (M n x n, row-major; linalg.matvec). */
 static inline void matvec(const double *M, const double *x, double *y, size_t n) {
     for (size_t i = 0; i < n; i++) {

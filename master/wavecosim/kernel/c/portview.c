@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "linalg.h"
 #include "portview.h"
 
 /* ---- the signed port: ports.DirectPort with in_scale and out_scale ---- */
@@ -152,7 +153,7 @@ fmi2Status pv_getReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr
         for (size_t j = 0; j < m; j++) out[j] = *v->k * (e[j] - *v->gamma * value[1 + m + j]);
         out += m;
     }
-    memcpy(out, f + m, v->n_out * sizeof(double));
+    copy_doubles(out, f + m, v->n_out);
     return status;
 }
 

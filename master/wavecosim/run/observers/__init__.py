@@ -53,10 +53,11 @@ class Observer:
         """In set-up, before any block: `logs` and `readings` are empty (no step) but laid out as the
         blocks' will be, so what after_block builds once can be built here, outside the run's time."""
 
-    def after_block(self, n0, logs, readings, rows):
+    def after_block(self, n0, logs, readings, rows, at=None):
         """After macro-steps n0 .. n0 + len(rows) - 1 made in one call: `logs` (fast_path.BlockLog)
         and `readings` (readings.BlockReading) hold one row per step; write this observer's columns
-        into `rows` (steps x its columns), exactly as after_step would, step after step."""
+        into `rows` (steps x its columns), exactly as after_step would, step after step. `at`: where
+        rows lives for a pass in C (address of its first value, doubles between columns), or None."""
         raise NotImplementedError
 
     def summary(self) -> dict:

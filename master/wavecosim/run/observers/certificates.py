@@ -104,7 +104,7 @@ class CertificateSampler(Observer):
                                    min_fne=place(0), max_aug=place(k), H_prev=place(k + 1))
         return call, cvalues.ref(call), fig
 
-    def after_block(self, n0, logs, readings, rows):
+    def after_block(self, n0, logs, readings, rows, at=None):
         """The kernel's certificates of the block's steps, in one C pass (a redo's log has no iterates:
         NaN); without the kernel no step is sampled: NaN."""
         if self.kernel is None:
@@ -118,7 +118,7 @@ class CertificateSampler(Observer):
         fig[:k], fig[k], fig[k + 1] = self.min_fne, self.max_aug, self.H_prev
         found = self.kernel.block_rows(n0, len(rows))
         call.count, call.first = len(rows), (-n0) % self.pace.every
-        (call.log, call.ld), (call.out, call.ldo) = blocks.rows(logs.columns), blocks.columns(rows)
+        (call.log, call.ld), (call.out, call.ldo) = (logs.address, logs.ld), at or blocks.columns(rows)
         call.certs, call.ldc = found.ctypes.data, found.strides[0] // 8
         blocks.library().sampled_block(ref)
         self.min_fne, self.max_aug, self.H_prev = fig[:k], fig[k], fig[k + 1]
@@ -140,7 +140,7 @@ class CertificatePace(Observer):
     def __init__(self, pace):
         self.pace = pace
 
-    def after_block(self, n0, logs, readings, rows):
+    def after_block(self, n0, logs, readings, rows, at=None):
         """Nothing per step."""
 
     def summary(self):

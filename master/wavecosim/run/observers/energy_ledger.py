@@ -190,7 +190,7 @@ class EnergyLedger(Observer):
         """The allowance per unit of traffic: RTOL, plus the frozen maps' own accuracy (0.0 when exact)."""
         return RTOL + self.master.scene.map_noise()
 
-    def after_block(self, n0, logs, readings, rows):
+    def after_block(self, n0, logs, readings, rows, at=None):
         """Book a block the kernel made: it kept the ledger itself, redoing steps as _redo does, bit
         for bit (drkernel.c, ledger_step), and logged each step's I^n, L^n, s, action and redo rounds."""
         led, logged = logs.ledger, logs.ledger_rows

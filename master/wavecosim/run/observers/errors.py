@@ -41,11 +41,12 @@ class ErrorTracker(Observer):
     def after_step(self, n, t, log, reading, row):
         row[0] = self._error(reading.outputs, n + 1)
 
-    def after_block(self, n0, logs, readings, rows):
+    def after_block(self, n0, logs, readings, rows, at=None):
         ref = self.reference_rows(n0 + 1, len(rows))
         have = len(ref)
-        d = readings.outputs[:have, self.idx] - ref[:, self.idx] if have else np.empty((0, 0))
-        errors = np.sqrt(row_norms_squared(d * d))
+        with np.errstate(over="ignore", invalid="ignore"):     # as Python floats overflow: inf, nan, silently
+            d = readings.outputs[:have, self.idx] - ref[:, self.idx] if have else np.empty((0, 0))
+            errors = np.sqrt(row_norms_squared(d * d))
         rows[:have, 0], rows[have:, 0] = errors, math.nan
         for e in errors.tolist():                       # running figures, in step order as after_step
             self.max = max(self.max, e) if e == e else e

@@ -137,7 +137,7 @@ class FneWatch(Observer):
             self.call = blocks.WatchBlock(k=len(self.names), tol=self.tol,
                                           min_margin=cvalues.doubles(len(self.names)))
 
-    def after_block(self, n0, logs, readings, rows):
+    def after_block(self, n0, logs, readings, rows, at=None):
         """The kernel's secant margins of each step, in one C pass (record() of every step at once),
         unless one fails, is NaN or a signed zero: then step by step; K < 2, steps between sampled ones:
         no estimate (NaN)."""
@@ -149,7 +149,7 @@ class FneWatch(Observer):
         found, call = self.kernel.block_rows(n0, len(rows)), self.call
         call.count, call.probed = len(rows), 0
         call.first, call.every = (0, 1) if self.needs_trace else ((-n0) % self.pace.every, self.pace.every)
-        call.certs, call.ldc, call.out = found.ctypes.data, found.strides[0] // 8, blocks.columns(rows)[0]
+        call.certs, call.ldc, call.out = found.ctypes.data, found.strides[0] // 8, (at or blocks.columns(rows))[0]
         for i, name in enumerate(self.names):
             call.min_margin[i] = self.min_margin[name]
         if blocks.library().watch_block(cvalues.ref(call)):

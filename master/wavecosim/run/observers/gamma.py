@@ -42,7 +42,7 @@ class GammaLog(Observer):
             row[i] = g
             self.gamma_min[name] = min(self.gamma_min.get(name, g), g)
 
-    def after_block(self, n0, logs, readings, rows):
+    def after_block(self, n0, logs, readings, rows, at=None):
         gammas = [self.scene.gammas[name] for name in self.names]
         rows[:] = gammas                                        # one row, broadcast down the block
         for name, g in zip(self.names, gammas):

@@ -42,6 +42,10 @@ class Passivity(Observer):
         self.complete = all(self.has_H)
         self.blocks = blocks.library() is not None
         self.call = None                  # the C pass's arguments, from the first block's layout
+        k = len(self.names)               # the running figures, owned here and updated in place by the C pass:
+        self.prev = cvalues.doubles(k)    # the H_i before the next step;
+        self.fig = cvalues.doubles(k + 4)     # each max r_i, then max_supply, drift, H_max, H_final;
+        self.ledger = cvalues.doubles(k)  # the energy into each port without H, cumulated
         missing = [n for n, h in zip(self.names, self.has_H) if not h]
         self.unavailable = [*(f"r_{n}" for n in missing), *([] if any(self.has_H) else ["max_passivity_pos"]),
                             *([] if self.complete else ["H_total", "H_growth"]), *unavailable]
@@ -50,12 +54,11 @@ class Passivity(Observer):
                         "interface_supply", *(["H_total"] if self.complete else []))
 
     def start(self, first):
-        self.H = list(first.H)
-        self.H_initial = self.H_max = total(first.H)
-        self.H_final = self.H_initial
-        self.max_r = [math.nan] * len(self.names)
-        self.ledger = [0.0] * len(self.names)
-        self.max_supply, self.drift = math.nan, 0.0
+        k = len(self.names)
+        self.prev[:] = list(first.H)
+        self.H_initial = total(first.H)
+        self.fig[:] = [math.nan] * k + [math.nan, 0.0, self.H_initial, self.H_initial]
+        self.ledger[:] = [0.0] * k
 
     def _supplied(self, log, reading):
         """Energy into each subsystem's port over the step, and into all of them."""
@@ -68,12 +71,12 @@ class Passivity(Observer):
 
     def after_step(self, n, t, log, reading, row):
         supplied, supply = self._supplied(log, reading)
-        k = 0
-        for i, (h0, h1, s) in enumerate(zip(self.H, reading.H, supplied)):
+        fig, k = self.fig, 0
+        for i, (h0, h1, s) in enumerate(zip(self.prev, reading.H, supplied)):
             if self.has_H[i]:
                 r = (h1 - h0) - s
                 row[k] = r
-                self.max_r[i] = grow_max_pos(self.max_r[i], r)
+                fig[i] = grow_max_pos(fig[i], r)
                 k += 1
         for i, s in enumerate(supplied):
             if not self.has_H[i]:
@@ -81,53 +84,49 @@ class Passivity(Observer):
                 row[k], row[k + 1] = s, self.ledger[i]
                 k += 2
         row[k] = supply
-        self.max_supply = grow_max_pos(self.max_supply, supply)
-        self.drift += supply
-        H_total = total(reading.H)
+        at = len(self.names)
+        H_total, H_max = total(reading.H), fig[at + 2]
+        fig[at], fig[at + 1] = grow_max_pos(fig[at], supply), fig[at + 1] + supply
         if self.complete:
             row[k + 1] = H_total
-        self.H, self.H_final = list(reading.H), H_total
-        self.H_max = max(self.H_max, H_total) if H_total == H_total else H_total
+        self.prev[:] = list(reading.H)
+        fig[at + 2], fig[at + 3] = (max(H_max, H_total) if H_total == H_total else H_total), H_total
 
     def _block_call(self, logs, readings):
         """The C pass's fixed arguments (kernel/c/blocks.c): the kernel log's rows it reads (the
         channels' a_hat, b, e, f, the subsystems' H), the ports' first channels, the running figures."""
         at, k, ints = logs.observed_at, len(self.names), blocks.ints
         rows = {key: ints([at + r for r in readings.rows(key)]) for key in ("B", "E", "F", "H")}
-        prev, fig, ledger = cvalues.doubles(k), cvalues.doubles(k + 4), cvalues.doubles(k)
         call = blocks.PassBlock(k=k, wave=int(self.wave), dt=self.dt, a=ints(logs.a_rows), b=rows["B"], e=rows["E"],
-                                f=rows["F"], h=rows["H"], prev=prev, fig=fig, has_h=ints(self.has_H), ledger=ledger,
-                                port=ints([*self.scene.offsets, self.scene.n_channels]))
-        return call, cvalues.ref(call), prev, fig, ledger
+                                f=rows["F"], h=rows["H"], prev=self.prev, fig=self.fig, has_h=ints(self.has_H),
+                                ledger=self.ledger, port=ints([*self.scene.offsets, self.scene.n_channels]))
+        return call, cvalues.ref(call)
 
     def prepare_block(self, logs, readings):
         self.call = self._block_call(logs, readings)
 
-    def after_block(self, n0, logs, readings, rows):
+    def after_block(self, n0, logs, readings, rows, at=None):
         """Every step's columns and the running figures in one C pass over the block's log, in
         after_step's operation order (kernel/c/blocks.c)."""
-        k = len(self.names)
         if self.call is None:
             self.call = self._block_call(logs, readings)
-        call, ref, prev, fig, ledger = self.call
-        prev[:], fig[:] = self.H, [*self.max_r, self.max_supply, self.drift, self.H_max, self.H_final]
-        ledger[:] = self.ledger
+        call, ref = self.call
         call.count = len(logs)
-        (call.log, call.ld), (call.out, call.ldo) = blocks.rows(logs.columns), blocks.columns(rows)
+        (call.log, call.ld), (call.out, call.ldo) = (logs.address, logs.ld), at or blocks.columns(rows)
         blocks.library().passivity_block(ref)
-        self.H, self.max_r, self.ledger = prev[:], fig[:k], ledger[:]
-        self.max_supply, self.drift, self.H_max, self.H_final = fig[k:]
 
     def summary(self):
-        worst = [r for r, h in zip(self.max_r, self.has_H) if h and r == r]
+        k = len(self.names)
+        max_r, (max_supply, drift, H_max, H_final) = self.fig[:k], self.fig[k:]
+        worst = [r for r, h in zip(max_r, self.has_H) if h and r == r]
         out = {"max_passivity_pos": max(worst) if worst else math.nan} if any(self.has_H) else {}
-        out["max_passivity_pos_by_subsystem"] = {n: r for n, r, h in zip(self.names, self.max_r, self.has_H) if h}
+        out["max_passivity_pos_by_subsystem"] = {n: r for n, r, h in zip(self.names, max_r, self.has_H) if h}
         if self.complete:
-            out.update({"H_initial": self.H_initial, "H_final": self.H_final,
-                        "H_growth": self.H_max / self.H_initial if self.H_initial > 0 else math.nan})
+            out.update({"H_initial": self.H_initial, "H_final": H_final,
+                        "H_growth": H_max / self.H_initial if self.H_initial > 0 else math.nan})
         else:
             out["port_energy_by_subsystem"] = {n: e for n, e, h in zip(self.names, self.ledger, self.has_H) if not h}
-        out.update({"max_interface_injection": self.max_supply, "energy_drift": self.drift})
+        out.update({"max_interface_injection": max_supply, "energy_drift": drift})
         if self.unavailable:
             out["certificates_unavailable"] = list(self.unavailable)
         return out
