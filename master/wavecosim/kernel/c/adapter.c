@@ -64,8 +64,7 @@ static int fmu_failed(WaveAdapterC *w, int function, fmi2Status status) {
 }
 
 /* _eval -> Subsystem.raw_query: restore x_i^n if moved, set u, one doStep, read y. */
-static int eval(WaveAdapterC *w, const double *u, double *y, double t, double h) {
-    size_t m = (size_t)w->m;
+static int eval(WaveAdapterC *w, size_t m, const double *u, double *y, double t, double h) {
     w->do_steps++;
     if (w->dirty) {
         if (fmu_failed(w, DR_FN_SET_STATE, w->fn.setFMUstate(w->comp, *w->state))) return 1;
@@ -79,8 +78,9 @@ static int eval(WaveAdapterC *w, const double *u, double *y, double t, double h)
 }
 
 /* _residual: wu u + wy y - target. */
-static void residual(const WaveAdapterC *w, const double *u, const double *y, const double *target, double *r) {
-    for (int j = 0; j < w->m; j++) r[j] = w->wu[j] * u[j] + w->wy[j] * y[j] - target[j];
+static void residual(const WaveAdapterC *w, size_t m, const double *u, const double *y, const double *target,
+                     double *r) {
+    for (size_t j = 0; j < m; j++) r[j] = w->wu[j] * u[j] + w->wy[j] * y[j] - target[j];
 }
 
 static fmi2Status fail(WaveAdapterC *w, int failure, double rel, const double *r) {
@@ -91,8 +91,8 @@ static fmi2Status fail(WaveAdapterC *w, int failure, double rel, const double *r
 }
 
 /* _invert: J_inv = (diag(wu) + diag(wy) D)^-1, or AD_SINGULAR when it is not finite. */
-static fmi2Status invert(WaveAdapterC *w, Scratch *s) {
-    size_t m = (size_t)w->m, n2 = 2 * m;
+static fmi2Status invert(WaveAdapterC *w, size_t m, Scratch *s) {
+    size_t n2 = 2 * m;
     int finite;
     if (m == 1) {                     /* gauss_jordan on [M | 1] is its one division by the pivot */
         double pivot = w->wu[0] + w->wy[0] * w->D[0];
@@ -110,7 +110,7 @@ static fmi2Status invert(WaveAdapterC *w, Scratch *s) {
     }
     if (!finite) {
         for (size_t j = 0; j < m; j++) s->target[j] = 0.0;
-        residual(w, w->u, w->y, s->target, s->r);
+        residual(w, m, w->u, w->y, s->target, s->r);
         return fail(w, AD_SINGULAR, NAN, s->r);
     }
     for (size_t i = 0; i < m; i++) copy_doubles(w->J_inv + i * m, s->aug + i * n2 + m, m);
@@ -120,13 +120,12 @@ static fmi2Status invert(WaveAdapterC *w, Scratch *s) {
 fmi2Status adapter_reinvert(WaveAdapterC *w) {
     Scratch s = scratch(w);
     w->failure = AD_OK;
-    return w->have_slope ? invert(w, &s) : fmi2OK;
+    return w->have_slope ? invert(w, (size_t)w->m, &s) : fmi2OK;
 }
 
 /* _estimate_slope: dy/du at the warm start by forward differences (m + 1 doSteps). */
-static fmi2Status estimate_slope(WaveAdapterC *w, Scratch *s, double t, double h) {
-    size_t m = (size_t)w->m;
-    if (eval(w, w->u, w->y, t, h)) return (fmi2Status)w->failed_status;
+static fmi2Status estimate_slope(WaveAdapterC *w, size_t m, Scratch *s, double t, double h) {
+    if (eval(w, m, w->u, w->y, t, h)) return (fmi2Status)w->failed_status;
     for (size_t j = 0; j < m * m; j++) w->D[j] = 0.0;
     w->have_slope = 1;
     w->h2 = w->u_scale = 0.0;
@@ -138,28 +137,27 @@ static fmi2Status estimate_slope(WaveAdapterC *w, Scratch *s, double t, double h
         w->h2 += step * step;
         copy_doubles(s->du, w->u, m);
         s->du[j] += step;
-        if (eval(w, s->du, s->y_new, t, h)) return (fmi2Status)w->failed_status;
+        if (eval(w, m, s->du, s->y_new, t, h)) return (fmi2Status)w->failed_status;
         for (size_t i = 0; i < m; i++) w->D[i * m + j] = (s->y_new[i] - w->y[i]) / step;
     }
-    return invert(w, s);
+    return invert(w, m, s);
 }
 
 /* _secant: Broyden update of D from the step (du, dy), unless shorter than the slope's own. */
-static fmi2Status secant(WaveAdapterC *w, Scratch *s) {
-    size_t m = (size_t)w->m;
+static fmi2Status secant(WaveAdapterC *w, size_t m, Scratch *s) {
     double du2 = dot(s->du, s->du, m);
     if (!(du2 >= w->h2)) return fmi2OK;
     matvec(w->D, s->du, s->miss, m);
     for (size_t i = 0; i < m; i++) s->miss[i] = s->dy[i] - s->miss[i];
     for (size_t i = 0; i < m; i++)
         for (size_t j = 0; j < m; j++) w->D[i * m + j] += s->miss[i] * s->du[j] / du2;
-    return invert(w, s);
+    return invert(w, m, s);
 }
 
 /* _relative: the residual relative to the terms it balances, or the next correction relative to
  * the input's scale: the smaller. Uses s->s as scratch. */
-static double relative(const WaveAdapterC *w, Scratch *s, const double *r, const double *u, const double *y) {
-    size_t m = (size_t)w->m;
+static double relative(const WaveAdapterC *w, size_t m, Scratch *s, const double *r, const double *u,
+                       const double *y) {
     double size = 0.0;
     for (size_t j = 0; j < m; j++) size += fabs(s->target[j]) + fabs(w->wu[j] * u[j]) + fabs(w->wy[j] * y[j]);
     double norm = norm1(r, m);
@@ -170,8 +168,8 @@ static double relative(const WaveAdapterC *w, Scratch *s, const double *r, const
 }
 
 /* stage and outgoing: oriented (e, f) of the FMU's u and y, and b = k (e - gamma f). */
-static fmi2Status stage(WaveAdapterC *w) {
-    for (int j = 0; j < w->m; j++) {
+static fmi2Status stage(WaveAdapterC *w, size_t m) {
+    for (size_t j = 0; j < m; j++) {
         w->e[j] = w->effort_in[j] ? w->u[j] : w->y[j];
         w->f[j] = w->sign[j] * (w->effort_in[j] ? w->y[j] : w->u[j]);
         w->b[j] = w->k * (w->e[j] - w->gamma * w->f[j]);
@@ -180,55 +178,55 @@ static fmi2Status stage(WaveAdapterC *w) {
 }
 
 /* _accept: Newton stalled; the best point is kept when within accept (the FMU put there). */
-static fmi2Status accept(WaveAdapterC *w, Scratch *s, double best_rel, int best_is_last, double t, double h) {
+static fmi2Status accept(WaveAdapterC *w, size_t m, Scratch *s, double best_rel, int best_is_last, double t,
+                         double h) {
     if (best_rel > w->accept) return fail(w, AD_STALLED, best_rel, s->r);
     w->accepted++;
     w->worst_accepted = best_rel > w->worst_accepted ? best_rel : w->worst_accepted;
     if (!best_is_last) {
-        if (eval(w, s->best_u, s->best_y, t, h)) return (fmi2Status)w->failed_status;
-        copy_doubles(w->u, s->best_u, (size_t)w->m);
-        copy_doubles(w->y, s->best_y, (size_t)w->m);
+        if (eval(w, m, s->best_u, s->best_y, t, h)) return (fmi2Status)w->failed_status;
+        copy_doubles(w->u, s->best_u, m);
+        copy_doubles(w->y, s->best_y, m);
     }
-    return stage(w);
+    return stage(w, m);
 }
 
 /* One Newton iteration from (w->u, w->y): u_new, y_new, their residual r and its relative size. */
-static int newton_step(WaveAdapterC *w, Scratch *s, double *rel, double t, double h) {
-    size_t m = (size_t)w->m;
-    residual(w, w->u, w->y, s->target, s->r);
+static inline __attribute__((always_inline)) int newton_step(WaveAdapterC *w, size_t m, Scratch *s, double *rel,
+                                                             double t, double h) {
+    residual(w, m, w->u, w->y, s->target, s->r);
     matvec(w->J_inv, s->r, s->s, m);
     for (size_t j = 0; j < m; j++) s->u_new[j] = w->u[j] - s->s[j];
-    if (eval(w, s->u_new, s->y_new, t, h)) return 1;
-    residual(w, s->u_new, s->y_new, s->target, s->r);
-    *rel = relative(w, s, s->r, s->u_new, s->y_new);
+    if (eval(w, m, s->u_new, s->y_new, t, h)) return 1;
+    residual(w, m, s->u_new, s->y_new, s->target, s->r);
+    *rel = relative(w, m, s, s->r, s->u_new, s->y_new);
     return 0;
 }
 
-/* _solve */
-fmi2Status adapter_solve(WaveAdapterC *w, double t, double h) {
-    size_t m = (size_t)w->m;
+/* _solve, over m channels (adapter_solve) */
+static inline __attribute__((always_inline)) fmi2Status solve(WaveAdapterC *w, size_t m, double t, double h) {
     Scratch s = scratch(w);
     w->failure = AD_OK;
     w->evaluations++;
     for (size_t j = 0; j < m; j++) s.target[j] = w->c * w->a[j];
     fmi2Status status;
-    if (!w->have_slope && (status = estimate_slope(w, &s, t, h)) != fmi2OK) return status;
+    if (!w->have_slope && (status = estimate_slope(w, m, &s, t, h)) != fmi2OK) return status;
     double best_rel = NAN;
     int have_best = 0, stalled = 0, best_at = -1, last = -1;
     for (int it = 0; it < w->max_iter; it++) {
         double rel;
-        if (newton_step(w, &s, &rel, t, h)) return (fmi2Status)w->failed_status;
+        if (newton_step(w, m, &s, &rel, t, h)) return (fmi2Status)w->failed_status;
         if (rel > w->tol) {
             for (size_t j = 0; j < m; j++) {
                 s.du[j] = s.u_new[j] - w->u[j];
                 s.dy[j] = s.y_new[j] - w->y[j];
             }
-            if ((status = secant(w, &s)) != fmi2OK) return status;
+            if ((status = secant(w, m, &s)) != fmi2OK) return status;
         }
         copy_doubles(w->u, s.u_new, m);
         copy_doubles(w->y, s.y_new, m);
         last = it;
-        if (rel <= w->tol) return stage(w);
+        if (rel <= w->tol) return stage(w, m);
         stalled = have_best && rel > 0.5 * best_rel ? stalled + 1 : 0;
         if (!have_best || rel < best_rel) {
             best_rel = rel;
@@ -239,7 +237,13 @@ fmi2Status adapter_solve(WaveAdapterC *w, double t, double h) {
         }
         if (stalled >= w->stall) break;
     }
-    return accept(w, &s, best_rel, best_at == last, t, h);
+    return accept(w, m, &s, best_rel, best_at == last, t, h);
+}
+
+/* The adapter's solve for any m, and for the one-channel port most FMUs have: the same code, its
+ * loops of one value folded by the compiler. */
+fmi2Status adapter_solve(WaveAdapterC *w, double t, double h) {
+    return w->m == 1 ? solve(w, 1, t, h) : solve(w, (size_t)w->m, t, h);
 }
 
 /* ---- the fmi2 shim ---- */
