@@ -18,7 +18,7 @@ size_t adapter_work_size(int m) {
     return 10 * (size_t)m + 2 * (size_t)m * (size_t)m;
 }
 
-static Scratch scratch(WaveAdapterC *w) {
+WC_INLINE Scratch scratch(WaveAdapterC *w) {
     size_t m = (size_t)w->m;
     double *p = w->work;
     Scratch s = {p, p + m, p + 2 * m, p + 3 * m, p + 4 * m, p + 5 * m, p + 6 * m, p + 7 * m, p + 8 * m,
@@ -64,7 +64,7 @@ static int fmu_failed(WaveAdapterC *w, int function, fmi2Status status) {
 }
 
 /* _eval -> Subsystem.raw_query: restore x_i^n if moved, set u, one doStep, read y. */
-static int eval(WaveAdapterC *w, size_t m, const double *u, double *y, double t, double h) {
+WC_INLINE int eval(WaveAdapterC *w, size_t m, const double *u, double *y, double t, double h) {
     w->do_steps++;
     if (w->dirty) {
         if (fmu_failed(w, DR_FN_SET_STATE, w->fn.setFMUstate(w->comp, *w->state))) return 1;
@@ -78,8 +78,8 @@ static int eval(WaveAdapterC *w, size_t m, const double *u, double *y, double t,
 }
 
 /* _residual: wu u + wy y - target. */
-static void residual(const WaveAdapterC *w, size_t m, const double *u, const double *y, const double *target,
-                     double *r) {
+WC_INLINE void residual(const WaveAdapterC *w, size_t m, const double *u, const double *y, const double *target,
+                        double *r) {
     for (size_t j = 0; j < m; j++) r[j] = w->wu[j] * u[j] + w->wy[j] * y[j] - target[j];
 }
 
@@ -156,8 +156,8 @@ static fmi2Status secant(WaveAdapterC *w, size_t m, Scratch *s) {
 
 /* _relative: the residual relative to the terms it balances, or the next correction relative to
  * the input's scale: the smaller. Uses s->s as scratch. */
-static double relative(const WaveAdapterC *w, size_t m, Scratch *s, const double *r, const double *u,
-                       const double *y) {
+WC_INLINE double relative(const WaveAdapterC *w, size_t m, Scratch *s, const double *r, const double *u,
+                          const double *y) {
     double size = 0.0;
     for (size_t j = 0; j < m; j++) size += fabs(s->target[j]) + fabs(w->wu[j] * u[j]) + fabs(w->wy[j] * y[j]);
     double norm = norm1(r, m);
@@ -168,7 +168,7 @@ static double relative(const WaveAdapterC *w, size_t m, Scratch *s, const double
 }
 
 /* stage and outgoing: oriented (e, f) of the FMU's u and y, and b = k (e - gamma f). */
-static fmi2Status stage(WaveAdapterC *w, size_t m) {
+WC_INLINE fmi2Status stage(WaveAdapterC *w, size_t m) {
     for (size_t j = 0; j < m; j++) {
         w->e[j] = w->effort_in[j] ? w->u[j] : w->y[j];
         w->f[j] = w->sign[j] * (w->effort_in[j] ? w->y[j] : w->u[j]);
@@ -192,8 +192,7 @@ static fmi2Status accept(WaveAdapterC *w, size_t m, Scratch *s, double best_rel,
 }
 
 /* One Newton iteration from (w->u, w->y): u_new, y_new, their residual r and its relative size. */
-static inline __attribute__((always_inline)) int newton_step(WaveAdapterC *w, size_t m, Scratch *s, double *rel,
-                                                             double t, double h) {
+WC_INLINE int newton_step(WaveAdapterC *w, size_t m, Scratch *s, double *rel, double t, double h) {
     residual(w, m, w->u, w->y, s->target, s->r);
     matvec(w->J_inv, s->r, s->s, m);
     for (size_t j = 0; j < m; j++) s->u_new[j] = w->u[j] - s->s[j];
@@ -204,7 +203,7 @@ static inline __attribute__((always_inline)) int newton_step(WaveAdapterC *w, si
 }
 
 /* _solve, over m channels (adapter_solve) */
-static inline __attribute__((always_inline)) fmi2Status solve(WaveAdapterC *w, size_t m, double t, double h) {
+WC_INLINE fmi2Status solve(WaveAdapterC *w, size_t m, double t, double h) {
     Scratch s = scratch(w);
     w->failure = AD_OK;
     w->evaluations++;

@@ -111,17 +111,6 @@ static void cpu_relax(void) {
 
 /* ---- the arithmetic of master/linalg.py, in the same operation order ---- */
 
-/* Rows r0 .. r1 - 1 of y = M x, each summed over its stored entries left to right from 0.0
- * (linalg.matvec_rows): the same bits as the dense sum, whose other terms are exact zeros added to
- * a sum that is never -0.0. */
-void dr_csr_rows(const Csr *M, const double *x, double *y, size_t r0, size_t r1) {
-    for (size_t i = r0; i < r1; i++) {
-        double acc = 0.0;
-        for (int p = M->start[i]; p < M->start[i + 1]; p++) acc += M->val[p] * x[M->col[p]];
-        y[i] = acc;
-    }
-}
-
 /* y = M x (linalg.matvec). */
 static void csr_matvec(const Csr *M, const double *x, double *y, size_t n) {
     dr_csr_rows(M, x, y, 0, n);
@@ -186,7 +175,7 @@ static int failed(Sub *s, int function, fmi2Status status) {
 /* S_i^n(a) (commit = 0, eq. 12) or Phi_i(x_i^n, a) (commit = 1, eq. 21) on the channels of s:
  * save x_i^n on the first call of the macro-step (line 3), restore it if an earlier query moved
  * the instance, set the incident waves, one doStep, read the outgoing waves. */
-static int evaluate(Sub *s, const double *in, double *out, double t, double h, int commit, int measure) {
+WC_INLINE int evaluate(Sub *s, const double *in, double *out, double t, double h, int commit, int measure) {
     measure = measure && s->n_samples < MAX_SAMPLES;       /* a clock read costs tens of ns: only those kept */
     double t0 = measure ? now_ns() : 0.0;
     if (!s->frozen) {
@@ -212,7 +201,7 @@ static int evaluate(Sub *s, const double *in, double *out, double t, double h, i
 
 /* Every subsystem of one thread on the current task; the first that failed, or -1. DR_FORWARD steps
  * from the current state with nothing saved (dr_advance). */
-static int run_group(DRKernel *k, int thread) {
+WC_INLINE int run_group(DRKernel *k, int thread) {
     int forward = k->task_how == DR_FORWARD;
     for (int i = 0; i < k->n_sub; i++) {
         Sub *s = &k->sub[i];

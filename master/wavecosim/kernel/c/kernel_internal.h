@@ -16,8 +16,16 @@ typedef struct {
 /* A copy of compressed rows (freed with free), or NULL if they are malformed or memory is short. */
 Csr *dr_csr_copy(const int *start, const int *col, const double *val, size_t n);
 
-/* Rows r0 .. r1 - 1 of y = M x, each summed left to right from 0.0 (linalg.matvec_rows). */
-void dr_csr_rows(const Csr *M, const double *x, double *y, size_t r0, size_t r1);
+/* Rows r0 .. r1 - 1 of y = M x, each summed over its stored entries left to right from 0.0
+ * (linalg.matvec_rows): the same bits as the dense sum, whose other terms are exact zeros added to
+ * a sum that is never -0.0. Inline: a step makes several of a few rows each. */
+static inline void dr_csr_rows(const Csr *M, const double *x, double *y, size_t r0, size_t r1) {
+    for (size_t i = r0; i < r1; i++) {
+        double acc = 0.0;
+        for (int p = M->start[i]; p < M->start[i + 1]; p++) acc += M->val[p] * x[M->col[p]];
+        y[i] = acc;
+    }
+}
 
 size_t dr_channels(const DRKernel *k);
 int dr_subsystems(const DRKernel *k);

@@ -6,6 +6,10 @@
 #include <math.h>
 #include <stddef.h>
 
+/* A function on the path of every step, always inlined (GCC, Clang): the constants of its callers,
+ * such as a port of one channel, fold into it. */
+#define WC_INLINE static inline __attribute__((always_inline))
+
 /* to = from, n doubles: a loop, not a call of memcpy, as the vectors of a step are a few values long. */
 static inline void copy_doubles(double *to, const double *from, size_t n) {
     for (size_t j = 0; j < n; j++) to[j] = from[j];
