@@ -611,7 +611,8 @@ class LiveRun:
         A table that could not write keeps its file to whole rows."""
         tables = [t for t in (getattr(self, "trajectory", None), getattr(self, "steps", None)) if t is not None]
         errors = []
-        for close in [t.flush for t in tables] + [t.close for t in tables]:   # both tables' last rows at once
+        flushes = [t.flush for t in tables if t.path is not None]          # both files' last rows at once
+        for close in flushes + [t.close for t in tables]:
             try:
                 close()
             except OutputError as exc:
