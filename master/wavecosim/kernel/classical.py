@@ -12,8 +12,8 @@ import math
 
 import numpy as np
 
-from ..errors import ConfigError, FmuError
-from .drkernel import Kernel, load_library, unusable
+from ..errors import FmuError
+from .drkernel import Kernel, load_library
 
 _double_p = ctypes.POINTER(ctypes.c_double)
 
@@ -32,16 +32,6 @@ def _library():
         lib.cl_destroy.restype = None
         lib._classical_ready = True
     return lib
-
-
-def refusal(scene, mode):
-    """Why the Python reference runs (None: the kernel can run); master.fast: true insists."""
-    if mode == "false":
-        return "master.fast is false"
-    why = unusable(scene)
-    if why is not None and mode == "true":
-        raise ConfigError(f"{scene.scenario.source}: master.fast: true, but {why}")
-    return why
 
 
 class ClassicalKernel:

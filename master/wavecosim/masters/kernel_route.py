@@ -5,8 +5,8 @@ blocks only without an energy guard (their default): the ledger is kept step by 
 import math
 import time
 
-from ..kernel.classical import ClassicalKernel, refusal
-from ..kernel.drkernel import REASONS
+from ..kernel.classical import ClassicalKernel
+from ..kernel.drkernel import REASONS, kernel_refusal
 from .base import KernelOwner, StepLog
 from .dr_fast import BLOCK_SECONDS
 from .threads import ThreadPlanner
@@ -24,7 +24,7 @@ class KernelRoute(KernelOwner):
         passes, the master's update staying in Python)."""
         self.kernel, self.blocks, self.planner = None, blocks, None      # planner: masters/threads.py
         self._step_s = 0.0                     # seconds per macro-step of the last run_steps call
-        self.fast_note = refusal(scene, str(settings.fast).lower())
+        self.fast_note = kernel_refusal(scene, str(settings.fast).lower())
         if self.fast_note is None:
             explicit = not self.needs_rollback
             self.kernel = ClassicalKernel(scene, self.G, explicit, self.sequential)
