@@ -201,8 +201,8 @@ def test_blocks_cut_to_the_time_budget(tmp_path, monkeypatch):
     from wavecosim.masters import dr_fast
     made, run_steps = [], dr_fast.FastDRMaster.run_steps
 
-    def counted(master, n0, count, H_cap):
-        result = run_steps(master, n0, count, H_cap)
+    def counted(master, n0, count, H_cap, passes=False):
+        result = run_steps(master, n0, count, H_cap, passes)
         made.append(result[0])
         return result
     monkeypatch.setattr(dr_fast.FastDRMaster, "run_steps", counted)

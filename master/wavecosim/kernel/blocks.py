@@ -1,7 +1,7 @@
 """The runner's per-block arithmetic over the C kernel's log (kernel/c/blocks.c, built into
-the kernel library libblocks.so): the rows of a block of macro-steps (block_rows) and Condition 2 over it
-(passivity_block) and the certificates' columns (sampled_block, watch_block), each in one pass and
-bit for bit the step-by-step Python's. Without a C compiler
+the kernel library libblocks.so): the rows of a block of macro-steps (block_rows_steps) and Condition 2
+over it (passivity_steps), which the kernel makes as it logs the steps (Pass), and the certificates'
+columns (sampled_block, watch_block), each bit for bit the step-by-step Python's. Without a C compiler
 the library is missing, `library()` is None and the runner goes step by step (as it must anyway:
 the kernel needs the compiler too)."""
 import ctypes
@@ -10,25 +10,25 @@ from .abi import mirrors
 from .build import helper_library
 from .cvalues import ints  # noqa: F401  (the C int arrays of the passes' arguments)
 
+PASSES = ("block_rows_steps", "passivity_steps")      # blocks.c's DRPassFns
 _lib = None
 _int_p, _double_p = ctypes.POINTER(ctypes.c_int), ctypes.POINTER(ctypes.c_double)
 
 
 @mirrors("blocks", "PassBlock")
 class PassBlock(ctypes.Structure):
-    """blocks.c: one block for passivity_block (the log's rows read, the columns written, the figures)."""
-    _fields_ = [("count", ctypes.c_int), ("k", ctypes.c_int), ("wave", ctypes.c_int), ("dt", ctypes.c_double),
-                ("log", ctypes.c_void_p), ("ld", ctypes.c_long), ("out", ctypes.c_void_p), ("ldo", ctypes.c_long),
-                *[(name, _int_p) for name in ("port", "a", "b", "e", "f", "h")],
+    """blocks.c: passivity_steps' arguments (the log's rows read, the block's columns written, the figures)."""
+    _fields_ = [("k", ctypes.c_int), ("wave", ctypes.c_int), ("dt", ctypes.c_double), ("out", ctypes.c_void_p),
+                ("ldo", ctypes.c_long), *[(name, _int_p) for name in ("port", "a", "b", "e", "f", "h")],
                 ("prev", _double_p), ("fig", _double_p), ("has_h", _int_p), ("ledger", _double_p)]
 
 
 @mirrors("blocks", "BlockRows")
 class BlockRows(ctypes.Structure):
-    """blocks.c: one block for block_rows (grid, log rows, the steps' and the trajectory's columns)."""
-    _fields_ = [("count", ctypes.c_int), ("n_out", ctypes.c_int), ("n0", ctypes.c_double),
-                ("inverse", ctypes.c_double), ("dt", ctypes.c_double), ("log", ctypes.c_void_p), ("ld", ctypes.c_long),
-                ("outputs", _int_p), ("steps", ctypes.c_void_p), ("lds", ctypes.c_long),
+    """blocks.c: block_rows_steps' arguments (grid, log rows, the block's steps' and trajectory's columns,
+    the run's iterations so far)."""
+    _fields_ = [("n_out", ctypes.c_int), ("inverse", ctypes.c_double),
+                ("dt", ctypes.c_double), ("outputs", _int_p), ("steps", ctypes.c_void_p), ("lds", ctypes.c_long),
                 ("trajectory", ctypes.c_void_p), ("ldt", ctypes.c_long),
                 ("iterations_sum", ctypes.c_double), ("iterations_max", ctypes.c_double), ("t0", ctypes.c_double)]
 
@@ -58,13 +58,29 @@ def library():
         lib = helper_library("blocks")
         if lib is None:
             return None
-        lib.passivity_block.argtypes = [ctypes.POINTER(PassBlock)]
-        lib.block_rows.argtypes = [ctypes.POINTER(BlockRows)]
+        for name in PASSES:
+            getattr(lib, name).argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.c_void_p, ctypes.c_long, ctypes.c_int,
+                                           ctypes.c_int]
+            getattr(lib, name).restype = None
         lib.sampled_block.argtypes = [ctypes.POINTER(SampledBlock)]
         lib.watch_block.argtypes = [ctypes.POINTER(WatchBlock)]
-        lib.passivity_block.restype = lib.block_rows.restype = lib.sampled_block.restype = None
+        lib.sampled_block.restype = None
         _lib = lib
     return _lib
+
+
+class Pass:
+    """One of the passes (PASSES) with its arguments: `steps(n0, log, first, count)` makes it from Python
+    over steps first .. first + count - 1 of the block from macro-step n0 (`log`: its BlockLog);
+    `function` is its address for the kernel to make it as the steps are logged (drkernel.h, DRPassFn)."""
+
+    def __init__(self, name, args):
+        self.args, self.ref = args, ctypes.byref(args)
+        self.call = getattr(library(), name)
+        self.function = ctypes.cast(self.call, ctypes.c_void_p).value
+
+    def steps(self, n0, log, first, count):
+        self.call(self.ref, n0, log.address, log.ld, first, count)
 
 
 def columns(array):

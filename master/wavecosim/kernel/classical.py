@@ -53,12 +53,12 @@ class ClassicalKernel:
         # the DR kernel's block call, log and observed values, with the classical step in it
         self.base._run_steps = functools.partial(self.lib.cl_run_steps, self._handle)
 
-    def run_steps(self, n0, count, y, H_cap=math.inf, measure=False):
+    def run_steps(self, n0, count, y, H_cap=math.inf, measure=False, passes=False):
         """Macro-steps n0 .. n0 + count - 1 from outputs y in one call (classical.h, cl_run_steps):
         (steps done, their fast_path.BlockLog, the FmuError of the step after them or None);
-        measure: time the evaluations (Kernel.costs)."""
+        measure: time the evaluations (Kernel.costs); passes: make the kernel's passes (Kernel.run_steps)."""
         self._b[:] = y
-        return self.base.run_steps(n0, count, H_cap, measure)
+        return self.base.run_steps(n0, count, H_cap, measure, passes=passes)
 
     def configure(self, K, eps, deadline_s):
         self.base.configure(self.base.io.dt, K, eps, deadline_s)

@@ -82,7 +82,8 @@ class DRStep(ctypes.Structure):
                 ("failed_function", ctypes.c_int), ("failed_status", ctypes.c_int), ("stopped", ctypes.c_int),
                 ("ledger_on", ctypes.c_int), ("ledger", ctypes.c_double), ("traffic", ctypes.c_double),
                 ("ledger_rtol", ctypes.c_double), ("step_deadline_s", ctypes.c_double), ("round_s", ctypes.c_double),
-                ("tail_s", ctypes.c_double), ("t0", ctypes.c_double)]
+                ("tail_s", ctypes.c_double), ("t0", ctypes.c_double), ("at", ctypes.c_int), ("passes", ctypes.c_int),
+                ("passed", ctypes.c_int)]
 
 
 _lib = None
@@ -121,6 +122,7 @@ def load_library():
         lib.dr_log_width.argtypes = [p]
         lib.dr_log_width.restype = ctypes.c_size_t
         lib.dr_run_steps.argtypes = [p, ctypes.POINTER(DRStep), i, i, p, ctypes.c_long, ctypes.c_double]
+        lib.dr_set_passes.argtypes = [p, i, ctypes.POINTER(p), ctypes.POINTER(p)]
         lib.dr_set_options.argtypes = [p, ctypes.c_double, i, i]
         lib.dr_set_anderson_modes.argtypes = [p, i, i]
         lib.dr_set_anchors.argtypes = [p, i]
@@ -139,14 +141,16 @@ class BlockLog:
     per row (values x steps), as the kernel logs them (each value contiguous), and `ledger` the energy
     ledger's (LEDGER_LOG x steps). `stopped`: the kernel stopped early after the last step (its H may
     exceed the cap, or a value is not finite). `address`, `ld`: where the log lives for the C passes
-    (its first value, doubles between rows); the views are made when first read."""
+    (its first value, doubles between rows); the views are made when first read. `passed`: its first
+    steps the kernel's passes went over (blocks.Pass), the rest are the caller's."""
 
-    __slots__ = ("columns", "n", "stopped", "address", "ld")
+    __slots__ = ("columns", "n", "stopped", "address", "ld", "passed")
 
-    def __init__(self, columns, n, stopped=False, address=None, ld=None):
+    def __init__(self, columns, n, stopped=False, address=None, ld=None, passed=0):
         self.columns, self.n, self.stopped = columns, n, stopped     # one row per logged value
         self.address = columns.ctypes.data if address is None else address
         self.ld = columns.strides[0] // 8 if ld is None else ld
+        self.passed = passed         # its first steps the kernel's passes went over (run_steps' passes)
 
     a_rows = property(lambda self: range(3, 3 + self.n))                 # the rows of a_hat
     observed_at = property(lambda self: 3 + 2 * self.n)                  # the first observed value's row
@@ -175,7 +179,7 @@ class BlockLog:
         """The first k steps (not stopped): this log when that is all of it."""
         if k == len(self) and not self.stopped:
             return self
-        return BlockLog(self.columns[:, :k], self.n, address=self.address, ld=self.ld)
+        return BlockLog(self.columns[:, :k], self.n, address=self.address, ld=self.ld, passed=min(self.passed, k))
 
 
 def unusable(scene):
@@ -365,13 +369,23 @@ class Kernel:
         io.ledger_on, io.ledger, io.traffic, io.ledger_rtol = 1, ledger, traffic, rtol
         io.step_deadline_s = step_deadline_s or 0.0
 
-    def run_steps(self, n0, count, H_cap=math.inf, measure=False, at=0):
+    def set_passes(self, passes):
+        """The passes (blocks.Pass) run_steps makes, when asked, over the steps it logs (drkernel.h,
+        dr_set_passes)."""
+        p = ctypes.c_void_p * max(1, len(passes))
+        fns, args = p(*[q.function for q in passes]), p(*[ctypes.addressof(q.args) for q in passes])
+        if self.lib.dr_set_passes(self._handle, len(passes), fns, args):
+            raise FmuError(f"the DR kernel refused {len(passes)} passes over its log (drkernel.h, DR_MAX_PASSES)")
+
+    def run_steps(self, n0, count, H_cap=math.inf, measure=False, at=0, passes=False):
         """Macro-steps n0 .. n0 + count - 1 in one call (drkernel.h, dr_run_steps): (steps done, their
         BlockLog, the FmuError of the step after them or None). The call logs from column `at` on,
         after the last call's first `at` steps (joined_log reads them as one, without a copy); the log
-        is overwritten by the next call from column 0."""
+        is overwritten by the next call from column 0. passes: it makes the passes (set_passes) over
+        the block's steps as it logs them (BlockLog.passed: how far they went)."""
         self._log_room(at, at + count)
-        self.io.measure = measure
+        io = self.io
+        io.measure, io.at, io.passes = measure, at, passes
         log, ld = self.log, self.log.shape[1]
         if self.plan is not None:
             self.plan.prepare(n0, count)
@@ -380,7 +394,8 @@ class Kernel:
         if self.plan is not None:
             self.plan.book(n0, done, failed)
         error = self.failure(n, n * self.io.dt) if failed else None
-        return done, BlockLog(log[:, at:at + done], self.n, bool(self.io.stopped), self._log_at + 8 * at, ld), error
+        passed = max(0, min(io.passed - at, done)) if passes else 0
+        return done, BlockLog(log[:, at:at + done], self.n, bool(io.stopped), self._log_at + 8 * at, ld, passed), error
 
     def step_in_progress(self):
         """The macro-step the kernel is making or made last (from t_n, which each step sets first): read
@@ -393,7 +408,8 @@ class Kernel:
 
     def joined_log(self, steps, stopped):
         """The log's first `steps` columns as one BlockLog (a call and the calls it went on after)."""
-        return BlockLog(self.log[:, :steps], self.n, stopped)
+        passed = min(self.io.passed, steps) if self.io.passes else 0
+        return BlockLog(self.log[:, :steps], self.n, stopped, passed=passed)
 
     def set_options(self, relaxation, anderson, start, memory=False, extrapolate=False):
         """The DR master's named options (wavecosim/masters/dr_options.py; start: an index of STARTS);

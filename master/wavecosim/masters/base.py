@@ -56,14 +56,18 @@ class Route(Protocol):
 
     def observe(self, names, steps=0, bound=None):
         """The variables of each subsystem read after every commit (names[i], H_i first), with room
-        for blocks of `steps` steps; an empty BlockLog of the blocks' layout, or None. bound:
+        for blocks of `steps` steps; an empty BlockLog of the blocks' layout. bound:
         (limit, indices of observed values over all subsystems): run_steps also stops after a step
         where one of them is above the limit in magnitude (run/bounds.py)."""
 
-    def run_steps(self, n0, count, H_cap=math.inf):
+    def set_passes(self, passes):
+        """The passes over the log (kernel/blocks.py, Pass) run_steps makes as it logs the steps."""
+
+    def run_steps(self, n0, count, H_cap=math.inf, passes=False):
         """Macro-steps n0 .. n0 + count - 1 in one call, stopping early after a step whose H may exceed
         H_cap, whose observed values are not finite, or whose bounded ones are above the bound:
-        (steps done, their BlockLog, an FmuError or None)."""
+        (steps done, their BlockLog, an FmuError or None). passes: the kernel makes the passes
+        (set_passes) over the steps as it goes, the BlockLog's `passed` first ones."""
 
     def step_log(self, log, j) -> StepLog:
         """The StepLog of row j of a BlockLog."""

@@ -186,6 +186,10 @@ class FastDRMaster(DRMaster):
         an empty BlockLog of the blocks' layout."""
         return self.kernel.observe(names, steps, bound)
 
+    def set_passes(self, passes):
+        """The passes run_steps makes as the kernel logs the steps (kernel/drkernel.py, Kernel.set_passes)."""
+        self.kernel.set_passes(passes)
+
     def guards_steps(self):
         """Whether step() can keep the energy ledger in the kernel (keep_ledger): whenever the kernel runs
         (it reads the wave adapters' accuracy, the ledger's tol, at each step)."""
@@ -197,26 +201,26 @@ class FastDRMaster(DRMaster):
         self.kernel.keep_ledger(ledger, traffic, rtol, self.deadline_s)
         self._guarding = True
 
-    def run_steps(self, n0, count, H_cap=math.inf):
+    def run_steps(self, n0, count, H_cap=math.inf, passes=False):
         """Macro-steps n0 .. n0 + count - 1 in one kernel call, stopping early after a step whose H
         may exceed H_cap or whose observed values are not finite (fast_path.Kernel.run_steps), and
         making no more than about BLOCK_SECONDS of work: (steps done, their BlockLog, the FmuError
-        of the step after them or None). b^n and b^{n+1} of the last step done become the master's,
-        so undo_step works as after step()."""
+        of the step after them or None); passes: the kernel makes its passes (set_passes) as it goes.
+        b^n and b^{n+1} of the last step done become the master's, so undo_step works as after step()."""
         if not self.planner.started:
-            return self._first_steps(n0, count, H_cap)
-        return self._kernel_steps(n0, count, H_cap)
+            return self._first_steps(n0, count, H_cap, passes)
+        return self._kernel_steps(n0, count, H_cap, passes)
 
-    def _first_steps(self, n0, count, H_cap):
+    def _first_steps(self, n0, count, H_cap, passes):
         """The first call: macro-step n0 alone and timed picks the thread plan, then the others
         follow in a second call unless a plan goes on trial (on the next step, alone)."""
-        done, first, error = self._kernel_steps(n0, 1, H_cap)
+        done, first, error = self._kernel_steps(n0, 1, H_cap, passes)
         if not done or first.stopped or self.planner.on_trial or count == 1:
             return done, first, error
-        done, rest, error = self._kernel_steps(n0 + 1, count - 1, H_cap, at=1)    # logged after the first
+        done, rest, error = self._kernel_steps(n0 + 1, count - 1, H_cap, passes, at=1)    # logged after the first
         return done + 1, self.kernel.joined_log(done + 1, rest.stopped), error
 
-    def _kernel_steps(self, n0, count, H_cap, at=0):
+    def _kernel_steps(self, n0, count, H_cap, passes, at=0):
         """One call of the kernel, of at most about BLOCK_SECONDS at the last call's pace, booked; it
         logs after the last call's first `at` steps (fast_path.Kernel.run_steps). The thread planner
         may have it time the evaluations."""
@@ -227,7 +231,7 @@ class FastDRMaster(DRMaster):
         if self._certs is not None:
             self._certs.arm(n0, count)
         self._call = n0
-        done, log, error = self.kernel.run_steps(n0, count, H_cap, measure, at)
+        done, log, error = self.kernel.run_steps(n0, count, H_cap, measure, at, passes)
         if self._certs is not None:
             error = self._certs.disarm(done) or error
         if done:

@@ -78,7 +78,11 @@ class KernelRoute(KernelOwner):
         an empty BlockLog of the blocks' layout."""
         return self.kernel.base.observe(names, steps, bound)
 
-    def run_steps(self, n0, count, H_cap=math.inf):
+    def set_passes(self, passes):
+        """The passes run_steps makes as the kernel logs the steps (kernel/drkernel.py, Kernel.set_passes)."""
+        self.kernel.base.set_passes(passes)
+
+    def run_steps(self, n0, count, H_cap=math.inf, passes=False):
         """Macro-steps n0 .. n0 + count - 1 in one kernel call of at most about BLOCK_SECONDS of work,
         stopping early as FastDRMaster.run_steps: (steps done, their BlockLog, the FmuError or None)."""
         if self._step_s > 0.0:
@@ -86,7 +90,7 @@ class KernelRoute(KernelOwner):
         self.configure_kernel()
         measure, timed = self.planner.begin()
         started = time.perf_counter()
-        done, log, error = self.kernel.run_steps(n0, count, self.y, H_cap, measure)
+        done, log, error = self.kernel.run_steps(n0, count, self.y, H_cap, measure, passes)
         if done:
             self._step_s = (time.perf_counter() - started) / done
             iterations = self.block_iterations(log)

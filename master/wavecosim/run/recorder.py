@@ -89,6 +89,7 @@ class Table:
         self._slots = [self._new_slot(), None]        # (block, its formatter); the second made when first needed
         self._pending = [[], []]                      # each block's hand-overs not yet settled (writer Pieces)
         self._at, self._fill, self._handed = 0, 0, 0  # block in use, rows filled, rows of it handed over
+        self.ld = BLOCK + PAD                         # doubles between a block's columns
         self._block, self._block_at = self._slots[0][0], self._slots[0][0].ctypes.data
         self._kept = [] if path is None or expected_rows * len(self.columns) <= KEEP_VALUES else None
         self.rows = 0
@@ -128,15 +129,16 @@ class Table:
 
     def reserve(self, k):
         """k rows (k <= BLOCK) of the block to fill in place, booked by commit_rows(k)."""
+        self.reserve_at(k)
+        return self._block[self._fill:self._fill + k]
+
+    def reserve_at(self, k):
+        """reserve(k) for a pass in C: the address of the first of the k rows (columns `ld` doubles apart)."""
         if self._fill + k > BLOCK:
             self.flush()
         if self._block is None:
             self._take_block()
-        return self._block[self._fill:self._fill + k]
-
-    def reserved_at(self):
-        """(address, doubles between columns) of the rows `reserve` gave, for a pass in C to fill."""
-        return self._block_at + 8 * self._fill, BLOCK + PAD
+        return self._block_at + 8 * self._fill
 
     def commit_rows(self, k):
         self._fill += k

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..kernel import blocks, cvalues
+from ..kernel import blocks
 from ..errors import (ConfigError, Interrupted, OutputError, RunFailed, SimulationEnded, Terminated,
                       WavecosimError)
 from ..fmi.values import BOOLEAN, INTEGER, category
@@ -267,10 +267,11 @@ class LiveRun:
         self.columns = list(self.scene.outputs)
         self.bounds = Bounds(self.scene, self.scene.outputs, scenario.growth_bound, self.sampler.types)
         self.master_time, self.steps_done, self.started = 0.0, 0, time.perf_counter()
-        self.iterations = [0, 0]                       # sum and max of the inner iterations per step
+        self.iterations = [0, 0]                       # sum and max of the inner iterations of the steps made one by one
         self.loop_time = 0.0                           # start() to the last row written: the run's own per-step cost
         self.led, self.failure, self.recent = 0, None, {}   # as a lockstep reference (lead)
         self.block_steps = 0                                # macro-steps made in blocks
+        self.rows_pass, self.kernel_passes = None, False    # the blocks' C passes (_prepare_blocks)
         self.in_block = None                                # n0 of the kernel call in progress
         self.write_error = None                             # an OutputError met while finishing
 
@@ -376,29 +377,38 @@ class LiveRun:
                        and (guard is None or isinstance(guard, EnergyGuard)
                             or (self.ledger and route.keeps_ledger))          # classical: step by step
                        and not self.scene.steps_in_python and self.sampler.whole and blocks.library() is not None)
-        self.rows_call = None                    # block_rows' arguments, from the blocks' layout
         self.paced = [o for o in self.observers if o.paced]          # blocks stop before their steps
         if self.blocks:
             layout = self.master.observe(self.sampler.observed, BLOCK_STEPS,
                                          (self.bounds.limit, self.bounds.bounded(self.sampler.rows("outputs"))))
             self.block_observers = [(o, self.spans[id(o)]) for o in ([guard] if self.ledger else [])
                                     + [o for o, _ in self.after]]
-            if layout is not None:
-                self._prepare_blocks(layout)
+            self._prepare_blocks(layout)
 
     def _prepare_blocks(self, layout):
-        """The C passes' arguments built in set-up, from an empty log of the blocks' layout, so the first
-        block costs no more than the others."""
+        """The C passes built in set-up, from an empty log of the blocks' layout, so the first block
+        costs no more than the others; with every row kept the kernel makes them as it logs the steps."""
         readings = self.sampler.block(layout.observed)
-        self.rows_call = self._rows_call(layout, readings)
+        self.rows_pass = self._rows_pass(layout, readings)
         for o, _ in self.block_observers:
             o.prepare_block(layout, readings)
+        self.passes = [(self.rows_pass, None)] + [(o.block_pass(), span) for o, span in self.block_observers
+                                                   if o.block_pass() is not None]
+        self.python_observers = [(o, span) for o, span in self.block_observers if o.block_pass() is None]
+        self.rows_pass.args.lds, self.rows_pass.args.ldt = self.steps.ld, self.trajectory.ld
+        for p, _ in self.passes[1:]:
+            p.args.ldo = self.steps.ld
+        self.kernel_passes = self.every == 1
+        if self.kernel_passes:
+            self.master.set_passes([p for p, _ in self.passes])
 
     def block_size(self, n):
         """How many macro-steps advance(n, ...) may make in one call of the master."""
-        if self.blocks and self.master.can_run_steps(n):
-            return max(1, min([BLOCK_STEPS, self.n_steps - n] + [o.next_before(n) - n for o in self.paced]))
-        return 1
+        if not (self.blocks and self.master.can_run_steps(n)):
+            return 1
+        if not self.paced:
+            return min(BLOCK_STEPS, self.n_steps - n)
+        return max(1, min([BLOCK_STEPS, self.n_steps - n] + [o.next_before(n) - n for o in self.paced]))
 
     def advance(self, n, count):
         """Macro-steps from n on: up to `count` in one call of the master when count > 1, else step(n);
@@ -416,9 +426,11 @@ class LiveRun:
         step after them."""
         if self.ledger:
             self.master.keep_ledger(*self.guard.kernel_state())
+        if self.kernel_passes:
+            self._aim(self.steps.reserve_at(count), self.trajectory.reserve_at(count))
         t0 = time.perf_counter()
         self.in_block = n0
-        done, log, error = self.master.run_steps(n0, count, self.cap)
+        done, log, error = self.master.run_steps(n0, count, self.cap, self.kernel_passes)
         self.in_block = None
         self.master_time += time.perf_counter() - t0
         self.block_steps += done
@@ -437,22 +449,26 @@ class LiveRun:
 
     def _after_block(self, n0, log):
         """The observers and the rows of a block of steps (all finite: the kernel stops at a non-finite
-        value); with an output interval the rows kept are picked afterwards."""
-        count, readings, every = len(log), self.sampler.block(log.observed), self.every == 1
-        if every:
-            rows, trajectory = self.steps.reserve(count), self.trajectory.reserve(count)
-            at = self.steps.reserved_at(), self.trajectory.reserved_at()
-        else:
-            rows = np.empty((count, len(self.steps.columns)), order="F")
-            trajectory = np.empty((count, 1 + len(self.columns)), order="F")
-            at = blocks.columns(rows), blocks.columns(trajectory)
-        iterations = self._block_rows(n0, log, readings, *at)
-        address, ld = at[0]
-        for o, span in self.block_observers:
-            o.after_block(n0, log, readings, rows[:, span], (address + 8 * ld * span.start, ld))
+        value): the C passes over the steps the kernel did not make them over (log.passed on), then
+        the observers without one; with an output interval the rows kept are picked afterwards."""
+        count, every = len(log), self.every == 1
+        if every:                                        # the rows step_block aimed the passes at
+            rows = steps_at = None
+        else:                                            # as the tables' blocks: the passes' ld
+            rows = np.empty((self.steps.ld, len(self.steps.columns)), order="F")[:count]
+            trajectory = np.empty((self.trajectory.ld, 1 + len(self.columns)), order="F")[:count]
+            steps_at = blocks.columns(rows)[0]
+            self._aim(steps_at, blocks.columns(trajectory)[0])
+        if log.passed < count:
+            for p, _ in self.passes:
+                p.steps(n0, log, log.passed, count - log.passed)
+        if self.python_observers:
+            if every:
+                rows, steps_at = self.steps.reserve(count), self.steps.reserve_at(count)
+            readings, ld = self.sampler.block(log.observed), self.steps.ld
+            for o, span in self.python_observers:
+                o.after_block(n0, log, readings, rows[:, span], (steps_at + 8 * ld * span.start, ld))
         self.steps_done = n0 + count
-        self.iterations[0] += int(iterations[0])
-        self.iterations[1] = max(self.iterations[1], int(iterations[1]))
         if every:
             self.steps.commit_rows(count)
             self.trajectory.commit_rows(count)
@@ -464,25 +480,28 @@ class LiveRun:
         self.steps.hand_over()
         self.trajectory.hand_over()
 
-    def _block_rows(self, n0, log, readings, rows_at, trajectory_at):
-        """The steps' grid time, iterations, residual and reason, and the trajectory's rows, in one C
-        pass over the kernel's log (kernel/c/blocks.c, block_rows) into the columns at rows_at and
-        trajectory_at ((address, doubles between columns)); (sum, max) of the iterations."""
-        if self.rows_call is None:
-            self.rows_call = self._rows_call(log, readings)
-        call, ref = self.rows_call
-        call.count, call.n0 = len(log), n0
-        call.log, call.ld = log.address, log.ld
-        (call.steps, call.lds), (call.trajectory, call.ldt) = rows_at, trajectory_at
-        blocks.library().block_rows(ref)
-        return call.iterations_sum, call.iterations_max
+    def _aim(self, steps_at, trajectory_at):
+        """The C passes of a block at its first row of the steps and of the trajectory (addresses; the
+        tables' ld between columns): the observers' columns are spans of the steps'."""
+        args, ld = self.rows_pass.args, self.steps.ld
+        args.steps, args.trajectory = steps_at, trajectory_at
+        for p, span in self.passes[1:]:
+            p.args.out = steps_at + 8 * ld * span.start
 
-    def _rows_call(self, log, readings):
-        """block_rows' fixed arguments: where the outputs are in the kernel's log, the grid."""
+    def _rows_pass(self, log, readings):
+        """block_rows_steps with its fixed arguments: where the outputs are in the kernel's log, the grid."""
         outputs = blocks.ints([log.observed_at + r for r in readings.rows("outputs")])
-        call = blocks.BlockRows(n_out=len(self.columns), inverse=grid_inverse(self.dt), dt=self.dt, outputs=outputs,
-                                t0=self.t0)
-        return call, cvalues.ref(call)
+        return blocks.Pass("block_rows_steps", blocks.BlockRows(
+            n_out=len(self.columns), inverse=grid_inverse(self.dt), dt=self.dt, outputs=outputs, t0=self.t0,
+            iterations_sum=0.0, iterations_max=-math.inf))
+
+    def _iteration_totals(self):
+        """(sum, max) of the inner iterations per step over the steps made so far, blocks included."""
+        total, most = self.iterations
+        if self.rows_pass is not None:
+            args = self.rows_pass.args
+            total, most = total + int(args.iterations_sum), max(most, int(max(args.iterations_max, 0)))
+        return total, most
 
     def lead(self, n, end):
         """As the lockstep reference of a run at step n: make the steps up to end - 1 not made yet,
@@ -555,7 +574,7 @@ class LiveRun:
 
     def summary(self, status, message):
         settings, sc = self.scenario.master, self.scenario
-        n, iters = self.steps_done, self.iterations
+        n, iters = self.steps_done, self._iteration_totals()
         out = {"label": self.label, "scenario": sc.name, "master": settings.algorithm, "K": settings.K,
                "eps": settings.eps, "dt": sc.dt, "T": sc.T, "steps": n, "status": status, "message": message,
                "iterations_mean": iters[0] / n if n else 0.0, "iterations_max": iters[1],

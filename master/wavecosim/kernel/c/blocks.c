@@ -1,9 +1,12 @@
 /* What the runner does with a block of macro-steps made in one kernel call (wavecosim/kernel/blocks.py), in
  * one pass over the kernel's log each, with the operation order of the step-by-step Python, so that
- * every number is the same to the last bit:
- * - block_rows: the rows' grid time, iterations, residual and reason, and the trajectory's rows
+ * every number is the same to the last bit. block_rows_steps and passivity_steps are DRPassFns
+ * (drkernel.h): the kernel makes them over the steps it logs, a few at a time (dr_set_passes), and the
+ * runner over the rest; as they go on from the figures the steps before left, in step order, a
+ * block made in parts gives the numbers of one pass over it:
+ * - block_rows_steps: the rows' grid time, iterations, residual and reason, and the trajectory's rows
  *   (wavecosim/run/runner.py, LiveRun._after_block);
- * - passivity_block: Condition 2, per step the energy into each port and into all of them,
+ * - passivity_steps: Condition 2, per step the energy into each port and into all of them,
  *   r_i = (H_i - H_i before) - supplied_i (eq. 27) and H_total, and the running figures
  *   (wavecosim/run/observers/passivity.py, Passivity.after_block; builtin sum() from 0, left to right);
  * - sampled_block and watch_block: the certificates' columns of the steps from the rows the
@@ -13,9 +16,12 @@
 #include <stddef.h>
 
 #include "abi.h"
+#include "drkernel.h"
 
-/* Python's grow_max_pos: the running max(0, x), NaN ignored (NaN until a number arrives). Over a
- * block it is applied once, to the largest number of the block: max(0, x) is never -0, so the
+DRPassFn block_rows_steps, passivity_steps;      /* the kernel calls them as DRPassFns (dr_set_passes) */
+
+/* Python's grow_max_pos: the running max(0, x), NaN ignored (NaN until a number arrives). Over the
+ * steps of one pass it is applied once, to their largest number: max(0, x) is never -0, so the
  * running maximum does not depend on the order of the numbers. */
 static double grow_max_pos(double current, double x) {
     if (x != x) return current;
@@ -45,19 +51,17 @@ static double port_supply(const double *const *x[4], size_t s, int first, int la
     return 0.5 * (in - out);
 }
 
-/* One block (blocks.py, PassBlock): steps 0 .. count - 1. The values are rows of `log`, ld
- * doubles apart, one value per step: a_hat, b, e, f (channel j: row a[j] ...; port i holds channels
+/* One block (blocks.py, PassBlock), made over `count` steps of it from `log` (its first step's column)
+ * into `out` (the same step's row). The values are rows of `log`, ld doubles apart, one value per step: a_hat, b, e, f (channel j: row a[j] ...; port i holds channels
  * port[i] .. port[i + 1] - 1) and the k subsystems' H_i (rows h[i]; NaN where has_h[i] is 0). The
  * columns go to `out` (ldo doubles apart): r_i of each subsystem with H, then the energy into the port
  * of each one without and its running sum (started from ledger[i], left at the last step's), then
  * supply, and H_total when every subsystem has H. prev[k]: the H_i before the block, left at the last
  * step's. fig[k + 4]: the running max_r_i, max_supply, drift, H_max, carried on, and H_final. */
 typedef struct {
-    int count, k, wave;
+    int k, wave;
     double dt;
-    const double *log;
-    long ld;
-    double *out;
+    double *out;                   /* the block's first step's row of the columns */
     long ldo;
     const int *port, *a, *b, *e, *f, *h;
     double *prev, *fig;
@@ -113,12 +117,10 @@ static void subsystem_steps(const PassBlock *p, const double *const *x[4], const
     else subsystem_steps_of(p, x, H, i, s0, m, last, r, cum, worst, seen, sums, 0, 0);
 }
 
-void passivity_block(const PassBlock *p) {
-    int count = p->count, k = p->k, wave = p->wave;
+static void passivity_block(const PassBlock *p, const double *log, size_t ld, double *out, int count) {
+    int k = p->k, wave = p->wave;
     double *prev = p->prev, *fig = p->fig;
-    const double *log = p->log;
     const int *a = p->a, *b = p->b, *e = p->e, *f = p->f;
-    size_t ld = (size_t)p->ld;
     int n = p->port[k];
     const double *rows[4][n > 0 ? n : 1], *H[k], *const *x[4] = {rows[0], rows[1], rows[2], rows[3]};
     double *r[k + 2], *cum[k], worst[k + 1], drift = fig[k + 1], H_max = fig[k + 2], total = fig[k + 3];
@@ -131,12 +133,12 @@ void passivity_block(const PassBlock *p) {
     }
     for (int i = 0; i < k; i++) H[i] = log + (size_t)p->h[i] * ld;
     for (int i = 0; i < k; i++)                                /* Passivity.columns */
-        if (p->has_h[i]) r[i] = p->out + (size_t)c++ * (size_t)p->ldo;
+        if (p->has_h[i]) r[i] = out + (size_t)c++ * (size_t)p->ldo;
     for (int i = 0; i < k; i++) {
         cum[i] = NULL;
         if (!p->has_h[i]) {
-            r[i] = p->out + (size_t)c++ * (size_t)p->ldo;
-            cum[i] = p->out + (size_t)c++ * (size_t)p->ldo;
+            r[i] = out + (size_t)c++ * (size_t)p->ldo;
+            cum[i] = out + (size_t)c++ * (size_t)p->ldo;
             complete = 0;
         }
     }
@@ -144,8 +146,8 @@ void passivity_block(const PassBlock *p) {
         worst[i] = -INFINITY;
         seen[i] = 0;
     }
-    r[k] = p->out + (size_t)c * (size_t)p->ldo;
-    r[k + 1] = complete ? p->out + (size_t)(c + 1) * (size_t)p->ldo : NULL;
+    r[k] = out + (size_t)c * (size_t)p->ldo;
+    r[k + 1] = complete ? out + (size_t)(c + 1) * (size_t)p->ldo : NULL;
     StepSums sums;
     for (size_t s0 = 0; s0 < (size_t)count; s0 += CHUNK) {
         size_t m = (size_t)count - s0 < CHUNK ? (size_t)count - s0 : CHUNK;
@@ -171,16 +173,21 @@ void passivity_block(const PassBlock *p) {
     fig[k + 3] = total;
 }
 
-/* One block (blocks.py, BlockRows): steps n0 + 1 .. n0 + count are the grid points (n0 + 1 + s) /
- * inverse (inverse > 0: 1/dt a whole number) or (n0 + 1 + s) dt, as runner.grid_clock. The kernel
- * log holds iterations, reason and residual at rows 0, 1, 2 and the outputs at rows outputs[j]. The
- * steps' columns time, iterations, inner_residual, reason go to `steps` (lds doubles apart), the
- * trajectory's time and outputs to `trajectory` (ldt apart). Sum and max of the iterations out. */
+void passivity_steps(void *args, int n0, const double *log, long ld, int first, int count) {
+    PassBlock *p = args;
+    (void)n0;
+    passivity_block(p, log + first, (size_t)ld, p->out + first, count);
+}
+
+/* One block (blocks.py, BlockRows) from macro-step n0: the grid points after its steps are (n0 + 1 + s) /
+ * inverse (inverse > 0: 1/dt a whole number) or (n0 + 1 + s) dt, as runner.grid_clock. The kernel log holds
+ * iterations, reason and residual at rows 0, 1, 2 and the outputs at rows outputs[j]. The steps'
+ * columns time, iterations, inner_residual, reason go to `steps` (lds doubles apart), the trajectory's
+ * time and outputs to `trajectory` (ldt apart), from the block's first step's row. The iterations'
+ * sum and max over every step made so far are carried on (the run's). */
 typedef struct {
-    int count, n_out;
-    double n0, inverse, dt;
-    const double *log;
-    long ld;
+    int n_out;
+    double inverse, dt;
     const int *outputs;
     double *steps;
     long lds;
@@ -190,11 +197,15 @@ typedef struct {
     double t0;          /* the start time: grid point k is t0 + k / inverse (or t0 + k dt) */
 } BlockRows;
 
-void block_rows(BlockRows *p) {
-    size_t ld = (size_t)p->ld, lds = (size_t)p->lds, ldt = (size_t)p->ldt, count = (size_t)p->count;
-    const double *iterations = p->log, *reason = p->log + ld, *residual = p->log + 2 * ld;
-    const double n0 = p->n0, inverse = p->inverse, dt = p->dt, t0 = p->t0;   /* locals: no store aliases them */
-    double *steps = p->steps, *trajectory = p->trajectory, sum = 0.0, most = -INFINITY;
+/* Steps first .. first + count - 1 of the block (a DRPassFn). */
+void block_rows_steps(void *args, int block_n0, const double *log, long ld_, int first, int n) {
+    BlockRows *p = args;
+    size_t ld = (size_t)ld_, lds = (size_t)p->lds, ldt = (size_t)p->ldt, count = (size_t)n;
+    log += first;
+    const double *iterations = log, *reason = log + ld, *residual = log + 2 * ld;
+    const double n0 = (double)block_n0 + (double)first, inverse = p->inverse, dt = p->dt, t0 = p->t0;   /* locals: no store aliases them */
+    double *steps = p->steps + first, *trajectory = p->trajectory + first, sum = p->iterations_sum,
+           most = p->iterations_max;
     for (size_t s = 0; s < count; s++) {
         double k = n0 + 1.0 + (double)s, t = t0 + (inverse > 0.0 ? k / inverse : k * dt);
         steps[s] = t;
@@ -206,7 +217,7 @@ void block_rows(BlockRows *p) {
         most = iterations[s] > most ? iterations[s] : most;
     }
     for (int j = 0; j < p->n_out; j++) {
-        const double *from = p->log + (size_t)p->outputs[j] * ld;
+        const double *from = log + (size_t)p->outputs[j] * ld;
         double *to = trajectory + (size_t)(j + 1) * ldt;
         for (size_t s = 0; s < count; s++) to[s] = from[s];
     }

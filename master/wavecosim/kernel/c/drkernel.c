@@ -22,7 +22,7 @@
 #define SPIN_NS 50000.0
 
 /* Evaluations timed per subsystem for dr_costs (the median is robust to a preemption). */
-#define MAX_SAMPLES 64
+#define MAX_SAMPLES 16
 
 typedef struct {
     DRFunctions fn;
@@ -88,6 +88,9 @@ struct DRKernel {
     void *hook_ctx;
     DRExtra extra;                 /* signals and subsystems stepped alone (signals.c), or zeros */
     long redo_do_steps;            /* the FMUs' doSteps in the ledger's redos so far */
+    DRPassFn *pass_fn[DR_MAX_PASSES]; /* the runner's passes over logged steps (dr_set_passes) */
+    void *pass_args[DR_MAX_PASSES];
+    int n_passes;
 };
 
 static double now_ns(void) {
@@ -544,7 +547,7 @@ size_t dr_log_width(const DRKernel *k) {
  * an infinite or NaN v, else a zero: one sum tells). */
 static int log_step(DRKernel *k, const DRStep *io, double *rows, size_t ld, size_t s, int *finite) {
     size_t n = k->n, c = 3 + 2 * n;
-    double poison = 0.0;
+    int all_finite = 1;            /* one test per value, not a chain of adds: they run side by side */
     rows[s] = (double)io->iterations;
     rows[ld + s] = (double)io->reason;
     rows[2 * ld + s] = io->residual;
@@ -560,13 +563,13 @@ static int log_step(DRKernel *k, const DRStep *io, double *rows, size_t ld, size
         if (s_i->obs_no_H) rows[c * ld + s] = k->obs[j++];          /* no stored energy: NaN, not checked */
         for (; j < s_i->n_obs; j++) {
             rows[(c + j) * ld + s] = k->obs[j];
-            poison += k->obs[j] * 0.0;
+            all_finite &= isfinite(k->obs[j]) != 0;
         }
         c += s_i->n_obs;
     }
     if (k->extra.rows && k->extra.observe(k->extra.ctx, rows + c * ld + s, ld)) return DR_FAILED_EXTRA;
-    for (size_t j = 0; j < k->extra.rows; j++) poison += rows[(c + j) * ld + s] * 0.0;
-    *finite = poison == poison;
+    for (size_t j = 0; j < k->extra.rows; j++) all_finite &= isfinite(rows[(c + j) * ld + s]) != 0;
+    *finite = all_finite;
     return -1;
 }
 
@@ -944,11 +947,32 @@ int dr_run_steps(DRKernel *k, DRStep *io, int n0, int count, double *rows, long 
     return dr_run_steps_of(k, io, n0, count, rows, ld, H_cap, guarded_step_of, k);
 }
 
+int dr_set_passes(DRKernel *k, int n, DRPassFn *const *fns, void *const *args) {
+    if (n < 0 || n > DR_MAX_PASSES) return -1;
+    for (int j = 0; j < n; j++) {
+        k->pass_fn[j] = fns[j];
+        k->pass_args[j] = args[j];
+    }
+    k->n_passes = n;
+    return 0;
+}
+
+/* The passes over steps io->passed .. upto - 1 of the block from macro-step n0 (log0: its column 0). */
+static void make_passes(const DRKernel *k, DRStep *io, int n0, const double *log0, long ld, int upto) {
+    if (upto <= io->passed) return;
+    for (int j = 0; j < k->n_passes; j++)
+        k->pass_fn[j](k->pass_args[j], n0, log0, ld, io->passed, upto - io->passed);
+    io->passed = upto;
+}
+
 int dr_run_steps_of(DRKernel *k, DRStep *io, int n0, int count, double *rows, long ld, double H_cap, DRStepFn step,
                     void *ctx) {
     size_t m = (size_t)ld, first_observed = (3 + 2 * k->n) * m;
     double *ledger_rows = rows + (dr_log_width(k) - DR_LEDGER_COLUMNS) * m;
+    const double *log0 = rows - io->at;
+    int passing = io->passes && k->n_passes > 0;
     io->stopped = 0;
+    if (io->at == 0) io->passed = 0;
     for (int i = 0; io->measure && i < k->n_sub; i++) k->sub[i].n_samples = 0;   /* dr_costs: this call's */
     if (!io->ledger_on && !clocked(io)) plain_ledger_rows(io, ledger_rows, m, count);
     for (int s = 0; s < count; s++) {
@@ -979,7 +1003,9 @@ int dr_run_steps_of(DRKernel *k, DRStep *io, int n0, int count, double *rows, lo
             io->stopped = 1;
             return s + 1;
         }
+        if (passing && io->at + s + 1 - io->passed >= DR_PASS_STEPS) make_passes(k, io, n0 - io->at, log0, ld, io->at + s + 1);
     }
+    if (passing) make_passes(k, io, n0 - io->at, log0, ld, io->at + count);
     return count;
 }
 

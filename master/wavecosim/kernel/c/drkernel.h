@@ -74,7 +74,16 @@ typedef struct {
     double round_s;      /* in/out (dr_run_steps, ledger): running time of one evaluation round (all subsystems) */
     double tail_s;       /* in/out (dr_run_steps, ledger): running time a step takes past its inner loop's deadline */
     double t0;           /* in (dr_run_steps): the start time; step n is at t0 + n dt */
+    int at;              /* in (dr_run_steps): the block's log column of this call's first step (the block's
+                          * steps before it were logged by the calls before, from column 0) */
+    int passes;          /* in (dr_run_steps): make the passes (dr_set_passes) over the steps as they are logged */
+    int passed;          /* out (dr_run_steps, passes): the block's steps, from column 0, the passes went over */
 } DRStep;
+
+/* A pass over logged steps (the runner's, wavecosim/kernel/c/blocks.c): steps first .. first + count - 1 of
+ * the block that begins with macro-step n0, whose column 0 is at log (a value's steps contiguous, ld
+ * doubles between values). */
+typedef void DRPassFn(void *args, int n0, const double *log, long ld, int first, int count);
 
 typedef struct DRKernel DRKernel;
 
@@ -184,6 +193,14 @@ size_t dr_log_width(const DRKernel *k);
  * failed in (the one after those done) has no entries. */
 int dr_run_steps(DRKernel *k, DRStep *io, int n0, int count, double *rows, long ld, double H_cap);
 
+/* The passes dr_run_steps makes with io->passes: fns[j](args[j], ...) over each DR_PASS_STEPS steps
+ * logged, while they are in cache, and over the rest when the call made all its steps (not over a
+ * step it stopped after, nor one an FMU call failed in: io->passed says how far they went, from the
+ * block's column 0; the caller makes them over the rest). At most DR_MAX_PASSES; n = 0: none. Returns
+ * 0, or -1 for too many. */
+enum { DR_MAX_PASSES = 4, DR_PASS_STEPS = 128 };
+int dr_set_passes(DRKernel *k, int n, DRPassFn *const *fns, void *const *args);
+
 /* The energy ledger's redo of the step dr_macro_step just committed (a_hat and b as it left them),
  * whose commit supplied `supplied` beyond the ledger's `budget` (wavecosim/run/observers/energy_ledger.py
  * _redo), with left_s seconds to the step's deadline (INFINITY: none) and round_s per evaluation
@@ -202,7 +219,7 @@ int dr_ledger_redo(DRKernel *k, DRStep *io, double supplied, double budget, doub
 int dr_floor(DRKernel *k, DRStep *io, const double *inputs, int n_steps);
 
 /* Median wall time (microseconds) of one evaluation of each subsystem over the macro-steps run
- * with io->measure set (the first 64 evaluations; a dr_run_steps call with it set starts afresh),
+ * with io->measure set (the first 16 evaluations; a dr_run_steps call with it set starts afresh),
  * then resets the measurement. */
 void dr_costs(DRKernel *k, double *us_per_eval);
 

@@ -6,8 +6,8 @@ costs nothing. Per macro-step the runner calls `before_step`, then the master, t
 `after_step` in list order; the energy guard (`redoes`, first in the list) may redo the step by
 returning a new StepLog, after which the runner reads the FMUs again. When every observer has
 `blocks` set, the runner may run many macro-steps in one call of the master and give them to
-`after_block` at once; its figures must equal, to the last bit, those of `after_step` called step
-by step. A `paced` observer acts before some steps only (`next_before`): blocks run between them.
+`after_block` at once (or to its `block_pass`, which the kernel makes as it goes); its figures must
+equal, to the last bit, those of `after_step` called step by step. A `paced` observer acts before some steps only (`next_before`): blocks run between them.
 """
 import re
 
@@ -52,6 +52,13 @@ class Observer:
     def prepare_block(self, logs, readings):
         """In set-up, before any block: `logs` and `readings` are empty (no step) but laid out as the
         blocks' will be, so what after_block builds once can be built here, outside the run's time."""
+
+    def block_pass(self):
+        """Its columns of a block's steps as a pass in C (kernel/blocks.py, Pass; built by prepare_block),
+        which the kernel makes as it logs the steps and the runner over the rest, in place of
+        after_block; None when it has none. The runner sets its arguments' `out` (the block's first
+        row of these columns) and `ldo` (doubles between them)."""
+        return None
 
     def after_block(self, n0, logs, readings, rows, at=None):
         """After macro-steps n0 .. n0 + len(rows) - 1 made in one call: `logs` (fast_path.BlockLog)

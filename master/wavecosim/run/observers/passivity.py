@@ -41,7 +41,7 @@ class Passivity(Observer):
         self.has_H = [s.port.energy is not None for s in scene.subsystems]
         self.complete = all(self.has_H)
         self.blocks = blocks.library() is not None
-        self.call = None                  # the C pass's arguments, from the first block's layout
+        self.call = None                  # the C pass (blocks.Pass), from the blocks' layout
         k = len(self.names)               # the running figures, owned here and updated in place by the C pass:
         self.prev = cvalues.doubles(k)    # the H_i before the next step;
         self.fig = cvalues.doubles(k + 4)     # each max r_i, then max_supply, drift, H_max, H_final;
@@ -92,28 +92,30 @@ class Passivity(Observer):
         self.prev[:] = list(reading.H)
         fig[at + 2], fig[at + 3] = (max(H_max, H_total) if H_total == H_total else H_total), H_total
 
-    def _block_call(self, logs, readings):
-        """The C pass's fixed arguments (kernel/c/blocks.c): the kernel log's rows it reads (the
-        channels' a_hat, b, e, f, the subsystems' H), the ports' first channels, the running figures."""
+    def _block_pass(self, logs, readings):
+        """The C pass (kernel/c/blocks.c, passivity_steps) with its fixed arguments: the kernel log's rows
+        it reads (the channels' a_hat, b, e, f, the subsystems' H), the ports' first channels, the
+        running figures."""
         at, k, ints = logs.observed_at, len(self.names), blocks.ints
         rows = {key: ints([at + r for r in readings.rows(key)]) for key in ("B", "E", "F", "H")}
-        call = blocks.PassBlock(k=k, wave=int(self.wave), dt=self.dt, a=ints(logs.a_rows), b=rows["B"], e=rows["E"],
+        args = blocks.PassBlock(k=k, wave=int(self.wave), dt=self.dt, a=ints(logs.a_rows), b=rows["B"], e=rows["E"],
                                 f=rows["F"], h=rows["H"], prev=self.prev, fig=self.fig, has_h=ints(self.has_H),
                                 ledger=self.ledger, port=ints([*self.scene.offsets, self.scene.n_channels]))
-        return call, cvalues.ref(call)
+        return blocks.Pass("passivity_steps", args)
 
     def prepare_block(self, logs, readings):
-        self.call = self._block_call(logs, readings)
+        self.call = self._block_pass(logs, readings)
+
+    def block_pass(self):
+        return self.call
 
     def after_block(self, n0, logs, readings, rows, at=None):
         """Every step's columns and the running figures in one C pass over the block's log, in
         after_step's operation order (kernel/c/blocks.c)."""
         if self.call is None:
-            self.call = self._block_call(logs, readings)
-        call, ref = self.call
-        call.count = len(logs)
-        (call.log, call.ld), (call.out, call.ldo) = (logs.address, logs.ld), at or blocks.columns(rows)
-        blocks.library().passivity_block(ref)
+            self.call = self._block_pass(logs, readings)
+        self.call.args.out, self.call.args.ldo = at or blocks.columns(rows)
+        self.call.steps(n0, logs, 0, len(logs))
 
     def summary(self):
         k = len(self.names)
