@@ -93,15 +93,15 @@ step and in blocks; the wave adapter per query on its Python and C routes; the d
 Reading the ratios: what the master adds per macro-step has three parts, whatever the FMUs cost. In
 the kernel, each step logs its values (the inputs and outputs, the readings of H and the ports,
 about two dozen numbers) and checks them: about 0.05 µs a step on the foreign pair; DR through the
-wave adapter adds about 0.07 µs an evaluation (the adapter's Newton solve, DR's own arithmetic).
-After each block of up to 1024 steps, the runner's passes in C write the rows and Condition 2's
-columns (about 20 µs a block) and Python books the block (about 60 µs: the master's state, the
-tables, the thread planner's first timing); a run of 1000 steps is one block, so these add about
-0.08 µs a step. Where a whole step costs 0.43 µs of FMU calls (our own foreign pair, whose FMUs make
-a handful of floating-point operations per call), that is a third as much again; with FMUs exported
-by other tools (the dcmotor: 8 µs of calls a step) the run is the floor within the machine's noise.
-On a shared machine single figures move by tens of percent between rounds, so a run can come out
-below its floor.
+wave adapter adds about 0.07 µs an evaluation (the adapter's Newton solve, DR's own arithmetic). The
+rows and Condition 2's columns are passes in C that the kernel makes itself every 128 steps, while
+the values it logged are in cache: about 0.013 µs a step. After each block of up to 1024 steps
+Python books it (about 55 µs: the master's state, the tables, the thread planner's first timing); a
+run of 1000 steps is one block, so that adds about 0.055 µs a step. Where a whole step costs 0.43 µs
+of FMU calls (our own foreign pair, whose FMUs make a handful of floating-point operations per
+call), that is a quarter to a third as much again; with FMUs exported by other tools (the dcmotor: 8
+µs of calls a step) the run is the floor within the machine's noise. On a shared machine single
+figures move by tens of percent between rounds, so a run can come out below its floor.
 """
 
 
