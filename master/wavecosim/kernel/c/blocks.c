@@ -52,8 +52,9 @@ static double port_supply(const double *const *x[4], size_t s, int first, int la
 }
 
 /* One block (blocks.py, PassBlock), made over `count` steps of it from `log` (its first step's column)
- * into `out` (the same step's row). The values are rows of `log`, ld doubles apart, one value per step: a_hat, b, e, f (channel j: row a[j] ...; port i holds channels
- * port[i] .. port[i + 1] - 1) and the k subsystems' H_i (rows h[i]; NaN where has_h[i] is 0). The
+ * into `out` (the same step's row). The values are rows of `log`, ld doubles apart, one value per
+ * step: a_hat, b, e, f (channel j: row a[j] ...; port i holds channels port[i] .. port[i + 1] - 1)
+ * and the k subsystems' H_i (rows h[i]; NaN where has_h[i] is 0). The
  * columns go to `out` (ldo doubles apart): r_i of each subsystem with H, then the energy into the port
  * of each one without and its running sum (started from ledger[i], left at the last step's), then
  * supply, and H_total when every subsystem has H. prev[k]: the H_i before the block, left at the last
@@ -203,7 +204,8 @@ void block_rows_steps(void *args, int block_n0, const double *log, long ld_, int
     size_t ld = (size_t)ld_, lds = (size_t)p->lds, ldt = (size_t)p->ldt, count = (size_t)n;
     log += first;
     const double *iterations = log, *reason = log + ld, *residual = log + 2 * ld;
-    const double n0 = (double)block_n0 + (double)first, inverse = p->inverse, dt = p->dt, t0 = p->t0;   /* locals: no store aliases them */
+    const double n0 = (double)block_n0 + (double)first, inverse = p->inverse, dt = p->dt,
+                 t0 = p->t0;                                   /* locals: no store aliases them */
     double *steps = p->steps + first, *trajectory = p->trajectory + first, sum = p->iterations_sum,
            most = p->iterations_max;
     for (size_t s = 0; s < count; s++) {

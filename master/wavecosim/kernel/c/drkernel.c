@@ -21,7 +21,8 @@
  * thread (or another process) when they do not. */
 #define SPIN_NS 50000.0
 
-/* Evaluations timed per subsystem for dr_costs (the median is robust to a preemption). */
+/* Evaluations timed per subsystem for dr_costs (the median is robust to a preemption; a timing reads
+ * the clock twice, tens of ns, which cheap FMUs feel). */
 #define MAX_SAMPLES 16
 
 typedef struct {
@@ -547,7 +548,7 @@ size_t dr_log_width(const DRKernel *k) {
  * an infinite or NaN v, else a zero: one sum tells). */
 static int log_step(DRKernel *k, const DRStep *io, double *rows, size_t ld, size_t s, int *finite) {
     size_t n = k->n, c = 3 + 2 * n;
-    int all_finite = 1;            /* one test per value, not a chain of adds: they run side by side */
+    double poison = 0.0;
     rows[s] = (double)io->iterations;
     rows[ld + s] = (double)io->reason;
     rows[2 * ld + s] = io->residual;
@@ -563,13 +564,13 @@ static int log_step(DRKernel *k, const DRStep *io, double *rows, size_t ld, size
         if (s_i->obs_no_H) rows[c * ld + s] = k->obs[j++];          /* no stored energy: NaN, not checked */
         for (; j < s_i->n_obs; j++) {
             rows[(c + j) * ld + s] = k->obs[j];
-            all_finite &= isfinite(k->obs[j]) != 0;
+            poison += k->obs[j] * 0.0;
         }
         c += s_i->n_obs;
     }
     if (k->extra.rows && k->extra.observe(k->extra.ctx, rows + c * ld + s, ld)) return DR_FAILED_EXTRA;
-    for (size_t j = 0; j < k->extra.rows; j++) all_finite &= isfinite(rows[(c + j) * ld + s]) != 0;
-    *finite = all_finite;
+    for (size_t j = 0; j < k->extra.rows; j++) poison += rows[(c + j) * ld + s] * 0.0;
+    *finite = poison == poison;
     return -1;
 }
 
@@ -1003,7 +1004,8 @@ int dr_run_steps_of(DRKernel *k, DRStep *io, int n0, int count, double *rows, lo
             io->stopped = 1;
             return s + 1;
         }
-        if (passing && io->at + s + 1 - io->passed >= DR_PASS_STEPS) make_passes(k, io, n0 - io->at, log0, ld, io->at + s + 1);
+        if (passing && io->at + s + 1 - io->passed >= DR_PASS_STEPS)      /* the last DR_PASS_STEPS still in cache */
+            make_passes(k, io, n0 - io->at, log0, ld, io->at + s + 1);
     }
     if (passing) make_passes(k, io, n0 - io->at, log0, ld, io->at + count);
     return count;
