@@ -204,9 +204,8 @@ class Table:
 
     def close(self):
         """Write every row and close the file; a Ctrl-C meanwhile is held until all is written (a table
-        without a file only keeps its last rows: nothing to hold Ctrl-C for)."""
+        without a file has nothing to write: its rows stay where they are, and `array` reads them)."""
         if self._file is None:
-            self.flush()
             return
         with Interrupts() as held:
             try:

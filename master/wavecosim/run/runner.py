@@ -628,10 +628,10 @@ class LiveRun:
     def _close_tables(self):
         """Write the last rows and close the files; the first OutputError (disk full, ...) or None.
         A table that could not write keeps its file to whole rows."""
-        tables = [t for t in (getattr(self, "trajectory", None), getattr(self, "steps", None)) if t is not None]
+        tables = [t for t in (getattr(self, "trajectory", None), getattr(self, "steps", None))
+                  if t is not None and t.path is not None]                   # a table without a file: nothing to write
         errors = []
-        flushes = [t.flush for t in tables if t.path is not None]          # both files' last rows at once
-        for close in flushes + [t.close for t in tables]:
+        for close in [t.flush for t in tables] + [t.close for t in tables]:     # both files' last rows at once
             try:
                 close()
             except OutputError as exc:
