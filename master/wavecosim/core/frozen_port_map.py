@@ -124,7 +124,8 @@ class Subsystem:
 
     def begin(self, step_index, t):
         """Start macro-step n at time t without saving the state (masters that never roll back)."""
-        self.step_index, self.t, self._t = step_index, t, cvalues.double(t)
+        self.step_index, self.t = step_index, t
+        self._t.value = t
 
     def step_alone(self, step_index, t):
         """One doStep from the current state with the inputs already set: a subsystem without a port
