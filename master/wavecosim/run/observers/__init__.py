@@ -7,7 +7,8 @@ costs nothing. Per macro-step the runner calls `before_step`, then the master, t
 returning a new StepLog, after which the runner reads the FMUs again. When every observer has
 `blocks` set, the runner may run many macro-steps in one call of the master and give them to
 `after_block` at once (or to its `block_pass`, which the kernel makes as it goes); its figures must
-equal, to the last bit, those of `after_step` called step by step. A `paced` observer acts before some steps only (`next_before`): blocks run between them.
+equal, to the last bit, those of `after_step` called step by step. A `paced` observer acts before
+some steps only (`next_before`): blocks run between them.
 """
 import re
 
