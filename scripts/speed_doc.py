@@ -92,16 +92,16 @@ step and in blocks; the wave adapter per query on its Python and C routes; the d
 
 Reading the ratios: what the master adds per macro-step has three parts, whatever the FMUs cost. In
 the kernel, each step logs its values (the inputs and outputs, the readings of H and the ports,
-about two dozen numbers) and checks them: about 0.05 µs a step on the foreign pair; DR through the
-wave adapter adds about 0.07 µs an evaluation (the adapter's Newton solve, DR's own arithmetic). The
-rows and Condition 2's columns are passes in C that the kernel makes itself every 128 steps, while
-the values it logged are in cache: about 0.013 µs a step. After each block of up to 1024 steps
-Python books it (about 55 µs: the master's state, the tables, the thread planner's first timing); a
-run of 1000 steps is one block, so that adds about 0.055 µs a step. Where a whole step costs 0.43 µs
-of FMU calls (our own foreign pair, whose FMUs make a handful of floating-point operations per
-call), that is a quarter to a third as much again; with FMUs exported by other tools (the dcmotor: 8
-µs of calls a step) the run is the floor within the machine's noise. On a shared machine single
-figures move by tens of percent between rounds, so a run can come out below its floor.
+about two dozen numbers on the foreign pair) and checks them; DR through the wave adapter adds the
+adapter's Newton solve and DR's own arithmetic to every evaluation. The rows and Condition 2's
+columns are passes in C that the kernel makes itself every 128 steps, while the values it logged are
+in cache. After each block of up to 1024 steps Python books it (the master's state, the tables, the
+thread planner's first timing); a run of 1000 steps is one block. The *added* column is their sum
+per macro-step (the figures under the table): where a whole step costs a fraction of a microsecond
+of FMU calls (our own foreign pair, whose FMUs make a handful of floating-point operations per call)
+it is a visible share of the run; with FMUs exported by other tools (the dcmotor) the run is the
+floor within the machine's noise. On a shared machine single figures move by tens of percent between
+rounds, so a run can come out below its floor.
 """
 
 
@@ -127,6 +127,18 @@ def real_fmus_table(rf):
         if r.get("libcosim_note"):
             notes.append(f"- {r['name']}: {r['libcosim_note']}")
     return lines + ([""] + notes if notes else [])
+
+
+def added_summary(rf):
+    """One line per system: what each master adds per macro-step to the floor of its own FMU calls, in µs."""
+    systems = {}
+    for r in rf["rows"]:
+        if not r.get("skipped"):
+            systems.setdefault(r["name"], []).append(r)
+    number = (lambda x: f"{x:.3g}" if x < 100 else f"{x:.0f}")          # noqa: E731
+    return [f"- {name}: " + ", ".join(f"{r['master']} adds {r['added_us_per_step']:.2f} µs a step to a floor of "
+                                      f"{number(r['floor_us_per_step'])}" for r in rows) + "."
+            for name, rows in systems.items()]
 
 
 def fixed_tax_table(tax):
@@ -164,7 +176,7 @@ def main():
              f"Measured on {when}, {machine()}; load average {rf['load_average_1min']:.2f}; best of "
              f"{rf['repeats']} rounds, every row in each round ({rf['short_tries']} times a round where its run takes "
              f"under {1e3 * rf['short_run_s']:.0f} ms; `wavecosim bench --json`, `real_fmus`).", "",
-             *real_fmus_table(rf), ""]
+             *real_fmus_table(rf), "", *added_summary(rf), ""]
     if args.fixed_tax:
         lines += ["## The fixed tax of a short run", "", *fixed_tax_table(json.loads(args.fixed_tax.read_text())), ""]
     if args.chain:

@@ -1,11 +1,13 @@
-"""observers/passivity.py: Condition 2 over a block of macro-steps (one C pass over the kernel's log,
-kernel/c/passivity.c) gives after_step's numbers step after step, to the last bit, where the
-order of every sum shows: wave and physical ports, one and two channels per port."""
+"""observers/passivity.py: Condition 2 over a block of macro-steps (its C pass over the kernel's log,
+kernel/c/blocks.c passivity_steps, made in parts as the kernel and the runner make it) gives
+after_step's numbers step after step, to the last bit, where the order of every sum shows: wave and
+physical ports, one and two channels per port."""
 import numpy as np
 import pytest
 
 from paths import ROOT
 from wavecosim.scenario.config import load_scenario
+from wavecosim.kernel import blocks
 from wavecosim.kernel.drkernel import LEDGER_LOG, BlockLog
 from wavecosim.masters.base import StepLog
 from wavecosim.run.observers.passivity import Passivity
@@ -50,10 +52,11 @@ def test_a_block_is_its_steps_to_the_bit(built_fmus, config, wave):
         by_block.start(first)
         for s, (step_log, reading) in enumerate(steps):
             by_step.after_step(s, s * 0.01, step_log, reading, step_rows[s])
-        half = STEPS // 3                               # two blocks: the running figures carry over
-        by_block.after_block(0, log.first(half), readings, block_rows[:half])
-        rest = BlockLog(np.ascontiguousarray(log.columns[:, half:]), log.n)
-        by_block.after_block(half, rest, Sampler(scene, scenario.outputs).block(rest.observed), block_rows[half:])
+        by_block.prepare_block(log.first(0), readings)
+        block = by_block.block_pass()
+        block.args.out, block.args.ldo = blocks.columns(block_rows)
+        for first, end in ((0, 100), (100, 228), (228, STEPS)):     # parts across the passes' 128-step chunks
+            block.steps(0, log, first, end - first)
         assert step_rows.tobytes() == block_rows.tobytes()
         assert repr(by_step.summary()) == repr(by_block.summary())
         figures = (lambda o: repr((o.prev[:], o.fig[:], o.ledger[:])))      # H before, maxima, drift, H_max, ...

@@ -32,7 +32,7 @@ class Observer:
     formats = {}          # column -> formatter for steps.csv (default: floats), e.g. recorder.Labels
     needs_trace = False   # it reads the master's inner queries (u^k, S(u^k)) of each step
     redoes = False        # an energy guard: it acts first and may redo the step
-    blocks = False        # it has after_block (and nothing to do before a step, unless paced)
+    blocks = False        # it has after_block or a block_pass (and nothing to do before a step, unless paced)
     paced = False         # it acts before the steps next_before() names only, and blocks may run between
 
     def start(self, first):

@@ -41,7 +41,7 @@ class Passivity(Observer):
         self.has_H = [s.port.energy is not None for s in scene.subsystems]
         self.complete = all(self.has_H)
         self.blocks = blocks.library() is not None
-        self.call = None                  # the C pass (blocks.Pass), from the blocks' layout
+        self.call = None                  # the C pass (blocks.Pass), from the blocks' layout (prepare_block)
         k = len(self.names)               # the running figures, owned here and updated in place by the C pass:
         self.prev = cvalues.doubles(k)    # the H_i before the next step;
         self.fig = cvalues.doubles(k + 4)     # each max r_i, then max_supply, drift, H_max, H_final;
@@ -107,15 +107,9 @@ class Passivity(Observer):
         self.call = self._block_pass(logs, readings)
 
     def block_pass(self):
+        """Every step's columns and the running figures in C over the block's log, in after_step's
+        operation order (kernel/c/blocks.c, passivity_steps)."""
         return self.call
-
-    def after_block(self, n0, logs, readings, rows, at=None):
-        """Every step's columns and the running figures in one C pass over the block's log, in
-        after_step's operation order (kernel/c/blocks.c)."""
-        if self.call is None:
-            self.call = self._block_pass(logs, readings)
-        self.call.args.out, self.call.args.ldo = at or blocks.columns(rows)
-        self.call.steps(n0, logs, 0, len(logs))
 
     def summary(self):
         k = len(self.names)
