@@ -234,6 +234,23 @@ def plain_ledger(log):
             and np.array_equal(led["round_s"], np.full(len(log), led["round_s"][0]), equal_nan=True))
 
 
+def test_a_plain_block_after_a_timed_one_logs_the_ledger_defaults_again(scenario):
+    """The kernel writes the ledger's plain rows once per log and skips them while they hold: a call
+    timed by a deadline that logs inside them (after the columns of an earlier call) writes its
+    times there, so the next plain call over those columns writes the defaults again."""
+    sc = scenario("two_oscillators", algorithm="dr", K=3)
+    with both_routes(sc) as ((_, fast), scenes):
+        fast.observe(Sampler(scenes[1], sc.outputs).observed, 12)
+        kernel = fast.kernel
+        assert plain_ledger(kernel.run_steps(0, 12)[1])
+        kernel.io.deadline_s = 1.0                      # clocked, never reached
+        done, log, _ = kernel.run_steps(12, 4, at=3)    # columns 3 .. 6
+        assert done == 4 and not np.isnan(log.ledger["step_s"]).any()
+        kernel.io.deadline_s = 0.0
+        done, log, _ = kernel.run_steps(16, 12)
+        assert done == 12 and plain_ledger(log)
+
+
 def same_run(ref, fast, skip=()):
     """The runs agree byte for byte: status, trajectory, steps table, and every summary figure but
     those naming the route or its timing (and `skip`)."""

@@ -122,6 +122,8 @@ def load_library():
         lib.dr_log_width.argtypes = [p]
         lib.dr_log_width.restype = ctypes.c_size_t
         lib.dr_run_steps.argtypes = [p, ctypes.POINTER(DRStep), i, i, p, ctypes.c_long, ctypes.c_double]
+        lib.dr_prepare_log.argtypes = [p, ctypes.POINTER(DRStep), p, ctypes.c_long, i]
+        lib.dr_prepare_log.restype = None
         lib.dr_set_passes.argtypes = [p, i, ctypes.POINTER(p), ctypes.POINTER(p)]
         lib.dr_set_options.argtypes = [p, ctypes.c_double, i, i]
         lib.dr_set_anderson_modes.argtypes = [p, i, i]
@@ -354,13 +356,16 @@ class Kernel:
 
     def _log_room(self, keep, steps):
         """A log of room for `steps` steps per call (written through once, so no page of it is first
-        touched inside a block), its first `keep` columns kept."""
+        touched inside a block), its first `keep` columns kept; the kernel writes the ledger's plain
+        rows into the rest once (dr_prepare_log), not each block."""
         if self.log.shape[0] == self.width and self.log.shape[1] >= steps:
             return
         log = np.full((self.width, max(steps, 1) + LOG_PAD), math.nan)
         if keep:
             log[:, :keep] = self.log[:, :keep]
         self.log, self._log_at = log, log.ctypes.data
+        ld = log.shape[1]
+        self.lib.dr_prepare_log(self._handle, self._io, self._log_at + 8 * keep, ld, ld - keep)
 
     def keep_ledger(self, ledger, traffic, rtol, step_deadline_s=None):
         """From the next run_steps on, the kernel books the interface energy ledger from (L, traffic)

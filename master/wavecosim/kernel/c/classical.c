@@ -50,7 +50,7 @@ enum { QUERY = DR_QUERY, COMMIT = DR_COMMIT, FORWARD = DR_FORWARD };
 static int sweep(CLKernel *c, const double *y, double *y_new, double *inputs, double t, double h, int how,
                  int sequential, int measure) {
     DRKernel *k = c->k;
-    copy_doubles(y_new, y, dr_channels(k));
+    if (y_new != y) copy_doubles(y_new, y, dr_channels(k));
     if (!sequential) {
         dr_csr_rows(c->G, y, inputs, 0, dr_channels(k));
         return dr_evaluate_all(k, inputs, y_new, t, h, how, measure);
@@ -105,26 +105,31 @@ int cl_pass(CLKernel *c, DRStep *io, const double *y, double *y_new, double *inp
     return f >= 0 ? dr_fail(c->k, io, f) : 0;
 }
 
-int cl_explicit_step(CLKernel *c, DRStep *io, const double *y_n, double *y_next, int sequential) {
+/* y^{n+1} = Phi(x^n, G y^n), the inputs handed out into `inputs`; y_next may be y_n (sweep). */
+static int explicit_pass(CLKernel *c, DRStep *io, const double *y_n, double *y_next, double *inputs, int sequential) {
     dr_begin(c->k, io);
     io->iterations = 0;
     io->residual = NAN;
     io->reason = DR_EXPLICIT;
-    int f = sweep(c, y_n, y_next, c->inputs, io->t, io->dt, FORWARD, sequential, io->measure);  /* y^{n+1} = Phi(x^n, G y^n) */
+    int f = sweep(c, y_n, y_next, inputs, io->t, io->dt, FORWARD, sequential, io->measure);
     return f >= 0 ? dr_fail(c->k, io, f) : 0;
 }
 
+int cl_explicit_step(CLKernel *c, DRStep *io, const double *y_n, double *y_next, int sequential) {
+    return explicit_pass(c, io, y_n, y_next, c->inputs, sequential);
+}
+
 /* One macro-step of cl_run_steps from y^n in the kernel's outputs: y^{n+1} replaces it, the inputs
- * handed out (the commit's, or the explicit pass's) go into the kernel's inputs. */
+ * handed out (the commit's, or the explicit pass's) go into the kernel's inputs. The explicit pass
+ * works in place: sweep reads every input from y^n before the first doStep (Jacobi), or each
+ * subsystem's from the outputs so far (sequential), as it does from its copy. */
 static int block_step(void *ctx, DRStep *io) {
     CLKernel *c = ctx;
-    size_t n = dr_channels(c->k);
     double *y = dr_outputs(c->k), *u = dr_inputs(c->k);
-    int f = c->explicit_ ? cl_explicit_step(c, io, y, c->y_out, c->sequential)
-                         : cl_fixed_point_step(c, io, y, c->y_out, u, c->sequential);
+    if (c->explicit_) return explicit_pass(c, io, y, y, u, c->sequential);
+    int f = cl_fixed_point_step(c, io, y, c->y_out, u, c->sequential);
     if (f) return f;
-    if (c->explicit_) copy_doubles(u, c->inputs, n);
-    copy_doubles(y, c->y_out, n);
+    copy_doubles(y, c->y_out, dr_channels(c->k));
     return 0;
 }
 

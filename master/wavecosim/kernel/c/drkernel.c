@@ -6,6 +6,7 @@
 #include <math.h>
 #include <pthread.h>
 #include <sched.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
@@ -58,6 +59,14 @@ typedef struct {
     int failed;                    /* first failing subsystem of this thread's last task, or -1 */
 } Worker;
 
+/* Where plain_ledger_rows wrote last: `count` steps of rows from `at`, ld apart, each its value. */
+typedef struct {
+    double *at;
+    size_t ld;
+    int count;
+    double value[DR_LEDGER_COLUMNS];
+} PlainRows;
+
 struct DRKernel {
     int n_sub;
     size_t n;
@@ -92,6 +101,7 @@ struct DRKernel {
     DRPassFn *pass_fn[DR_MAX_PASSES]; /* the runner's passes over logged steps (dr_set_passes) */
     void *pass_args[DR_MAX_PASSES];
     int n_passes;
+    PlainRows plain;               /* the ledger's rows plain_ledger_rows wrote last (none: at NULL) */
 };
 
 static double now_ns(void) {
@@ -543,34 +553,45 @@ size_t dr_log_width(const DRKernel *k) {
     return width + k->extra.rows + DR_LEDGER_COLUMNS;
 }
 
+/* Whether v is infinite or NaN: its exponent bits all set (integer operations, no chain of
+ * floating-point additions through the step's values). */
+static inline int not_finite(double v) {
+    uint64_t bits;
+    memcpy(&bits, &v, sizeof bits);
+    return (bits & 0x7ff0000000000000u) == 0x7ff0000000000000u;
+}
+
 /* Log step s after its commit, column-major: value c at rows[c ld + s]; the first failing subsystem's
- * read, or -1. *finite: whether every observed value checked by stop_after is finite (v * 0 is NaN for
- * an infinite or NaN v, else a zero: one sum tells). */
+ * read, or -1. *finite: whether every observed value checked by stop_after is finite. */
 static int log_step(DRKernel *k, const DRStep *io, double *rows, size_t ld, size_t s, int *finite) {
-    size_t n = k->n, c = 3 + 2 * n;
-    double poison = 0.0;
-    rows[s] = (double)io->iterations;
-    rows[ld + s] = (double)io->reason;
-    rows[2 * ld + s] = io->residual;
+    size_t n = k->n, c = 3 + 2 * n;         /* locals: the stores into rows may alias k's arrays */
+    const double *a_hat = k->a_hat, *b = k->b, *obs = k->obs;
+    double *row = rows + s;
+    int bad = 0;
+    row[0] = (double)io->iterations;
+    row[ld] = (double)io->reason;
+    row[2 * ld] = io->residual;
     for (size_t j = 0; j < n; j++) {
-        rows[(3 + j) * ld + s] = k->a_hat[j];
-        rows[(3 + n + j) * ld + s] = k->b[j];
+        row[(3 + j) * ld] = a_hat[j];
+        row[(3 + n + j) * ld] = b[j];
     }
     for (int i = 0; i < k->n_sub; i++) {
         Sub *s_i = &k->sub[i];
-        if (!s_i->n_obs) continue;
-        if (failed(s_i, DR_FN_GET_REAL, s_i->obs_get(s_i->obs_comp, s_i->obs_vr, s_i->n_obs, k->obs))) return i;
-        size_t j = 0;
-        if (s_i->obs_no_H) rows[c * ld + s] = k->obs[j++];          /* no stored energy: NaN, not checked */
-        for (; j < s_i->n_obs; j++) {
-            rows[(c + j) * ld + s] = k->obs[j];
-            poison += k->obs[j] * 0.0;
+        size_t n_obs = s_i->n_obs, j = 0;
+        if (!n_obs) continue;
+        if (failed(s_i, DR_FN_GET_REAL, s_i->obs_get(s_i->obs_comp, s_i->obs_vr, n_obs, k->obs))) return i;
+        double *to = row + c * ld;
+        if (s_i->obs_no_H) to[0] = obs[j++];                         /* no stored energy: NaN, not checked */
+        for (; j < n_obs; j++) {
+            double v = obs[j];
+            to[j * ld] = v;
+            bad |= not_finite(v);
         }
-        c += s_i->n_obs;
+        c += n_obs;
     }
     if (k->extra.rows && k->extra.observe(k->extra.ctx, rows + c * ld + s, ld)) return DR_FAILED_EXTRA;
-    for (size_t j = 0; j < k->extra.rows; j++) poison += rows[(c + j) * ld + s] * 0.0;
-    *finite = poison == poison;
+    for (size_t j = 0; j < k->extra.rows; j++) bad |= not_finite(rows[(c + j) * ld + s]);
+    *finite = !bad;
     return -1;
 }
 
@@ -858,11 +879,6 @@ static long fmu_do_steps(const DRKernel *k) {
     return n;
 }
 
-/* Book the step just committed (EnergyLedger.after_step): I = 1/2 (|a|^2 - |b|^2); a step with
- * L + I > tol = rtol (traffic + its own) is redone by ledger_redo first. Its row goes into the log's
- * last DR_LEDGER_COLUMNS columns; io->reason becomes DR_ENERGY_GUARD when it was redone. t0, c0: the
- * step's start, wall and CPU (ns). The first failing subsystem, or -1 (the step then is neither
- * booked nor logged). */
 /* Whether a step is timed: only a deadline reads the step and round times (a clock read costs
  * ~30 ns, a tenth of a macro-step at K = 0). */
 static int clocked(const DRStep *io) { return io->step_deadline_s > 0.0 || io->deadline_s > 0.0; }
@@ -877,8 +893,12 @@ static void ledger_row(const DRStep *io, const double out[5], double wall, doubl
     memcpy(logged, row, sizeof row);
 }
 
-static int ledger_step(DRKernel *k, DRStep *io, double t0, double c0, double *row, size_t ld) {
-    int timed = clocked(io);
+/* Book the step just committed (EnergyLedger.after_step): I = 1/2 (|a|^2 - |b|^2); a step with
+ * L + I > tol = rtol (traffic + its own) is redone by ledger_redo first. Its row goes into the log's
+ * last DR_LEDGER_COLUMNS columns; io->reason becomes DR_ENERGY_GUARD when it was redone. timed:
+ * clocked(io); t0, c0: the step's start, wall and CPU (ns). The first failing subsystem, or -1 (the
+ * step then is neither booked nor logged). */
+static int ledger_step(DRKernel *k, DRStep *io, int timed, double t0, double c0, double *row, size_t ld) {
     if (!io->ledger_on && !timed) return -1;                    /* its row: plain_ledger_rows */
     double out[5] = LEDGER_UNTOUCHED;
     if (io->ledger_on) {
@@ -911,14 +931,42 @@ static int ledger_step(DRKernel *k, DRStep *io, double t0, double c0, double *ro
     return -1;
 }
 
+/* Whether the rows hold what plain_ledger_rows wrote there last: the same place and values, steps
+ * enough, and each column's first and last value still its own (a new log at the same address
+ * holds NaN where a plain row holds a number: scale, action and rounds). */
+static int plain_rows_kept(const PlainRows *last, const double *rows, size_t ld, int count,
+                           const double logged[DR_LEDGER_COLUMNS]) {
+    if (last->at != rows || last->ld != ld || last->count < count || count < 1) return 0;
+    if (memcmp(last->value, logged, sizeof last->value)) return 0;
+    for (int c = 0; c < DR_LEDGER_COLUMNS; c++) {
+        const double *col = rows + (size_t)c * ld;
+        if (memcmp(&col[0], &logged[c], sizeof *col) || memcmp(&col[count - 1], &logged[c], sizeof *col))
+            return 0;
+    }
+    return 1;
+}
+
 /* The ledger's row of every step of a call without the ledger or a clock: the same each step (untouched,
- * untimed), so written for all `count` steps at once, row by row, before the steps. */
-static void plain_ledger_rows(const DRStep *io, double *rows, size_t ld, int count) {
+ * untimed), so written for all `count` steps at once, row by row, before the steps; not again while
+ * the log's rows still hold them (only dr_run_steps_of writes there, and a call with the ledger or a
+ * clock forgets them). */
+static void plain_ledger_rows(DRKernel *k, const DRStep *io, double *rows, size_t ld, int count) {
     const double out[5] = LEDGER_UNTOUCHED;
     double logged[DR_LEDGER_COLUMNS];
     ledger_row(io, out, NAN, NAN, logged);
-    for (int c = 0; c < DR_LEDGER_COLUMNS; c++)
-        for (int s = 0; s < count; s++) rows[(size_t)c * ld + (size_t)s] = logged[c];
+    if (plain_rows_kept(&k->plain, rows, ld, count, logged)) return;
+    for (int c = 0; c < DR_LEDGER_COLUMNS; c++) {
+        double v = logged[c], *to = rows + (size_t)c * ld;
+        for (int s = 0; s < count; s++) to[s] = v;
+    }
+    k->plain.at = rows;
+    k->plain.ld = ld;
+    k->plain.count = count;
+    memcpy(k->plain.value, logged, sizeof logged);
+}
+
+void dr_prepare_log(DRKernel *k, const DRStep *io, double *rows, long ld, int count) {
+    plain_ledger_rows(k, io, rows + (dr_log_width(k) - DR_LEDGER_COLUMNS) * (size_t)ld, (size_t)ld, count);
 }
 
 int dr_ledger_redo(DRKernel *k, DRStep *io, double supplied, double budget, double left_s, double round_s,
@@ -975,7 +1023,9 @@ int dr_run_steps_of(DRKernel *k, DRStep *io, int n0, int count, double *rows, lo
     io->stopped = 0;
     if (io->at == 0) io->passed = 0;
     for (int i = 0; io->measure && i < k->n_sub; i++) k->sub[i].n_samples = 0;   /* dr_costs: this call's */
-    if (!io->ledger_on && !clocked(io)) plain_ledger_rows(io, ledger_rows, m, count);
+    int timed = clocked(io), cpu_timed = io->ledger_on && io->step_deadline_s > 0.0;     /* the same every step */
+    if (!io->ledger_on && !timed) plain_ledger_rows(k, io, ledger_rows, m, count);
+    else k->plain.at = NULL;                                     /* ledger_step writes the rows */
     for (int s = 0; s < count; s++) {
         io->t = io->t0 + (double)(n0 + s) * io->dt;
         if (k->extra.before && k->extra.before(k->extra.ctx, io, n0 + s)) {      /* held signals: failed */
@@ -983,10 +1033,10 @@ int dr_run_steps_of(DRKernel *k, DRStep *io, int n0, int count, double *rows, lo
             return s;
         }
         if (k->hook_before && k->hook_before(k->hook_ctx, io, n0 + s)) return s;    /* not the step's time */
-        double c0 = io->ledger_on && io->step_deadline_s > 0.0 ? cpu_ns() : 0.0, t0 = clocked(io) ? now_ns() : 0.0;
+        double c0 = cpu_timed ? cpu_ns() : 0.0, t0 = timed ? now_ns() : 0.0;
         double caller = io->deadline_s;
         int failure = step(ctx, io);
-        int f = failure ? -1 : ledger_step(k, io, t0, c0, ledger_rows + s, m);
+        int f = failure ? -1 : ledger_step(k, io, timed, t0, c0, ledger_rows + s, m);
         io->deadline_s = caller;
         if (failure) return s;
         int finite = 1;

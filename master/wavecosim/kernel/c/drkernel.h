@@ -175,6 +175,11 @@ long dr_redo_do_steps(const DRKernel *k);
  * observed by signals.c (subsystems stepped alone) + DR_LEDGER_COLUMNS. */
 size_t dr_log_width(const DRKernel *k);
 
+/* A new log (dr_run_steps' layout, room for `count` steps from rows) made ready: the ledger's rows of
+ * steps without the ledger or a clock, the same for every such step, written now rather than by each
+ * call that logs there. */
+void dr_prepare_log(DRKernel *k, const DRStep *io, double *rows, long ld, int count);
+
 /* Macro-steps n0 .. n0 + count - 1, each exactly dr_macro_step at t = (double)n dt, logged
  * column-major (value c of step s at rows[c ld + s], ld >= count, so each value is one contiguous
  * column; a call may go on in the columns after an earlier call's):

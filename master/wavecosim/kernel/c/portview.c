@@ -98,7 +98,7 @@ struct PortView {
     fmi2GetRealTYPE *get;          /* the FMU's own getReal */
     fmi2Component comp;
     fmi2ValueReference *vr;        /* [H,] effort (m), flow (m), outputs (n_out) */
-    size_t m, n_out, n_raw;
+    size_t m, n_out, n_raw, size;  /* size: pv_size */
     int has_H;
     double *sign;                  /* m: power into the FMU = sign e f */
     const double *gamma, *k;       /* the wave adapter's impedance (its struct's fields), or NULL */
@@ -128,19 +128,18 @@ PortView *pv_create(fmi2GetRealTYPE *get, fmi2Component comp, const fmi2ValueRef
     v->has_H = has_H;
     v->gamma = gamma;
     v->k = k;
+    v->size = 1 + 2 * v->m + (k ? v->m : 0) + v->n_out;
     return v;
 }
 
-size_t pv_size(const PortView *v) {
-    return 1 + 2 * v->m + (v->k ? v->m : 0) + v->n_out;
-}
+size_t pv_size(const PortView *v) { return v->size; }
 
 /* One raw read, then [H or NaN, e, sign f, (adapter) k (e - gamma f), outputs] into value (pv_size). */
 fmi2Status pv_getReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]) {
     (void)vr;
     PortView *v = c;
     size_t m = v->m, h = v->has_H ? 1 : 0;
-    if (nvr != pv_size(v)) return fmi2Error;
+    if (nvr != v->size) return fmi2Error;
     fmi2Status status = v->get(v->comp, v->vr, v->n_raw, v->raw);
     if (status > fmi2Warning) return status;
     const double *e = v->raw + h, *f = e + m;
