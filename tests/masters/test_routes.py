@@ -237,7 +237,8 @@ def plain_ledger(log):
 def test_a_plain_block_after_a_timed_one_logs_the_ledger_defaults_again(scenario):
     """The kernel writes the ledger's plain rows once per log and skips them while they hold: a call
     timed by a deadline that logs inside them (after the columns of an earlier call) writes its
-    times there, so the next plain call over those columns writes the defaults again."""
+    times there, so the next plain call over those columns writes the defaults again; so does a plain
+    call over more columns than the last plain rows written, or with another round time."""
     sc = scenario("two_oscillators", algorithm="dr", K=3)
     with both_routes(sc) as ((_, fast), scenes):
         fast.observe(Sampler(scenes[1], sc.outputs).observed, 12)
@@ -249,6 +250,15 @@ def test_a_plain_block_after_a_timed_one_logs_the_ledger_defaults_again(scenario
         kernel.io.deadline_s = 0.0
         done, log, _ = kernel.run_steps(16, 12)
         assert done == 12 and plain_ledger(log)
+        kernel.io.deadline_s = 1.0
+        kernel.run_steps(28, 12)                         # every column timed
+        kernel.io.deadline_s = 0.0
+        assert plain_ledger(kernel.run_steps(40, 4, at=3)[1])      # plain in columns 3 .. 6 alone
+        done, log, _ = kernel.run_steps(44, 12)
+        assert done == 12 and plain_ledger(log)
+        kernel.io.round_s = 0.25                         # a plain row logs the round time as it stands
+        done, log, _ = kernel.run_steps(56, 12)
+        assert done == 12 and plain_ledger(log) and (log.ledger["round_s"] == 0.25).all()
 
 
 def same_run(ref, fast, skip=()):

@@ -59,7 +59,7 @@ typedef struct {
     int failed;                    /* first failing subsystem of this thread's last task, or -1 */
 } Worker;
 
-/* Where plain_ledger_rows wrote last: `count` steps of rows from `at`, ld apart, each its value. */
+/* Where the ledger's plain rows were written last: `count` steps from `at`, ld apart, each its value. */
 typedef struct {
     double *at;
     size_t ld;
@@ -101,7 +101,7 @@ struct DRKernel {
     DRPassFn *pass_fn[DR_MAX_PASSES]; /* the runner's passes over logged steps (dr_set_passes) */
     void *pass_args[DR_MAX_PASSES];
     int n_passes;
-    PlainRows plain;               /* the ledger's rows plain_ledger_rows wrote last (none: at NULL) */
+    PlainRows plain;               /* the ledger's plain rows written last (none: at NULL) */
 };
 
 static double now_ns(void) {
@@ -931,30 +931,16 @@ static int ledger_step(DRKernel *k, DRStep *io, int timed, double t0, double c0,
     return -1;
 }
 
-/* Whether the rows hold what plain_ledger_rows wrote there last: the same place and values, steps
- * enough, and each column's first and last value still its own (a new log at the same address
- * holds NaN where a plain row holds a number: scale, action and rounds). */
-static int plain_rows_kept(const PlainRows *last, const double *rows, size_t ld, int count,
-                           const double logged[DR_LEDGER_COLUMNS]) {
-    if (last->at != rows || last->ld != ld || last->count < count || count < 1) return 0;
-    if (memcmp(last->value, logged, sizeof last->value)) return 0;
-    for (int c = 0; c < DR_LEDGER_COLUMNS; c++) {
-        const double *col = rows + (size_t)c * ld;
-        if (memcmp(&col[0], &logged[c], sizeof *col) || memcmp(&col[count - 1], &logged[c], sizeof *col))
-            return 0;
-    }
-    return 1;
+/* The ledger's row of every step of a call without the ledger or a clock: the same each step
+ * (untouched, untimed). */
+static void plain_row(const DRStep *io, double logged[DR_LEDGER_COLUMNS]) {
+    const double out[5] = LEDGER_UNTOUCHED;
+    ledger_row(io, out, NAN, NAN, logged);
 }
 
-/* The ledger's row of every step of a call without the ledger or a clock: the same each step (untouched,
- * untimed), so written for all `count` steps at once, row by row, before the steps; not again while
- * the log's rows still hold them (only dr_run_steps_of writes there, and a call with the ledger or a
- * clock forgets them). */
-static void plain_ledger_rows(DRKernel *k, const DRStep *io, double *rows, size_t ld, int count) {
-    const double out[5] = LEDGER_UNTOUCHED;
-    double logged[DR_LEDGER_COLUMNS];
-    ledger_row(io, out, NAN, NAN, logged);
-    if (plain_rows_kept(&k->plain, rows, ld, count, logged)) return;
+/* That row for `count` steps from rows, ld apart, remembered (k->plain). */
+static void write_plain_rows(DRKernel *k, double *rows, size_t ld, int count,
+                             const double logged[DR_LEDGER_COLUMNS]) {
     for (int c = 0; c < DR_LEDGER_COLUMNS; c++) {
         double v = logged[c], *to = rows + (size_t)c * ld;
         for (int s = 0; s < count; s++) to[s] = v;
@@ -962,11 +948,26 @@ static void plain_ledger_rows(DRKernel *k, const DRStep *io, double *rows, size_
     k->plain.at = rows;
     k->plain.ld = ld;
     k->plain.count = count;
-    memcpy(k->plain.value, logged, sizeof logged);
+    memcpy(k->plain.value, logged, sizeof k->plain.value);
+}
+
+/* The plain rows of a call's `count` steps from rows, written before the steps unless the last ones
+ * written hold them (same values and ld, these steps among theirs): only dr_run_steps_of and
+ * dr_prepare_log write the log's ledger rows, and a call with the ledger or a clock forgets them. */
+static void plain_ledger_rows(DRKernel *k, const DRStep *io, double *rows, size_t ld, int count) {
+    double logged[DR_LEDGER_COLUMNS];
+    plain_row(io, logged);
+    const PlainRows *last = &k->plain;
+    uintptr_t from = (uintptr_t)last->at, at = (uintptr_t)rows, size = sizeof *rows;
+    int within = last->at && at >= from && at + (size_t)count * size <= from + (size_t)last->count * size;
+    if (within && last->ld == ld && !memcmp(last->value, logged, sizeof logged)) return;
+    write_plain_rows(k, rows, ld, count, logged);
 }
 
 void dr_prepare_log(DRKernel *k, const DRStep *io, double *rows, long ld, int count) {
-    plain_ledger_rows(k, io, rows + (dr_log_width(k) - DR_LEDGER_COLUMNS) * (size_t)ld, (size_t)ld, count);
+    double logged[DR_LEDGER_COLUMNS];
+    plain_row(io, logged);
+    write_plain_rows(k, rows + (dr_log_width(k) - DR_LEDGER_COLUMNS) * (size_t)ld, (size_t)ld, count, logged);
 }
 
 int dr_ledger_redo(DRKernel *k, DRStep *io, double supplied, double budget, double left_s, double round_s,
