@@ -12,7 +12,7 @@ from typing import Callable, Optional, Sequence, Union
 
 import numpy as np
 
-from .scenario.config import Scenario, load_scenario, output_patterns
+from .scenario.config import Scenario, _Checker, load_scenario, output_patterns
 from .errors import ConfigError
 from .masters import ALGORITHMS
 from .core.gamma import parse_gamma
@@ -61,13 +61,14 @@ def with_overrides(scenario: Scenario, *, master=None, K=None, eps=None, gamma=N
                    start_time=None, outputs=None, where="options") -> Scenario:
     """The scenario with some values replaced, each checked as in a file (one-line ConfigError);
     `outputs` (glob patterns) narrows the recorded columns."""
+    K, eps, dt, T, start_time = (_plain(v) for v in (K, eps, dt, T, start_time))
+    check = _Checker(where)
+    for name, value in (("K", K), ("eps", eps), ("dt", dt), ("T", T), ("start_time", start_time)):
+        if value is not None:
+            check.integer(value, name, minimum=0) if name == "K" else check.number(value, name, positive=name in ("dt", "eps"))
     changes = {k: v for k, v in (("K", K), ("eps", eps), ("algorithm", master)) if v is not None}
     if master is not None and master not in ALGORITHMS:
         raise ConfigError(f"{where}: master: must be one of {', '.join(ALGORITHMS)}, got {master!r}")
-    if K is not None and (isinstance(K, bool) or not isinstance(K, int) or K < 0):
-        raise ConfigError(f"{where}: K: must be >= 0, got {K!r}")
-    if eps is not None and not eps > 0:
-        raise ConfigError(f"{where}: eps: must be > 0, got {eps!r}")
     if changes:
         scenario = scenario.with_master("master" if where == "options" else "--master", **changes)
     top = {k: v for k, v in (("dt", dt), ("T", T), ("start_time", start_time)) if v is not None}
@@ -76,6 +77,11 @@ def with_overrides(scenario: Scenario, *, master=None, K=None, eps=None, gamma=N
     if gamma is not None:
         top["gamma"] = parse_gamma(gamma, f"{where}: gamma" if where != "options" else "gamma")
     return scenario.with_changes(where, **top)
+
+
+def _plain(value):
+    """A numpy scalar (np.int64(5), np.float64(0.1)) as the Python number it holds; anything else as given."""
+    return value.item() if isinstance(value, np.generic) else value
 
 
 def _fail_outputs(where, message):

@@ -26,7 +26,7 @@ from ..errors import FmuError
 from .me import ModelExchange
 from .messages import MessageLog, cut
 from .sources import provide_binary
-from .unpack import unpack
+from .unpack import regular_file, unpack
 from .values import BOOLEAN, REAL, as_python, category, integer_range, is_int32, is_number
 
 _STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
@@ -40,7 +40,7 @@ def extract_fmu(path: Path) -> Path:
     """Extract an FMU into a fresh temporary folder (removed at exit), refusing members that would
     escape it and an archive that unpacks to too much (fmi/unpack.py)."""
     path = Path(path)
-    if not path.exists():
+    if regular_file(path, FmuError) is None:
         raise FmuError(f"FMU file not found: {path}")
     if not zipfile.is_zipfile(path):
         raise FmuError(f"{path} is not an FMU (not a zip archive)")
@@ -65,7 +65,7 @@ def shared_folder(path: Path, pool):
     (a dict the caller owns, e.g. one per scene), so they share one loaded binary and N instances
     of one FMU cost no more code in the caches than one; pool None: a folder of its own."""
     path = Path(path)
-    if pool is None or not path.exists():
+    if pool is None or not path.is_file():
         return None, extract_fmu(path)
     st = path.resolve().stat()
     key = (str(path.resolve()), st.st_mtime_ns, st.st_size)

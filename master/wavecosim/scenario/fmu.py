@@ -9,6 +9,7 @@ from pathlib import Path
 from fmpy import read_model_description
 
 from ..errors import ConfigError, FmuError
+from ..fmi.unpack import regular_file
 
 
 def is_fmu(path):
@@ -22,6 +23,18 @@ def component_name(path):
     return name if re.match(r"[A-Za-z_]", name) else f"_{name}"
 
 
+MAX_TABLE_BYTES = 100_000_000        # bytes of a CSV time table (an --input file, a source): read whole into memory
+
+
+def input_file(csv_path, where):
+    """The resolved path of a CSV time table (`where` names it: the option or the key), a regular file
+    of at most MAX_TABLE_BYTES, else a one-line ConfigError."""
+    found = regular_file(csv_path, lambda message: ConfigError(f"{where}: {message}"), MAX_TABLE_BYTES)
+    if found is None:
+        raise ConfigError(f"{where}: cannot read {csv_path}: file not found")
+    return found
+
+
 def _header(csv_path, where):
     try:
         with open(csv_path, newline="") as f:
@@ -30,18 +43,18 @@ def _header(csv_path, where):
         raise ConfigError(f"{where}: cannot read {csv_path}: {exc}") from None
 
 
-def fmu_raw(path, input_csv=None, warn=None):
+def fmu_raw(path_given, input_csv=None, warn=None):
     """The scenario mapping of one FMU (and its input file): the subsystem, and a source table with
     one signal per column that names an input; columns naming no input, and inputs no column
     names (they keep their start values), are reported to `warn`."""
-    path = Path(path).resolve()
-    if not path.is_file():
-        raise FmuError(f"FMU file not found: {path}")
+    path = regular_file(path_given, ConfigError)
+    if path is None:
+        raise FmuError(f"FMU file not found: {Path(path_given).resolve()}")
     name = component_name(path)
     raw = {"name": path.stem, "subsystems": {name: {"fmu": str(path)}}}
     if input_csv is None:
         return raw
-    input_csv = Path(input_csv).resolve()
+    input_csv = input_file(input_csv, "--input")
     try:
         inputs = [v.name for v in read_model_description(str(path), validate=False).modelVariables
                   if v.causality == "input"]

@@ -8,7 +8,8 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from ..scenario.config import DEFAULT_CONFIG
-from ..errors import Interrupted
+from ..errors import ConfigError, Interrupted
+from ..fmi.unpack import regular_file
 from .execute import Task, executor, resumed, task_scenario
 from ..run.recorder import write_json
 from ..scenario.overrides import expand, short_label
@@ -50,7 +51,10 @@ def plan(config, axes, out_dir, fixed=(), sample=None, seed=0, reference=True, c
     """The tasks of a general sweep, every one validated (a bad key or value is a one-line
     ConfigError before anything runs). axes: [(key, values or distribution)] from --set;
     fixed: (key, value) applied to every run (e.g. T from --T)."""
-    config = str(Path(config).resolve()) if config else str(DEFAULT_CONFIG)
+    found = regular_file(config, ConfigError) if config else DEFAULT_CONFIG
+    if found is None:
+        raise ConfigError(f"{config}: scenario file not found")
+    config = str(found)
     points = expand(axes, sample, seed)
     keys = tuple(k for k, _ in axes)
     threads = () if any(k == "master.threads" for k, _ in [*fixed, *axes]) else (("master.threads", "1"),)
