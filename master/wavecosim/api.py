@@ -63,9 +63,11 @@ def with_overrides(scenario: Scenario, *, master=None, K=None, eps=None, gamma=N
     `outputs` (glob patterns) narrows the recorded columns."""
     K, eps, dt, T, start_time = (_plain(v) for v in (K, eps, dt, T, start_time))
     check = _Checker(where)
-    for name, value in (("K", K), ("eps", eps), ("dt", dt), ("T", T), ("start_time", start_time)):
+    if K is not None:
+        check.integer(K, "K", minimum=0)
+    for name, value in (("eps", eps), ("dt", dt), ("T", T), ("start_time", start_time)):
         if value is not None:
-            check.integer(value, name, minimum=0) if name == "K" else check.number(value, name, positive=name in ("dt", "eps"))
+            check.number(value, name, positive=name in ("dt", "eps"))
     changes = {k: v for k, v in (("K", K), ("eps", eps), ("algorithm", master)) if v is not None}
     if master is not None and master not in ALGORITHMS:
         raise ConfigError(f"{where}: master: must be one of {', '.join(ALGORITHMS)}, got {master!r}")
