@@ -8,9 +8,11 @@ Only kernel/ and fmi/ import ctypes; the parts above pass C values made by wavec
 import atexit
 import copy
 import ctypes
+import itertools
 import math
 import shutil
 import tempfile
+import weakref
 import zipfile
 from pathlib import Path
 
@@ -23,6 +25,7 @@ from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE
 from fmpy.fmi2 import fmi2LastSuccessfulTime
 
 from ..errors import FmuError
+from ..kernel.build import helper_library
 from .me import ModelExchange
 from .messages import MessageLog, cut
 from .sources import provide_binary
@@ -34,6 +37,39 @@ _libc = ctypes.CDLL(None)
 _libc.calloc.restype = ctypes.c_void_p
 _libc.calloc.argtypes = [ctypes.c_size_t, ctypes.c_size_t]
 _libc.free.argtypes = [ctypes.c_void_p]
+
+
+_message_logs = weakref.WeakValueDictionary()     # componentEnvironment -> the MessageLog of an FMU instance
+_environments = itertools.count(1)
+
+
+def _to_log(env, instance, status, category, message):
+    """One message, formatted by kernel/c/fmilog.c, into the log of the instance its environment names."""
+    log = _message_logs.get(env or 0)
+    if log is not None:
+        log.append((status, message.decode("utf-8", "replace") if message else ""))
+
+
+_SINK = fmi2CallbackLoggerTYPE(_to_log)
+_formatter = []
+
+
+def message_logger(messages):
+    """(logger, componentEnvironment) of a new FMI 2 instance whose messages go to `messages`: the C
+    logger that formats the message with its printf arguments, as the FMI logger's contract says
+    (kernel/c/fmilog.c); without a C compiler, a Python logger that keeps the format as it is."""
+    if not _formatter:
+        lib = helper_library("fmilog")
+        if lib is not None:
+            lib.fmilog_set_sink.argtypes = [fmi2CallbackLoggerTYPE]
+            lib.fmilog_set_sink(_SINK)
+        _formatter.append(lib and ctypes.cast(lib.fmilog_logger, fmi2CallbackLoggerTYPE))
+    if _formatter[0] is None:
+        return fmi2CallbackLoggerTYPE(lambda env, instance, status, category, message: messages.append(
+            (status, message.decode("utf-8", "replace") if message else ""))), None
+    environment = next(_environments)
+    _message_logs[environment] = messages
+    return _formatter[0], environment
 
 
 def extract_fmu(path: Path) -> Path:
@@ -176,17 +212,15 @@ class Fmi2:
         self.component = self.slave.component
 
     def _make_callbacks(self, messages):
-        def logger(env, instance, status, category, message):
-            messages.append((status, message.decode("utf-8", "replace") if message else ""))
         cb = fmi2CallbackFunctions()
-        self._logger_ref = fmi2CallbackLoggerTYPE(logger)
+        self._logger_ref, environment = message_logger(messages)
         cb.logger = self._logger_ref
         self._alloc_ref = fmi2CallbackAllocateMemoryTYPE(_libc.calloc)
         self._free_ref = fmi2CallbackFreeMemoryTYPE(_libc.free)
         cb.allocateMemory = self._alloc_ref
         cb.freeMemory = self._free_ref
         cb.stepFinished = fmi2StepFinishedTYPE()
-        cb.componentEnvironment = None
+        cb.componentEnvironment = environment
         return cb
 
     def setup_experiment(self, fmu, start_time, tolerance):

@@ -13,7 +13,7 @@ from ..errors import FmuError
 from .abi import mirrors
 from .drkernel import FUNCTIONS
 from .linalg import DOT_EXACT
-from .newton import NOT_CONVERGED, WHY, NewtonKernel, failed, library, not_converged
+from .newton import NON_FINITE, NOT_CONVERGED, WHY, NewtonKernel, failed, library, nan_source, not_converged
 
 
 @mirrors("drkernel", "DCSettings")
@@ -123,7 +123,8 @@ class KernelCertificates:
             return sub.fmu.status_error(FUNCTIONS[culprit[1]], culprit[2], n, t)
         if rc == NOT_CONVERGED:
             return not_converged(where, float(out[0]), float(out[1]))
-        return failed(where, WHY[rc])
+        return failed(where, WHY[rc], nan_source(self.subsystems, int(out[1])) if WHY[rc] == NON_FINITE
+                      else None)
 
     def block_rows(self, n0, count):
         """The rows of steps n0 .. n0 + count - 1 made in the kernel calls since the last block (fne per

@@ -5,6 +5,7 @@ reference's operation order, so the numbers are bit-identical. `NewtonKernel` wi
 ctypes; the master picks it with `master.fast` like DR.
 """
 import ctypes
+import math
 
 import numpy as np
 
@@ -98,7 +99,8 @@ class NewtonKernel:
                 raise self.base.failure(n, t)
             if rc == NOT_CONVERGED:
                 raise not_converged(where, self.base.io.residual, float(self.out[1]))
-            raise failed(where, WHY[rc])
+            source = nan_source(self.base.subsystems, int(self.out[1])) if WHY[rc] == NON_FINITE else None
+            raise failed(where, WHY[rc], source)
 
     def close(self):
         if self.handle:
@@ -124,6 +126,23 @@ def not_converged(where, res, scale):
                           f"(> {ACCEPT_REL:g} of the port-wave scale {scale:.3g})")
 
 
-def failed(where, why):
-    """The error of a Newton solve that cannot go on (why: "non-finite residual", "singular Jacobian")."""
-    return NumericalError(f"interface Newton{where}: {why}")
+def failed(where, why, source=None):
+    """The error of a Newton solve that cannot go on (why: "non-finite residual", "singular Jacobian");
+    source: the subsystem whose outgoing wave was not finite (nan_source), named as the NaN's maker."""
+    cause = (f": subsystem {source} gave a non-finite outgoing wave for a finite incident one (a NaN or an "
+             f"infinity from its FMU)" if source else "")
+    return NumericalError(f"interface Newton{where}: {why}{cause}")
+
+
+def nan_channel(a, s):
+    """The first channel whose outgoing wave s is not finite for a finite incident wave a, else -1."""
+    return next((j for j, (x, y) in enumerate(zip(a, s)) if math.isfinite(x) and not math.isfinite(y)), -1)
+
+
+def nan_source(subsystems, channel):
+    """The name of the subsystem (channels in their order) that holds `channel`, None for -1."""
+    for sub in subsystems if channel >= 0 else ():
+        if channel < sub.m:
+            return sub.name
+        channel -= sub.m
+    return None
