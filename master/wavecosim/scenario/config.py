@@ -20,7 +20,6 @@ from ..core.quirks import KEYS as QUIRK_KEYS
 from ..masters import ALGORITHMS
 from ..masters.dr_options import ANDERSON_MAX, OPTION_MODES, STARTS
 from .experiment import from_fmus
-from .fmu import input_file
 
 DEFAULT_CONFIG = DEFAULT
 GROWTH_BOUND = 1e12
@@ -962,6 +961,18 @@ def _read_table(ck, path, csv_path):
         if len({isinstance(v, bool) for v in values}) > 1:
             ck.fail(where(), f"{csv_path.name}: column {name} mixes true/false and numbers")
     return tuple(row[0] for row in data), columns
+
+
+MAX_TABLE_BYTES = 100_000_000        # bytes of a CSV time table (an --input file, a source): read whole into memory
+
+
+def input_file(csv_path, where):
+    """The resolved path of a CSV time table (`where` names it: the option or the key), a regular file
+    of at most MAX_TABLE_BYTES, else a one-line ConfigError."""
+    found = regular_file(csv_path, lambda message: ConfigError(f"{where}: {message}"), MAX_TABLE_BYTES)
+    if found is None:
+        raise ConfigError(f"{where}: cannot read {csv_path}: file not found")
+    return found
 
 
 def _sources(ck, raw, subsystem_names, base_dir):

@@ -10,6 +10,7 @@ from fmpy import read_model_description
 
 from ..errors import ConfigError, FmuError
 from ..fmi.unpack import regular_file
+from .config import input_file
 
 
 def is_fmu(path):
@@ -21,18 +22,6 @@ def component_name(path):
     """The subsystem name of a single FMU: its file name without .fmu, as a name (letters, digits, _ and -)."""
     name = re.sub(r"[^\w-]", "_", Path(path).stem)
     return name if re.match(r"[A-Za-z_]", name) else f"_{name}"
-
-
-MAX_TABLE_BYTES = 100_000_000        # bytes of a CSV time table (an --input file, a source): read whole into memory
-
-
-def input_file(csv_path, where):
-    """The resolved path of a CSV time table (`where` names it: the option or the key), a regular file
-    of at most MAX_TABLE_BYTES, else a one-line ConfigError."""
-    found = regular_file(csv_path, lambda message: ConfigError(f"{where}: {message}"), MAX_TABLE_BYTES)
-    if found is None:
-        raise ConfigError(f"{where}: cannot read {csv_path}: file not found")
-    return found
 
 
 def _header(csv_path, where):
