@@ -98,3 +98,5 @@ def test_the_api_takes_numpy_numbers(built_fmus):
     assert result.summary["K"] == 5 and type(result.summary["K"]) is int and result.summary["steps"] == 2
     with pytest.raises(wc.ConfigError, match="K: must be <= 2147483647"):
         wc.simulate(None, K=np.int64(2 ** 40))
+    table = wc.sweep(None, np.array([0, 3]), T=0.02, certificates=False)
+    assert [type(r["K"]) for r in table.rows] == [int, int] and [r["K"] for r in table.rows] == [0, 3]

@@ -86,6 +86,12 @@ def _plain(value):
     return value.item() if isinstance(value, np.generic) else value
 
 
+def _budgets(Ks):
+    """Budgets K as Python integers >= 0 within a C int (numpy's integers taken), else a one-line ConfigError."""
+    check = _Checker("Ks")
+    return [check.integer(_plain(K), f"[{i}]", minimum=0) for i, K in enumerate(Ks)]
+
+
 def _fail_outputs(where, message):
     raise ConfigError(f"{'--outputs' if where != 'options' else 'outputs'}: {message}")
 
@@ -155,7 +161,7 @@ def sweep(scenario: ScenarioLike = None, Ks: Sequence[int] = (0, 3, 8, 20, 35, 5
     """The paper's experiment: DR at every budget K against the monolithic reference."""
     from .sweeps.budget import sweep as run_sweep
     sc = _scenario(scenario, **overrides)
-    reference, results, rows = run_sweep(sc, list(Ks), out_dir, progress=_labelled(progress),
+    reference, results, rows = run_sweep(sc, _budgets(Ks), out_dir, progress=_labelled(progress),
                                          certificates=certificates)
     return Table(rows, results, reference)
 
@@ -167,7 +173,8 @@ def compare(scenario: ScenarioLike = None, masters: Optional[Sequence[str]] = No
     and DR with each named option in `options` (wavecosim.sweeps.comparison.DR_OPTIONS)."""
     from .sweeps.comparison import compare as run_compare, parse_options
     sc = _scenario(scenario, **overrides)
-    reference, results, rows = run_compare(sc, out_dir, masters, Ks, progress=_labelled(progress),
+    reference, results, rows = run_compare(sc, out_dir, masters, Ks if Ks is None else _budgets(Ks),
+                                           progress=_labelled(progress),
                                            certificates=certificates, options=parse_options(options))
     return Table(rows, results, reference)
 
