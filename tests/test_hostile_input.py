@@ -63,6 +63,7 @@ CASES = {
     "sweep-missing-file": lambda f: ["sweep", "missing.yaml", "--set", "master.K=1,2", "--out", "out"],
     "scheduler-garbage": lambda f: ["sweep", str(SCENARIO), "--set", "master.K=1", "--scheduler", "garbage"],
     "huge-table": huge_table,
+    "Ks-overflow": lambda f: ["compare", str(SCENARIO), "--Ks", "0,99999999999999999999", "--out", "out"],
     "huge-range": lambda f: ["sweep", str(SCENARIO), "--set", "master.K=0..1000000", "--out", "out"],
     "huge-linspace": lambda f: ["sweep", str(SCENARIO), "--set", "master.eps=linspace(0.1,1,100000000)"],
     "huge-grid": lambda f: ["sweep", str(SCENARIO), "--set", "master.K=0..999", "--set", "master.anderson=0..999"],

@@ -85,8 +85,8 @@ def parse_budgets(ks, option="--Ks"):
         Ks = None
     if not isinstance(Ks, list) or not all(isinstance(k, int) and not isinstance(k, bool) for k in Ks):
         raise ConfigError(f"{option}: must be comma-separated integers or a range a..b, got {ks!r}")
-    if not Ks or min(Ks) < 0:
-        raise ConfigError(f"{option}: budgets must be integers >= 0, got {ks!r}")
+    if not Ks or min(Ks) < 0 or max(Ks) > C_INT_MAX:
+        raise ConfigError(f"{option}: budgets must be integers from 0 to {C_INT_MAX}, got {ks!r}")
     return Ks
 
 
