@@ -6,6 +6,7 @@ import numpy as np
 
 from . import interconnection as ic
 from ..fmi.builtin import builtin_fmus
+from ..kernel import linalg
 from ..errors import ConfigError, CouplingError, FmuError, SimulationEnded
 from ..fmi.fmu import Fmu
 from .frozen_port_map import PortSpec, Subsystem
@@ -199,11 +200,11 @@ class Scene:
         # columns of the unknown inputs (flows where flow is input, efforts otherwise) and known outputs
         Mx = np.where(is_flow_in, self.F, self.E)
         My = np.where(is_flow_in, self.E, self.F)
-        try:
-            return -np.linalg.solve(Mx, My)
-        except np.linalg.LinAlgError:
+        X = linalg.solve_columns(Mx, My)
+        if X is None:
             raise CouplingError(f"{self.scenario.source}: couplings: the port causalities do not fit the "
-                                f"interconnection (inputs cannot be computed from outputs)") from None
+                                f"interconnection (inputs cannot be computed from outputs)")
+        return -X
 
     def port_info(self):
         """Summary fields of physical ports: their signs and the wave adapters' doSteps per evaluation."""
