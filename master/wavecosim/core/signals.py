@@ -7,13 +7,24 @@ before the frozen states x_i^n are saved, so every query and the commit of step 
 held inputs (an FMI 2 state includes its inputs). All values are read before any is set, so the
 order of the signals never matters.
 
+In initialization mode the inputs that FMU outputs drive are settled first (Signals.settle): set
+in dependency order, sweep after sweep, until a sweep changes no value to the last bit, as an FMPy
+loop that repeats the propagation reports the start; an algebraic loop that does not settle is
+refused in one line naming its connections.
+
 Signals carry every FMI type (wavecosim/fmi/values.py): a Real input takes a Real, Integer or
 Boolean value; an integer input an integer or Boolean (range-checked); a Boolean a Boolean; a
 String a String. This module is the one place that holds the values and their types: per
 subsystem and FMI type, the value references read and set in one call each.
 """
 import bisect
+import graphlib
 import math
+import struct
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
 from ..errors import ConfigError, FmuError, NumericalError
 from ..fmi.values import BOOLEAN, INTEGER, REAL, STRING, category
@@ -129,6 +140,7 @@ class Signals:
         count = len(scenario.signals)
         self.convert, self.bounds, self.types = [None] * count, [None] * count, [None] * count
         self.tables, self.reads, self.writes = [], {}, {}    # (k, table, column, linear); {sub: {type: (vrs, ks)}}
+        self.sources = {}                                    # {k: (sub, FMI type, vr)} of signals an FMU drives
         for k, sig in enumerate(scenario.signals):
             where = f"{scenario.source}: signals[{k}]"
             name, var = sig.target.split(".", 1)
@@ -153,6 +165,7 @@ class Signals:
         fmu = subsystems[name].fmu
         source_type = _carried(where, fmu, name, var)
         _group(self.reads, subsystems[name], source_type, fmu.vr(var), k)
+        self.sources[k] = (subsystems[name], source_type, fmu.vr(var))
         return category(source_type)
 
     def values(self, t):
@@ -170,14 +183,65 @@ class Signals:
         """Read every signal at t_n, then set each on its input (held over macro-step n)."""
         t = self.t0 + n * self.dt
         values = self.values(t)
-        self._check(values, n, t)
+        self._check(enumerate(values), n)
         for sub, groups in self.writes.items():
             for fmi_type, (vrs, ks) in groups.items():
                 sub.fmu.set_values(fmi_type, vrs, [values[k] for k in ks])
 
-    def _check(self, values, n, t):
-        """A non-finite Real or an integer out of its input's range stops the run, naming the signal."""
-        for k, v in enumerate(values):
+    def settle(self, limit):
+        """In initialization mode: set every input an FMU output drives from that output (converted),
+        the FMUs in dependency order (Gauss-Seidel over the strongly connected groups), sweep after
+        sweep until one changes no value bit for bit; returns the sweeps made. An algebraic loop
+        still moving after `limit` sweeps is a NumericalError naming its connections."""
+        order, last = self._dependency_order(), None
+        for sweep in range(1, limit + 1):
+            held = []
+            for sub, fmi_type, vrs, ks in order:
+                values = [self.convert[k](self._read(k)) for k in ks]
+                self._check(zip(ks, values), 0)
+                sub.fmu.set_values(fmi_type, vrs, values)
+                held.append([_bits(v) for v in values])
+            if held == last:
+                return sweep
+            moving, last = [k for (_, _, _, ks), new, old in zip(order, held, last or held) for k, a, b in
+                            zip(ks, new, old) if a != b], held
+        loop = ", ".join(f"{self.refs[k]} -> {self.targets[k]}" for k in moving)
+        raise NumericalError(f"{self.where}: signals: the algebraic loop through {loop} does not settle in "
+                             f"initialization mode ({limit} sweeps of setting inputs from outputs still change "
+                             f"them); break it with a delay, or give start values at its solution")
+
+    def _read(self, k):
+        """The raw value of FMU-driven signal k, read now."""
+        sub, fmi_type, vr = self.sources[k]
+        return sub.fmu.get_values(fmi_type, [vr])[0]
+
+    def _dependency_order(self):
+        """[(target subsystem, FMI type, vrs, signals)] of the FMU-driven signals, the targets ordered
+        so that a subsystem comes after those that drive it (a loop's members in the file's order)."""
+        subs = list(dict.fromkeys([self.sources[k][0] for k in self.sources] + list(self.writes)))
+        index = {id(s): j for j, s in enumerate(subs)}
+        edges = [(index[id(self.sources[k][0])], index[id(sub)]) for sub, groups in self.writes.items()
+                 for _, ks in groups.values() for k in ks if k in self.sources]
+        rows, cols = (list(x) for x in zip(*edges)) if edges else ([], [])
+        graph = coo_matrix((np.ones(len(edges)), (rows, cols)), shape=(len(subs), len(subs)))
+        _, group = connected_components(graph, directed=True, connection="strong")
+        before = graphlib.TopologicalSorter({int(g): set() for g in group})
+        for a, b in edges:
+            if group[a] != group[b]:
+                before.add(int(group[b]), int(group[a]))
+        rank = {g: r for r, g in enumerate(before.static_order())}
+        order = []
+        for sub in sorted(self.writes, key=lambda s: (rank[int(group[index[id(s)]])], index[id(s)])):
+            for fmi_type, (vrs, ks) in self.writes[sub].items():
+                mine = [(vr, k) for vr, k in zip(vrs, ks) if k in self.sources]
+                if mine:
+                    order.append((sub, fmi_type, [vr for vr, _ in mine], [k for _, k in mine]))
+        return order
+
+    def _check(self, pairs, n):
+        """A non-finite Real or an integer out of its input's range ((signal, value) pairs) stops the
+        run at step n, naming the signal."""
+        for k, v in pairs:
             lo_hi = self.bounds[k]
             if (isinstance(v, float) and not math.isfinite(v)) or (lo_hi and not lo_hi[0] <= v <= lo_hi[1]):
                 raise NumericalError(self._message(k, v, n))
@@ -213,6 +277,11 @@ class Signals:
             return self._message(k, int(value) if category(self.types[k]) == INTEGER else value, n)
         return {"signals": signals, "reads": calls[0], "writes": calls[1], "tables": tables if self.tables else None,
                 "nonfinite": message}
+
+
+def _bits(value):
+    """A value as compared by settle: a float by its bits (0.0 and -0.0 differ, a NaN equals itself)."""
+    return struct.pack("<d", value) if isinstance(value, float) else value
 
 
 def _carried_in_c(fmu, fmi_type):
