@@ -1,8 +1,9 @@
 """Initialization to consistency: in initialization mode every input an FMU output drives is set
 from that output in dependency order, sweep after sweep, until nothing changes, so the first row of
 a run equals what an FMPy loop reports when it repeats the propagation until nothing changes. On
-Gain FMUs (y = k u + c, direct feed-through): a three-FMU chain, a loop that settles, and a loop
-that does not (refused in one line naming its connections)."""
+Gain FMUs (y = k u + c, direct feed-through): a three-FMU chain, a loop that settles, a loop that
+does not (solved by a damped Newton, with a warning) and one without a solution (refused in one
+line naming its connections)."""
 import struct
 
 import numpy as np
@@ -11,6 +12,7 @@ from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 from fmpy.validation import validate_fmu
 
+import wavecosim as wc
 from wavecosim.errors import NumericalError
 from wavecosim.run.runner import run
 from wavecosim.scenario.config import parse_scenario
@@ -99,12 +101,26 @@ def test_settled_values(built_fmus):
     assert (row["A.u"], row["A.y"], row["B.y"], row["C.y"]) == (3.5, 2.75, 5.5, 3.0)
 
 
-def test_a_loop_that_does_not_settle_is_refused(built_fmus):
+def test_a_loop_that_does_not_settle_is_solved_by_newton_with_a_warning(built_fmus):
+    """Loop gain 0.5 * 2 * 3 = 3: propagation runs away, the loop's one solution is u_A = -3.25."""
     raw = {**LOOP, "subsystems": {**LOOP["subsystems"], "C": {"fmu": "Gain", "parameters": {"k": 3.0}}}}
+    notes = []
+    result = wc.simulate(parse_scenario(raw, "loop.yaml"), warn=notes.append)
+    row = {c: float(result.trajectory[c][0]) for c in ("A.u", "A.y", "B.y", "C.y")}
+    assert row == pytest.approx({"A.u": -3.25, "A.y": -0.625, "B.y": -1.25, "C.y": -3.75}, rel=1e-12, abs=1e-12)
+    said = [n for n in notes if "algebraic loop" in n]
+    assert len(said) == 1 and "solved by a damped Newton" in said[0]
+    assert all(f"{a}.y -> {b}.u" in said[0] for a, b in ("AB", "BC", "CA"))
+
+
+def test_a_loop_without_a_solution_is_refused_in_one_line(built_fmus):
+    """y_A = u_A + 1 fed back through y_B = u_B: u = u + 1 has no solution."""
+    raw = {**LOOP, "subsystems": {"A": {"fmu": "Gain", "parameters": {"c": 1.0}}, "B": {"fmu": "Gain"}},
+           "signals": [{"from": "A.y", "to": "B.u"}, {"from": "B.y", "to": "A.u"}]}
     with pytest.raises(NumericalError) as err:
         run(parse_scenario(raw, "loop.yaml"))
     text = str(err.value)
-    assert "\n" not in text and "algebraic loop" in text and all(f"{a}.y -> {b}.u" in text for a, b in ("AB", "BC", "CA"))
+    assert "\n" not in text and "finds no solution" in text and "A.y -> B.u" in text and "B.y -> A.u" in text
 
 
 def test_settled_run_keeps_going(built_fmus):

@@ -360,13 +360,13 @@ def _subsystem(scenario, sub, path, gamma, wave, needs_rollback, pool=None):
 SETTLE_SWEEPS = 4      # sweeps of the initialization's propagation beyond one per FMU
 
 
-def _signals(scenario, opened):
-    """The held signals over the opened subsystems: settled in initialization mode (Signals.settle),
-    then every FMU leaves it and the signals are set at t = 0 (so the orientation and gamma probes
-    see them); None when the scenario has no signals."""
+def _signals(scenario, opened, notes):
+    """The held signals over the opened subsystems: settled in initialization mode (Signals.settle,
+    its note on a loop Newton solved goes to `notes`), then every FMU leaves it and the signals are
+    set at t = 0 (so the orientation and gamma probes see them); None when the scenario has no signals."""
     signals = Signals(scenario, {s.name: s for s in opened}) if scenario.signals else None
-    if signals is not None:
-        signals.settle(len(opened) + SETTLE_SWEEPS)
+    note = signals.settle(len(opened) + SETTLE_SWEEPS) if signals is not None else None
+    notes.extend([note] if note else [])
     _end_initialization(opened)
     if signals is not None:
         signals.hold(0)
@@ -402,7 +402,7 @@ def build_scene(scenario, wave=True, needs_rollback=True, pool=None, quirks=None
     try:
         decisions = _open_all(scenario, scenario.subsystems + scenario.signal_subsystems, gammas, wave, needs_rollback,
                               pool, quirks, opened, notes)
-        signals = _signals(scenario, opened)
+        signals = _signals(scenario, opened, notes)
         outputs, more = output_columns(scenario, opened)
         notes[:0] = list(dict.fromkeys(note for s in opened for note in s.fmu.notes))
         notes.extend(more)

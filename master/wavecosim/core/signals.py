@@ -9,8 +9,9 @@ order of the signals never matters.
 
 In initialization mode the inputs that FMU outputs drive are settled first (Signals.settle): set
 in dependency order, sweep after sweep, until a sweep changes no value to the last bit, as an FMPy
-loop that repeats the propagation reports the start; an algebraic loop that does not settle is
-refused in one line naming its connections.
+loop that repeats the propagation reports the start. An algebraic loop that does not settle is
+solved by a damped Newton on its inputs (a warning says so), or refused in one line naming its
+connections when Newton finds no solution.
 
 Signals carry every FMI type (wavecosim/fmi/values.py): a Real input takes a Real, Integer or
 Boolean value; an integer input an integer or Boolean (range-checked); a Boolean a Boolean; a
@@ -28,6 +29,10 @@ from scipy.sparse.csgraph import connected_components
 
 from ..errors import ConfigError, FmuError, NumericalError
 from ..fmi.values import BOOLEAN, INTEGER, REAL, STRING, category
+
+NEWTON_ITERATIONS = 20      # of the damped Newton on an algebraic loop's inputs (Signals.settle)
+NEWTON_TOLERANCE = 1e-12    # its largest residual, relative to 1 + the largest input
+DIFFERENCE = 1e-7           # its Jacobian's difference step, relative to 1 + |input|
 
 
 class SourceTable:
@@ -141,6 +146,8 @@ class Signals:
         self.convert, self.bounds, self.types = [None] * count, [None] * count, [None] * count
         self.tables, self.reads, self.writes = [], {}, {}    # (k, table, column, linear); {sub: {type: (vrs, ks)}}
         self.sources = {}                                    # {k: (sub, FMI type, vr)} of signals an FMU drives
+        self.inputs = {}                                     # {k: (sub, FMI type, vr)} of every signal's input
+        self.looped = set()                                  # signals within an algebraic loop (settle)
         for k, sig in enumerate(scenario.signals):
             where = f"{scenario.source}: signals[{k}]"
             name, var = sig.target.split(".", 1)
@@ -152,6 +159,7 @@ class Signals:
                 self.bounds[k] = sub.fmu.integer_range(fmi_type)
             self.types[k] = fmi_type
             _group(self.writes, sub, fmi_type, sub.fmu.vr(var), k)
+            self.inputs[k] = (sub, fmi_type, sub.fmu.vr(var))
         self.targets = [sig.target for sig in scenario.signals]
         self.signals = list(scenario.signals)
         self.driven = sorted({s.name for s in self.writes})
@@ -191,24 +199,89 @@ class Signals:
     def settle(self, limit):
         """In initialization mode: set every input an FMU output drives from that output (converted),
         the FMUs in dependency order (Gauss-Seidel over the strongly connected groups), sweep after
-        sweep until one changes no value bit for bit; returns the sweeps made. An algebraic loop
-        still moving after `limit` sweeps is a NumericalError naming its connections."""
-        order, last = self._dependency_order(), None
-        for sweep in range(1, limit + 1):
+        sweep until one changes no value bit for bit. An algebraic loop still moving after `limit`
+        sweeps is solved by a damped Newton on its Real inputs, the rest swept again; returns a note
+        then (else None). A loop Newton cannot solve is a NumericalError naming its connections."""
+        order = self._dependency_order()
+        moving = self._sweeps(order, limit)
+        if not moving:
+            return None
+        loop = [k for k in moving if k in self.looped]
+        if not loop or any(category(self.types[k]) != REAL for k in loop):
+            raise NumericalError(self._unsettled(moving or loop, limit, ""))
+        residual = self._newton(loop)
+        if residual is None or self._sweeps(order, limit, fixed=set(loop)):
+            raise NumericalError(self._unsettled(loop, limit, " and a damped Newton on its inputs finds no solution"))
+        return (f"{self.where}: signals: the algebraic loop through {self._names(loop)} does not settle by "
+                f"propagation in initialization mode; solved by a damped Newton on its inputs (residual "
+                f"{residual:.3g})")
+
+    def _sweeps(self, order, limit, fixed=()):
+        """Sweeps over `order` (the signals in `fixed` left as they are) until one changes nothing;
+        the signals the last of `limit` sweeps still changed ([] when settled)."""
+        last, moving = None, []
+        for _ in range(limit):
             held = []
             for sub, fmi_type, vrs, ks in order:
-                values = [self.convert[k](self._read(k)) for k in ks]
-                self._check(zip(ks, values), 0)
-                sub.fmu.set_values(fmi_type, vrs, values)
-                held.append([_bits(v) for v in values])
+                mine = [(vr, k) for vr, k in zip(vrs, ks) if k not in fixed]
+                values = [self.convert[k](self._read(k)) for _, k in mine]
+                self._check(zip([k for _, k in mine], values), 0)
+                if mine:
+                    sub.fmu.set_values(fmi_type, [vr for vr, _ in mine], values)
+                held.append([(k, _bits(v)) for (_, k), v in zip(mine, values)])
             if held == last:
-                return sweep
-            moving, last = [k for (_, _, _, ks), new, old in zip(order, held, last or held) for k, a, b in
-                            zip(ks, new, old) if a != b], held
-        loop = ", ".join(f"{self.refs[k]} -> {self.targets[k]}" for k in moving)
-        raise NumericalError(f"{self.where}: signals: the algebraic loop through {loop} does not settle in "
-                             f"initialization mode ({limit} sweeps of setting inputs from outputs still change "
-                             f"them); break it with a delay, or give start values at its solution")
+                return []
+            moving, last = [k for new, old in zip(held, last or held) for (k, a), (_, b) in zip(new, old)
+                            if a != b], held
+        return moving
+
+    def _newton(self, loop):
+        """Damped Newton on the loop's inputs u for G(u) = u, G the converted outputs read after
+        setting u (Jacobian by differences); the FMUs are left at the solution. Its residual, or None."""
+        u = np.array([self._input(k) for k in loop], dtype=float)
+        r = self._loop_map(loop, u) - u
+        for _ in range(NEWTON_ITERATIONS):
+            worst = float(np.max(np.abs(r)))
+            if worst <= NEWTON_TOLERANCE * (1.0 + float(np.max(np.abs(u)))):
+                return worst
+            jacobian = np.empty((len(loop), len(loop)))
+            for j in range(len(loop)):
+                step = u.copy()
+                step[j] += DIFFERENCE * (1.0 + abs(u[j]))
+                jacobian[:, j] = (self._loop_map(loop, step) - step - r) / (step[j] - u[j])
+            try:
+                du = np.linalg.solve(jacobian, -r)
+            except np.linalg.LinAlgError:
+                return None
+            for halving in range(11):
+                trial = u + du / 2.0 ** halving
+                if np.all(np.isfinite(trial)):
+                    r_trial = self._loop_map(loop, trial) - trial
+                    if float(np.max(np.abs(r_trial))) < worst:
+                        break
+            else:
+                return None
+            u, r = trial, r_trial
+        return None
+
+    def _loop_map(self, loop, u):
+        """Set the loop's inputs to u, then read its sources: G(u), converted."""
+        for k, x in zip(loop, u):
+            sub, fmi_type, vr = self.inputs[k]
+            sub.fmu.set_values(fmi_type, [vr], [float(x)])
+        return np.array([self.convert[k](self._read(k)) for k in loop], dtype=float)
+
+    def _input(self, k):
+        sub, fmi_type, vr = self.inputs[k]
+        return sub.fmu.get_values(fmi_type, [vr])[0]
+
+    def _names(self, ks):
+        return ", ".join(f"{self.refs[k]} -> {self.targets[k]}" for k in ks)
+
+    def _unsettled(self, ks, limit, more):
+        return (f"{self.where}: signals: the algebraic loop through {self._names(ks)} does not settle in "
+                f"initialization mode ({limit} sweeps of setting inputs from outputs still change them){more}; "
+                f"break it with a delay, or give start values at its solution")
 
     def _read(self, k):
         """The raw value of FMU-driven signal k, read now."""
@@ -225,6 +298,8 @@ class Signals:
         rows, cols = (list(x) for x in zip(*edges)) if edges else ([], [])
         graph = coo_matrix((np.ones(len(edges)), (rows, cols)), shape=(len(subs), len(subs)))
         _, group = connected_components(graph, directed=True, connection="strong")
+        self.looped = {k for sub, groups in self.writes.items() for _, ks in groups.values() for k in ks
+                       if k in self.sources and group[index[id(self.sources[k][0])]] == group[index[id(sub)]]}
         before = graphlib.TopologicalSorter({int(g): set() for g in group})
         for a, b in edges:
             if group[a] != group[b]:
