@@ -148,6 +148,7 @@ class Signals:
         self.sources = {}                                    # {k: (sub, FMI type, vr)} of signals an FMU drives
         self.inputs = {}                                     # {k: (sub, FMI type, vr)} of every signal's input
         self.looped = set()                                  # signals within an algebraic loop (settle)
+        self.held = {}                                       # {k: the value settle set last}
         for k, sig in enumerate(scenario.signals):
             where = f"{scenario.source}: signals[{k}]"
             name, var = sig.target.split(".", 1)
@@ -228,6 +229,7 @@ class Signals:
                 self._check(zip([k for _, k in mine], values), 0)
                 if mine:
                     sub.fmu.set_values(fmi_type, [vr for vr, _ in mine], values)
+                self.held.update((k, v) for (_, k), v in zip(mine, values))
                 held.append([(k, _bits(v)) for (_, k), v in zip(mine, values)])
             if held == last:
                 return []
@@ -238,7 +240,7 @@ class Signals:
     def _newton(self, loop):
         """Damped Newton on the loop's inputs u for G(u) = u, G the converted outputs read after
         setting u (Jacobian by differences); the FMUs are left at the solution. Its residual, or None."""
-        u = np.array([self._input(k) for k in loop], dtype=float)
+        u = np.array([self.held[k] for k in loop], dtype=float)
         r = self._loop_map(loop, u) - u
         for _ in range(NEWTON_ITERATIONS):
             worst = float(np.max(np.abs(r)))
@@ -270,10 +272,6 @@ class Signals:
             sub, fmi_type, vr = self.inputs[k]
             sub.fmu.set_values(fmi_type, [vr], [float(x)])
         return np.array([self.convert[k](self._read(k)) for k in loop], dtype=float)
-
-    def _input(self, k):
-        sub, fmi_type, vr = self.inputs[k]
-        return sub.fmu.get_values(fmi_type, [vr])[0]
 
     def _names(self, ks):
         return ", ".join(f"{self.refs[k]} -> {self.targets[k]}" for k in ks)

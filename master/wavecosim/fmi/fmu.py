@@ -254,7 +254,10 @@ def set_pointer_hook(hook):
 
 def _settable_in_initialization(v):
     """Whether a variable may be set in initialization mode (fmpy's rule: an input, a tunable
-    non-parameter, or a non-constant variable with initial = exact)."""
+    non-parameter, or a non-constant variable with initial = exact; an FMI 3 structural parameter
+    only in configuration mode)."""
+    if v.causality == "structuralParameter":
+        return False
     return v.causality == "input" or (v.causality != "parameter" and v.variability == "tunable") \
         or (v.variability != "constant" and v.initial == "exact")
 
@@ -298,7 +301,7 @@ class Fmu:
         self.can_save_state = bool(cs.canGetAndSetFMUstate)
         self.variables = like.variables if like is not None else {v.name: v for v in self.description.modelVariables}
         self.messages = MessageLog(name)        # bounded: the last few, and the run's log file
-        self.phase = "instantiated"        # of the FMI state machine: instantiated, step, error, fatal
+        self.phase = "instantiated"        # of the FMI state machine: instantiated, initialization, step, error, fatal
         try:
             self._fmi = self._bind(binding, cs.modelIdentifier, like)
         except AttributeError as exc:                 # the library lacks an FMI function fmpy loads
