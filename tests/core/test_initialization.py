@@ -12,11 +12,14 @@ from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 from fmpy.validation import validate_fmu
 
+from paths import THIRD_PARTY
+
 import wavecosim as wc
 from wavecosim.errors import NumericalError
 from wavecosim.run.runner import run
 from wavecosim.scenario.config import parse_scenario
 
+OMS = THIRD_PARTY / "omsimulator"
 CHAIN = {
     "name": "chain", "dt": 0.1, "T": 0.3,
     "subsystems": {"A": {"fmu": "Gain", "parameters": {"k": 2.0, "c": 1.0}, "start": {"u": 1.5}},
@@ -128,3 +131,36 @@ def test_settled_run_keeps_going(built_fmus):
     result = run(parse_scenario(CHAIN, "chain.yaml"))
     assert np.all(result.trajectory["C.y"] == result.trajectory["C.y"][0])
     assert result.trajectory["A.x"][-1] == pytest.approx(0.3 * 4.0)
+
+
+def assert_consistent_start(scenario, result):
+    """Every Real signal between two recorded columns holds at the first row: to = factor from + offset."""
+    traj, checked = result.trajectory, 0
+    for sig in scenario.signals:
+        if sig.source in traj.dtype.names and sig.target in traj.dtype.names and traj[sig.target].dtype.kind == "f":
+            assert traj[sig.target][0] == sig.factor * traj[sig.source][0] + sig.offset, sig
+            checked += 1
+    assert checked
+
+
+def test_the_chain_and_linear_transformation3_start_consistent(built_fmus):
+    assert_consistent_start(parse_scenario(CHAIN, "chain.yaml"), run(parse_scenario(CHAIN, "chain.yaml")))
+    folder = OMS / "LinearTransformation3"
+    if not folder.exists():
+        pytest.skip("the third-party systems (../shared/third_party) are absent")
+    scenario = wc.load(folder / "SystemStructure.ssd", warn=lambda message: None)
+    result = wc.simulate(scenario, warn=lambda message: None)
+    assert result.trajectory["Gain1.y"][0] == result.trajectory["Add1.u1"][0] == 182.0    # OMSimulator's k u
+    assert_consistent_start(scenario, result)
+
+
+@pytest.mark.slow
+def test_embrace_starts_consistent_through_its_adaption_unit():
+    """ECS_HW.LHexTout -> AdaptionUnit (feed-through) -> ECS_SW.Input.TLiquid: 273 K from the first row."""
+    path = OMS / "embrace" / "SystemStructure.ssd"
+    if not path.exists():
+        pytest.skip("the third-party systems (../shared/third_party) are absent")
+    scenario = wc.load(path, T=0.005, warn=lambda message: None)
+    result = wc.simulate(scenario, warn=lambda message: None)
+    assert result.trajectory["ECS_SW.Input.TLiquid"][0] == result.trajectory["AdaptionUnit.sWsignals.TLiquid"][0]
+    assert_consistent_start(scenario, result)
