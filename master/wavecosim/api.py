@@ -71,6 +71,8 @@ def with_overrides(scenario: Scenario, *, master=None, K=None, eps=None, gamma=N
     if changes:
         scenario = scenario.with_master("master" if where == "options" else "--master", **changes)
     top = {k: v for k, v in (("dt", dt), ("T", T), ("start_time", start_time)) if v is not None}
+    if top:
+        top["times_from"] = {**scenario.times_from, **{k: "the command line" for k in top}}
     if outputs:
         top["output_patterns"] = output_patterns(list(outputs), lambda msg: _fail_outputs(where, msg))
     if gamma is not None:

@@ -236,7 +236,7 @@ def _supervised(work, summary, step_timeout):
 def _report_run(scenario, result, out):
     s = result.summary
     budget = f" K={s['K']}" if MASTERS[s["master"]].budgets != (None,) else ""
-    click.echo(f"{scenario.name}: {s['master']}{budget} dt={scenario.dt} T={scenario.T} -> {out}")
+    click.echo(f"{scenario.name}: {s['master']}{budget} {scenario.times_line()} -> {out}")
     if s.get("gamma_mode", "fixed") != "fixed":
         each = lambda d: ", ".join(f"{k} {v:.6g}" for k, v in d.items())      # noqa: E731
         click.echo(f"gamma: {s['gamma_mode']} -> {each(s['gamma_initial'])} (FNE bounds {each(s['gamma_fne_bounds'])}; "

@@ -23,6 +23,11 @@ SUMMARY = {
     "eps": ("the inner tolerance, or null", "sqrt(J)"),
     "dt": ("the macro-step", "s"),
     "T": ("the stop time", "s"),
+    "start_time": ("the start time t₀", "s"),
+    "times_from": ("where `dt`, `start_time` and `T` came from, each in words: the command line, the scenario "
+                   "file, the SSD's DefaultExperiment, its OSP annotation (`osp:FixedStepAlgorithm`), OSP-IS "
+                   "(`OspSystemStructure.xml`), OMSimulator's fixed-step master, or an FMU's DefaultExperiment",
+                   "text"),
     "steps": ("macro-steps made", "1"),
     "status": ("`finished`, `failed` or `interrupted`", "text"),
     "message": ("why the run failed or ended early (an FMU that asked to end it); empty otherwise", "text"),

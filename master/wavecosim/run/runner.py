@@ -576,7 +576,8 @@ class LiveRun:
         settings, sc = self.scenario.master, self.scenario
         n, iters = self.steps_done, self._iteration_totals()
         out = {"label": self.label, "scenario": sc.name, "master": settings.algorithm, "K": settings.K,
-               "eps": settings.eps, "dt": sc.dt, "T": sc.T, "steps": n, "status": status, "message": message,
+               "eps": settings.eps, "dt": sc.dt, "T": sc.T, "start_time": sc.start_time, "times_from": sc.times_from,
+               "steps": n, "status": status, "message": message,
                "iterations_mean": iters[0] / n if n else 0.0, "iterations_max": iters[1],
                "wall_time_s": self.master_time, "total_time_s": time.perf_counter() - self.started,
                "loop_time_s": self.loop_time,
