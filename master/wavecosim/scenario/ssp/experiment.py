@@ -9,10 +9,8 @@ the FMUs' DefaultExperiment, and last the interval fmpy's simulate_fmu takes for
 is asked for in one line."""
 from types import SimpleNamespace
 
-from fmpy.util import auto_interval
-
 from ...errors import ConfigError
-from ..experiment import from_fmus
+from ..experiment import default_step, from_fmus
 from . import oms
 from .osp import base_step_size
 from .overlay import experiment
@@ -51,8 +49,5 @@ def step(flat, raw):
     if "T" not in raw:
         raise ConfigError(f"{flat.path}: T: neither the SSD nor its FMUs give a stop time or a step size; "
                           f"give --T and --dt (or dt and T in the overlay, --ports FILE)")
-    duration = raw["T"] - (raw.get(START_KEY) or 0.0)
-    value = float(auto_interval(duration))
-    return value, "fmpy's interval for the run's length", (
-        f"{flat.path.name}: dt: neither the SSD, OSP nor the FMUs give a step size; dt = {value:g} as fmpy's "
-        f"simulate_fmu takes it for {duration:g} s (give --dt to choose)")
+    value, words = default_step(raw.get(START_KEY) or 0.0, raw["T"])
+    return value, "fmpy's default step", f"{flat.path.name}: dt = {value:g} ({words})"
