@@ -111,13 +111,14 @@ def fmpy_times(path, settings):
     return out, notes
 
 
-def load_fmu(path, input_csv=None, settings=None, warn=None):
+def load_fmu(path, input_csv=None, settings=None, warn=None, changes=()):
     """The Scenario of one FMU (see fmu_raw), with `settings` (dt, T, start_time, ...) over the
-    FMU's DefaultExperiment."""
+    FMU's DefaultExperiment and `changes` ((key path, value), `--set`) set in its mapping."""
     from .config import parse_scenario
+    from .overrides import apply_overrides
     later = []                           # the notes on the times come first
     raw = fmu_raw(path, input_csv, later.append)
     times, notes = fmpy_times(path, settings)
     for note in [f"{Path(path).name}: {note}" for note in notes] + later:
         (warn or (lambda text: None))(note)
-    return parse_scenario({**raw, **times}, str(Path(path)), Path(path).resolve().parent, settings)
+    return parse_scenario(apply_overrides({**raw, **times}, changes), str(Path(path)), Path(path).resolve().parent, settings)

@@ -22,6 +22,7 @@ from ..errors import ConfigError, Interrupted, RunFailed, Terminated, WavecosimE
 from ..run.outputs import remove_run_files
 from ..run.recorder import clean_json, write_json
 from ..scenario.overrides import apply_overrides
+from ..scenario.ssp import is_ssp, load_ssp
 
 ROW_FILE = "row.json"
 
@@ -39,6 +40,8 @@ class Task:
     certificates: bool = True
     output_interval: int = 1
     step_timeout: float = None                 # seconds a call into an FMU may take (None: the scenario's)
+    ports: str = None                          # an SSP system's overlay (--ports) and parameter sets
+    parameter_set: str = None
     attempt: int = 1                           # 2 for a failed run tried again by --resume
 
 
@@ -48,8 +51,12 @@ def _raw(config, mtime):
 
 
 def task_scenario(task):
-    """The validated Scenario of a task: the file's mapping with the overrides applied."""
+    """The validated Scenario of a task: the file's mapping (an SSP system's as imported, the times
+    among the overrides given to the import) with the overrides applied."""
     path = Path(task.config)
+    if is_ssp(path):
+        times = {k: v for k, v in task.overrides if k in ("dt", "T", "start_time")}
+        return load_ssp(path, task.ports, task.parameter_set, times, task.overrides)[0]
     raw = apply_overrides(_raw(str(path), path.stat().st_mtime_ns), task.overrides)
     return parse_scenario(raw, str(path), path.parent)
 

@@ -21,6 +21,12 @@ def is_ssp(path) -> bool:
     return path.suffix.lower() in (".ssd", ".ssp") or (path.is_dir() and (path / SSD_NAME).exists())
 
 
+def ssp_only(path, ports, parameter_set):
+    """A ConfigError when `ports` or `parameter_set` is given for an input that is not SSP."""
+    if (ports is not None or parameter_set is not None) and not (path is not None and is_ssp(path)):
+        raise ConfigError("ports and parameter_set: only for an SSP input (.ssd, .ssp or a folder)")
+
+
 def locate_ssd(path) -> Path:
     """The .ssd file to read for `path` (a .ssd, a folder or a .ssp archive)."""
     path = Path(path)

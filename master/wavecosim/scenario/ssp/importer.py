@@ -186,8 +186,10 @@ def _settings(flat, overlay, cli, out):
     return raw
 
 
-def load_ssp(path, ports=None, parameter_set=None, settings=None):
-    """(Scenario, Imported): the SSP system checked like a scenario file."""
+def load_ssp(path, ports=None, parameter_set=None, settings=None, changes=()):
+    """(Scenario, Imported): the SSP system checked like a scenario file, with `changes` ((key path,
+    value), `--set`) set in its mapping first."""
     from ..config import parse_scenario
+    from ..overrides import apply_overrides
     imported = import_ssp(path, ports, parameter_set, settings)
-    return parse_scenario(imported.raw, str(imported.ssd), imported.ssd.parent), imported
+    return parse_scenario(apply_overrides(imported.raw, changes), str(imported.ssd), imported.ssd.parent), imported
