@@ -9,6 +9,7 @@ from pathlib import Path
 
 from ...errors import ConfigError
 from ...fmi.unpack import prune, touch, unpack
+from ...kernel.build import cache_dir
 
 SSD_NAME = "SystemStructure.ssd"
 CACHE_KEEP = 16                  # unpacked .ssp archives the cache keeps (the ones used last)
@@ -43,7 +44,8 @@ def locate_ssd(path) -> Path:
 
 
 def cache_root() -> Path:
-    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "wavecosim" / "ssp"
+    """Where .ssp archives are unpacked: the package's cache (kernel/build.py: cache_dir)."""
+    return cache_dir() / "ssp"
 
 
 def extract_ssp(path) -> Path:
