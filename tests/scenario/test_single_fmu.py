@@ -118,4 +118,20 @@ def test_an_fmu_without_outputs_records_what_fmpy_records(tmp_path):
     assert ours.dtype.names == ("time", *(f"BouncingBall1D.{n}" for n in theirs.dtype.names[1:])) == \
         ("time", "BouncingBall1D.mass_s", "BouncingBall1D.mass_v")
     for name in theirs.dtype.names:
-        assert np.allclose(ours[name if name == "time" else f"BouncingBall1D.{name}"], theirs[name], rtol=1e-9, atol=1e-12)
+        column = name if name == "time" else f"BouncingBall1D.{name}"
+        assert np.allclose(ours[column], theirs[name], rtol=1e-9, atol=1e-12)
+
+
+def test_an_fmu_without_a_default_experiment_runs_a_second_as_fmpy_does(built_fmus, tmp_path):
+    bare = tmp_path / "Bare.fmu"
+    with zipfile.ZipFile(built_fmus["SignalSink"]) as src, zipfile.ZipFile(bare, "w") as dst:
+        for item in src.infolist():
+            data = src.read(item)
+            if item.filename == "modelDescription.xml":
+                data = data.replace(b'<DefaultExperiment startTime="0" stopTime="2"/>', b"")
+            dst.writestr(item, data)
+    code, out, err = cli("run", bare, "--quiet", "--out", tmp_path / "o")
+    assert code == 0 and "dt=0.002 T=1.0" in out, err
+    assert err.splitlines()[:2] == [
+        "warning: Bare.fmu: T = 1 (fmpy's default: the start time + 1 s; --T chooses another)",
+        "warning: Bare.fmu: dt = 0.002 (fmpy's default for a run of 1 s: 500 steps; --dt chooses another)"], err

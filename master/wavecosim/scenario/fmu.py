@@ -116,9 +116,11 @@ def load_fmu(path, input_csv=None, settings=None, warn=None, changes=()):
     FMU's DefaultExperiment and `changes` ((key path, value), `--set`) set in its mapping."""
     from .config import parse_scenario
     from .overrides import apply_overrides
-    later = []                           # the notes on the times come first
+    later, changes = [], list(changes)           # the notes on the times come first
     raw = fmu_raw(path, input_csv, later.append)
-    times, notes = fmpy_times(path, settings)
+    given = {**(settings or {}), **{k: v for k, v in changes if k in ("dt", "T", "start_time")}}
+    times, notes = fmpy_times(path, given)
     for note in [f"{Path(path).name}: {note}" for note in notes] + later:
         (warn or (lambda text: None))(note)
-    return parse_scenario(apply_overrides({**raw, **times}, changes), str(Path(path)), Path(path).resolve().parent, settings)
+    raw = apply_overrides({**raw, **times}, changes)
+    return parse_scenario(raw, str(Path(path)), Path(path).resolve().parent, settings)
