@@ -51,7 +51,7 @@ def cache_dir() -> Path:
 @functools.lru_cache(maxsize=16)
 def _writable_cache(chosen, xdg, home):
     """The cache for these values of $WAVECOSIM_CACHE, $XDG_CACHE_HOME and $HOME (see cache_dir)."""
-    wanted = "?"
+    wanted = "~/.cache/wavecosim"
     try:
         wanted = Path(chosen) if chosen else Path(xdg or Path.home() / ".cache") / "wavecosim"
         wanted.mkdir(parents=True, exist_ok=True)
