@@ -18,6 +18,7 @@ from ..core.quirks import KEYS as QUIRK_KEYS
 from ..masters import ALGORITHMS
 from ..masters.dr_options import ANDERSON_MAX, OPTION_MODES, STARTS
 from .experiment import from_fmus
+from .overrides import apply_overrides
 
 DEFAULT_CONFIG = DEFAULT
 GROWTH_BOUND = 1e12
@@ -560,11 +561,12 @@ def _mapping_without_duplicates(loader, node):
 _SafeLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _mapping_without_duplicates)
 
 
-def load_scenario(path=None, settings=None) -> Scenario:
+def load_scenario(path=None, settings=None, changes=()) -> Scenario:
     """Read and validate a scenario file (the built-in default when path is None); `settings` (the
-    command line's dt, T, start_time) stand for the values the file leaves out."""
+    command line's dt, T, start_time) stand for the values the file leaves out; `changes` are
+    (key path, value) set in the file's mapping first (`--set`)."""
     path = Path(path) if path else DEFAULT_CONFIG
-    return parse_scenario(load_raw(path), str(path), path.parent, settings)
+    return parse_scenario(apply_overrides(load_raw(path), changes), str(path), path.parent, settings)
 
 
 def load_raw(path) -> dict:

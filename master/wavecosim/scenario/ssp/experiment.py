@@ -10,10 +10,8 @@ FMU without one (500 to 1000 steps over the run, a note says so). Without a stop
 anywhere, T (and so dt) is asked for in one line. Each value's origin is kept (the run reports it)."""
 from types import SimpleNamespace
 
-from fmpy.util import auto_interval
-
 from ...errors import ConfigError
-from ..experiment import from_fmus
+from ..experiment import default_step, from_fmus
 from . import oms
 from .osp import annotated_times, system_times
 from .overlay import experiment
@@ -59,8 +57,5 @@ def step(flat, raw):
     if "T" not in raw:
         raise ConfigError(f"{flat.path}: T: neither the SSD nor its FMUs give a stop time or a step size; "
                           f"give --T and --dt (or dt and T in the overlay, --ports FILE)")
-    duration = raw["T"] - (raw.get(START_KEY) or 0.0)
-    value = float(auto_interval(duration))
-    return value, "fmpy's interval for the run's length", (
-        f"{flat.path.name}: dt: neither the SSD, OSP nor the FMUs give a step size; dt = {value:g} as fmpy's "
-        f"simulate_fmu takes it for {duration:g} s (give --dt to choose)")
+    value, words = default_step(raw.get(START_KEY) or 0.0, raw["T"])
+    return value, "fmpy's default step", f"{flat.path.name}: dt = {value:g} ({words})"

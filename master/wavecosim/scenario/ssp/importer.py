@@ -186,10 +186,14 @@ def _settings(flat, overlay, cli, out):
     return raw
 
 
-def load_ssp(path, ports=None, parameter_set=None, settings=None):
-    """(Scenario, Imported): the SSP system checked like a scenario file, with where its times came from."""
+def load_ssp(path, ports=None, parameter_set=None, settings=None, changes=()):
+    """(Scenario, Imported): the SSP system checked like a scenario file, with `changes` ((key path,
+    value), `--set`) set in its mapping first, and where its times came from."""
     from ..config import parse_scenario
+    from ..overrides import apply_overrides
     imported = import_ssp(path, ports, parameter_set, settings)
-    scenario = parse_scenario(imported.raw, str(imported.ssd), imported.ssd.parent)
-    times_from = {**scenario.times_from, **{k: v for k, v in imported.origins.items() if k in scenario.times_from}}
+    scenario = parse_scenario(apply_overrides(imported.raw, changes), str(imported.ssd), imported.ssd.parent)
+    changed = {key.split(".")[-1] for key, _ in changes}
+    times_from = {**scenario.times_from, **{k: v for k, v in imported.origins.items()
+                                            if k in scenario.times_from and k not in changed}}
     return replace(scenario, times_from=times_from), imported
