@@ -16,7 +16,8 @@
  *
  * Two behaviours of real FMUs can be switched on by integer parameters, when config.h names them:
  *   QUIRK_FREEZE (an integer VRI_): fmi2DoStep with noSetFMUStatePriorToCurrentPoint = false
- *     leaves the state where it is after the first step (time advances, status OK);
+ *     after the first step (time advances, status OK) 1: leaves the state where it is; 2: puts the
+ *     states and outputs back where they were at the end of initialization (its start point);
  *   QUIRK_SHARED (an integer VRI_): 1: instances keep their variables in one block shared by every
  *     instance in this copy of the binary (an FMU that is not reentrant; each keeps its own clock);
  *     2: one block for the whole process, every copy of the binary (process-wide data, as a runtime
@@ -59,6 +60,7 @@ typedef struct Instance {
     double time;                         /* where the instance is (part of the state; its own, always) */
     double restore_floor;                /* no state before this time may be set again (the flag's promise) */
     ModelData own, *d;                   /* d: &own, or the process-wide block (QUIRK_SHARED) */
+    double start[N_REALS];               /* the variables at the end of initialization (QUIRK_FREEZE 2) */
     SavedState *live[MAX_LIVE];
     int n_live;
     struct Instance *next;
@@ -300,6 +302,7 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component comp) {
         return fail(c, "fmi2ExitInitializationMode", "%s", msg);
     }
     write_energy(c->d);
+    memcpy(c->start, c->d->r, sizeof c->start);
     if (quirk(c, QUIRK_SHARED)) {            /* from now on every such instance shares one block */
         ModelData *block = c->d->i[QUIRK_SHARED] == 2 ? process_block() : &shared_block;
         *block = *c->d;
@@ -471,7 +474,9 @@ fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real t, fmi2Real h, fmi2Boolean no
         die("fmi2DoStep", c->name, "currentCommunicationPoint %.17g is not where the instance is (%.17g)", t, c->time);
     if (no_prior && t > c->restore_floor) c->restore_floor = t;
     if (quirk(c, QUIRK_FREEZE) && !no_prior && c->steps > 0) {
-        c->time = t + h;                     /* the quirk: the state stays, status OK */
+        for (int k = 0; d->i[QUIRK_FREEZE] == 2 && k < N_REALS; k++)     /* back to the start point */
+            if (real_kind[k] == STATE || real_kind[k] == OUTPUT) d->r[k] = c->start[k];
+        c->time = t + h;                     /* the quirk: the state stays (or returns), status OK */
         c->steps++;
         return fmi2OK;
     }

@@ -5,7 +5,9 @@
  *
  * Three parameters switch on behaviours of real FMUs (all off by default):
  *   freeze_without_flag  1: doStep with noSetFMUStatePriorToCurrentPoint = false freezes the state
- *                        after the first step (outputs constant, status OK);
+ *                        after the first step (outputs constant, status OK); 2: every such doStep
+ *                        after the first returns the state to its start point (outputs constant
+ *                        from the second step on, status OK), as a real CVODE-based FMU does;
  *   shared_state         1: every instance in one copy of the binary keeps its variables in one
  *                        block (an FMU that is not reentrant); 2: one block for the whole process,
  *                        whichever copy of the binary an instance is in;
@@ -30,7 +32,7 @@
     X(H, OUTPUT, 0.0, "J", "kinetic energy m v^2 / 2")
 
 #define INTEGER_VARIABLES(X) \
-    X(freeze_without_flag, 0, "1: doStep with noSetFMUStatePriorToCurrentPoint = false freezes after the first step") \
+    X(freeze_without_flag, 0, "doStep with noSetFMUStatePriorToCurrentPoint = false after the first step: 1 stays, 2 returns to the start") \
     X(shared_state, 0, "1: one block of variables for every instance of this binary, 2: for the whole process")
 
 #define QUIRK_FREEZE VRI_freeze_without_flag

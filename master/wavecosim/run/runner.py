@@ -41,6 +41,7 @@ from .observers.energy_guard import EnergyGuard
 from .observers.energy_ledger import EnergyLedger
 from .observers.errors import ErrorTracker, stored_reference, stored_rows
 from .observers.fne_watch import FneWatch
+from .observers.freeze_watch import FreezeWatch
 from .observers.gamma import GammaLog, TunedGammaLog
 from .observers.passivity import Passivity
 from .outputs import cannot
@@ -61,7 +62,7 @@ STEP_DESCRIBED = {
 }
 STEP_COLUMNS = tuple(STEP_DESCRIBED)
 OBSERVERS = (EnergyLedger, EnergyGuard, GammaLog, TunedGammaLog, FneWatch, CertificateSampler, CertificatePace,
-             Passivity, ErrorTracker)      # every observer, in the order they act (and their columns come)
+             Passivity, FreezeWatch, ErrorTracker)      # every observer, in the order they act (and their columns come)
 BLOCK_STEPS = BLOCK                    # macro-steps per call of the master, at most a table block
 HAND_OVER_S = 1.0                      # rows booked are handed to the writer at least this often
 MAX_STEPS = 10 ** 8                    # more macro-steps than this only when asked (--force, max_steps=None)
@@ -241,6 +242,7 @@ def make_observers(scenario, scene, master, tuner, certificates, warn):
     if any(isinstance(o, (FneWatch, CertificateSampler)) for o in obs):
         obs.append(CertificatePace(pace))
     obs.append(Passivity(scene, unavailable))
+    obs.append(FreezeWatch(scene, warn))
     return obs
 
 
@@ -582,7 +584,9 @@ class LiveRun:
                "loop_time_s": self.loop_time,
                "real_time_factor": (n * sc.dt) / self.master_time if self.master_time > 0 else float("nan"),
                "fmu_calls": self.fmu_calls(), "output_interval": self.every,
-               "energy_guard": self.guard_mode, "block_steps": self.block_steps}
+               "energy_guard": self.guard_mode, "block_steps": self.block_steps,
+               "quirks": {name: {"no_set_fmu_state_prior": d.no_set_fmu_state_prior, "chosen_by": d.chosen_by}
+                          for name, d in self.scene.decisions.items()}, "notes": list(self.scene.notes)}
         for o in self.observers:
             out.update(o.summary())
         if self.master is not None:
@@ -599,6 +603,7 @@ class LiveRun:
         if self.write_error is not None and status == "finished":
             status, message = self.write_error.status, str(self.write_error)
         self.loop_time += time.perf_counter() - started
+        status, message = self._verdict(status, message)
         summary = self.summary(status, message)
         if release:
             self.close()
@@ -611,6 +616,13 @@ class LiveRun:
             except OutputError as exc:
                 self.write_error = self.write_error or exc
         return result
+
+    def _verdict(self, status, message):
+        """A finished run that an observer found suspect (a frozen FMU) is `suspect`, with why."""
+        why = [v for v in (o.verdict() for o in self.observers) if v]
+        if status != "finished" or not why:
+            return status, message
+        return "suspect", "; ".join(why + ([message] if message else []))
 
     def units(self):
         """{"trajectory": {column: unit}, "steps": {column: unit}} of the recorded columns: the outputs'
