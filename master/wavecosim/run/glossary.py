@@ -24,7 +24,8 @@ SUMMARY = {
     "dt": ("the macro-step", "s"),
     "T": ("the stop time", "s"),
     "steps": ("macro-steps made", "1"),
-    "status": ("`finished`, `failed` or `interrupted`", "text"),
+    "status": ("`finished`, `failed`, `interrupted`, or `suspect`: the run went to its end but an observer "
+               "doubts it (the freeze watch found an FMU that does not advance; `message` says which)", "text"),
     "message": ("why the run failed or ended early (an FMU that asked to end it); empty otherwise", "text"),
     "iterations_mean": ("inner iterations per macro-step, on average", "1"),
     "iterations_max": ("the most inner iterations in one macro-step", "1"),
@@ -39,6 +40,13 @@ SUMMARY = {
     "energy_guard": ("the energy guard in force: `ledger`, `monolithic`, `off`, or `n/a` for a master that does "
                      "not roll back", "text"),
     "block_steps": ("macro-steps made in blocks of many steps per call of the C kernel", "1"),
+    "quirks": ("per subsystem, the doStep flag it ran with, `no_set_fmu_state_prior`, and `chosen_by` (probe, "
+               "quirks key, no rollback, default); what the probes found is in metadata.json", "–"),
+    "notes": ("the set-up's warnings (quirks found, port signs probed), each also printed once on stderr", "text"),
+    # the freeze watch (observers/freeze_watch.py)
+    "freeze_watch": ("`steps`: how many macro-steps with changing inputs and the same outputs make a subsystem "
+                     "suspect; `suspect`: per such subsystem, `from_step`, `from_t` and `steps` of its longest "
+                     "frozen stretch (docs/troubleshooting.md)", "1; s"),
     # the energy guard (observers/energy_ledger.py, energy_guard.py)
     "energy_guard_steps": ("macro-steps the energy guard redid", "1"),
     "energy_guard_extra_doSteps": ("doStep calls the redos cost", "1"),
