@@ -11,7 +11,9 @@
  *   shared_state         1: every instance in one copy of the binary keeps its variables in one
  *                        block (an FMU that is not reentrant); 2: one block for the whole process,
  *                        whichever copy of the binary an instance is in;
- *   restore_error        fmi2SetFMUstate leaves x and v off by this relative error. */
+ *   restore_error        fmi2SetFMUstate leaves x and v off by this relative error.
+ * Its integer outputs nDoStep, nGetFMUstate and nSetFMUstate are the calls the instance took, counted
+ * by the FMU itself (the layer's COUNT_CALLS), to check a master's own count against. */
 #define MODEL_IDENTIFIER StrictMass
 #define MODEL_GUID "{37ea3a43-9766-407f-813e-02e867337245}"
 #define MODEL_DESCRIPTION "Mass with viscous damping behind a strict FMI layer; input: force on the mass, output: its velocity (power in)"
@@ -35,6 +37,12 @@
     X(freeze_without_flag, 0, "doStep with noSetFMUStatePriorToCurrentPoint = false after the first step: 1 stays, 2 returns to the start") \
     X(shared_state, 0, "1: one block of variables for every instance of this binary, 2: for the whole process")
 
+#define INTEGER_IO(X) \
+    X(nDoStep, OUTPUT, 0, "fmi2DoStep calls this instance took, its own count (no restore undoes it)") \
+    X(nGetFMUstate, OUTPUT, 0, "fmi2GetFMUstate calls this instance took, its own count") \
+    X(nSetFMUstate, OUTPUT, 0, "fmi2SetFMUstate calls this instance took, its own count")
+
 #define QUIRK_FREEZE VRI_freeze_without_flag
 #define QUIRK_SHARED VRI_shared_state
 #define QUIRK_RESTORE VR_restore_error
+#define COUNT_CALLS VRI_nDoStep

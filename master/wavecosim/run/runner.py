@@ -51,6 +51,7 @@ from ..core.scene import build_scene
 from ..fmi.messages import LogFile
 
 FORMATS = ("csv", "mat")
+CALLS = ("doStep", "save", "restore")       # the FMU calls a run counts (fmu_calls)
 # The columns of steps.csv every run has, then the observers' (their `described`); docs/outputs.md
 # is generated from these.
 STEP_DESCRIBED = {
@@ -309,7 +310,7 @@ class LiveRun:
     def start(self):
         """Read the FMUs at t = 0, start the observers, record the first trajectory row."""
         self._tables()
-        self.calls_at_start, self.excluded = self._totals(), {k: 0 for k in ("doStep", "save", "restore")}
+        self.calls_at_start, self.excluded = self._totals(), {k: 0 for k in CALLS}
         first = self.sampler.read()
         for o in self.observers:
             o.start(first)
@@ -325,7 +326,7 @@ class LiveRun:
         self.after = [(o, row) for o, row in zip(self.observers, self.slices) if o is not self.guard]
         self.recent = {0: first.outputs}
         self._plan_blocks()
-        self.calls_at_start = self._totals()
+        self.calls_at_start, self.by_subsystem_at_start = self._totals(), self.scene.fmu_calls()
         self.loop_started = time.perf_counter()
 
     def step(self, n):
@@ -521,7 +522,14 @@ class LiveRun:
         return self.led
 
     def _totals(self):
-        return {k: sum(s.calls[k] for s in self.scene.subsystems) for k in ("doStep", "save", "restore")}
+        everyone = self.scene.subsystems + self.scene.signal_only
+        return {k: sum(s.calls[k] for s in everyone) for k in CALLS}
+
+    def _calls_by_subsystem(self):
+        """Each FMU's calls since the first step (observers' own included)."""
+        start = getattr(self, "by_subsystem_at_start", {})
+        return {name: {k: c[k] - start.get(name, {}).get(k, 0) for k in CALLS}
+                for name, c in self.scene.fmu_calls().items()}
 
     def hand_over(self):
         """The rows booked so far to the writer threads now (the loop does every second)."""
@@ -583,7 +591,8 @@ class LiveRun:
                "wall_time_s": self.master_time, "total_time_s": time.perf_counter() - self.started,
                "loop_time_s": self.loop_time,
                "real_time_factor": (n * sc.dt) / self.master_time if self.master_time > 0 else float("nan"),
-               "fmu_calls": self.fmu_calls(), "output_interval": self.every,
+               "fmu_calls": self.fmu_calls(), "fmu_calls_by_subsystem": self._calls_by_subsystem(),
+               "output_interval": self.every,
                "energy_guard": self.guard_mode, "block_steps": self.block_steps,
                "quirks": {name: {"no_set_fmu_state_prior": d.no_set_fmu_state_prior, "chosen_by": d.chosen_by}
                           for name, d in self.scene.decisions.items()}, "notes": list(self.scene.notes)}
