@@ -34,8 +34,10 @@ SUMMARY = {
     "total_time_s": ("from the FMUs opened to the summary: steps, observers, rows written", "s"),
     "loop_time_s": ("from the first macro-step to the last row written: the run's cost beyond set-up", "s"),
     "real_time_factor": ("simulated time over the master's wall time", "1"),
-    "fmu_calls": ("FMU calls the master made, `doStep`, `save` and `restore` (state get and set); the "
-                  "certificates' own calls not counted", "1"),
+    "fmu_calls": ("FMU calls the run made from its first step on, `doStep`, `save` and `restore` (state get and "
+                  "set), over every FMU (those stepped alone, signals only, too), the same on the C kernel route "
+                  "and the Python one; the observers' own calls (certificates, probes) not counted", "1"),
+    "fmu_calls_by_subsystem": ("the same per subsystem, the observers' own calls included", "1"),
     "output_interval": ("a row is written every this many macro-steps (and at the last)", "steps"),
     "energy_guard": ("the energy guard in force: `ledger`, `monolithic`, `off`, or `n/a` for a master that does "
                      "not roll back", "text"),
