@@ -37,7 +37,7 @@ SUMMARY = {
     "fmu_calls": ("FMU calls the run made from its first step on, `doStep`, `save` and `restore` (state get and "
                   "set), over every FMU (those stepped alone, signals only, too), the same on the C kernel route "
                   "and the Python one; the observers' own calls (certificates, probes) not counted", "1"),
-    "fmu_calls_by_subsystem": ("the same per subsystem, the observers' own calls included", "1"),
+    "fmu_calls_by_subsystem": ("the same per subsystem (they add up to `fmu_calls`)", "1"),
     "output_interval": ("a row is written every this many macro-steps (and at the last)", "steps"),
     "energy_guard": ("the energy guard in force: `ledger`, `monolithic`, `off`, or `n/a` for a master that does "
                      "not roll back", "text"),

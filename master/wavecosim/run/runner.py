@@ -310,7 +310,8 @@ class LiveRun:
     def start(self):
         """Read the FMUs at t = 0, start the observers, record the first trajectory row."""
         self._tables()
-        self.calls_at_start, self.excluded = self._totals(), {k: 0 for k in CALLS}
+        self.calls_at_start = self._counts()
+        self.excluded = [(0,) * len(CALLS)] * len(self.calls_at_start)
         first = self.sampler.read()
         for o in self.observers:
             o.start(first)
@@ -326,7 +327,7 @@ class LiveRun:
         self.after = [(o, row) for o, row in zip(self.observers, self.slices) if o is not self.guard]
         self.recent = {0: first.outputs}
         self._plan_blocks()
-        self.calls_at_start, self.by_subsystem_at_start = self._totals(), self.scene.fmu_calls()
+        self.calls_at_start = self._counts()
         self.loop_started = time.perf_counter()
 
     def step(self, n):
@@ -334,12 +335,13 @@ class LiveRun:
         returns the Reading of the FMUs after it."""
         t = self.t0 + n * self.dt
         self.scene.begin_step(n, t)                  # signals held, signal-only subsystems stepped
-        before = self._totals() if self.bracket else None
+        before = self._counts() if self.bracket else None
         for o in self.observers:
             o.before_step(n, t)
         if before is not None:                       # observers' own FMU calls are not the master's
-            for k, v in self._totals().items():
-                self.excluded[k] += v - before[k]
+            now = self._counts()
+            if now != before:
+                self.excluded = [tuple(x + a - b for x, a, b in zip(*c)) for c in zip(self.excluded, now, before)]
         if self.kernel_guard:                        # the kernel makes the step and the ledger's redo in one call
             self.master.keep_ledger(*self.guard.kernel_state())
         t0 = time.perf_counter()
@@ -521,15 +523,16 @@ class LiveRun:
             self.recent[self.led] = reading.outputs
         return self.led
 
-    def _totals(self):
-        everyone = self.scene.subsystems + self.scene.signal_only
-        return {k: sum(s.calls[k] for s in everyone) for k in CALLS}
+    def _counts(self):
+        """Each FMU's calls so far (CALLS), one tuple per subsystem: those with a port, then those stepped alone."""
+        return [tuple(s.calls[k] for k in CALLS) for s in self.scene.subsystems + self.scene.signal_only]
 
-    def _calls_by_subsystem(self):
-        """Each FMU's calls since the first step (observers' own included)."""
-        start = getattr(self, "by_subsystem_at_start", {})
-        return {name: {k: c[k] - start.get(name, {}).get(k, 0) for k in CALLS}
-                for name, c in self.scene.fmu_calls().items()}
+    def fmu_calls_by_subsystem(self):
+        """{subsystem: its doStep, save and restore calls from the first step on}, observers' probes excluded."""
+        now = self._counts()
+        start, excluded = getattr(self, "calls_at_start", now), getattr(self, "excluded", [(0,) * len(CALLS)] * len(now))
+        return {s.name: {k: a - b - x for k, a, b, x in zip(CALLS, c, b0, x0)}
+                for s, c, b0, x0 in zip(self.scene.subsystems + self.scene.signal_only, now, start, excluded)}
 
     def hand_over(self):
         """The rows booked so far to the writer threads now (the loop does every second)."""
@@ -578,9 +581,9 @@ class LiveRun:
         self.trajectory.commit_row()
 
     def fmu_calls(self):
-        """doStep, save and restore calls the master made (observers' probes excluded)."""
-        now = self._totals()
-        return {k: now[k] - self.calls_at_start[k] - self.excluded[k] for k in now}
+        """doStep, save and restore calls the run made, over every FMU (observers' probes excluded)."""
+        by = self.fmu_calls_by_subsystem().values()
+        return {k: sum(c[k] for c in by) for k in CALLS}
 
     def summary(self, status, message):
         settings, sc = self.scenario.master, self.scenario
@@ -591,7 +594,7 @@ class LiveRun:
                "wall_time_s": self.master_time, "total_time_s": time.perf_counter() - self.started,
                "loop_time_s": self.loop_time,
                "real_time_factor": (n * sc.dt) / self.master_time if self.master_time > 0 else float("nan"),
-               "fmu_calls": self.fmu_calls(), "fmu_calls_by_subsystem": self._calls_by_subsystem(),
+               "fmu_calls": self.fmu_calls(), "fmu_calls_by_subsystem": self.fmu_calls_by_subsystem(),
                "output_interval": self.every,
                "energy_guard": self.guard_mode, "block_steps": self.block_steps,
                "quirks": {name: {"no_set_fmu_state_prior": d.no_set_fmu_state_prior, "chosen_by": d.chosen_by}

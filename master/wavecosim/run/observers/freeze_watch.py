@@ -5,7 +5,8 @@ ignores its doSteps and says OK), and the run is `suspect`, never `finished` wit
 Per subsystem with a port: its outputs are its stored energy H (where the port names one) and the
 port's output of each channel (a physical port: the effort or flow the FMU gives; a wave port: its
 effort and flow), its inputs the other side of a physical port (the values the master set), or
-for a wave port the other subsystems' port values (its incoming waves come from them). It only
+for a wave port the effort and flow of the channels coupled to its own (its incoming waves come
+from them). It only
 reads the values the runner reads after every step (the Reading, or a block's rows at once)."""
 import numpy as np
 
@@ -26,14 +27,13 @@ class FreezeWatch(Observer):
         at = 0
         for i, s in enumerate(scene.subsystems):
             e, f = list(range(n + at, n + at + s.m)), list(range(n + channels + at, n + channels + at + s.m))
-            own = set(e + f)
             if s.port.physical:
                 flow_in = s.port.input_is_flow
                 out = [ej if fi else fj for ej, fj, fi in zip(e, f, flow_in)]
                 inp = [fj if fi else ej for ej, fj, fi in zip(e, f, flow_in)]
             else:
                 out = e + f
-                inp = [k for k in range(n, n + 2 * channels) if k not in own]
+                inp = [k for j in _neighbours(scene, range(at, at + s.m)) for k in (n + j, n + channels + j)]
             self.names.append(s.name)
             self.outs.append(([i] if s.port.energy else []) + out)
             self.ins.append(inp)
@@ -67,8 +67,18 @@ class FreezeWatch(Observer):
                 self.count[i], self.since[i] = 0, None
                 continue
             moved = np.any(both[1:, inp] != both[:-1, inp], axis=1) & same
-            for j, (s, m) in enumerate(zip(same.tolist(), moved.tolist())):
-                self._count(i, n0 + j, s, m)
+            if self.count[i] + int(moved.sum()) >= FROZEN_STEPS:       # a stretch may reach the limit: step by step
+                for j, (s, m) in enumerate(zip(same.tolist(), moved.tolist())):
+                    self._count(i, n0 + j, s, m)
+                continue
+            breaks = np.flatnonzero(~same)
+            if len(breaks):                                            # the stretch after the last change
+                after = int(breaks[-1]) + 1
+                self.count[i] = int(moved[after:].sum())
+                self.since[i] = n0 + after if after < len(same) else None
+            else:
+                self.count[i] += int(moved.sum())
+                self.since[i] = n0 if self.since[i] is None else self.since[i]
 
     def _count(self, i, n, same, moved):
         """Step n of subsystem i: outputs the same as before it (same), and its inputs changed (moved)."""
@@ -99,3 +109,11 @@ class FreezeWatch(Observer):
 
     def summary(self):
         return {"freeze_watch": {"steps": FROZEN_STEPS, "suspect": dict(self.found)}}
+
+
+def _neighbours(scene, own):
+    """The channels a coupling ties to the channels `own` (a row of E e + F f = 0 holding both)."""
+    own = list(own)
+    rows = (scene.E[:, own] != 0).any(axis=1) | (scene.F[:, own] != 0).any(axis=1)
+    tied = (scene.E[rows] != 0).any(axis=0) | (scene.F[rows] != 0).any(axis=0)
+    return [j for j in np.flatnonzero(tied).tolist() if j not in own]
