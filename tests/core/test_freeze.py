@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 import yaml
 
+import wavecosim as wc
 from paths import CONFIGS
 from wavecosim.masters import MASTERS
 from wavecosim.run.observers.freeze_watch import FROZEN_STEPS
@@ -86,4 +87,14 @@ def test_forced_false_the_freeze_watch_marks_the_run_suspect(tmp_path, master, f
 def test_a_master_that_never_rolls_back_passes_true_and_finishes():
     """The explicit master passes true whatever the key says: the FMU advances, the run finishes."""
     result = simulate(pair("explicit", quirks={"no_set_fmu_state_prior": False}))
+    assert result.status == "finished" and result.summary["freeze_watch"]["suspect"] == {}
+
+
+def test_links_at_rest_far_from_a_pulse_are_not_suspect(tmp_path):
+    """A chain of 200 wave-port links under DR, the first one struck: links the pulse has not reached
+    keep their outputs while links elsewhere move; their own inputs (the coupled channels) do not
+    change, so the run finishes without a word."""
+    text = (CONFIGS / "chain_512.yaml").read_text().replace("511", "199").replace("510", "198")
+    (tmp_path / "chain.yaml").write_text(text)
+    result = run(wc.load(tmp_path / "chain.yaml", T=0.25), None, certificates=False, warn=lambda m: None)
     assert result.status == "finished" and result.summary["freeze_watch"]["suspect"] == {}
