@@ -63,7 +63,7 @@ STEP_DESCRIBED = {
 }
 STEP_COLUMNS = tuple(STEP_DESCRIBED)
 OBSERVERS = (EnergyLedger, EnergyGuard, GammaLog, TunedGammaLog, FneWatch, CertificateSampler, CertificatePace,
-             Passivity, FreezeWatch, ErrorTracker)      # every observer, in the order they act (and their columns come)
+             Passivity, FreezeWatch, ErrorTracker)    # every observer, in the order they act (their columns too)
 BLOCK_STEPS = BLOCK                    # macro-steps per call of the master, at most a table block
 HAND_OVER_S = 1.0                      # rows booked are handed to the writer at least this often
 MAX_STEPS = 10 ** 8                    # more macro-steps than this only when asked (--force, max_steps=None)
@@ -530,7 +530,8 @@ class LiveRun:
     def fmu_calls_by_subsystem(self):
         """{subsystem: its doStep, save and restore calls from the first step on}, observers' probes excluded."""
         now = self._counts()
-        start, excluded = getattr(self, "calls_at_start", now), getattr(self, "excluded", [(0,) * len(CALLS)] * len(now))
+        start = getattr(self, "calls_at_start", now)                      # before the first step: none yet
+        excluded = getattr(self, "excluded", [(0,) * len(CALLS)] * len(now))
         return {s.name: {k: a - b - x for k, a, b, x in zip(CALLS, c, b0, x0)}
                 for s, c, b0, x0 in zip(self.scene.subsystems + self.scene.signal_only, now, start, excluded)}
 
