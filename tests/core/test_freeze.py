@@ -98,3 +98,50 @@ def test_links_at_rest_far_from_a_pulse_are_not_suspect(tmp_path):
     (tmp_path / "chain.yaml").write_text(text)
     result = run(wc.load(tmp_path / "chain.yaml", T=0.25), None, certificates=False, warn=lambda m: None)
     assert result.status == "finished" and result.summary["freeze_watch"]["suspect"] == {}
+
+
+class Values:
+    """A Reading (H, E, F of one step as lists) or a BlockReading (steps x values arrays)."""
+
+    def __init__(self, H, E, F):
+        self.H, self.E, self.F = H, E, F
+
+
+def test_the_watch_in_blocks_equals_the_watch_step_by_step():
+    """Stretches of equal outputs (some with changing inputs, of every length around FROZEN_STEPS)
+    given step by step and in blocks of uneven sizes: the same subsystems found, with the same
+    stretches, the same state after every block."""
+    from wavecosim.core.scene import build_scene
+    from wavecosim.run.observers.freeze_watch import FreezeWatch
+    scene = build_scene(pair("explicit"), wave=False, needs_rollback=False)
+    try:
+        rng = np.random.default_rng(7)
+        one, blocks = FreezeWatch(scene, lambda m: None), FreezeWatch(scene, lambda m: None)
+        steps = 3000
+        values = rng.random((steps, 6))                           # H, E and F of A and B: all move
+        for out, inp in zip(one.outs, one.ins):                   # stretches of held outputs, inputs held in some
+            j = 0
+            while j < steps:
+                start, length = j + int(rng.integers(1, 30)), int(rng.integers(5, 45))
+                for k in range(start + 1, min(start + length, steps)):
+                    values[k, out] = values[k - 1, out]
+                    if rng.random() < 0.2:
+                        values[k, inp] = values[k - 1, inp]
+                j = start + length
+        H, E, F = values[:, :2], values[:, 2:4], values[:, 4:]
+        first = Values([0.0, 0.0], [0.0, 0.0], [0.0, 0.0])
+        one.start(first)
+        blocks.start(first)
+        n = 0
+        for size in rng.integers(1, 90, size=200):
+            size = min(int(size), steps - n)
+            if not size:
+                break
+            for k in range(n, n + size):
+                one.after_step(k, 0.0, None, Values(list(H[k]), list(E[k]), list(F[k])), None)
+            blocks.after_block(n, None, Values(H[n:n + size], E[n:n + size], F[n:n + size]), None)
+            assert (one.count, one.since, one.found) == (blocks.count, blocks.since, blocks.found), n
+            n += size
+        assert one.found and n == steps
+    finally:
+        scene.close()

@@ -8,6 +8,8 @@ effort and flow), its inputs the other side of a physical port (the values the m
 for a wave port the effort and flow of the channels coupled to its own (its incoming waves come
 from them). It only
 reads the values the runner reads after every step (the Reading, or a block's rows at once)."""
+from operator import itemgetter
+
 import numpy as np
 
 from . import Observer
@@ -38,6 +40,8 @@ class FreezeWatch(Observer):
             self.outs.append(([i] if s.port.energy else []) + out)
             self.ins.append(inp)
             at += s.m
+        self.getters = [(itemgetter(*out), itemgetter(*inp) if inp else (lambda values: ())) for out, inp in
+                        zip(self.outs, self.ins)]           # a step's outputs and inputs as tuples, compared at once
         self.last = None
         self.count = [0] * n                 # steps in the current stretch with outputs same, inputs changed
         self.since = [None] * n              # the first step of the current stretch of equal outputs
@@ -53,20 +57,25 @@ class FreezeWatch(Observer):
     def after_step(self, n, t, log, reading, row):
         now = self._flat(reading)
         last, self.last = self.last, now
-        for i, (out, inp) in enumerate(zip(self.outs, self.ins)):
-            same = all(now[k] == last[k] for k in out)
-            self._count(i, n, same, same and any(now[k] != last[k] for k in inp))
+        for i, (out, inp) in enumerate(self.getters):
+            same = out(now) == out(last)
+            if same or self.since[i] is not None:
+                self._count(i, n, same, same and inp(now) != inp(last))
 
     def after_block(self, n0, logs, readings, rows, at=None):
-        values = np.hstack([readings.H, readings.E, readings.F])
-        both = np.vstack([np.asarray(self.last, dtype=float)[None, :], values])
-        self.last = values[-1].tolist()
+        values = np.vstack([readings.H.T, readings.E.T, readings.F.T])       # one row per value, one column per step
+        if not values.shape[1]:
+            return
+        changed = np.empty(values.shape, dtype=bool)
+        changed[:, 0] = values[:, 0] != np.asarray(self.last, dtype=float)
+        np.not_equal(values[:, 1:], values[:, :-1], out=changed[:, 1:])
+        self.last = values[:, -1].tolist()
         for i, (out, inp) in enumerate(zip(self.outs, self.ins)):
-            same = np.all(both[1:, out] == both[:-1, out], axis=1)
+            same = ~changed[out].any(axis=0)
             if not same.any():
                 self.count[i], self.since[i] = 0, None
                 continue
-            moved = np.any(both[1:, inp] != both[:-1, inp], axis=1) & same
+            moved = changed[inp].any(axis=0) & same
             if self.count[i] + int(moved.sum()) >= FROZEN_STEPS:       # a stretch may reach the limit: step by step
                 for j, (s, m) in enumerate(zip(same.tolist(), moved.tolist())):
                     self._count(i, n0 + j, s, m)
