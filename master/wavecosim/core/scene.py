@@ -231,9 +231,14 @@ class Scene:
         after a stall (an FMU smooth only to its own solver's tolerance); 0.0 for exact maps."""
         return max([s.map.worst_accepted for s in self.subsystems if s.adapter], default=0.0)
 
+    def fmu_calls(self):
+        """{subsystem: its FMU calls so far}, every FMU of the scene (those stepped alone too): each
+        Subsystem books the calls made on its FMU, where they are made (Python or the C kernel)."""
+        return {s.name: dict(s.calls) for s in self.subsystems + self.signal_only}
+
     def do_step_calls(self):
         """doStep calls made so far, over all subsystems (what a redo costs is the difference)."""
-        return sum(s.calls["doStep"] for s in self.subsystems)
+        return sum(c["doStep"] for c in self.fmu_calls().values())
 
     def split(self, x):
         """Per-subsystem slices of a stacked channel vector."""
