@@ -88,7 +88,8 @@ def test_an_unreachable_scheduler_is_one_line_after_the_stated_timeout(tmp_path,
     args = ["sweep", str(SCENARIO), "--set", "master.K=1", "--T", "0.01", "--scheduler", "tcp://127.0.0.1:1", "--quiet"]
     done = subprocess.run(CLI + args, cwd=tmp_path, capture_output=True, text=True, timeout=60)
     assert done.returncode == 2 and "Traceback" not in done.stderr, done.stderr[-2000:]
-    assert done.stderr.strip() == "error: --scheduler tcp://127.0.0.1:1: no Dask scheduler answered within 10 s (OSError)"
+    assert done.stderr.strip() == ("error: --scheduler tcp://127.0.0.1:1: no Dask scheduler answered within 10 s "
+                                   "(OSError)")
 
 
 def test_the_api_takes_numpy_numbers(built_fmus):

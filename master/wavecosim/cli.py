@@ -299,7 +299,8 @@ sweep_options = options([
                  "KEY=0,3,8 | a..b | linspace(a,b,n) | geomspace(a,b,n) | uniform(lo,hi) | loguniform(lo,hi) | "
                  "normal(mu,sigma) | randint(lo,hi) (see docs/sweeps.md). Repeat for a grid."),
     click.option("--sample", type=whole(1, MAX_RUNS), help="Monte Carlo: draw N values of each distribution."),
-    click.option("--seed", type=whole(0, 2 ** 63 - 1), default=0, show_default=True, help="Seed of the Monte Carlo draws."),
+    click.option("--seed", type=whole(0, 2 ** 63 - 1), default=0, show_default=True,
+                 help="Seed of the Monte Carlo draws."),
     click.option("--workers", type=whole(1, 1024), help="Processes (or LocalCluster workers); "
                  "default: the number of CPUs; 1 runs in this process."),
     click.option("--scheduler", help="Run on Dask: a scheduler address (tcp://host:8786) or 'local' for an "

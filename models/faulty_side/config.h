@@ -8,7 +8,7 @@
  * that many characters. */
 #define MODEL_IDENTIFIER FaultySide
 #define MODEL_GUID "{3c0f4a52-8e1d-4d2b-9a6e-7f1b2c3d0f17}"
-#define MODEL_DESCRIPTION "Damped mass that crashes, exits, hangs, fails, gives NaN or restores badly at a chosen step (tests)"
+#define MODEL_DESCRIPTION "Damped mass that crashes, hangs, fails, gives NaN or restores badly at a chosen step (tests)"
 #define FAULTY_LAYER 1
 
 #define REAL_VARIABLES(X) \
@@ -26,7 +26,8 @@
 
 #define INTEGER_VARIABLES(X) \
     X(port_mode, 0, "0 = wave port (input a, output b), 1 = physical port (input F)") \
-    X(fault, 0, "0 none, 1 segfault, 2 exit(0), 3 endless loop, 4 abort(), 5 error, 6 NaN outputs in doStep at fault_step, 7 a broken restore from it on") \
+    X(fault, 0, "0 none, 1 segfault, 2 exit(0), 3 endless loop, 4 abort(), 5 error, 6 NaN outputs in doStep " \
+              "at fault_step, 7 a broken restore from it on") \
     X(fault_step, -1, "the macro-step whose doStep faults (-1: none)") \
     X(log_bytes, 0, "characters of the warning logged after every step (0: none, at most 250)")
 

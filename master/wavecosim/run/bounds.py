@@ -57,7 +57,7 @@ class Bounds:
 
 
 def non_finite_outputs(scene):
-    """[(subsystem, variable, value)] of the FMUs' Real outputs that are not finite now, read from
+    """[(subsystem, variable, value)] of the FMUs' Real outputs that are not finite at this point, read from
     every FMU still in its step phase (at most MAX_OUTPUTS outputs each)."""
     found = []
     for sub in scene.subsystems + scene.signal_only:
