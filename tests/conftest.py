@@ -288,7 +288,8 @@ def input_signals(path):
 def faulty_scenario():
     """faulty_scenario(fault, step, T, **integers) -> the Table I scenario (a mapping) with B a FaultySide
     (models/faulty_side) that faults in doStep at macro-step `step`: 1 segfault, 2 exit(0), 3 endless
-    loop, 4 abort(); integers such as log_bytes go to the FMU too."""
+    loop, 4 abort(), 5 an error logged as a printf format with its arguments, 6 NaN outputs with status
+    OK, 7 a broken restore from that step on; integers such as log_bytes go to the FMU too."""
     import copy
     import yaml
     from wavecosim.scenario.config import DEFAULT_CONFIG
