@@ -135,6 +135,17 @@ output_options = [
 with_output = options(output_options)
 
 
+plot_option = click.option(
+    "--plot", "plot_patterns", multiple=True, metavar="PATTERN",
+    help="Draw these columns in the trajectory figure (a glob over the column names, e.g. 'machine.*'; repeat "
+         "for more; implies --plots); default: the error columns, else the power ports', at most 8.")
+
+
+def _plot_note(message):
+    """One line on stderr for a figure or columns that --plots left out."""
+    click.echo(f"plots: {message}", err=True)
+
+
 ssp_options = options([
     click.option("--ports", type=click.Path(dir_okay=False, path_type=Path),
                  help="SSP input: a YAML overlay with the power ports and the run's settings (docs/your-fmus.md)."),
@@ -187,14 +198,15 @@ def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None, star
 @click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and the Condition 1 watch (faster).")
 @click.option("--no-reference", is_flag=True, help="Skip the monolithic reference run (no error figures).")
 @click.option("--plots", is_flag=True, help="Also write PNG figures into the output folder.")
+@plot_option
 @click.option("--threads", help="Threads evaluating the subsystems: auto, or N (up to min(N, CPUs, subsystems)); "
                                 "the numbers are the same for any N.")
 @step_timeout_option
 @overwrite_option
 @click.option("--force", is_flag=True, help=f"Run even more than {MAX_STEPS:,} macro-steps.")
 def run_cmd(config, K, eps, gamma, dt, T, quiet, start_time, output_interval, formats, ports, parameter_set, input_csv,
-            outputs, algorithm, sets, out, no_certificates, no_reference, plots, threads, step_timeout, overwrite,
-            force):
+            outputs, algorithm, sets, out, no_certificates, no_reference, plots, plot_patterns, threads, step_timeout,
+            overwrite, force):
     """Run one scenario (with the monolithic reference alongside where there are power bonds) and
     write its trajectory, per-step certificates, summary and metadata. CONFIG is a scenario file,
     an SSP system (.ssd, .ssp, folder) or one FMU (.fmu), run as fmpy's simulate runs it.
@@ -215,9 +227,9 @@ def run_cmd(config, K, eps, gamma, dt, T, quiet, start_time, output_interval, fo
                           certificates=not no_certificates, reference=not no_reference,
                           output_interval=output_interval, formats=("csv", *formats), max_steps=max_steps)
         _report_run(scenario, result, out)
-        if plots:
+        if plots or plot_patterns:
             from .plots import run_plots
-            for p in run_plots(result, result.reference, out):
+            for p in run_plots(result, result.reference, out, scenario, plot_patterns, _plot_note):
                 click.echo(f"wrote {p}")
     with OutputFolder(out, overwrite):
         return _supervised(work, out / "summary.json", step_timeout or scenario.step_timeout)
@@ -271,6 +283,7 @@ sweep_options = options([
                  "the Condition 1 watch."),
     click.option("--plots", is_flag=True, help="Also write PNG figures (the paper's Figs. 4-6; with --set, "
                  "each --plot-y figure against the first swept key)."),
+    plot_option,
     click.option("--set", "sets", multiple=True, metavar="KEY=VALUES", help="Sweep a scenario key: "
                  "KEY=0,3,8 | a..b | linspace(a,b,n) | geomspace(a,b,n) | uniform(lo,hi) | loguniform(lo,hi) | "
                  "normal(mu,sigma) | randint(lo,hi) (see docs/sweeps.md). Repeat for a grid."),
@@ -294,8 +307,8 @@ sweep_options = options([
 @system_argument
 @sweep_options
 @ssp_options
-def sweep_cmd(config, ks, eps, gamma, dt, T, quiet, out, no_certificates, plots, sets, sample, seed, workers,
-              scheduler, resume, no_reference, plot_y, step_timeout, overwrite, ports, parameter_set):
+def sweep_cmd(config, ks, eps, gamma, dt, T, quiet, out, no_certificates, plots, plot_patterns, sets, sample, seed,
+              workers, scheduler, resume, no_reference, plot_y, step_timeout, overwrite, ports, parameter_set):
     """Without --set: the paper's experiment, DR for each K against the monolithic reference
     (summary.json). With --set (or --sample, --workers, --scheduler, --resume, --no-reference):
     a general sweep over any scenario keys, one row per run in OUT/runs.csv and OUT/runs.json;
@@ -316,9 +329,9 @@ def sweep_cmd(config, ks, eps, gamma, dt, T, quiet, out, no_certificates, plots,
         reference, results, runs = table.reference, table.results, table.rows
         click.echo(f"{scenario.name}: sweep over K = {Ks} -> {out / 'summary.json'}")
         print_table(runs, list(SWEEP_FIELDS))
-        if plots:
+        if plots or plot_patterns:
             from .plots import sweep_plots
-            for p in sweep_plots(results, reference, out):
+            for p in sweep_plots(results, reference, out, scenario, plot_patterns, _plot_note):
                 click.echo(f"wrote {p}")
     with OutputFolder(out, overwrite):
         return _supervised(work, None, step_timeout or scenario.step_timeout)
@@ -351,7 +364,7 @@ def _general_sweep(config, ks, sets, changes, out, o):
         click.echo(f"run {r['index']} ({r['label']}): {r.get('status')}: {r.get('message')}")
     if o["plots"]:
         from .plots import figure_plots
-        for p in figure_plots(rows, keys, [y.strip() for y in o["plot_y"].split(",") if y.strip()], out):
+        for p in figure_plots(rows, keys, [y.strip() for y in o["plot_y"].split(",") if y.strip()], out, _plot_note):
             click.echo(f"wrote {p}")
     if failed:
         raise SweepFailed(f"{len(failed)} of {len(rows)} runs did not finish (their rows say why: {out / 'runs.csv'})")
@@ -421,7 +434,7 @@ def compare_cmd(config, K, eps, gamma, dt, T, quiet, start_time, ports, paramete
                 click.echo(f"{r['master']} K={r['K']}: {r['status']} after {r['steps']} steps: {r['message']}")
         if plots:
             from .plots import compare_plots
-            for p in compare_plots(rows, results, reference, out):
+            for p in compare_plots(rows, results, reference, out, _plot_note):
                 click.echo(f"wrote {p}")
     with OutputFolder(out, overwrite):
         return _supervised(work, None, step_timeout or scenario.step_timeout)
