@@ -24,6 +24,7 @@ DPI = 130
 MAX_TRAJECTORIES = 8          # panels of trajectories.png; --plot PATTERN picks others
 NAMED = 12                    # left-out columns named in the note, the rest counted
 PORT_KEYS = ("effort", "flow", "physical_in", "physical_out")
+NO_ENERGY = "not drawn: the total stored energy H needs every subsystem's (a port's `energy:` variable)"
 
 
 def _quiet(_message):
@@ -152,8 +153,24 @@ def run_plots(result, reference, out, scenario=None, patterns=(), note=_quiet):
     (where the FMUs report their stored energy), error.png (where there is an error against the reference)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    cols, left = trajectory_columns(result, scenario, patterns)
     label = run_label(result)
+    paths = [_run_trajectories(result, reference, label, out / "trajectories.png", scenario, patterns, note)]
+    paths += [_run_energy(result, reference, label, out / "energy.png", note),
+              _run_error(result, reference, out / "error.png", note)]
+    return [p for p in paths if p is not None]
+
+
+def _no_columns(result, path, note):
+    """True, after a note, when the run recorded no column to draw."""
+    if not result.columns:
+        note(f"{path.name}: not drawn: the run recorded no column (its FMUs have no outputs and no driven inputs)")
+    return not result.columns
+
+
+def _run_trajectories(result, reference, label, path, scenario, patterns, note):
+    if _no_columns(result, path, note):
+        return None
+    cols, left = trajectory_columns(result, scenario, patterns)
     fig, axes = _trajectory_axes(result, cols, f"{result.summary.get('scenario', '')}: trajectories "
                                  f"({result.status}{{shown}})", left)
     for ax, col in zip(axes, cols):
@@ -161,16 +178,13 @@ def run_plots(result, reference, out, scenario=None, patterns=(), note=_quiet):
         if reference is not None and col in reference.columns:
             ax.plot(reference.t, reference.column(col), "k--", lw=1, label=REFERENCE_LABEL)
     _legend_outside(fig)
-    paths = [_save(fig, out / "trajectories.png")]
-    _left_out_note("trajectories.png", cols, left, note)
-    paths += [p for p in (_run_energy(result, reference, label, out / "energy.png", note),
-                          _run_error(result, reference, out / "error.png", note)) if p is not None]
-    return paths
+    _left_out_note(path.name, cols, left, note)
+    return _save(fig, path)
 
 
 def _run_energy(result, reference, label, path, note):
     if not _has(result.energy):
-        note(f"{path.name}: not drawn: no subsystem reports its stored energy H (a port's `energy:` variable)")
+        note(f"{path.name}: {NO_ENERGY}")
         return None
     fig, ax = plt.subplots(figsize=(7, 3.2))
     ax.plot(*_finite(_energy_t(result), result.energy), label=label)
@@ -216,6 +230,8 @@ def sweep_plots(results, reference, out, scenario=None, patterns=(), note=_quiet
 
 
 def _fig4(results, reference, colors, path, scenario, patterns, note):
+    if _no_columns(results[0], path, note):
+        return None
     cols, left = trajectory_columns(results[0], scenario, patterns)
     fig, axes = _trajectory_axes(results[0], cols, "Fig. 4: trajectories for each inner budget K and the "
                                  "monolithic reference{shown}", left, width=7.5)
@@ -246,8 +262,8 @@ def _fig5(results, Ks, path, note):
                  for key, label, marker in CONDITION2]
     residuals = [each for each in residuals if _has(each[3])]
     if not names and not residuals:
-        note(f"{path.name}: not drawn: no certificate was sampled (the FMUs report no stored energy H; "
-             "--no-certificates also leaves them out)")
+        note(f"{path.name}: not drawn: no certificate was sampled (they need every subsystem's stored "
+             "energy H; --no-certificates also leaves them out)")
         return None
     panels = (["fne"] if names else []) + (["residual"] if residuals else [])
     fig, axes = plt.subplots(1, len(panels), figsize=(5.5 * len(panels), 3.8), squeeze=False)
@@ -302,7 +318,7 @@ def _fig6(results, reference, Ks, colors, path, note):
 
 def _energy_by_run(results, reference, colors, path, note):
     if not any(_has(r.energy) for r in results):
-        note(f"{path.name}: not drawn: no subsystem reports its stored energy H (a port's `energy:` variable)")
+        note(f"{path.name}: {NO_ENERGY}")
         return None
     fig, ax = plt.subplots(figsize=(7.5, 3.6))
     for r, c in zip(results, colors):
@@ -332,7 +348,7 @@ def compare_plots(rows, results, reference, out, note=_quiet):
     if _has(reference.energy):
         paths.append(_energy_per_master(rows, results, reference, scenario, out / "energy_by_master.png"))
     else:
-        note("energy_by_master.png: not drawn: no subsystem reports its stored energy H (a port's `energy:` variable)")
+        note(f"energy_by_master.png: {NO_ENERGY}")
     return paths
 
 
