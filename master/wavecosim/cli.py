@@ -503,6 +503,20 @@ def examples_cmd(name):
         raise ConfigError(str(exc)) from None
 
 
+@cli.command("info")
+@click.argument("file", type=click.Path(path_type=Path))
+@ssp_options
+@click.option("--json", "as_json", is_flag=True, help="Print the description as JSON.")
+def info_cmd(file, ports, parameter_set, as_json):
+    """What FILE holds: an FMU's variables (causality, type, unit, start), default experiment and
+    co-simulation capabilities; an SSP system's or scenario file's components, connections, power
+    ports and couplings. Nothing is run."""
+    import json
+    from .scenario.info import describe, text
+    info = describe(file, ports, parameter_set)
+    click.echo(json.dumps(info, indent=1) if as_json else "\n".join(text(info)))
+
+
 BENCH_S = {"quick": 40, "full": 160}     # measured wall time of `bench` (2 CPUs, warm build cache)
 
 
