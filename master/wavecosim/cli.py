@@ -167,6 +167,8 @@ def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None, star
     from .scenario.fmu import is_fmu
     from .scenario.overrides import parse_value
     from .scenario.ssp.archive import is_ssp           # the archive module alone: a scenario file needs no more
+    from .examples import resolve
+    config = resolve(config)
     times, changes = {"dt": dt, "T": T, "start_time": start_time}, dict(parse_value(s) for s in sets)
     warn = lambda note: click.echo(f"warning: {note}", err=True)        # noqa: E731
     if ports or parameter_set or (config is not None and is_ssp(config)):
@@ -491,11 +493,20 @@ def build_cmd(force):
 @cli.command("examples")
 @click.argument("name", required=False)
 def examples_cmd(name):
-    """List the example scenarios shipped with wavecosim, or print the path of one (NAME)."""
+    """List the example scenarios shipped with wavecosim, each with its description, those that cannot
+    run here with what they need; or print the path of one (NAME). Every command and wavecosim.simulate
+    take an example by its name."""
     from . import examples
     if name is None:
-        for each in examples.names():
-            click.echo(each)
+        described = [examples.describe(each) for each in examples.names()]
+        width = max(len(d["name"]) for d in described)
+        for d in (d for d in described if not d["needs"]):
+            click.echo(f"{d['name']:<{width}}  {d['description']}")
+        lacking = [d for d in described if d["needs"]]
+        if lacking:
+            click.echo("\nnot runnable here:")
+        for d in lacking:
+            click.echo(f"{d['name']:<{width}}  {d['description']}\n{'':<{width}}  needs {d['needs']}")
         return
     try:
         click.echo(examples.path(name))
