@@ -1,5 +1,6 @@
 """The scripts in examples/ run as a user runs them (headless) and print what they promise."""
 import os
+import re
 import subprocess
 import sys
 
@@ -71,3 +72,9 @@ def test_an_example_whose_fmu_file_is_absent_names_it(tmp_path, monkeypatch):
     (tmp_path.parent / "elsewhere").mkdir()
     (tmp_path.parent / "elsewhere" / "Mass.fmu").write_bytes(b"PK")
     assert examples.describe("lonely")["needs"] == ""
+
+
+def test_the_readmes_python_block_runs_from_an_empty_folder(tmp_path, built_fmus):
+    block = re.search(r"```python\n(.*?)```", (ROOT / "README.md").read_text(encoding="utf-8"), re.S).group(1)
+    python_elsewhere(block, tmp_path)
+    assert list(tmp_path.iterdir()) == []

@@ -219,7 +219,8 @@ class Scenario:
     error: list = field(metadata=key(
         "the output columns of the error norm against the monolithic reference (the `error` column, max_error, "
         "...)", type="list of columns", default="none: no error figures"))
-    description: str = field(default="", metadata=key("free text", type="text"))
+    description: str = field(default="", metadata=key(
+        "free text: one line saying what the scene is (`wavecosim examples` shows it)", type="text"))
     fne_watch: bool = field(default=True, metadata=key(
         "the Condition 1 watch: estimates each frozen map's FNE margin from the inner iterates and warns once "
         "when it goes negative", type="boolean"))
