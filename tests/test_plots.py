@@ -9,14 +9,16 @@ import pytest
 from paths import CLI, CONFIGS, THIRD_PARTY
 
 PNG = b"\x89PNG\r\n\x1a\n"
+ENV = {"MPLBACKEND": "Agg", "WAVECOSIM_IN_PROCESS": "1"}        # in this process: one interpreter less per run
 FIGURES = {"run": ("trajectories.png", "energy.png", "error.png"),
-           "sweep": ("fig4_trajectories.png", "fig5_certificates.png", "fig6_error.png", "energy_by_K.png")}
+           "sweep": ("fig4_trajectories.png", "fig5_certificates.png", "fig6_error.png", "energy_by_K.png"),
+           "compare": ("pareto.png", "energy_by_master.png")}
 
 
 def plots(args, out, command="run"):
     """Run `command ... --plots` into `out`; (stdout + stderr, {figure: what became of it})."""
     proc = subprocess.run(CLI + [command, *map(str, args), "--plots", "--quiet", "--out", str(out)],
-                          capture_output=True, text=True, timeout=300, env={**os.environ, "MPLBACKEND": "Agg", "WAVECOSIM_IN_PROCESS": "1"})
+                          capture_output=True, text=True, timeout=300, env={**os.environ, **ENV})
     assert proc.returncode == 0, proc.stderr[-2000:]
     fate = {}
     for name in FIGURES[command]:
@@ -45,10 +47,18 @@ def test_fmus_without_stored_energy_leave_out_the_energy_figure_and_say_why(tmp_
 
 
 def test_one_fmu_alone_draws_its_outputs_only(tmp_path, built_fmus):
-    text, fate = plots([built_fmus["LinearSide"], "--T", "0.05", "--dt", "0.01"], tmp_path)
-    assert fate["trajectories.png"] == "drawn" and "explicit, K" not in text
+    _, fate = plots([built_fmus["LinearSide"], "--T", "0.05", "--dt", "0.01"], tmp_path)
+    assert fate["trajectories.png"] == "drawn"
     assert fate["error.png"] == "; not drawn: no monolithic reference ran (no power ports, or --no-reference)"
     assert "not drawn" in fate["energy.png"]
+
+
+def test_the_legend_names_the_master_and_its_budget_only_where_it_iterates(built_fmus):
+    import wavecosim as wc
+    from wavecosim.plots import run_label
+    labels = [run_label(wc.simulate(master=m, K=7, T=0.02, reference=False, certificates=False))
+              for m in ("explicit", "gauss-seidel", "jacobi-iter", "dr")]
+    assert labels == ["explicit", "gauss-seidel", "jacobi-iter, K = 7", "dr, K = 7"]
 
 
 def test_plot_patterns_pick_the_columns_and_a_pattern_matching_none_is_refused(tmp_path, built_fmus):
@@ -65,6 +75,13 @@ def test_a_sweep_of_fmus_without_energy_draws_the_figures_it_has(tmp_path, built
     _, fate = plots([CONFIGS / "foreign_pair.yaml", "--T", "0.05", "--Ks", "0,3"], tmp_path, "sweep")
     assert fate["fig4_trajectories.png"].startswith("drawn") and fate["fig6_error.png"] == "drawn"
     assert "not drawn" in fate["fig5_certificates.png"] and "not drawn" in fate["energy_by_K.png"]
+
+
+def test_a_comparison_of_fmus_without_energy_draws_the_error_against_cost(tmp_path, built_fmus):
+    _, fate = plots([CONFIGS / "foreign_pair.yaml", "--T", "0.05", "--masters", "explicit,dr", "--Ks", "1,3"],
+                    tmp_path, "compare")
+    assert fate["pareto.png"].startswith("drawn; the energy growth panel not drawn: the total stored energy H")
+    assert fate["energy_by_master.png"].startswith("; not drawn: the total stored energy H needs every subsystem's")
 
 
 def third_party_systems():

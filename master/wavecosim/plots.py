@@ -262,11 +262,11 @@ def _fig5(results, Ks, path, note):
                  for key, label, marker in CONDITION2]
     residuals = [each for each in residuals if _has(each[3])]
     if not names and not residuals:
-        note(f"{path.name}: not drawn: no certificate was sampled (they need every subsystem's stored "
-             "energy H; --no-certificates also leaves them out)")
+        note(f"{path.name}: not drawn: no certificate was sampled (`certificates:` or --no-certificates "
+             "left them out, or a subsystem reports no stored energy H)")
         return None
     panels = (["fne"] if names else []) + (["residual"] if residuals else [])
-    fig, axes = plt.subplots(1, len(panels), figsize=(5.5 * len(panels), 3.8), squeeze=False)
+    fig, axes = plt.subplots(1, len(panels), figsize=(5.5 * len(panels), 3.8), squeeze=False, layout="constrained")
     axes = dict(zip(panels, axes[0]))
     if names:
         _fne_panel(axes["fne"], results, Ks, names)
@@ -280,7 +280,8 @@ def _fne_panel(a, results, Ks, names):
         a.plot(Ks, [_number(r.summary["min_fne_margin_by_subsystem"].get(name)) for r in results], "o-",
                label=f"subsystem {name}: min over steps and sampled pairs")
     a.axhline(0.0, color="k", lw=0.8, ls="--", label="FNE threshold 0")
-    a.set(xlabel="inner budget K", ylabel="normalized FNE margin Δ/‖α−β‖²", title="(a) Condition 1: FNE margins")
+    a.set(xlabel="inner budget K", ylabel="normalized FNE margin Δ/‖α−β‖²",
+          title="(a) Condition 1: FNE margins")
     a.grid(alpha=0.3)
     a.legend(fontsize=8)
 
@@ -300,7 +301,7 @@ def _fig6(results, reference, Ks, colors, path, note):
     if not any(_has(r.error) for r in results):
         note(f"{path.name}: not drawn: {_no_error_reason(results[0], reference)}")
         return None
-    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 3.8))
+    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 3.8), layout="constrained")
     for r, c in zip(results, colors):
         if r.error is not None:
             a.semilogy(r.t[:len(r.error)], _floored(r.error), color=c, lw=1, label=_k_label(r))
@@ -342,7 +343,7 @@ def compare_plots(rows, results, reference, out, note=_quiet):
     scenario = reference.summary.get("scenario", "")
     paths = []
     if _has([_number(r.get("max_error")) for r in rows]):
-        paths.append(_pareto(rows, _error_label(reference), scenario, out / "pareto.png"))
+        paths.append(_pareto(rows, _error_label(reference), scenario, out / "pareto.png", note))
     else:
         note(f"pareto.png: not drawn: no run has an error against the reference ({_no_error_reason(None, reference)})")
     if _has(reference.energy):
@@ -365,13 +366,15 @@ def _pareto_label(name, members, ok):
     return name if not bad else f"{name} (diverged{'' if bad == ['-'] else ' at K = ' + ', '.join(bad)})"
 
 
-def _pareto(rows, error_label, scenario, path):
-    """Max error against master wall time and against doSteps per macro-step, and the energy growth
-    max H/H(0) against doSteps per macro-step: every master and DR option, one line each."""
-    fig, axes = plt.subplots(1, 3, figsize=(18, 5.4))
+def _pareto(rows, error_label, scenario, path, note):
+    """Max error against master wall time and against doSteps per macro-step, and (where the FMUs report
+    their stored energy) the energy growth max H/H(0) against doSteps per macro-step: every master and DR
+    option, one line each."""
+    growth = _has([_number(r.get("H_growth")) for r in rows])
+    fig, axes = plt.subplots(1, 3 if growth else 2, figsize=(18 if growth else 12, 5.4), layout="constrained")
     for name, members in _by_master(rows, rows).items():
         color, marker = _style(name)
-        ok = [r for r, _ in members if r["diverged"] == "no" and np.isfinite(r["max_error"])]
+        ok = [r for r, _ in members if r["diverged"] == "no" and np.isfinite(_number(r["max_error"]))]
         label = _pareto_label(name, members, ok)
         for ax, xkey in zip(axes[:2], ("wall_time_s", "doSteps_per_step")):
             x, y = [float(r[xkey]) for r in ok], _floored([r["max_error"] for r in ok])
@@ -380,19 +383,23 @@ def _pareto(rows, error_label, scenario, path):
             for xi, yi, r in zip(x, y, ok if xkey == "doSteps_per_step" and len(members) > 1 else ()):
                 ax.annotate(f"{r['K']}", (xi, yi), textcoords="offset points", xytext=(3, 2), fontsize=6, color=color)
         done = [r for r, _ in members if r["steps"]]
-        axes[2].loglog([r["doSteps_per_step"] for r in done], [r["H_growth"] for r in done], marker=marker,
-                       color=color, ls="-", ms=4, lw=1)
+        if growth:
+            axes[2].loglog([r["doSteps_per_step"] for r in done], [r["H_growth"] for r in done], marker=marker,
+                           color=color, ls="-", ms=4, lw=1)
     axes[0].set(xlabel="master wall time (s), log", ylabel=f"max error {error_label}, log (0 drawn at {FLOOR:g})",
                 title="Error against master wall time")
     axes[1].set(xlabel="FMU doSteps per macro-step, log", title="Error against FMU calls (numbers: budget K)")
-    axes[2].axhline(1.0, color="k", lw=0.8, ls="--")
-    axes[2].set(xlabel="FMU doSteps per macro-step, log", ylabel="energy growth max H(t)/H(0), log",
-                title="Energy growth (> 1: energy supplied)")
+    if growth:
+        axes[2].axhline(1.0, color="k", lw=0.8, ls="--")
+        axes[2].set(xlabel="FMU doSteps per macro-step, log", ylabel="energy growth max H(t)/H(0), log",
+                    title="Energy growth (> 1: energy supplied)")
+    else:
+        note(f"{path.name}: the energy growth panel not drawn: {NO_ENERGY.split(': ', 1)[1]}")
     for ax in axes:
         ax.grid(alpha=0.3, which="both")
         ax.xaxis.set_minor_formatter(NullFormatter())
     fig.suptitle(f"{scenario}: accuracy against cost, every master, DR option and budget")
-    axes[0].legend(fontsize=7, loc="upper center", bbox_to_anchor=(1.7, -0.12), ncol=5)
+    _legend_outside(fig, columns=5)
     return _save(fig, path)
 
 
