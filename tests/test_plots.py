@@ -46,6 +46,14 @@ def test_fmus_without_stored_energy_leave_out_the_energy_figure_and_say_why(tmp_
     assert fate["energy.png"].startswith("; not drawn: the total stored energy H needs every subsystem's")
 
 
+def test_without_error_columns_the_trajectories_are_the_power_ports(tmp_path, built_fmus):
+    text = (CONFIGS / "foreign_pair.yaml").read_text().split("\noutputs:")[0]
+    (tmp_path / "pair.yaml").write_text(text)
+    _, fate = plots([tmp_path / "pair.yaml", "--T", "0.05"], tmp_path / "out")
+    assert fate["trajectories.png"].startswith("drawn; 2 of 4 columns drawn; left out: A.x, B.x (")
+    assert fate["error.png"] == "; not drawn: the scenario names no error columns (`error:`)"
+
+
 def test_one_fmu_alone_draws_its_outputs_only(tmp_path, built_fmus):
     _, fate = plots([built_fmus["LinearSide"], "--T", "0.05", "--dt", "0.01"], tmp_path)
     assert fate["trajectories.png"] == "drawn"
