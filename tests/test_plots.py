@@ -106,6 +106,17 @@ def third_party_systems():
             for s in systems]
 
 
+QUICK_SCENES = ["two_oscillators.ssd", "two_oscillators_stiff.yaml", "chain.yaml", "pendulum_cart.yaml", "planar.yaml",
+                "rlc_motor.yaml", "star.yaml"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("scene", QUICK_SCENES)
+def test_every_quick_in_repo_scene_draws_all_three(scene, tmp_path, built_fmus):
+    _, fate = plots([CONFIGS / scene, "--T", "0.05"], tmp_path)
+    assert all(f.startswith("drawn") for f in fate.values()), fate
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("system", third_party_systems())
 def test_every_third_party_system_plots(system, tmp_path, built_fmus):
