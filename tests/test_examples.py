@@ -67,8 +67,8 @@ def test_an_example_whose_fmu_file_is_absent_names_it(tmp_path, monkeypatch):
                                           "  A: {fmu: ../elsewhere/Mass.fmu}\n  B: {fmu: LinearSide}\n")
     monkeypatch.setattr(examples, "CONFIGS", tmp_path)
     assert examples.describe("lonely") == {"name": "lonely", "description": "A mass alone",
-                                           "needs": "the FMU file(s) ../elsewhere/Mass.fmu (not installed with "
-                                                    "the package)"}
+                                           "needs": "Mass.fmu in ../elsewhere (FMUs not installed with the "
+                                                    "package)"}
     (tmp_path.parent / "elsewhere").mkdir()
     (tmp_path.parent / "elsewhere" / "Mass.fmu").write_bytes(b"PK")
     assert examples.describe("lonely")["needs"] == ""

@@ -67,4 +67,8 @@ def _needs(raw):
     subsystems = raw.get("subsystems") or {}
     missing = sorted({str(s["fmu"]) for s in subsystems.values() if isinstance(s, dict)
                       and str(s.get("fmu", "")).endswith(".fmu") and not (CONFIGS / s["fmu"]).resolve().is_file()})
-    return f"the FMU file(s) {', '.join(missing)} (not installed with the package)" if missing else ""
+    folders = {}
+    for fmu in missing:
+        folders.setdefault(str(Path(fmu).parent), []).append(Path(fmu).name)
+    return "; ".join(f"{', '.join(files)} in {folder}" for folder, files in folders.items()) + (
+        " (FMUs not installed with the package)" if missing else "")

@@ -52,6 +52,9 @@ def test_a_scenario_file_shows_its_system():
     assert [(c["name"], c["fmu"], c["inputs"], c["outputs"]) for c in d["components"]] == [
         ("A", "ForeignMass", 1, 2), ("B", "ForeignSpring", 1, 2)]
     assert d["ports"]["B"]["sign"] == [-1.0] and d["connections"] == [] and d["two_way"] == []
+    by_name_only = described("foreign_pair")                  # an example by its name, from any folder
+    assert by_name_only.pop("path").endswith("foreign_pair.yaml") and d.pop("path").endswith("foreign_pair.yaml")
+    assert by_name_only == d
 
 
 @pytest.mark.parametrize("name, content, code, message", [

@@ -23,9 +23,11 @@ LISTED = ("parameter", "calculatedParameter", "structuralParameter", "input", "o
 
 def describe(path, ports=None, parameter_set=None) -> dict:
     """The description of `path`: an FMU (.fmu), an SSP system (.ssd, .ssp, folder, with an overlay
-    `ports`) or a scenario file (.yaml); a ConfigError (FmuError for a broken FMU) in one line otherwise."""
+    `ports`), a scenario file (.yaml) or an example by its name; a ConfigError (FmuError for a broken
+    FMU) in one line otherwise."""
+    from ..examples import resolve
     from .ssp.archive import is_ssp
-    path = Path(path)
+    path = Path(resolve(path))
     if not path.exists():
         raise ConfigError(f"{path}: no such file or folder")
     if is_fmu(path):
