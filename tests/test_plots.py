@@ -77,6 +77,10 @@ def test_plot_patterns_pick_the_columns_and_a_pattern_matching_none_is_refused(t
     assert proc.returncode == 2 and proc.stderr.strip().splitlines()[-1] == (
         "error: --plot: x* matches no column (have: q1, v1, d, q2, v2, bA, bB)")
     assert (tmp_path / "b" / "trajectory.csv").exists()
+    general = subprocess.run(CLI + ["sweep", "--set", "master.K=1,2", "--plot", "q*", "--out", str(tmp_path / "c")],
+                             capture_output=True, text=True, timeout=120)
+    assert general.returncode == 2 and general.stderr.strip() == (
+        "error: --plot: a sweep with --set draws its --plot-y figures, not trajectories")
 
 
 def test_a_sweep_of_fmus_without_energy_draws_the_figures_it_has(tmp_path, built_fmus):

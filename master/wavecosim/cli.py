@@ -317,6 +317,8 @@ def sweep_cmd(config, ks, eps, gamma, dt, T, quiet, out, no_certificates, plots,
     each run is made in a child process of its own, and one that crashes or times out is a row
     saying so (the sweep then exits with code 8)."""
     if sets or sample or workers or scheduler or resume or no_reference:
+        if plot_patterns:
+            raise ConfigError("--plot: a sweep with --set draws its --plot-y figures, not trajectories")
         options = dict(no_certificates=no_certificates, plots=plots, sample=sample, seed=seed, workers=workers,
                        scheduler=scheduler, resume=resume, no_reference=no_reference, plot_y=plot_y, quiet=quiet,
                        step_timeout=step_timeout, ports=ports, parameter_set=parameter_set)
