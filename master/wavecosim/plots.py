@@ -24,6 +24,7 @@ DPI = 130
 MAX_TRAJECTORIES = 8          # panels of trajectories.png; --plot PATTERN picks others
 NAMED = 12                    # left-out columns named in the note, the rest counted
 PORT_KEYS = ("effort", "flow", "physical_in", "physical_out")
+REFERENCE_LABEL = "monolithic (newton)"
 NO_ENERGY = "not drawn: the total stored energy H needs every subsystem's (a port's `energy:` variable)"
 
 
@@ -84,9 +85,6 @@ def run_label(result):
     return f"{result.master}, K = {result.K}" if master is not None and master.budgets != (None,) else result.master
 
 
-REFERENCE_LABEL = "monolithic (newton)"
-
-
 # ---------------------------------------------------------------- which columns
 
 def _port_columns(result, scenario):
@@ -134,7 +132,7 @@ def _trajectory_axes(result, cols, title, left, width=7.0):
         ax.set_title(_unit(result, col), loc="left", fontsize=9)
         ax.grid(alpha=0.3)
     shown = f"; {len(cols)} of {len(cols) + len(left):,} columns" if left else ""
-    fig.suptitle(title.format(shown=shown), fontsize=11)
+    fig.suptitle(title.replace("{shown}", shown), fontsize=11)
     axes[-1, 0].set_xlabel("t (s)")
     return fig, axes[:, 0]
 
@@ -208,7 +206,8 @@ def _run_error(result, reference, path, note):
         return None
     fig, ax = plt.subplots(figsize=(7, 3.2))
     ax.semilogy(result.t[:len(result.error)], _floored(result.error))
-    ax.set(xlabel="t (s)", ylabel=_error_label(result), title="Error against the monolithic reference")
+    ax.set(xlabel="t (s)", ylabel=f"{_error_label(result)}; 0 drawn at {FLOOR:g}",
+           title=f"Error against the monolithic reference ({run_label(result)})")
     ax.grid(alpha=0.3, which="both")
     return _save(fig, path)
 
