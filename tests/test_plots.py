@@ -129,3 +129,12 @@ def test_every_third_party_system_plots(system, tmp_path, built_fmus):
     assert "not drawn" in fate["energy.png"]                   # no third-party FMU reports its stored energy
     if not any(str(a).endswith(".yaml") for a in system):
         assert "not drawn" in fate["error.png"]                  # no power port without an overlay
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not THIRD_PARTY.is_dir(), reason=f"{THIRD_PARTY} is absent")
+def test_a_sweep_of_an_ssd_with_ports_plots(tmp_path, built_fmus):
+    _, fate = plots([THIRD_PARTY / "dcmotor" / "SystemStructure.ssd", "--ports", CONFIGS / "dcmotor_ports.yaml",
+                     "--Ks", "0,5", "--T", "0.02"], tmp_path, "sweep")
+    assert fate["fig4_trajectories.png"].startswith("drawn; 2 of 4 columns drawn; left out: I, U (")
+    assert fate["fig6_error.png"] == "drawn" and "not drawn" in fate["energy_by_K.png"]
