@@ -25,7 +25,7 @@ def modules():
 def imported(name, path):
     """The package's modules that the module `name` imports (relative and absolute imports)."""
     package = name if path.name == "__init__.py" else name.rsplit(".", 1)[0]
-    for node in ast.walk(ast.parse(path.read_text())):
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
         if isinstance(node, ast.ImportFrom):
             if node.level:
                 base = package.split(".")[: len(package.split(".")) - node.level + 1]
@@ -97,7 +97,7 @@ def test_only_the_kernel_and_the_fmi_layer_import_ctypes():
     """Every other part passes C values made by wavecosim.kernel (cvalues, the bindings)."""
     found = []
     for name, path in modules().items():
-        for node in ast.walk(ast.parse(path.read_text())):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
             names = ([a.name for a in node.names] if isinstance(node, ast.Import)
                      else [node.module or ""] if isinstance(node, ast.ImportFrom) and not node.level else [])
             if any(n.split(".")[0] == "ctypes" for n in names) and part(name) not in C_ABI:
