@@ -39,12 +39,7 @@ def load_library():
     struct differs from AdapterC)."""
     global _lib
     if _lib is None:
-        lib = kernel_library(LIBRARY_NAME, "the wave adapter library")
-        lib.adapter_work_size.restype = ctypes.c_size_t
-        lib.adapter_work_size.argtypes = [ctypes.c_int]
-        lib.adapter_solve.argtypes = [ctypes.POINTER(AdapterC), ctypes.c_double, ctypes.c_double]
-        lib.adapter_reinvert.argtypes = [ctypes.POINTER(AdapterC)]
-        _lib = lib
+        _lib = kernel_library(LIBRARY_NAME, "the wave adapter library")
     return _lib
 
 

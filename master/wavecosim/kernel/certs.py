@@ -11,8 +11,8 @@ import numpy as np
 
 from ..errors import FmuError
 from .abi import mirrors
-from .drkernel import FUNCTIONS
-from .newton import NOT_CONVERGED, WHY, NewtonKernel, failed, library, not_converged
+from .drkernel import FUNCTIONS, load_library
+from .newton import NOT_CONVERGED, WHY, NewtonKernel, failed, not_converged
 
 
 @mirrors("drkernel", "DCSettings")
@@ -29,28 +29,12 @@ def supports(scene):
     return all(s.plain_wave_port() for s in scene.subsystems)
 
 
-def _lib():
-    lib = library()
-    if not hasattr(lib, "_certs_ready"):
-        p = ctypes.c_void_p
-        lib.dc_create.restype = p
-        lib.dc_create.argtypes = [p, p, p, ctypes.POINTER(DCSettings), p]
-        lib.dc_width.argtypes = [p]
-        lib.dc_arm.argtypes = [p, ctypes.c_int, p, p, p]
-        lib.dc_arm.restype = None
-        lib.dc_status.argtypes = [p, p, p, ctypes.POINTER(ctypes.c_long)]
-        lib.dc_destroy.argtypes = [p]
-        lib.dc_destroy.restype = None
-        lib._certs_ready = True
-    return lib
-
-
 class KernelCertificates:
     """The certificates' part of the master's block calls; CertificateSampler (sample) and FneWatch
     (watch) switch their parts on before the first block, then read `rows` after each block."""
 
     def __init__(self, kernel, newton: NewtonKernel, scene, floor):
-        self.lib, self.kernel, self.newton, self.scene = _lib(), kernel, newton, scene
+        self.lib, self.kernel, self.newton, self.scene = load_library(), kernel, newton, scene
         self.subsystems = scene.subsystems
         self.settings = DCSettings(1, 0, 0, 0, 0, 0.0, floor, 0.0)
         self.stage_vr, self.gammas = None, np.empty(len(self.subsystems))

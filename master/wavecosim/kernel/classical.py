@@ -18,27 +18,11 @@ from .drkernel import Kernel, load_library
 _double_p = ctypes.POINTER(ctypes.c_double)
 
 
-def _library():
-    lib = load_library()
-    if not hasattr(lib, "_classical_ready"):
-        p, ip = ctypes.c_void_p, ctypes.POINTER(ctypes.c_int)
-        lib.cl_create.restype = p
-        lib.cl_create.argtypes = [p, ip, ip, _double_p, ctypes.c_int, ctypes.c_int]
-        lib.cl_fixed_point_step.argtypes = [p, p, p, p, p, ctypes.c_int]      # arrays by address
-        lib.cl_explicit_step.argtypes = [p, p, p, p, ctypes.c_int]
-        lib.cl_pass.argtypes = [p, p, p, p, p, ctypes.c_int, ctypes.c_int]
-        lib.cl_run_steps.argtypes = [p, p, ctypes.c_int, ctypes.c_int, p, ctypes.c_long, ctypes.c_double]
-        lib.cl_destroy.argtypes = [p]
-        lib.cl_destroy.restype = None
-        lib._classical_ready = True
-    return lib
-
-
 class ClassicalKernel:
     """A DR kernel over the scene's subsystems (physical mode) and the classical step on it."""
 
     def __init__(self, scene, G, explicit, sequential):
-        self.lib = _library()
+        self.lib = load_library()
         self.base = Kernel(scene, None, None)
         self.base.configure(scene.scenario.dt, 0)
         self.n = scene.n_channels

@@ -19,6 +19,7 @@ import numpy as np
 
 from .abi import LayoutError, mirrors
 from .build import kernel_library
+from .contract import names
 from ..errors import ConfigError, FmuError
 from .adapter import load_library as load_adapter_library
 from .linalg import Sparse
@@ -29,9 +30,10 @@ LOG_PAD = 8               # a log's rows steps + LOG_PAD apart: 8 KiB apart, a s
 PARALLEL_MIN_US = 150.0   # a thread pays only when it takes over at least this much work per evaluation round
 DR_MAX_THREADS = 64       # drkernel.h
 CPUS_ENV = "WAVECOSIM_CPUS"
-REASONS = ("budget", "tolerance", "deadline", "explicit", "converged", "energy-guard")  # as masters/base.py (the
-#                                                  runner asserts it); the kernel never gives "converged"
-LEDGER_LOG = ("supplied", "ledger", "traffic", "scale", "action", "rounds", "step_s", "round_s", "cpu_s")  # drkernel.h
+REASONS = names("drkernel.h", "DRReason", "DR_", dash=True)     # the kernel never gives "converged"
+LEDGER_LOG = names("drkernel.h", "DRLedgerLog", "DR_LOG_")        # the ledger's rows of a log
+LEDGER_ACTIONS = names("drkernel.h", "DRLedgerAction", "DR_LEDGER_")
+STARTS = names("drkernel.h", "DRStart", "DR_START_")              # masters/dr_options.py
 FUNCTIONS = (None, "fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2SetReal", "fmi2DoStep", "fmi2GetReal")
 FAILED_EXTRA = -2        # drkernel.h DR_FAILED_EXTRA: the signals or a subsystem stepped alone failed
 FMI_NAMES = ("fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate", "fmi2SetReal", "fmi2DoStep",
@@ -90,50 +92,11 @@ _lib = None
 
 
 def load_library():
-    """The kernel library, built (with the FMUs) if missing or stale; raises FmuError if it cannot be."""
+    """The kernel library, built (with the FMUs) if missing or stale, its signatures those drkernel.h
+    and its parts' headers declare (contract.py); raises FmuError if it cannot be built."""
     global _lib
     if _lib is None:
-        lib = kernel_library("drkernel", "the kernel library")
-        p, i, d = ctypes.c_void_p, ctypes.c_int, ctypes.POINTER(ctypes.c_double)
-        lib.dr_create.restype = p
-        lib.dr_create.argtypes = [i, i, d, d, d, d, d, d]
-        lib.dr_set_subsystem.argtypes = [p, i, ctypes.POINTER(DRFunctions), p, p, ctypes.POINTER(ctypes.c_uint),
-                                         ctypes.POINTER(ctypes.c_uint), i, i]
-        lib.dr_set_no_prior.argtypes = [p, i, i]
-        lib.dr_set_threads.argtypes = [p, i, ctypes.POINTER(ctypes.c_int)]
-        lib.dr_thread_plan.argtypes = [p, ctypes.POINTER(ctypes.c_int)]
-        lib.dr_costs.argtypes = [p, d]
-        lib.dr_costs.restype = None
-        lib.dr_counts.argtypes = [p, ctypes.POINTER(ctypes.c_long)]
-        lib.dr_counts.restype = None
-        lib.dr_destroy.argtypes = [p]
-        lib.dr_destroy.restype = None
-        lib.dr_floor.argtypes = [p, ctypes.POINTER(DRStep), d, i]
-        ip = ctypes.POINTER(ctypes.c_int)
-        lib.dr_set_maps.argtypes = [p, ip, ip, d, ip, ip, d]
-        lib.dr_set_trace.argtypes = [p, d, i]
-        lib.dr_set_trace.restype = None
-        lib.dr_set_observed.argtypes = [p, i, ctypes.POINTER(ctypes.c_uint), i]
-        lib.dr_set_bound.argtypes = [p, ctypes.c_double, ctypes.POINTER(ctypes.c_int), i]
-        lib.dr_set_observed_view.argtypes = [p, i, p, p, i]
-        lib.dr_set_adapter.argtypes = [p, i, p, p]
-        lib.dr_redo_do_steps.argtypes = [p]
-        lib.dr_redo_do_steps.restype = ctypes.c_long
-        lib.dr_log_width.argtypes = [p]
-        lib.dr_log_width.restype = ctypes.c_size_t
-        lib.dr_run_steps.argtypes = [p, ctypes.POINTER(DRStep), i, i, p, ctypes.c_long, ctypes.c_double]
-        lib.dr_prepare_log.argtypes = [p, ctypes.POINTER(DRStep), p, ctypes.c_long, i]
-        lib.dr_prepare_log.restype = None
-        lib.dr_set_passes.argtypes = [p, i, ctypes.POINTER(p), ctypes.POINTER(p)]
-        lib.dr_set_options.argtypes = [p, ctypes.c_double, i, i]
-        lib.dr_set_anderson_modes.argtypes = [p, i, i]
-        lib.dr_set_anchors.argtypes = [p, i]
-        lib.dr_set_anchors.restype = None
-        lib.dr_set_previous.argtypes = [p, d]
-        lib.dr_set_previous.restype = None
-        lib.dr_ledger_redo.argtypes = [p, ctypes.POINTER(DRStep), ctypes.c_double, ctypes.c_double, ctypes.c_double,
-                                       ctypes.c_double, d]
-        _lib = lib
+        _lib = kernel_library("drkernel", "the kernel library")
     return _lib
 
 

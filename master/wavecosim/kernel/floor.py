@@ -16,21 +16,7 @@ _lib = None
 def library():
     global _lib
     if _lib is None:
-        lib = kernel_library("floor", "the floor's recorder")
-        p = ctypes.c_void_p
-        lib.fl_create.restype = p
-        lib.fl_register.argtypes = [p, p, ctypes.POINTER(FLFunctions)]
-        lib.fl_shims.argtypes = [ctypes.POINTER(FLFunctions)]
-        lib.fl_shims.restype = None
-        lib.fl_start.argtypes = [p]
-        lib.fl_start.restype = lib.fl_stop.restype = None
-        lib.fl_calls.argtypes = [p]
-        lib.fl_calls.restype = ctypes.c_size_t
-        lib.fl_replay.argtypes = [p, p, p, ctypes.POINTER(ctypes.c_int)]
-        lib.fl_replay.restype = ctypes.c_double
-        lib.fl_destroy.argtypes = [p]
-        lib.fl_destroy.restype = None
-        _lib = lib
+        _lib = kernel_library("floor", "the floor's recorder")
     return _lib
 
 

@@ -31,21 +31,6 @@ class NTSettings(ctypes.Structure):
                 ("max_iter", ctypes.c_int), ("stall", ctypes.c_int)]
 
 
-def library():
-    lib = load_library()
-    if not hasattr(lib, "_newton_ready"):
-        p = ctypes.c_void_p
-        lib.nt_create.restype = p
-        lib.nt_create.argtypes = [p, _int_p, _int_p, _double_p, ctypes.POINTER(NTSettings)]
-        lib.nt_set_map.argtypes = [p, _int_p, _int_p, _double_p]
-        lib.nt_step.argtypes = [p, p, p, p, p, p]                   # arrays by address
-        lib.nt_solve.argtypes = [p, p, p, p, p]
-        lib.nt_destroy.argtypes = [p]
-        lib.nt_destroy.restype = None
-        lib._newton_ready = True
-    return lib
-
-
 def _csr(P):
     return P.start.ctypes.data_as(_int_p), P.col.ctypes.data_as(_int_p), P.val.ctypes.data_as(_double_p)
 
@@ -54,7 +39,7 @@ class NewtonKernel:
     """A DR kernel over the scene's subsystems (wave mode) and the Newton macro-step on it."""
 
     def __init__(self, scene, P):
-        self.lib = library()
+        self.lib = load_library()
         self.base = Kernel(scene, None, None)
         self.base.configure(scene.scenario.dt, 0)
         self.n = scene.n_channels

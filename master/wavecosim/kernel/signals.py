@@ -11,7 +11,6 @@ import numpy as np
 from .abi import mirrors
 from ..errors import FmuError, NumericalError
 
-_ip, _up, _dp = ctypes.POINTER(ctypes.c_int), ctypes.POINTER(ctypes.c_uint), ctypes.POINTER(ctypes.c_double)
 SG_OK, SG_FMU, SG_NONFINITE, SG_NO_TABLE = range(4)          # signals.h
 TYPES = ("real", "integer", "boolean")                       # signals.h SG_REAL, SG_INTEGER, SG_BOOLEAN
 OTHER_FUNCTIONS = {16: "fmi2GetInteger", 17: "fmi2GetBoolean", 18: "fmi2SetInteger", 19: "fmi2SetBoolean"}
@@ -38,24 +37,6 @@ class SGFailure(ctypes.Structure):
     """signals.h: why the last step's signals failed."""
     _fields_ = [(name, ctypes.c_int) for name in ("kind", "index", "function", "status", "step", "alone_done")] + \
                [("value", ctypes.c_double)]
-
-
-def _library(lib):
-    if not hasattr(lib, "_signals_ready"):
-        p, i = ctypes.c_void_p, ctypes.c_int
-        lib.sg_create.restype = p
-        lib.sg_create.argtypes = [p, i, ctypes.POINTER(SGFmu), i, ctypes.POINTER(SGSignal), i, _ip, _ip, _ip, _up, _ip,
-                                  i, _ip, _ip, _ip, _up, _ip, i, _ip, _ip, _up]
-        lib.sg_set_table.argtypes = [p, p, ctypes.c_long, i, i]
-        lib.sg_set_table.restype = None
-        lib.sg_attach.argtypes = [p]
-        lib.sg_attach.restype = None
-        lib.sg_failure.argtypes = [p]
-        lib.sg_failure.restype = ctypes.POINTER(SGFailure)
-        lib.sg_destroy.argtypes = [p]
-        lib.sg_destroy.restype = None
-        lib._signals_ready = True
-    return lib
 
 
 def _array(kind, values):
@@ -89,7 +70,7 @@ class SignalPlan:
     `functions` names the FMU functions by the kernel's DR_FN_* index (for errors)."""
 
     def __init__(self, lib, handle, plan, alone_vrs, functions):
-        self.lib, self.plan, self.functions = _library(lib), plan, functions
+        self.lib, self.plan, self.functions = lib, plan, functions
         self.subsystems, self.alone = plan["subsystems"], plan["alone"]
         wanted = [set(FMU_FUNCTIONS[:3]) for _ in self.subsystems]
         for fmu, kind, _, _ in plan["reads"] + plan["writes"]:
@@ -122,7 +103,7 @@ class SignalPlan:
     def book(self, n0, done, failed):
         """Book the doSteps of the subsystems stepped alone in steps n0 .. n0 + done - 1 (and those
         made in step n0 + done before a failure there)."""
-        extra = self.lib.sg_failure(self.handle).contents.alone_done if failed else 0
+        extra = self._failure().alone_done if failed else 0
         last = n0 + done - (0 if failed else 1)
         for a, j in enumerate(self.alone):
             s = self.subsystems[j]
@@ -132,13 +113,17 @@ class SignalPlan:
 
     def error(self, n, t):
         """The error of the step whose signals failed, as the Python route raises it."""
-        f = self.lib.sg_failure(self.handle).contents
+        f = self._failure()
         if f.kind == SG_NONFINITE:
             return NumericalError(self.plan["nonfinite"](f.index, f.value, f.step))
         if f.kind == SG_FMU:
             name = OTHER_FUNCTIONS.get(f.function) or self.functions[f.function]
             return self.subsystems[f.index].fmu.status_error(name, f.status, n, t)
         return FmuError(f"the kernel's signals had no source table values for step {f.step}")
+
+    def _failure(self):
+        """signals.h: the SGFailure of the last step."""
+        return SGFailure.from_address(self.lib.sg_failure(self.handle))
 
     def close(self):
         if self.handle:

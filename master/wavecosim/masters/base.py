@@ -22,12 +22,13 @@ from dataclasses import dataclass
 from typing import Optional, Protocol, runtime_checkable
 
 from ..errors import ConfigError
+from ..kernel.drkernel import REASONS as KERNEL_REASONS
 from ..kernel.linalg import dot, matvec
 from .monolithic import solve_interface
 
 
 MIN_INNER_S = 1e-9        # an inner deadline this short stops the loop after its first iteration
-REASONS = ("budget", "tolerance", "deadline", "explicit", "converged", "energy-guard", "none")
+REASONS = (*KERNEL_REASONS, "none")          # drkernel.h DRReason, and a step no loop ran for
 
 
 @dataclass

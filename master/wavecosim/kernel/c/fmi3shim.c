@@ -8,7 +8,7 @@
  * struct for the error message. Any code written against the fmi2 contract (the DR kernel, a
  * wrapper of fmi2-signature calls) runs an FMI 3 FMU through these functions unchanged.
  */
-#include "fmi2FunctionTypes.h"
+#include "fmi3shim.h"
 #include "fmi3FunctionTypes.h"
 #include "abi.h"
 
