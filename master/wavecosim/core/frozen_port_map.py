@@ -3,7 +3,7 @@
 `freeze()` saves x_i^n; `query(a)` is S_i^n(a) (paper eq. 12): restore x_i^n, apply a, one doStep,
 read b, discard the state; `advance(a)` is Phi_i (eq. 21): the same from x_i^n, but the state is
 kept. Calls go straight to the FMU's C functions with pre-converted arguments (in fmi2 form; for an
-FMI 3 FMU, wavecosim/fmi3.py puts its fmi3 functions behind the same signatures). How a becomes b is
+FMI 3 FMU, wavecosim/fmi/fmi3.py puts its fmi3 functions behind the same signatures). How a becomes b is
 the subsystem's port (wavecosim/core/ports.py): the FMU's own wave mode, or the wave adapter for an FMU
 with only a physical port.
 """

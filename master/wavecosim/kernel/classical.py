@@ -39,7 +39,7 @@ class ClassicalKernel:
 
     def run_steps(self, n0, count, y, H_cap=math.inf, measure=False, passes=False):
         """Macro-steps n0 .. n0 + count - 1 from outputs y in one call (classical.h, cl_run_steps):
-        (steps done, their fast_path.BlockLog, the FmuError of the step after them or None);
+        (steps done, their drkernel.BlockLog, the FmuError of the step after them or None);
         measure: time the evaluations (Kernel.costs); passes: make the kernel's passes (Kernel.run_steps)."""
         self._b[:] = y
         return self.base.run_steps(n0, count, H_cap, measure, passes=passes)

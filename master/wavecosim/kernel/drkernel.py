@@ -13,7 +13,6 @@ import ctypes
 import functools
 import math
 import os
-import time
 
 import numpy as np
 
@@ -233,7 +232,7 @@ class Kernel:
     """One C kernel over a scene's subsystems (wave mode), with its buffers b, a_hat, u^0, u^K."""
 
     def __init__(self, scene, P, J_L):
-        """P, J_L: linalg.Sparse or dense rows; None for a route without them (classical_path.py),
+        """P, J_L: linalg.Sparse or dense rows; None for a route without them (kernel/classical.py, newton.py),
         which then runs the subsystems in the port mode the scene opened them in."""
         lib = self.lib = load_library()
         n = scene.n_channels
@@ -441,29 +440,6 @@ class Kernel:
         if self.lib.dr_ledger_redo(self._handle, self._io, supplied, budget, left_s, round_s, out):
             raise self.failure(*self.at)
         return out[0], out[1], out[2], int(out[3]), int(out[4])
-
-    def floor(self, n_steps, K, inputs=None, t0=0.0):
-        """The FMU calls of n_steps macro-steps with budget K and no DR logic (the floor); returns
-        the seconds spent in the C driver.
-
-        inputs: None, or per step K + 1 stacked input vectors (the u^k of the queries, then the
-        a of the commit), flat, as recorded from a run; replaying them repeats its FMU work."""
-        buf = None
-        if inputs is not None:
-            if len(inputs) != n_steps * (K + 1) * self.n:
-                raise ValueError(f"floor: need {n_steps * (K + 1) * self.n} inputs, got {len(inputs)}")
-            buf = (ctypes.c_double * len(inputs))(*inputs)
-        io = self.io
-        K_run, io.t, io.K = io.K, t0, K
-        try:
-            started = time.perf_counter()
-            failed = self.lib.dr_floor(self._handle, self._io, buf, n_steps)
-            elapsed = time.perf_counter() - started
-        finally:
-            io.K = K_run
-        if failed:
-            raise self.failure(None, None)
-        return elapsed
 
     def failure(self, n, t):
         io = self.io

@@ -139,7 +139,7 @@ class Master:
         return 0
 
     def kernel_certificates(self, floor):
-        """The sampled certificates computed inside this master's blocks of steps (certs_path), or
+        """The sampled certificates computed inside this master's blocks of steps (kernel/certs.py), or
         None: the observers then compute them step by step."""
         return None
 

@@ -220,13 +220,6 @@ int dr_set_passes(DRKernel *k, int n, DRPassFn *const *fns, void *const *args);
 int dr_ledger_redo(DRKernel *k, DRStep *io, double supplied, double budget, double left_s, double round_s,
                    double *out);
 
-/* The floor: n_steps macro-steps making the same FMU calls as dr_macro_step with K = io->K
- * (serial), with no DR arithmetic; t = io->t + s dt at step s. The inputs of step s are
- * inputs[((K + 1) s + k) n ..] for query k < K and the commit k = K (e.g. u^k and a recorded from
- * a run, which then replays that run's FMU work exactly); inputs = NULL feeds every subsystem its
- * own last outgoing wave. Returns like dr_macro_step. */
-int dr_floor(DRKernel *k, DRStep *io, const double *inputs, int n_steps);
-
 /* Median wall time (microseconds) of one evaluation of each subsystem over the macro-steps run
  * with io->measure set (the first 16 evaluations; a dr_run_steps call with it set starts afresh),
  * then resets the measurement. */
