@@ -30,7 +30,7 @@ def replayed_outputs(sc, recorder):
     try:
         master.close()
         everyone = {s.name: s for s in scene.subsystems + scene.signal_only}
-        recorder.replay({name: s.fmu for name, s in everyone.items()})
+        recorder.replay({name: (s.fmu.component, s.fmu.function_pointer) for name, s in everyone.items()})
         return [float(everyone[ref.split(".")[0]].fmu.get_real([everyone[ref.split(".")[0]].fmu.vr(
             ref.split(".", 1)[1])])[0]) for ref in sc.outputs.values()]
     finally:

@@ -141,7 +141,7 @@ def floor_seconds(scenario, K, n_steps, fresh):
             recorder.stop()
             master.close()
             scene.close()
-        return recorder.replay({s.name: s.fmu for s in fresh.subsystems}) * (n_steps - 1) / n_steps
+        return recorder.replay({s.name: (s.fmu.component, s.fmu.function_pointer) for s in fresh.subsystems}) * (n_steps - 1) / n_steps
     finally:
         recorder.close()
 

@@ -91,7 +91,7 @@ def _floor(scenario, recorder):
     scene, master, _ = open_parts(scenario, quiet)
     try:
         master.close()
-        fmus = {s.name: s.fmu for s in scene.subsystems + scene.signal_only}
+        fmus = {s.name: (s.fmu.component, s.fmu.function_pointer) for s in scene.subsystems + scene.signal_only}
         return 1e6 * recorder.replay(fmus) / scenario.n_steps
     finally:
         scene.close()

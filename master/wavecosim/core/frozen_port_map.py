@@ -208,7 +208,7 @@ class Subsystem:
         """raw_query of each row of a 2-D array, in order, as rows of outputs: one C call
         (kernel/c/queries.c) making the same FMU calls, or raw_query row by row without it."""
         if self._batch is None:
-            self._batch = queries.batch(self.fmu) or False
+            self._batch = queries.batch(self.fmu.function_pointer) or False
         if not self._batch:
             return np.array([self.raw_query(list(r)) for r in rows], float).reshape(len(rows), self.m)
         out, done, fn, status = self._batch(self._comp, self._state, self._in_vr, self._out_vr, self.m, self._t,

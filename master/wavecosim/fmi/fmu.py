@@ -241,13 +241,13 @@ class ModelExchange2(ModelExchange, Fmi2):
     """An FMI 2.0 FMU with model exchange only, stepped as co-simulation (wavecosim/fmi/me.py)."""
 
 
-_pointer_hook = None       # hook(fmu, fname, lookup) -> the address function_pointer gives (see interposed)
+_pointer_hook = None       # hook(name, component, fname, lookup) -> the address function_pointer gives (see interposed)
 
 
 @contextlib.contextmanager
 def interposed(hook):
-    """Within the block, Fmu.function_pointer(fname) gives hook(fmu, fname, lookup) instead of the FMU's
-    own address lookup(fname): the one seam through which a tool stands between the C kernel and an
+    """Within the block, Fmu.function_pointer(fname) gives hook(name, component, fname, lookup) (the
+    instance's name and fmi2Component) instead of the FMU's own address lookup(fname): the one seam through which a tool stands between the C kernel and an
     FMU's functions (the bench's floor records the kernel's FMU calls so, bench/real_fmus.py). The
     kernel takes its pointers when a master opens its route, so the master must open in the block;
     None: no hook. Not thread-safe: one block at a time."""
@@ -515,7 +515,7 @@ class Fmu:
         """Address of a C function with the fmi2 signature of `fname` taking `component`, for the C fast
         path: the FMU's own for FMI 2, kernel/c/fmi3shim.c's for FMI 3 (or the hook's within `interposed`)."""
         if _pointer_hook is not None:
-            return _pointer_hook(self, fname, self._fmi.function_pointer)
+            return _pointer_hook(self.name, self.component, fname, self._fmi.function_pointer)
         return self._fmi.function_pointer(fname)
 
     def function_name(self, fname):

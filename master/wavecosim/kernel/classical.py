@@ -24,8 +24,8 @@ class ClassicalKernel:
     def __init__(self, scene, G, explicit, sequential):
         self.lib = load_library()
         self.base = Kernel(scene, None, None)
-        self.base.configure(scene.scenario.dt, 0)
-        self.n = scene.n_channels
+        self.base.configure(scene.dt, 0)
+        self.n = scene.n
         ptr = ctypes.POINTER(ctypes.c_int)
         self.handle = self.lib.cl_create(self.base.handle, G.start.ctypes.data_as(ptr), G.col.ctypes.data_as(ptr),
                                          G.val.ctypes.data_as(_double_p), int(explicit), int(sequential))

@@ -41,8 +41,8 @@ class NewtonKernel:
     def __init__(self, scene, P):
         self.lib = load_library()
         self.base = Kernel(scene, None, None)
-        self.base.configure(scene.scenario.dt, 0)
-        self.n = scene.n_channels
+        self.base.configure(scene.dt, 0)
+        self.n = scene.n
         self.settings = NTSettings(TOL, ACCEPT, ACCEPT_REL, MAX_ITER, STALL)
         self.handle = self.lib.nt_create(self.base.handle, *_csr(P), ctypes.byref(self.settings))
         if not self.handle:
@@ -90,17 +90,6 @@ class NewtonKernel:
             self.lib.nt_destroy(self.handle)
             self.handle = None
         self.base.close()
-
-
-def book_kernel_step(subsystems, n, t, queries):
-    """Book a kernel macro-step on the Subsystems (frozen at x^n, `queries` S-evaluations and the
-    commit); a wave adapter's FMU calls are its own count."""
-    for s in subsystems:
-        if s.adapter:
-            s.note_kernel_step(n, t, 0, 0)
-            s.map.book()
-        else:
-            s.note_kernel_step(n, t, queries)
 
 
 def not_converged(where, res, scale):

@@ -55,28 +55,29 @@ def _calls(calls):
 
 
 def _functions(fmu, wanted):
-    """SGFmu of an FMU: the functions in `wanted` (the others NULL)."""
+    """SGFmu of an FMU (a description.KernelFmu): the functions in `wanted` (the others NULL)."""
     table = SGFmu(comp=fmu.component)
     for name, field in zip(FMU_FUNCTIONS, SGFmu._fields_):
         if name in wanted:
-            setattr(table, field[0], fmu.function_pointer(name))
+            setattr(table, field[0], fmu.pointer(name))
     return table
 
 
 class SignalPlan:
-    """signals.c's plan over a kernel (`handle`) from `plan` (core.scene.Scene.kernel_signals(): the
-    FMUs (port subsystems first, then those stepped alone), the signals, the getReal and setReal calls,
-    the tables) and the outputs read of each subsystem stepped alone (`alone_vrs`, one list each);
-    `functions` names the FMU functions by the kernel's DR_FN_* index (for errors)."""
+    """signals.c's plan over a kernel (`handle`) from `plan` (description.KernelScene.signals: the
+    FMUs as KernelFmu (port subsystems first, then those stepped alone), the signals, the getReal and
+    setReal calls, the tables) and the outputs read of each subsystem stepped alone (`alone_vrs`, one
+    list each); `functions` names the FMU functions by the kernel's DR_FN_* index (for errors);
+    book_alone(j, doSteps, n, t) books the calls of the j-th stepped alone (n None: no step ended)."""
 
-    def __init__(self, lib, handle, plan, alone_vrs, functions):
-        self.lib, self.plan, self.functions = lib, plan, functions
+    def __init__(self, lib, handle, plan, alone_vrs, functions, book_alone):
+        self.lib, self.plan, self.functions, self.book_alone = lib, plan, functions, book_alone
         self.subsystems, self.alone = plan["subsystems"], plan["alone"]
         wanted = [set(FMU_FUNCTIONS[:3]) for _ in self.subsystems]
         for fmu, kind, _, _ in plan["reads"] + plan["writes"]:
             if kind != "real":
                 wanted[fmu] |= {f"fmi2Get{kind.title()}", f"fmi2Set{kind.title()}"}
-        fmus = (SGFmu * max(1, len(self.subsystems)))(*[_functions(s.fmu, w) for s, w in zip(self.subsystems, wanted)])
+        fmus = (SGFmu * max(1, len(self.subsystems)))(*[_functions(f, w) for f, w in zip(self.subsystems, wanted)])
         sigs, alone_starts = plan["signals"], [0]
         for vrs in alone_vrs:
             alone_starts.append(alone_starts[-1] + len(vrs))
@@ -105,11 +106,9 @@ class SignalPlan:
         made in step n0 + done before a failure there)."""
         extra = self._failure().alone_done if failed else 0
         last = n0 + done - (0 if failed else 1)
-        for a, j in enumerate(self.alone):
-            s = self.subsystems[j]
-            s.calls["doStep"] += done + (a < extra)
-            if done or failed:
-                s.begin(last, self.plan["t0"] + last * self.plan["dt"])
+        at = (last, self.plan["t0"] + last * self.plan["dt"]) if done or failed else (None, None)
+        for a in range(len(self.alone)):
+            self.book_alone(a, done + (a < extra), *at)
 
     def error(self, n, t):
         """The error of the step whose signals failed, as the Python route raises it."""
@@ -118,7 +117,7 @@ class SignalPlan:
             return NumericalError(self.plan["nonfinite"](f.index, f.value, f.step))
         if f.kind == SG_FMU:
             name = OTHER_FUNCTIONS.get(f.function) or self.functions[f.function]
-            return self.subsystems[f.index].fmu.status_error(name, f.status, n, t)
+            return self.subsystems[f.index].error(name, f.status, n, t)
         return FmuError(f"the kernel's signals had no source table values for step {f.step}")
 
     def _failure(self):

@@ -31,6 +31,17 @@ MIN_INNER_S = 1e-9        # an inner deadline this short stops the loop after it
 REASONS = (*KERNEL_REASONS, "none")          # drkernel.h DRReason, and a step no loop ran for
 
 
+def kernel_refusal(scene, mode):
+    """Why a master's Python reference runs instead of its kernel route (None: the kernel can run),
+    for master.fast `mode`; `true` insists (a config error when the kernel cannot run)."""
+    if mode == "false":
+        return "master.fast is false"
+    why = scene.kernel_unusable()
+    if why is not None and mode == "true":
+        raise ConfigError(f"{scene.scenario.source}: master.fast: true, but {why}")
+    return why
+
+
 @dataclass
 class StepLog:
     """What one macro-step did: inner iterations, last inner residual and why the iteration stopped.

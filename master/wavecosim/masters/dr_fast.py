@@ -15,10 +15,10 @@ caller does all the arithmetic, so the thread plan never changes a number.
 import math
 import time
 
-from ..kernel.drkernel import REASONS, Kernel, kernel_refusal
+from ..kernel.drkernel import REASONS, Kernel
 from ..kernel.certs import KernelCertificates, supports
 from ..kernel.newton import NewtonKernel
-from .base import StepLog
+from .base import StepLog, kernel_refusal
 from .dr import DRMaster
 from .threads import ThreadPlanner
 from .dr_options import STARTS
@@ -45,7 +45,8 @@ class FastDRMaster(DRMaster):
         self.fast_note = self._kernel_refusal(scene, str(settings.fast).lower())
         if self.fast_note is not None:
             return
-        self.kernel = Kernel(scene, self.P, self.J_L)
+        self._kernel_scene = scene.kernel_scene()        # what the kernel's bindings know of the scene
+        self.kernel = Kernel(self._kernel_scene, self.P, self.J_L)
         self.kernel.configure(self.dt, self.K, self.eps, self.deadline_s)
         self.kernel.set_anchors((settings.energy_guard or self.default_guard) == "ledger")
         self._send_options()
@@ -99,14 +100,14 @@ class FastDRMaster(DRMaster):
 
     def _newton_kernel(self):
         if self._newton is None:
-            self._newton = NewtonKernel(self.scene, self.P)
+            self._newton = NewtonKernel(self._kernel_scene, self.P)
         return self._newton
 
     def kernel_certificates(self, floor):
         """The certificates inside this master's blocks (kernel/certs.py KernelCertificates; the watch keeps
         pairs above `floor`), made on the first ask; None where the blocks cannot compute them."""
-        if self._certs is None and self.kernel is not None and self._exact and supports(self.scene):
-            self._certs = KernelCertificates(self.kernel, self._newton_kernel(), self.scene, floor)
+        if self._certs is None and self.kernel is not None and self._exact and supports(self._kernel_scene):
+            self._certs = KernelCertificates(self.kernel, self._newton_kernel(), self._kernel_scene, floor)
         return self._certs
 
     def retune(self, b):
