@@ -4,10 +4,10 @@ The C kernel (kernel/c/drkernel.c, built with the FMUs into the kernel library l
 each FMU through its own fmi2 function pointers with preallocated buffers, and does the DR
 arithmetic in the operation order of wavecosim/kernel/linalg.py, so its numbers are bit-identical to the
 readable reference `DRMaster` (wavecosim/masters/dr.py). This module wires the kernel up through
-ctypes: `Kernel` owns one C kernel for a scene's subsystems and the buffers it shares with
-Python. The master that uses it is wavecosim/masters/dr_fast.py::FastDRMaster.
-An FMI 3 FMU is handed over in fmi2 form: `Fmu.function_pointer` gives the functions of
-kernel/c/fmi3shim.c, which take the FMU's shim (`Fmu.component`) as their fmi2Component.
+ctypes: `Kernel` owns one C kernel for a scene's subsystems, given as plain data
+(kernel/description.py, KernelScene), and the buffers it shares with Python. The master that uses
+it is wavecosim/masters/dr_fast.py::FastDRMaster. An FMI 3 FMU arrives in fmi2 form: its functions
+are kernel/c/fmi3shim.c's, which take the FMU's shim as their fmi2Component.
 """
 import ctypes
 import functools
