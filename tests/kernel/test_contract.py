@@ -18,6 +18,9 @@ typedef struct { int a; double b; } Pair;        /* a struct */
 typedef void PassFn(void *args, int n);
 enum Color { C_RED = 0, C_GREEN, C_BLUE = 2 };
 enum Gap { G_A = 0, G_B = 2 };
+enum { X_ONE = 1, X_TWO };
+#define X_LIMIT (-2)
+#define X_ROOM 64
 static inline double twice(double x) { if (x) { return 2 * x; } return 0.0; }
 Pair *x_create(int n, const double *values, unsigned int count);
 void x_run(Pair *p, long ld, size_t k, fmi2Component comp,
@@ -74,8 +77,12 @@ def test_the_reader_takes_prototypes_and_enums_as_our_headers_write_them(tmp_pat
         "x_count": (ctypes.c_long, [])}
     assert contract.enum.__wrapped__("x.h", "Color") == [("C_RED", 0), ("C_GREEN", 1), ("C_BLUE", 2)]
     contract.enum.cache_clear()
+    contract._text.cache_clear()
     try:
         assert contract.names("x.h", "Color", "C_") == ("red", "green", "blue")
+        assert [contract.constant("x.h", c) for c in ("X_TWO", "C_BLUE", "X_LIMIT", "X_ROOM")] == [2, 2, -2, 64]
+        with pytest.raises(contract.ContractError, match="defines no integer X_NONE"):
+            contract.constant("x.h", "X_NONE")
         with pytest.raises(contract.ContractError, match="enum Gap's G_\\* values are not 0 .. 1"):
             contract.names("x.h", "Gap", "G_")
         with pytest.raises(contract.ContractError, match="declares no enum Shade"):
@@ -85,6 +92,7 @@ def test_the_reader_takes_prototypes_and_enums_as_our_headers_write_them(tmp_pat
             contract.prototypes.__wrapped__("y.h")
     finally:
         contract.enum.cache_clear()
+        contract._text.cache_clear()
 
 
 def test_a_function_the_header_declares_but_the_library_lacks_is_a_one_line_error(tmp_path, monkeypatch):

@@ -5,11 +5,12 @@ that uses it is wavecosim.core.adapter_kernel.KernelAdapter.
 import ctypes
 
 from .abi import mirrors
+from .contract import constant
 from .build import kernel_library
 
 LIBRARY_NAME = "adapter"                   # libadapter.so, from kernel/c/adapter.c
 SHIM = ("getFMUstate", "setFMUstate", "freeFMUstate", "setReal", "doStep", "getReal")   # drkernel.h DRFunctions
-AD_OK, AD_FMU, AD_SINGULAR, AD_STALLED = range(4)
+AD_FMU, AD_SINGULAR, AD_STALLED = (constant("adapter.h", name) for name in ("AD_FMU", "AD_SINGULAR", "AD_STALLED"))
 _D, _L = ctypes.POINTER(ctypes.c_double), ctypes.c_long
 
 

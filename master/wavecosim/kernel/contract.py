@@ -4,7 +4,8 @@ A library's header declares every function it exports (its C files include it, s
 holds the definitions to it) and the named enums whose members Python names (REASONS, STARTS,
 the ledger's actions and log rows). When a library is loaded (kernel/build.py, helper_library)
 every prototype of its headers becomes the ctypes argtypes and restype of its function, so no
-binding restates a signature; `names` turns a named enum into the Python tuple of its members.
+binding restates a signature; `names` turns a named enum into the Python tuple of its members and `constant` gives one
+enum member's or #define's value.
 Pointers of every kind are c_void_p: callers pass arrays, byref() or raw addresses, and the structs
 behind them are checked by kernel/abi.py.
 """
@@ -26,7 +27,7 @@ QUALIFIERS = {"const", "volatile", "struct", "enum", "extern"}
 _COMMENT = re.compile(r"/\*.*?\*/|//[^\n]*", re.S)
 _DIRECTIVE = re.compile(r"^[ \t]*#(?:[^\n]*\\\n)*[^\n]*", re.M)
 _BLOCK = re.compile(r"\{[^{}]*\}")
-_ENUM = re.compile(r"\benum\s+(\w+)\s*\{([^{}]*)\}")
+_ENUM = re.compile(r"\benum\s*(\w*)\s*\{([^{}]*)\}")
 _PROTOTYPE = re.compile(r"^(?P<ret>[\w\s*]*?[\w*])\s*\b(?P<name>\w+)\s*\((?P<params>[^()]*)\)$")
 
 
@@ -74,13 +75,18 @@ def enum(header, tag):
     """[(member, value)] of `enum tag { ... }` in `header`, in the order written."""
     for name, body in _ENUM.findall(_text(header)):
         if name == tag:
-            members, value = [], -1
-            for item in filter(None, (m.strip() for m in body.split(","))):
-                member, _, given = (part.strip() for part in item.partition("="))
-                value = int(given, 0) if given else value + 1
-                members.append((member, value))
-            return members
+            return _members(body)
     raise ContractError(f"{HEADERS / header} declares no enum {tag}")
+
+
+def _members(body):
+    """[(member, value)] of an enum's body, the values counted on from the last one given."""
+    members, value = [], -1
+    for item in filter(None, (m.strip() for m in body.split(","))):
+        member, _, given = (part.strip() for part in item.partition("="))
+        value = int(given, 0) if given else value + 1
+        members.append((member, value))
+    return members
 
 
 def names(header, tag, prefix, dash=False):
@@ -91,6 +97,18 @@ def names(header, tag, prefix, dash=False):
     if sorted(value for value, _ in members) != list(range(len(members))):
         raise ContractError(f"{HEADERS / header}: enum {tag}'s {prefix}* values are not 0 .. {len(members) - 1}")
     return tuple(name.replace("_", "-") if dash else name for _, name in sorted(members))
+
+
+def constant(header, name):
+    """The integer value of `name` in `header`: an enum member or a `#define name value`."""
+    for member, value in (m for _, body in _ENUM.findall(_text(header)) for m in _members(body)):
+        if member == name:
+            return value
+    raw = _COMMENT.sub(" ", (HEADERS / header).read_text())
+    match = re.search(rf"^[ \t]*#define[ \t]+{name}[ \t]+\(?(-?\w+)\)?[ \t]*$", raw, re.M)
+    if match is None:
+        raise ContractError(f"{HEADERS / header} defines no integer {name}")
+    return int(match[1], 0)
 
 
 def declared(headers):

@@ -18,7 +18,7 @@ import numpy as np
 
 from .abi import mirrors
 from .build import kernel_library
-from .contract import names
+from .contract import constant, names
 from ..errors import ConfigError, FmuError
 from .linalg import Sparse
 from .portview import ObservedPort, PortView, SignedPort
@@ -26,14 +26,14 @@ from .signals import SignalPlan
 
 LOG_PAD = 8               # a log's rows steps + LOG_PAD apart: 8 KiB apart, a step's values would share cache sets
 PARALLEL_MIN_US = 150.0   # a thread pays only when it takes over at least this much work per evaluation round
-DR_MAX_THREADS = 64       # drkernel.h
+DR_MAX_THREADS = constant("drkernel.h", "DR_MAX_THREADS")
 CPUS_ENV = "WAVECOSIM_CPUS"
 REASONS = names("drkernel.h", "DRReason", "DR_", dash=True)     # the kernel never gives "converged"
 LEDGER_LOG = names("drkernel.h", "DRLedgerLog", "DR_LOG_")        # the ledger's rows of a log
 LEDGER_ACTIONS = names("drkernel.h", "DRLedgerAction", "DR_LEDGER_")
 STARTS = names("drkernel.h", "DRStart", "DR_START_")              # masters/dr_options.py
 FUNCTIONS = (None, "fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2SetReal", "fmi2DoStep", "fmi2GetReal")
-FAILED_EXTRA = -2        # drkernel.h DR_FAILED_EXTRA: the signals or a subsystem stepped alone failed
+FAILED_EXTRA = constant("drkernel.h", "DR_FAILED_EXTRA")   # the signals or a subsystem stepped alone failed
 FMI_NAMES = ("fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate", "fmi2SetReal", "fmi2DoStep",
               "fmi2GetReal")
 

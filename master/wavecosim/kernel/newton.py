@@ -10,6 +10,7 @@ import numpy as np
 
 from ..errors import FmuError, NumericalError
 from .abi import mirrors
+from .contract import constant
 from .drkernel import Kernel, load_library
 
 _int_p, _double_p = ctypes.POINTER(ctypes.c_int), ctypes.POINTER(ctypes.c_double)
@@ -20,8 +21,9 @@ ACCEPT_REL = 1e-5       # relative to the port-wave scale |a| + |b|
 MAX_ITER = 30
 STALL = 3
 NON_FINITE, SINGULAR = "non-finite residual", "singular Jacobian"
-WHY = {1: NON_FINITE, 2: SINGULAR, 4: "out of memory"}       # newton.h: NT_NONFINITE, NT_SINGULAR, NT_NO_MEMORY
-NOT_CONVERGED = 3                                                 # newton.h: NT_NOT_CONVERGED
+WHY = {constant("newton.h", code): why for code, why in (("NT_NONFINITE", NON_FINITE), ("NT_SINGULAR", SINGULAR),
+                                                        ("NT_NO_MEMORY", "out of memory"))}
+NOT_CONVERGED = constant("newton.h", "NT_NOT_CONVERGED")
 
 
 @mirrors("drkernel", "NTSettings")

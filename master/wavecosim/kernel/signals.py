@@ -9,11 +9,13 @@ import ctypes
 import numpy as np
 
 from .abi import mirrors
+from .contract import constant, names
 from ..errors import FmuError, NumericalError
 
-SG_OK, SG_FMU, SG_NONFINITE, SG_NO_TABLE = range(4)          # signals.h
-TYPES = ("real", "integer", "boolean")                       # signals.h SG_REAL, SG_INTEGER, SG_BOOLEAN
-OTHER_FUNCTIONS = {16: "fmi2GetInteger", 17: "fmi2GetBoolean", 18: "fmi2SetInteger", 19: "fmi2SetBoolean"}
+SG_FMU, SG_NONFINITE = (constant("signals.h", name) for name in ("SG_FMU", "SG_NONFINITE"))   # SGFailure.kind
+TYPES = names("signals.h", "SGType", "SG_")                  # the types of the values a signal carries
+OTHER_FUNCTIONS = {constant("signals.h", f"SG_FN_{verb}_{kind.upper()}"): f"fmi2{verb.title()}{kind.title()}"
+                   for verb in ("GET", "SET") for kind in TYPES[1:]}        # SGFailure.function past DR_FN_*
 FMU_FUNCTIONS = ("fmi2GetReal", "fmi2SetReal", "fmi2DoStep", "fmi2GetInteger", "fmi2SetInteger", "fmi2GetBoolean",
                  "fmi2SetBoolean")
 
