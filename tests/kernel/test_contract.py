@@ -88,7 +88,8 @@ def test_the_reader_takes_prototypes_and_enums_as_our_headers_write_them(tmp_pat
         with pytest.raises(contract.ContractError, match="declares no enum Shade"):
             contract.names("x.h", "Shade", "S_")
         (tmp_path / "y.h").write_text("float y_half(float x);\n")
-        with pytest.raises(contract.ContractError, match=r"y\.h: the kernel's contract does not know the C type 'float'"):
+        unknown = r"y\.h: the kernel's contract does not know the C type 'float'"
+        with pytest.raises(contract.ContractError, match=unknown):
             contract.prototypes.__wrapped__("y.h")
     finally:
         contract.enum.cache_clear()
