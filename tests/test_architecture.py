@@ -30,7 +30,7 @@ def modules():
 def imported(name, path):
     """The package's modules that the module `name` imports (relative and absolute imports)."""
     package = name if path.name == "__init__.py" else name.rsplit(".", 1)[0]
-    for node in ast.walk(ast.parse(path.read_text())):
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
         if isinstance(node, ast.ImportFrom):
             if node.level:
                 base = package.split(".")[: len(package.split(".")) - node.level + 1]
@@ -102,7 +102,7 @@ def test_only_the_kernel_and_the_fmi_layer_import_ctypes():
     """Every other part passes C values made by wavecosim.kernel (cvalues, the bindings)."""
     found = []
     for name, path in modules().items():
-        for node in ast.walk(ast.parse(path.read_text())):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
             names = ([a.name for a in node.names] if isinstance(node, ast.Import)
                      else [node.module or ""] if isinstance(node, ast.ImportFrom) and not node.level else [])
             if any(n.split(".")[0] == "ctypes" for n in names) and part(name) not in C_ABI:
@@ -113,7 +113,7 @@ def test_only_the_kernel_and_the_fmi_layer_import_ctypes():
 def own_attributes(path, classes):
     """The names the classes of a module define: methods, properties, class fields and self.X they set."""
     names = set()
-    for node in ast.walk(ast.parse(Path(path).read_text())):
+    for node in ast.walk(ast.parse(Path(path).read_text(encoding="utf-8"))):
         if isinstance(node, ast.ClassDef) and node.name in classes:
             for sub in ast.walk(node):
                 if isinstance(sub, (ast.FunctionDef, ast.AsyncFunctionDef)):
@@ -133,15 +133,15 @@ def test_the_kernels_bindings_read_no_scene_subsystem_or_fmu():
               | own_attributes(root / "core" / "frozen_port_map.py", {"Subsystem"})
               | own_attributes(root / "fmi" / "fmu.py", {"Fmu", "Fmi2", "Fmi3"}))
     kernel = root / "kernel"
-    ours = set().union(*(own_attributes(p, {n.name for n in ast.walk(ast.parse(p.read_text()))
+    ours = set().union(*(own_attributes(p, {n.name for n in ast.walk(ast.parse(p.read_text(encoding="utf-8")))
                                              if isinstance(n, ast.ClassDef)}) for p in kernel.glob("*.py")))
-    ours |= {name for p in kernel.glob("*.py") for n in ast.walk(ast.parse(p.read_text()))
+    ours |= {name for p in kernel.glob("*.py") for n in ast.walk(ast.parse(p.read_text(encoding="utf-8")))
              if isinstance(n, ast.ClassDef) for name in [n.name]}
     common = set().union(*map(dir, (str, list, dict, Path, os, re, np.ndarray, ctypes, ctypes.CDLL)))
     foreign = theirs - ours - common - {"close", "name", "m", "n", "t", "dt", "lib", "handle"}
     found = []
     for path in sorted(kernel.glob("*.py")):
-        for node in ast.walk(ast.parse(path.read_text())):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
             if isinstance(node, ast.Attribute) and node.attr in foreign:
                 found.append(f"{path.name}:{node.lineno} .{node.attr}")
             if isinstance(node, ast.Name) and node.id in ("Scene", "Subsystem", "Fmu"):

@@ -28,7 +28,8 @@ def load(path: Union[str, Path, None] = None, *, master: Optional[str] = None, K
          ports: Union[str, Path, None] = None, parameter_set: Optional[str] = None,
          input: Union[str, Path, None] = None, warn: Optional[Callable[[str], None]] = None,
          changes: Optional[Mapping[str, Any]] = None) -> Scenario:
-    """Read and validate a scenario file (the built-in Table I scene when `path` is None), an SSP
+    """Read and validate a scenario file (the built-in Table I scene when `path` is None; an example
+    by its name, `wavecosim examples`), an SSP
     system (.ssd, .ssp, folder) with the overlay `ports` and the parameter sets named
     `parameter_set`, or one FMU (.fmu) driven by the CSV file `input`, with the given values in
     place of the file's (the CLI's options; `outputs`: glob patterns of the columns to record).
@@ -36,7 +37,8 @@ def load(path: Union[str, Path, None] = None, *, master: Optional[str] = None, K
     scenario's mapping before it is checked, as `--set` does: {"subsystems.A.parameters.k": 2.0}."""
     from .scenario.fmu import is_fmu, load_fmu
     from .scenario.ssp import is_ssp, load_ssp, ssp_only
-    times, changes = {"dt": dt, "T": T, "start_time": start_time}, list((changes or {}).items())
+    from .examples import resolve
+    path, times, changes = resolve(path), {"dt": dt, "T": T, "start_time": start_time}, list((changes or {}).items())
     ssp_only(path, ports, parameter_set)
     if input is not None and not is_fmu(path):
         raise ConfigError("input: only for an FMU (.fmu)")

@@ -38,7 +38,7 @@ class ContractError(FmuError):
 @functools.lru_cache(maxsize=None)
 def _text(header):
     """The header's text without comments and preprocessor lines."""
-    return _DIRECTIVE.sub("", _COMMENT.sub(" ", (HEADERS / header).read_text()))
+    return _DIRECTIVE.sub("", _COMMENT.sub(" ", (HEADERS / header).read_text(encoding="utf-8")))
 
 
 def ctype(declaration, header):
@@ -104,7 +104,7 @@ def constant(header, name):
     for member, value in (m for _, body in _ENUM.findall(_text(header)) for m in _members(body)):
         if member == name:
             return value
-    raw = _COMMENT.sub(" ", (HEADERS / header).read_text())
+    raw = _COMMENT.sub(" ", (HEADERS / header).read_text(encoding="utf-8"))
     match = re.search(rf"^[ \t]*#define[ \t]+{name}[ \t]+\(?(-?\w+)\)?[ \t]*$", raw, re.M)
     if match is None:
         raise ContractError(f"{HEADERS / header} defines no integer {name}")

@@ -11,7 +11,7 @@ from pathlib import Path
 import yaml
 
 from ..errors import ConfigError, brief_text
-from ..examples import DEFAULT
+from ..examples import DEFAULT, resolve
 from ..core.gamma import MODES as GAMMA_MODES
 from ..core.interconnection import COUPLINGS, TAKES_RATIO
 from ..core.quirks import KEYS as QUIRK_KEYS
@@ -219,7 +219,8 @@ class Scenario:
     error: list = field(metadata=key(
         "the output columns of the error norm against the monolithic reference (the `error` column, max_error, "
         "...)", type="list of columns", default="none: no error figures"))
-    description: str = field(default="", metadata=key("free text", type="text"))
+    description: str = field(default="", metadata=key(
+        "free text: one line saying what the scene is (`wavecosim examples` shows it)", type="text"))
     fne_watch: bool = field(default=True, metadata=key(
         "the Condition 1 watch: estimates each frozen map's FNE margin from the inner iterates and warns once "
         "when it goes negative", type="boolean"))
@@ -562,10 +563,10 @@ _SafeLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _map
 
 
 def load_scenario(path=None, settings=None, changes=()) -> Scenario:
-    """Read and validate a scenario file (the built-in default when path is None); `settings` (the
-    command line's dt, T, start_time) stand for the values the file leaves out; `changes` are
-    (key path, value) set in the file's mapping first (`--set`)."""
-    path = Path(path) if path else DEFAULT_CONFIG
+    """Read and validate a scenario file (the built-in default when path is None, an example by its
+    name); `settings` (the command line's dt, T, start_time) stand for the values the file leaves
+    out; `changes` are (key path, value) set in the file's mapping first (`--set`)."""
+    path = Path(resolve(path)) if path else DEFAULT_CONFIG
     return parse_scenario(apply_overrides(load_raw(path), changes), str(path), path.parent, settings)
 
 

@@ -6,6 +6,7 @@ import csv
 import difflib
 import re
 import zipfile
+from dataclasses import replace
 from pathlib import Path
 
 from fmpy import read_model_description
@@ -123,4 +124,5 @@ def load_fmu(path, input_csv=None, settings=None, warn=None, changes=()):
     for note in [f"{Path(path).name}: {note}" for note in notes] + later:
         (warn or (lambda text: None))(note)
     raw = apply_overrides({**raw, **times}, changes)
-    return parse_scenario(raw, str(Path(path)), Path(path).resolve().parent, settings)
+    scenario = parse_scenario(raw, str(Path(path)), Path(path).resolve().parent, settings)
+    return replace(scenario, times_from={**scenario.times_from, **{k: "fmpy's default" for k in times}})
