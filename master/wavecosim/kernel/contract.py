@@ -22,7 +22,8 @@ SCALARS = {"void": None, "int": ctypes.c_int, "unsigned": ctypes.c_uint, "unsign
            "int32_t": ctypes.c_int32, "uint32_t": ctypes.c_uint32, "uint64_t": ctypes.c_uint64,
            "fmi2Real": ctypes.c_double, "fmi2Integer": ctypes.c_int, "fmi2Boolean": ctypes.c_int,
            "fmi2Status": ctypes.c_int, "fmi2ValueReference": ctypes.c_uint, "fmi2Component": ctypes.c_void_p,
-           "fmi2FMUstate": ctypes.c_void_p}
+           "fmi2FMUstate": ctypes.c_void_p, "fmi2ComponentEnvironment": ctypes.c_void_p,
+           "fmi2String": ctypes.c_char_p}
 QUALIFIERS = {"const", "volatile", "struct", "enum", "extern"}
 _COMMENT = re.compile(r"/\*.*?\*/|//[^\n]*", re.S)
 _DIRECTIVE = re.compile(r"^[ \t]*#(?:[^\n]*\\\n)*[^\n]*", re.M)
@@ -49,6 +50,8 @@ def ctype(declaration, header):
     if len(words) > 1 and words[-1] not in SCALARS and " ".join(words[-2:]) not in SCALARS:
         words = words[:-1]                                           # the parameter's name
     base = " ".join(words)
+    if re.search(rf"typedef[^;]*\(\s*\*\s*{re.escape(base)}\s*\)", _text(header)):
+        return ctypes.c_void_p                                       # a function pointer's typedef
     if base not in SCALARS:
         raise ContractError(f"{HEADERS / header}: the kernel's contract does not know the C type {base!r}")
     return SCALARS[base]
@@ -65,7 +68,7 @@ def prototypes(header):
         match = _PROTOTYPE.match(statement)
         if match is None or statement.split()[0] in ("typedef", "static"):
             continue
-        params = [p for p in match["params"].split(",") if p.strip() != "void"]
+        params = [p for p in match["params"].split(",") if p.strip() not in ("void", "...")]   # varargs: the fixed ones
         found[match["name"]] = (ctype(match["ret"], header), [ctype(p, header) for p in params])
     return found
 
