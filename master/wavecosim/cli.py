@@ -286,10 +286,11 @@ sweep_options = options([
 
 
 @cli.command("sweep")
-@config_argument
+@system_argument
 @sweep_options
+@ssp_options
 def sweep_cmd(config, ks, eps, gamma, dt, T, quiet, out, no_certificates, plots, sets, sample, seed, workers,
-              scheduler, resume, no_reference, plot_y, step_timeout, overwrite):
+              scheduler, resume, no_reference, plot_y, step_timeout, overwrite, ports, parameter_set):
     """Without --set: the paper's experiment, DR for each K against the monolithic reference
     (summary.json). With --set (or --sample, --workers, --scheduler, --resume, --no-reference):
     a general sweep over any scenario keys, one row per run in OUT/runs.csv and OUT/runs.json;
@@ -301,7 +302,7 @@ def sweep_cmd(config, ks, eps, gamma, dt, T, quiet, out, no_certificates, plots,
                        step_timeout=step_timeout)
         return _general_sweep(config, ks, sets, (eps, gamma, dt, T), out, options)
     Ks = parse_budgets(ks or "0,3,8,20,35,50")
-    scenario = _apply_overrides(load_scenario(config), None, eps, gamma, dt, T)
+    scenario = _apply_overrides(_read_config(config, ports, parameter_set), None, eps, gamma, dt, T)
 
     def work():
         from .sweeps.budget import SWEEP_FIELDS

@@ -39,7 +39,7 @@ from ..core.certificates import sampling
 from .observers.certificates import CertificatePace, CertificateSampler
 from .observers.energy_guard import EnergyGuard
 from .observers.energy_ledger import EnergyLedger
-from .observers.errors import ErrorTracker, stored_reference, stored_rows
+from .observers.errors import ErrorTracker, ScaledErrors, error_observer, stored_reference, stored_rows
 from .observers.fne_watch import FneWatch
 from .observers.gamma import GammaLog, TunedGammaLog
 from .observers.passivity import Passivity
@@ -61,7 +61,7 @@ STEP_DESCRIBED = {
 }
 STEP_COLUMNS = tuple(STEP_DESCRIBED)
 OBSERVERS = (EnergyLedger, EnergyGuard, GammaLog, TunedGammaLog, FneWatch, CertificateSampler, CertificatePace,
-             Passivity, ErrorTracker)      # every observer, in the order they act (and their columns come)
+             Passivity, ErrorTracker, ScaledErrors)      # every observer, in the order they act (and their columns come)
 BLOCK_STEPS = BLOCK                    # macro-steps per call of the master, at most a table block
 HAND_OVER_S = 1.0                      # rows booked are handed to the writer at least this often
 MAX_STEPS = 10 ** 8                    # more macro-steps than this only when asked (--force, max_steps=None)
@@ -687,8 +687,8 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
             reference = lambda k: ref.recent.get(k)          # noqa: E731  (ref steps first)
         elif reference is not None:
             reference, rows = stored_reference(reference), stored_rows(reference)
-        if reference is not None and scenario.error:
-            live.add_observer(ErrorTracker(live.columns, scenario.error, reference, rows))
+        if reference is not None:
+            live.add_observer(error_observer(live.columns, live.sampler.types, scenario.error, reference, rows))
     except BaseException:
         live.close()
         raise
