@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import optional
+from ..errors import ConfigError, optional
 from ..run.observers.errors import column_scales
 
 AGREE = 1e-9                 # max |Δy| / range at or below this: the peer and wavecosim agree
@@ -32,7 +32,7 @@ class Refused(Exception):
     """The peer cannot run the file (refuses it, aborts on it, or is not installed); str: why, one line."""
 
 
-def libcosim(needed_by="libcosim (as a peer, or in the bench)"):
+def libcosim(needed_by="the libcosim peer"):
     """libcosimpy imported, or a ConfigError naming the `peers` extra; its log kept to errors."""
     optional("libcosimpy", "peers", needed_by)
     from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
@@ -69,6 +69,7 @@ def libcosim_execution(system, dt, instance=None):
 
 def _libcosim(system, dt, steps, refs, start_time):
     """{ref: values at grid points 0 .. steps} of the Real variables libcosim has among refs."""
+    libcosim()
     from libcosimpy.CosimEnums import CosimVariableType
     from libcosimpy.CosimObserver import CosimObserver
     if start_time != 0.0:
@@ -114,7 +115,7 @@ def _fmpy(system, dt, steps, refs, start_time):
 
 def _ecos(system, dt, steps, refs, start_time):
     """{ref: values at grid points 0 .. steps} of the Real variables Ecos reads among refs."""
-    optional("ecospy", "peers", "Ecos as a peer")
+    optional("ecospy", "peers", "the Ecos peer")
     from ecospy import EcosSimulation, EcosSimulationStructure
     system = Path(system)
     try:
@@ -150,7 +151,7 @@ def child():
     try:
         out = {"values": RUNNERS[request["peer"]](request["system"], request["dt"], request["steps"],
                                                   request["refs"], request["start_time"])}
-    except Refused as exc:
+    except (Refused, ConfigError) as exc:          # refused, or not installed (the line names the extra)
         out = {"refused": str(exc)}
     except Exception as exc:                        # the peer's own failure, said in one line
         out = {"refused": f"{request['peer']} fails on it: {type(exc).__name__}: {exc}".splitlines()[0]}
@@ -161,8 +162,6 @@ def peer_run(peer, system, dt, steps, refs, start_time=0.0):
     """{ref: np.array of values at the grid points t0 + k dt, k = 0 .. steps} of the peer's run of the
     system (an .ssd, an SSP folder or an .fmu), in a child process; refs: [(ref, instance, variable)].
     Refused says why it has none."""
-    if not installed(peer):
-        raise Refused(f"{MODULES[peer]} is not installed (pip install 'wavecosim[peers]')")
     with tempfile.TemporaryDirectory() as tmp:
         request, answer = Path(tmp) / "request.json", Path(tmp) / "answer.json"
         request.write_text(json.dumps({"peer": peer, "system": str(system), "dt": dt, "steps": steps,
@@ -253,7 +252,6 @@ def corpus(third_party, scenes=()):
 def load_system(path, steps=STEPS):
     """The scenario wavecosim reads from the file alone (FALLBACK where nothing gives a step), cut to
     at most `steps` macro-steps; ConfigError where wavecosim refuses the file."""
-    from ..errors import ConfigError
     from ..scenario.fmu import is_fmu, load_fmu
     from ..scenario.ssp import load_ssp
 
@@ -297,6 +295,10 @@ def known_deviation(peer, path, scenario):
     if peer == "libcosim" and "ParameterMapping" in text:
         return "libcosim ignores the system's .ssm parameter mapping (its parameters keep their start values)", math.inf
     tolerances = declared_tolerances(scenario)
+    if peer == "fmpy" and scenario.start_time != 0.0:
+        return (f"fmpy's simulate_fmu steps by t_n+1 - t_n from the start time {scenario.start_time:g}, which is "
+                "not dt to the last bit, and the FMU's internal fixed-step solver follows it (wavecosim equals "
+                "a plain loop of doStep(t_n, dt))", TOLERANCE_SPREAD * max([AGREE, *tolerances.values()]))
     if peer != "fmpy" and tolerances:
         return (f"the FMUs' DefaultExperiment tolerance ({', '.join(f'{k} {v:g}' for k, v in tolerances.items())}), "
                 f"which wavecosim passes to their set-up and {peer} does not",
