@@ -438,7 +438,7 @@ def peer_cell(path, peer):
     except WavecosimError as exc:
         return True, f"– (wavecosim refuses the file: {str(exc).rsplit(': ', 1)[-1]})"
     except peers.Refused as exc:
-        return True, str(exc)
+        return True, str(exc).replace(str(ROOT), ".")
     return peers.verdict(peer, path, scenario, errors)
 
 
@@ -454,14 +454,13 @@ def peer_cells(path, names):
 def table(tp, only=None, progress=print):
     """The Markdown table and whether every row passed."""
     names = [p for p in peers.PEERS if p != "ecos" or peers.installed("ecos")]
-    titles = {"libcosim": "libcosim", "fmpy": "FMPy", "ecos": "Ecos"}
     lines = ["| system | what it exercises | result (peer's value in parentheses) | run s | "
-             + " | ".join(titles[p] for p in names) + " |", "|---|---|---|---|" + "---|" * len(names)]
+             + " | ".join(peers.TITLES[p] for p in names) + " |", "|---|---|---|---|" + "---|" * len(names)]
     passed = True
     corpus = dict(peers.corpus(tp, sorted((ROOT / "configs").glob("*.ssd"))))
     with tempfile.TemporaryDirectory() as tmp:
         listed = rows(tp, Path(tmp))
-        covered = {name for name, _, _ in listed}
+        covered = {name.split(" (")[0] for name, _, _ in listed}
         listed += [(name, "the file alone" + (", an in-repo scene" if path.parent == ROOT / "configs" else ""),
                     lambda p=path: the_file_alone(p)) for name, path in corpus.items() if name not in covered]
         for name, what, runner in listed:
@@ -472,7 +471,7 @@ def table(tp, only=None, progress=print):
                 (ok, text), seconds = runner()
             except Exception as exc:                # a row that cannot run says why; the others go on
                 ok, text, seconds = False, f"FAILS: {type(exc).__name__}: {exc}", math.nan
-            agree, cells = peer_cells(corpus.get(name), names)
+            agree, cells = peer_cells(corpus.get(name.split(" (")[0]), names)
             passed &= ok and agree
             lines.append(f"| {name} | {what} | {text.replace('|', '/')} | {seconds:.1f} | "
                          + " | ".join(c.replace("|", "/") for c in cells) + " |")

@@ -1,6 +1,6 @@
-"""The peers as oracles: a system (an SSP system or one FMU) run by wavecosim's explicit master and by a
-peer (libcosim through libcosimpy, an FMPy loop, Ecos through ecospy), and every common output
-column compared, max |Δy| / the column's scale (run/observers/errors.py: its range in the peer's
+"""The peers as oracles: a system (an SSP system or one FMU) run by wavecosim's explicit master and
+by a peer (libcosim through libcosimpy, FMPy's simulate_fmu for one FMU, Ecos through ecospy), and
+every common output column compared, max |Δy| / the column's scale (run/observers/errors.py: its range in the peer's
 run) against AGREE.
 
 Each peer runs in a child process of its own: libcosim aborts the process on some files (an
@@ -11,6 +11,7 @@ libtbb (Debian: libtbb12) and is used where it imports.
 import json
 import math
 import os
+import signal
 import subprocess
 import sys
 import tempfile
@@ -26,15 +27,16 @@ TOLERANCE_SPREAD = 100       # an integrator's tolerance tol moves a column by a
 CHILD_TIMEOUT_S = 600        # a peer's child process that runs longer is stopped
 PEERS = ("libcosim", "fmpy", "ecos")
 MODULES = {"libcosim": "libcosimpy", "ecos": "ecospy", "fmpy": "fmpy"}
+TITLES = {"libcosim": "libcosim", "fmpy": "FMPy", "ecos": "Ecos"}
 
 
 class Refused(Exception):
     """The peer cannot run the file (refuses it, aborts on it, or is not installed); str: why, one line."""
 
 
-def libcosim(needed_by="the libcosim peer"):
+def libcosim():
     """libcosimpy imported, or a ConfigError naming the `peers` extra; its log kept to errors."""
-    optional("libcosimpy", "peers", needed_by)
+    optional("libcosimpy", "peers", "the libcosim peer")
     from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
     log_output_level(CosimLogLevel.ERROR)
     from libcosimpy.CosimExecution import CosimExecution
@@ -100,7 +102,7 @@ def _fmpy(system, dt, steps, refs, start_time):
     from fmpy import read_model_description, simulate_fmu
     system = Path(system)
     if system.suffix != ".fmu":
-        raise Refused("an FMPy loop here runs single FMUs")
+        raise Refused("FMPy's simulate_fmu runs single FMUs")
     md = read_model_description(str(system), validate=False)
     if md.coSimulation is None:
         raise Refused("no co-simulation interface")
@@ -154,7 +156,7 @@ def child():
     except (Refused, ConfigError) as exc:          # refused, or not installed (the line names the extra)
         out = {"refused": str(exc)}
     except Exception as exc:                        # the peer's own failure, said in one line
-        out = {"refused": f"{request['peer']} fails on it: {type(exc).__name__}: {exc}".splitlines()[0]}
+        out = {"refused": f"{TITLES[request['peer']]} fails on it: {type(exc).__name__}: {exc}".splitlines()[0]}
     Path(sys.argv[2]).write_text(json.dumps(out))
 
 
@@ -172,8 +174,9 @@ def peer_run(peer, system, dt, steps, refs, start_time=0.0):
                                str(request), str(answer)], capture_output=True, text=True, env=env,
                               timeout=CHILD_TIMEOUT_S, cwd=tmp)
         if not answer.exists():
-            last = next((line for line in reversed(done.stderr.splitlines()) if line.strip()), "")
-            raise Refused(f"{peer} aborts on it (exit {done.returncode}): {last.strip()}")
+            last = next((line.strip() for line in reversed(done.stderr.splitlines()) if line.strip()), "")
+            how = signal.Signals(-done.returncode).name if done.returncode < 0 else f"exit {done.returncode}"
+            raise Refused(f"{TITLES[peer]} aborts on it ({how})" + (f": {last}" if last else ""))
         out = json.loads(answer.read_text())
     if "refused" in out:
         raise Refused(out["refused"])
@@ -224,7 +227,7 @@ def compare(scenario, system, peer):
     theirs = peer_run(peer, system, scenario.dt, scenario.n_steps, [r for r in refs if r], scenario.start_time)
     errors = agreement(mine, theirs)
     if not errors:
-        raise Refused(f"{peer} reads none of the {len(mine)} Real columns wavecosim records")
+        raise Refused(f"{TITLES[peer]} reads none of the {len(mine)} Real columns wavecosim records")
     return errors
 
 
@@ -301,7 +304,7 @@ def known_deviation(peer, path, scenario):
                 "a plain loop of doStep(t_n, dt))", TOLERANCE_SPREAD * max([AGREE, *tolerances.values()]))
     if peer != "fmpy" and tolerances:
         return (f"the FMUs' DefaultExperiment tolerance ({', '.join(f'{k} {v:g}' for k, v in tolerances.items())}), "
-                f"which wavecosim passes to their set-up and {peer} does not",
+                f"which wavecosim passes to their set-up and {TITLES[peer]} does not",
                 TOLERANCE_SPREAD * max(tolerances.values()))
     return None, AGREE
 
@@ -311,7 +314,7 @@ def verdict(peer, path, scenario, errors):
     reason (known_deviation), and what the table says."""
     worst = max(errors.values())
     column = max(errors, key=errors.get)
-    said = f"{len(errors)} column{'s' if len(errors) != 1 else ''}, max |Δ|/range {worst:.1e}"
+    said = f"{len(errors)} column{'s' if len(errors) != 1 else ''}, largest Δ/range {worst:.1e}"
     if worst <= AGREE:
         return True, f"agrees ({said})"
     reason, bound = known_deviation(peer, path, scenario)
