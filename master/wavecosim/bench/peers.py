@@ -11,6 +11,7 @@ libtbb (Debian: libtbb12) and is used where it imports.
 import json
 import math
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -295,7 +296,7 @@ def known_deviation(peer, path, scenario):
     """(why, bound): why the peer's numbers may differ from wavecosim's on this system and the largest
     max |Δy| / range that reason explains (None, AGREE: none; they must agree)."""
     text = Path(path).read_text(errors="replace") if Path(path).suffix == ".ssd" else ""
-    if peer == "libcosim" and "ParameterMapping" in text:
+    if peer == "libcosim" and re.search(r"<\w+:ParameterMapping\b", text):
         return "libcosim ignores the system's .ssm parameter mapping (its parameters keep their start values)", math.inf
     tolerances = declared_tolerances(scenario)
     if peer == "fmpy" and scenario.start_time != 0.0:
