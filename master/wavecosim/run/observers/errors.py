@@ -129,12 +129,18 @@ class ScaledErrors(Observer):
         self.low, self.high, self.peak = np.full(width, np.inf), np.full(width, -np.inf), np.zeros(width)
         self.count = 0
 
+    def _real(self, rows):
+        """The Real columns of rows of outputs (a String output's text never reaches float())."""
+        if isinstance(rows, np.ndarray) and rows.dtype.kind == "f":          # a block's readings
+            return rows[:, self.idx]
+        return np.array([[row[i] for i in self.idx] for row in rows], dtype=float).reshape(len(rows), len(self.idx))
+
     def _take(self, ours, ref):
         """Rows (grid points x columns) of the run and of the reference at the same grid points."""
         if not len(ref):
             return
         with np.errstate(over="ignore", invalid="ignore"):
-            ours, ref = np.asarray(ours, float)[:, self.idx], np.asarray(ref, float)[:, self.idx]
+            ours, ref = self._real(ours), self._real(ref)
             d = np.abs(ours - ref)
             self.worst = np.maximum(self.worst, d.max(axis=0))     # a NaN stays NaN
             self.sumsq += np.sum(d * d, axis=0)
