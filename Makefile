@@ -1,6 +1,6 @@
 # Two entry points; both set up .venv themselves (scripts/setup-venv.sh); the FMUs and the C kernel
 # are built on demand into the per-user cache.
-.PHONY: run test test-slow sweep bench setup docs figures
+.PHONY: run test test-slow test-cpu sweep bench setup docs figures
 
 setup:
 	./scripts/setup-venv.sh
@@ -15,6 +15,12 @@ test:
 test-slow:
 	./scripts/setup-venv.sh test
 	.venv/bin/python -m pytest -q -m slow
+
+# The arithmetic tests under each BLAS kernel this CPU can run (numpy's OpenBLAS picks one by CPU):
+# the results must not depend on it.
+test-cpu:
+	./scripts/setup-venv.sh test
+	./scripts/test-cpu-kernels.sh
 
 sweep: setup
 	.venv/bin/wavecosim sweep --plots --out out/sweep

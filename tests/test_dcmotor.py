@@ -3,6 +3,10 @@ stimuli FMU's voltage and load torque as signals, the inertia's angle fed back t
 the shaft a physical-port coupling with probed signs. Runs are shortened with T (the file's own
 horizon is 1 s). Skipped when ../shared/third_party is absent (a fresh clone)."""
 
+import os
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
@@ -24,12 +28,35 @@ def quiet(message):
     """The sign-probe notes are not under test here."""
 
 
+# The Dymola FMUs call glibc's exp, log and pow, which take their FMA variants where the CPU has FMA and
+# AVX2 (other last bits); the FMUs' variable-step solver turns those bits into other internal steps, so
+# the reference's floor at K = 20 is 4.1e-7 with the plain variants and 2.5e-6 with the FMA ones
+# (GLIBC_TUNABLES=glibc.cpu.hwcaps=-FMA gives the plain ones on any CPU). Our arithmetic is the same.
+FLOOR_ANY_CPU, FLOOR_PLAIN_LIBM = 5e-6, 1e-6
+MACHINE_NOISE_BOUND = 2.5e-5        # the noisy machine below jumps by about 1.1e-5 N.m between nearby speeds
+PLAIN_LIBM = "glibc.cpu.hwcaps=-FMA"
+
+
+def errors_by_K(Ks=(0, 10, 20)):
+    table = wc.sweep(wc.load(CONFIG, T=0.02), Ks=list(Ks), certificates=False)
+    return {row["K"]: row["max_error"] for row in table.rows}
+
+
 def test_dr_converges_to_the_monolithic_reference_as_K_grows():
     """Max error over the first 20 steps of the start-up transient against the interface Newton,
-    whose acceptance is relative to the port waves here (the machine is smooth to about 4e-7)."""
-    table = wc.sweep(wc.load(CONFIG, T=0.02), Ks=[0, 10, 20], certificates=False)
-    errors = {row["K"]: row["max_error"] for row in table.rows}
-    assert errors[20] < errors[10] < errors[0] and errors[20] <= 1e-6 and errors[0] > 1e-2, errors
+    whose acceptance is relative to the port waves here (the FMUs' floor, above, on any CPU)."""
+    errors = errors_by_K()
+    assert errors[20] < errors[10] < errors[0] and errors[20] <= FLOOR_ANY_CPU and errors[0] > 1e-2, errors
+
+
+def test_the_floor_at_K_20_is_the_fmus_libm_not_ours():
+    """With glibc's plain exp, log and pow (whatever the CPU), the floor is the tighter one."""
+    code = ("import sys; sys.path.insert(0, {tests!r}); import test_dcmotor as t; print(t.errors_by_K((20,))[20])"
+            .format(tests=str(ROOT / "tests")))
+    env = {**os.environ, "GLIBC_TUNABLES": PLAIN_LIBM}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert float(out.stdout.split()[-1]) <= FLOOR_PLAIN_LIBM
 
 
 def test_the_signals_reach_the_machine_and_the_inertia():
@@ -71,7 +98,9 @@ def test_a_noisy_machine_is_probed_past_its_noise_floor():
     """At R = 1.0 and J = 0.004 the machine's one-step map jumps by about 1.1e-5 N.m between nearby
     speeds (its own solver), so the orientation probe's first step of 1e-4 reads dM/dw = +0.107; the
     probe grows the step until two agree (-0.0062 at 0.1, -0.0063 at 1) and keeps the machine
-    power-out. gamma: auto then finds a positive bound (about 6.3e-3) and DR meets the reference."""
+    power-out. gamma: auto then finds a positive bound (about 6.3e-3) and DR meets the reference within
+    the machine's own jumps: last bits anywhere (the coupling's compile, the FMUs' libm) move the error
+    between 6e-6 and 1.4e-5, so the bound is MACHINE_NOISE_BOUND, about twice the jump."""
     sets = [("subsystems.machine.parameters.resistor.R", 1.0), ("subsystems.inertia.parameters.inertia.J", 0.004)]
     scenario = parse_scenario(apply_overrides(load_raw(CONFIG), sets), str(CONFIG), CONFIG.parent)
     result = wc.simulate(scenario.with_changes(T=0.02), warn=quiet)
@@ -84,4 +113,4 @@ def test_a_noisy_machine_is_probed_past_its_noise_floor():
     assert s["gamma_mode"] == "auto" and 5e-3 < s["gamma_fne_bounds"]["machine"] < 8e-3
     assert s["gamma_initial"]["machine"] <= 0.9 * (1 + 1e-12) * s["gamma_fne_bounds"]["machine"]
     assert all(p["agreed"] for p in s["gamma_probe"].values())
-    assert s["status"] == "finished" and s["max_error"] <= 1e-5 and s["fne_watch_ok"]
+    assert s["status"] == "finished" and s["max_error"] <= MACHINE_NOISE_BOUND and s["fne_watch_ok"]

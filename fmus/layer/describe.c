@@ -45,6 +45,26 @@ enum { N_VARIABLES = N_REALS + N_INTEGERS + N_BOOLEANS + N_STRINGS };
 static int is_output(int kind) { return kind == STATE || kind == OUTPUT; }
 static int is_initial_unknown(int kind) { return kind == OUTPUT; }
 
+#if HAS_FEEDTHROUGH
+#define FEEDTHROUGH_PAIR(out, in) {VR_##out, VR_##in},
+static const int feedthrough[][2] = {FEEDTHROUGH(FEEDTHROUGH_PAIR)};
+enum { N_FEEDTHROUGH = sizeof feedthrough / sizeof feedthrough[0] };
+
+/* The dependencies attribute of output k: the inputs it depends on directly (1-based indices). */
+static void print_dependencies(int k) {
+    const char *sep = "";
+    printf(" dependencies=\"");
+    for (int j = 0; j < N_FEEDTHROUGH; j++)
+        if (feedthrough[j][0] == k) {
+            printf("%s%d", sep, feedthrough[j][1] + 1);
+            sep = " ";
+        }
+    printf("\"");
+}
+#else
+static void print_dependencies(int k) { (void)k; }
+#endif
+
 /* Prints <element> with one Unknown per selected variable (1-based index), or nothing when none is
  * selected: the schema does not allow the element empty. */
 static void print_unknowns(const char *element, int (*selected)(int kind)) {
@@ -53,7 +73,11 @@ static void print_unknowns(const char *element, int (*selected)(int kind)) {
     if (!any) return;
     printf("    <%s>\n", element);
     for (int k = 0; k < N_VARIABLES; k++)
-        if (selected(kinds[k])) printf("      <Unknown index=\"%d\"/>\n", k + 1);
+        if (selected(kinds[k])) {
+            printf("      <Unknown index=\"%d\"", k + 1);
+            print_dependencies(k);
+            printf("/>\n");
+        }
     printf("    </%s>\n", element);
 }
 

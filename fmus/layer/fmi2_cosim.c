@@ -133,6 +133,16 @@ static void set_start_values(ModelData *d) {
 #endif
 }
 
+/* The outputs that depend directly on inputs, after a set in initialization or step mode. */
+static fmi2Status fed_through(Instance *c) {
+#if HAS_FEEDTHROUGH
+    if (c->phase == ST_INIT || c->phase == ST_STEP) model_outputs(&c->d);
+#else
+    (void)c;
+#endif
+    return fmi2OK;
+}
+
 /* Non-zero (after logging an error naming the variable) when a variable of this kind may not be
  * set now: an output never, in step mode only an input or a tunable parameter. */
 static int not_settable(Instance *c, const char *fn, int kind, const char *name, unsigned vr) {
@@ -341,7 +351,7 @@ fmi2Status fmi2EnterInitializationMode(fmi2Component comp) {
     Instance *c = comp;
     if (BAD_CALL(c, fmi2EnterInitializationMode)) return fmi2Error;
     c->phase = ST_INIT;
-    return fmi2OK;
+    return fed_through(c);
 }
 
 fmi2Status fmi2ExitInitializationMode(fmi2Component comp) {
@@ -432,7 +442,7 @@ fmi2Status fmi2SetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t
                         real_name[vr[k]], vr[k], phase_name(c->phase));
         c->d.r[vr[k]] = value[k];
     }
-    return fmi2OK;
+    return fed_through(c);
 }
 
 fmi2Status fmi2SetInteger(fmi2Component comp, const fmi2ValueReference vr[], size_t n, const fmi2Integer value[]) {
@@ -444,7 +454,7 @@ fmi2Status fmi2SetInteger(fmi2Component comp, const fmi2ValueReference vr[], siz
         if (not_settable(c, "fmi2SetInteger", int_kind[j], int_name[j], vr[k])) return fmi2Error;
         c->d.i[j] = value[k];
     }
-    return fmi2OK;
+    return fed_through(c);
 }
 
 fmi2Status fmi2SetBoolean(fmi2Component comp, const fmi2ValueReference vr[], size_t n, const fmi2Boolean value[]) {
@@ -458,7 +468,7 @@ fmi2Status fmi2SetBoolean(fmi2Component comp, const fmi2ValueReference vr[], siz
         c->d.b[j] = value[k] != fmi2False;
     }
 #endif
-    return fmi2OK;
+    return fed_through(c);
 }
 
 fmi2Status fmi2SetString(fmi2Component comp, const fmi2ValueReference vr[], size_t n, const fmi2String value[]) {
@@ -474,7 +484,7 @@ fmi2Status fmi2SetString(fmi2Component comp, const fmi2ValueReference vr[], size
         strcpy(c->d.s[j], value[k]);
     }
 #endif
-    return fmi2OK;
+    return fed_through(c);
 }
 
 /* ---- state: a saved state is a heap copy of ModelData plus the phase ---- */

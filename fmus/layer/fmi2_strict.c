@@ -16,13 +16,17 @@
  *
  * Two behaviours of real FMUs can be switched on by integer parameters, when config.h names them:
  *   QUIRK_FREEZE (an integer VRI_): fmi2DoStep with noSetFMUStatePriorToCurrentPoint = false
- *     leaves the state where it is after the first step (time advances, status OK);
+ *     after the first step (time advances, status OK) 1: leaves the state where it is; 2: puts the
+ *     states and outputs back where they were at the end of initialization (its start point);
  *   QUIRK_SHARED (an integer VRI_): 1: instances keep their variables in one block shared by every
  *     instance in this copy of the binary (an FMU that is not reentrant; each keeps its own clock);
  *     2: one block for the whole process, every copy of the binary (process-wide data, as a runtime
  *     library the copies share would hold);
  *   QUIRK_RESTORE (a real VR_): fmi2SetFMUstate leaves every STATE variable off by this relative
  *     error (an FMU that restores its state only approximately).
+ * COUNT_CALLS (an integer VRI_ of INTEGER_IO, optional): that integer and the next two read the
+ * fmi2DoStep, fmi2GetFMUstate and fmi2SetFMUstate calls the instance took, which no restore undoes
+ * (a count for a master's bookkeeping to be checked against).
  */
 #define _POSIX_C_SOURCE 200809L
 #include <math.h>
@@ -59,6 +63,8 @@ typedef struct Instance {
     double time;                         /* where the instance is (part of the state; its own, always) */
     double restore_floor;                /* no state before this time may be set again (the flag's promise) */
     ModelData own, *d;                   /* d: &own, or the process-wide block (QUIRK_SHARED) */
+    double start[N_REALS];               /* the variables at the end of initialization (QUIRK_FREEZE 2) */
+    long calls[3];                       /* doSteps, state gets and sets taken (COUNT_CALLS), never restored */
     SavedState *live[MAX_LIVE];
     int n_live;
     struct Instance *next;
@@ -233,6 +239,15 @@ static int quirk(const Instance *c, int which) {
 #ifndef QUIRK_RESTORE
 #define QUIRK_RESTORE (-1)
 #endif
+#ifndef COUNT_CALLS
+#define COUNT_CALLS (-1)
+#endif
+
+/* Integer k of the instance: its own count of calls for the COUNT_CALLS variables, else the block's. */
+static fmi2Integer integer(const Instance *c, int k) {
+    if (COUNT_CALLS >= 0 && k >= COUNT_CALLS && k < COUNT_CALLS + 3) return (fmi2Integer)c->calls[k - COUNT_CALLS];
+    return c->d->i[k];
+}
 
 /* ---- the FMI 2.0 functions ---- */
 
@@ -300,6 +315,7 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component comp) {
         return fail(c, "fmi2ExitInitializationMode", "%s", msg);
     }
     write_energy(c->d);
+    memcpy(c->start, c->d->r, sizeof c->start);
     if (quirk(c, QUIRK_SHARED)) {            /* from now on every such instance shares one block */
         ModelData *block = c->d->i[QUIRK_SHARED] == 2 ? process_block() : &shared_block;
         *block = *c->d;
@@ -342,7 +358,7 @@ fmi2Status fmi2GetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t
 fmi2Status fmi2GetInteger(fmi2Component comp, const fmi2ValueReference vr[], size_t n, fmi2Integer value[]) {
     Instance *c = instance(comp, "fmi2GetInteger", READABLE);
     check_refs(c, "fmi2GetInteger", vr, n, value, INTEGER_VR_BASE, N_INTEGERS);
-    for (size_t k = 0; k < n; k++) value[k] = c->d->i[vr[k] - INTEGER_VR_BASE];
+    for (size_t k = 0; k < n; k++) value[k] = integer(c, (int)(vr[k] - INTEGER_VR_BASE));
     return fmi2OK;
 }
 
@@ -388,6 +404,7 @@ fmi2Status fmi2SetString(fmi2Component comp, const fmi2ValueReference vr[], size
 fmi2Status fmi2GetFMUstate(fmi2Component comp, fmi2FMUstate *state) {
     Instance *c = instance(comp, "fmi2GetFMUstate", ANY);
     if (!state) die("fmi2GetFMUstate", c->name, "NULL pointer to the state handle");
+    c->calls[1]++;
     if (*state) {                            /* by the book: a state of ours; it is replaced */
         check_state(c, *state, "fmi2GetFMUstate");
         release(c, *state);
@@ -399,6 +416,7 @@ fmi2Status fmi2GetFMUstate(fmi2Component comp, fmi2FMUstate *state) {
 fmi2Status fmi2SetFMUstate(fmi2Component comp, fmi2FMUstate state) {
     Instance *c = instance(comp, "fmi2SetFMUstate", ANY);
     check_state(c, state, "fmi2SetFMUstate");
+    c->calls[2]++;
     const SavedState *s = state;
     if (s->time < c->restore_floor - 1e-9 * (1.0 + fabs(c->restore_floor)))
         die("fmi2SetFMUstate", c->name, "the state at t = %.17g is before %.17g, where a doStep was given "
@@ -470,8 +488,11 @@ fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real t, fmi2Real h, fmi2Boolean no
     if (!(fabs(t - c->time) <= 1e-6 * h))
         die("fmi2DoStep", c->name, "currentCommunicationPoint %.17g is not where the instance is (%.17g)", t, c->time);
     if (no_prior && t > c->restore_floor) c->restore_floor = t;
+    c->calls[0]++;
     if (quirk(c, QUIRK_FREEZE) && !no_prior && c->steps > 0) {
-        c->time = t + h;                     /* the quirk: the state stays, status OK */
+        for (int k = 0; d->i[QUIRK_FREEZE] == 2 && k < N_REALS; k++)     /* back to the start point */
+            if (real_kind[k] == STATE || real_kind[k] == OUTPUT) d->r[k] = c->start[k];
+        c->time = t + h;                     /* the quirk: the state stays (or returns), status OK */
         c->steps++;
         return fmi2OK;
     }

@@ -34,6 +34,11 @@
  *   HAS_ENERGY_OUTPUT    1: config.h declares the real OUTPUT `H`; model.c implements
  *                        model_energy, and the layer writes H = model_energy after the
  *                        initialization and after every step.
+ *   HAS_FEEDTHROUGH      (default 0) 1: outputs depend directly on inputs. config.h declares
+ *                        FEEDTHROUGH(X) X(output, input), the real pairs the modelDescription
+ *                        lists as dependencies (every other output depends on no input);
+ *                        model.c implements model_outputs, which the layer calls on entering
+ *                        initialization mode and after every set in initialization or step mode.
  *   MODEL_EXTRA_FIELDS   optional: more state kept in ModelData (arrays of internal DOFs)
  *
  * Integer, Boolean and String outputs are written by the model (model_initialize, model_step_io);
@@ -54,6 +59,9 @@
 #endif
 #ifndef HAS_ENERGY_OUTPUT
 #define HAS_ENERGY_OUTPUT 1
+#endif
+#ifndef HAS_FEEDTHROUGH
+#define HAS_FEEDTHROUGH 0
 #endif
 
 #if HAS_WAVE_PORT && !defined(PORT_CHANNELS)
@@ -143,6 +151,11 @@ typedef struct {
  * non-zero with a message naming the bad parameter. A model without a wave port also writes its
  * initial OUTPUT variables here. */
 int model_initialize(ModelData *m, char *msg, size_t msg_size);
+
+#if HAS_FEEDTHROUGH
+/* The outputs that depend directly on inputs, from the current inputs and parameters. */
+void model_outputs(ModelData *m);
+#endif
 
 #if HAS_ENERGY_OUTPUT
 /* Stored energy H(x) of the current state. */

@@ -8,7 +8,7 @@ the same one-line messages the CLI prints; RunFailed and Interrupted carry the p
 from contextlib import nullcontext
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Optional, Sequence, Union
+from typing import Any, Callable, Mapping, Optional, Sequence, Union
 
 import numpy as np
 
@@ -26,28 +26,29 @@ def load(path: Union[str, Path, None] = None, *, master: Optional[str] = None, K
          eps: Optional[float] = None, gamma=None, dt: Optional[float] = None, T: Optional[float] = None,
          start_time: Optional[float] = None, outputs: Optional[Sequence[str]] = None,
          ports: Union[str, Path, None] = None, parameter_set: Optional[str] = None,
-         input: Union[str, Path, None] = None, warn: Optional[Callable[[str], None]] = None) -> Scenario:
+         input: Union[str, Path, None] = None, warn: Optional[Callable[[str], None]] = None,
+         changes: Optional[Mapping[str, Any]] = None) -> Scenario:
     """Read and validate a scenario file (the built-in Table I scene when `path` is None), an SSP
     system (.ssd, .ssp, folder) with the overlay `ports` and the parameter sets named
     `parameter_set`, or one FMU (.fmu) driven by the CSV file `input`, with the given values in
     place of the file's (the CLI's options; `outputs`: glob patterns of the columns to record).
-    Notes of an SSP or FMU import go to `warn` (default: Python warnings)."""
+    Notes of an SSP or FMU import go to `warn` (default: Python warnings). `changes` sets keys of the
+    scenario's mapping before it is checked, as `--set` does: {"subsystems.A.parameters.k": 2.0}."""
     from .scenario.fmu import is_fmu, load_fmu
-    from .scenario.ssp import is_ssp, load_ssp
-    times = {"dt": dt, "T": T, "start_time": start_time}
-    if (ports is not None or parameter_set is not None) and not (path is not None and is_ssp(path)):
-        raise ConfigError("ports and parameter_set: only for an SSP input (.ssd, .ssp or a folder)")
+    from .scenario.ssp import is_ssp, load_ssp, ssp_only
+    times, changes = {"dt": dt, "T": T, "start_time": start_time}, list((changes or {}).items())
+    ssp_only(path, ports, parameter_set)
     if input is not None and not is_fmu(path):
         raise ConfigError("input: only for an FMU (.fmu)")
     if path is not None and is_ssp(path):
         settings = {**times, "gamma": parse_gamma(gamma, "gamma") if gamma is not None else None}
-        scenario, imported = load_ssp(path, ports, parameter_set, settings)
+        scenario, imported = load_ssp(path, ports, parameter_set, settings, changes)
         for note in imported.notes:
             (warn or _python_warning)(note)
     elif is_fmu(path):
-        scenario = load_fmu(path, input, times, warn or _python_warning)
+        scenario = load_fmu(path, input, times, warn or _python_warning, changes)
     else:
-        scenario = load_scenario(path, times)
+        scenario = load_scenario(path, times, changes)
     return with_overrides(scenario, master=master, K=K, eps=eps, gamma=gamma, dt=dt, T=T, start_time=start_time,
                           outputs=outputs)
 
@@ -71,6 +72,8 @@ def with_overrides(scenario: Scenario, *, master=None, K=None, eps=None, gamma=N
     if changes:
         scenario = scenario.with_master("master" if where == "options" else "--master", **changes)
     top = {k: v for k, v in (("dt", dt), ("T", T), ("start_time", start_time)) if v is not None}
+    if top:
+        top["times_from"] = {**scenario.times_from, **{k: "the command line" for k in top}}
     if outputs:
         top["output_patterns"] = output_patterns(list(outputs), lambda msg: _fail_outputs(where, msg))
     if gamma is not None:

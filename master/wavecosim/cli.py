@@ -90,7 +90,6 @@ overwrite_option = click.option(
     "(they are left alone; an earlier run's files are always replaced).")
 
 
-config_argument = click.argument("config", required=False, type=click.Path(dir_okay=False, path_type=Path))
 system_argument = click.argument("config", required=False, type=click.Path(path_type=Path))   # also an SSP folder
 common = [
     click.option("--K", "K", type=click.IntRange(min=0), help="Inner-iteration budget K per macro-step."),
@@ -149,19 +148,22 @@ experiment_options = options([
 ])
 
 
-def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None, start_time=None, input_csv=None):
+def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None, start_time=None, input_csv=None,
+                 sets=()):
     """A scenario file, an SSP system (.ssd, .ssp, folder) with its overlay, or one FMU (.fmu) with
-    its input file; the command line's times go in before the file's are checked; import notes
-    are warnings."""
+    its input file; the command line's times go in before the file's are checked, `--set KEY=VALUE`
+    into its mapping; import notes are warnings."""
     from .scenario.fmu import is_fmu
+    from .scenario.overrides import parse_value
     from .scenario.ssp.archive import is_ssp           # the archive module alone: a scenario file needs no more
-    times = {"dt": dt, "T": T, "start_time": start_time}
+    times, changes = {"dt": dt, "T": T, "start_time": start_time}, dict(parse_value(s) for s in sets)
     warn = lambda note: click.echo(f"warning: {note}", err=True)        # noqa: E731
     if ports or parameter_set or (config is not None and is_ssp(config)):
-        return api.load(config, ports=ports, parameter_set=parameter_set, gamma=gamma, warn=warn, **times)
+        return api.load(config, ports=ports, parameter_set=parameter_set, gamma=gamma, warn=warn, changes=changes,
+                        **times)
     if input_csv is not None or is_fmu(config):
-        return api.load(config, input=input_csv, warn=warn, **times)
-    return load_scenario(config, times)
+        return api.load(config, input=input_csv, warn=warn, changes=changes, **times)
+    return load_scenario(config, times, list(changes.items()))
 
 
 @cli.command("run")
@@ -178,7 +180,9 @@ def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None, star
                    "output and connected input, named COMPONENT.variable (or the file's outputs).")
 @click.option("--master", "algorithm", type=click.Choice(ALGORITHMS),
               help="Master algorithm (default: from CONFIG; else dr where there are power bonds, explicit without).")
-@click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("out/run"), show_default=True,
+@click.option("--set", "sets", multiple=True, metavar="KEY=VALUE", help="Set a scenario key for this run, "
+              "KEY as in sweep --set (master.K=8, subsystems.A.parameters.k=2.5). Repeat for more.")
+@click.option("--out", type=click.Path(path_type=Path), default=Path("out/run"), show_default=True,
               help="Output folder for trajectory.csv, steps.csv, summary.json and metadata.json.")
 @click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and the Condition 1 watch (faster).")
 @click.option("--no-reference", is_flag=True, help="Skip the monolithic reference run (no error figures).")
@@ -189,7 +193,8 @@ def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None, star
 @overwrite_option
 @click.option("--force", is_flag=True, help=f"Run even more than {MAX_STEPS:,} macro-steps.")
 def run_cmd(config, K, eps, gamma, dt, T, quiet, start_time, output_interval, formats, ports, parameter_set, input_csv,
-            outputs, algorithm, out, no_certificates, no_reference, plots, threads, step_timeout, overwrite, force):
+            outputs, algorithm, sets, out, no_certificates, no_reference, plots, threads, step_timeout, overwrite,
+            force):
     """Run one scenario (with the monolithic reference alongside where there are power bonds) and
     write its trajectory, per-step certificates, summary and metadata. CONFIG is a scenario file,
     an SSP system (.ssd, .ssp, folder) or one FMU (.fmu), run as fmpy's simulate runs it.
@@ -197,8 +202,8 @@ def run_cmd(config, K, eps, gamma, dt, T, quiet, start_time, output_interval, fo
     The steps are made in a child process: an FMU that crashes, calls exit() or (with --step-timeout)
     does not return leaves every step before it on disk, a summary.json saying what happened, and
     an exit code of its own (docs/troubleshooting.md). An earlier run's files in OUT are replaced."""
-    scenario = _apply_overrides(_read_config(config, ports, parameter_set, dt, T, gamma, start_time, input_csv), K, eps,
-                                gamma, dt, T, algorithm, start_time, outputs)
+    scenario = _apply_overrides(_read_config(config, ports, parameter_set, dt, T, gamma, start_time, input_csv, sets),
+                                K, eps, gamma, dt, T, algorithm, start_time, outputs)
     if threads is not None:
         from .scenario.config import threads_option
         scenario = scenario.with_master(threads=threads_option(threads))
@@ -236,7 +241,7 @@ def _supervised(work, summary, step_timeout):
 def _report_run(scenario, result, out):
     s = result.summary
     budget = f" K={s['K']}" if MASTERS[s["master"]].budgets != (None,) else ""
-    click.echo(f"{scenario.name}: {s['master']}{budget} dt={scenario.dt} T={scenario.T} -> {out}")
+    click.echo(f"{scenario.name}: {s['master']}{budget} {scenario.times_line()} -> {out}")
     if s.get("gamma_mode", "fixed") != "fixed":
         each = lambda d: ", ".join(f"{k} {v:.6g}" for k, v in d.items())      # noqa: E731
         click.echo(f"gamma: {s['gamma_mode']} -> {each(s['gamma_initial'])} (FNE bounds {each(s['gamma_fne_bounds'])}; "
@@ -260,7 +265,7 @@ sweep_options = options([
     click.option("--K", "--Ks", "--K-list", "ks", help="Budgets K: a list like 0,3,8 or a range 0..63 "
                  "(default for the paper's experiment: 0,3,8,20,35,50)."),
     *[opt for opt in common if opt is not common[0]],
-    click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("out/sweep"),
+    click.option("--out", type=click.Path(path_type=Path), default=Path("out/sweep"),
                  show_default=True),
     click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and "
                  "the Condition 1 watch."),
@@ -299,10 +304,10 @@ def sweep_cmd(config, ks, eps, gamma, dt, T, quiet, out, no_certificates, plots,
     if sets or sample or workers or scheduler or resume or no_reference:
         options = dict(no_certificates=no_certificates, plots=plots, sample=sample, seed=seed, workers=workers,
                        scheduler=scheduler, resume=resume, no_reference=no_reference, plot_y=plot_y, quiet=quiet,
-                       step_timeout=step_timeout)
+                       step_timeout=step_timeout, ports=ports, parameter_set=parameter_set)
         return _general_sweep(config, ks, sets, (eps, gamma, dt, T), out, options)
     Ks = parse_budgets(ks or "0,3,8,20,35,50")
-    scenario = _apply_overrides(_read_config(config, ports, parameter_set), None, eps, gamma, dt, T)
+    scenario = _apply_overrides(_read_config(config, ports, parameter_set, dt, T, gamma), None, eps, gamma, dt, T)
 
     def work():
         from .sweeps.budget import SWEEP_FIELDS
@@ -331,7 +336,7 @@ def _general_sweep(config, ks, sets, changes, out, o):
     fixed = [(k, scalar(v) if k == "gamma" else v)
              for k, v in zip(("master.eps", "gamma", "dt", "T"), changes) if v is not None]
     tasks = plan(config, axes, out, fixed, o["sample"], o["seed"], not o["no_reference"], not o["no_certificates"],
-                 step_timeout=o["step_timeout"])
+                 step_timeout=o["step_timeout"], ports=o["ports"], parameter_set=o["parameter_set"])
     workers = o["workers"] or os.cpu_count() or 1
     meta = {"config": tasks[0].config, "axes": [[k, list(v)] for k, v in axes], "fixed": fixed,
             "sample": o["sample"], "seed": o["seed"], "executor": o["scheduler"] or f"{workers} workers"}
@@ -377,7 +382,7 @@ def _sweep_progress(total, skipped):
               help="Comma-separated masters to compare.")
 @click.option("--Ks", "--K-list", "ks", default=None,
               help="Comma-separated budgets K for the iterative masters (default: a grid per master).")
-@click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("out/compare"), show_default=True)
+@click.option("--out", type=click.Path(path_type=Path), default=Path("out/compare"), show_default=True)
 @click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and the Condition 1 watch.")
 @click.option("--plots", is_flag=True, help="Also write pareto.png and energy_by_master.png.")
 @click.option("--options", "dr_options", default="", metavar="NAMES",

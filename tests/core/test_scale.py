@@ -17,6 +17,7 @@ import yaml
 
 from paths import ROOT
 from wavecosim.core import interconnection as ic
+from wavecosim.kernel import linalg
 from wavecosim.bench.scale import chain_raw, chain_scenario
 from wavecosim.scenario.config import load_raw, load_scenario, parse_scenario
 from wavecosim.errors import ConfigError, FmuError
@@ -33,11 +34,11 @@ STEPS = 20
 
 
 def dense_compile(E, F, gammas):
-    """The whole-matrix compile (as before the sparse one): P = left^-1 right, J_L = (2I - P)^-1."""
+    """The whole-matrix compile: P = left^-1 right, J_L = (2I - P)^-1, by the same LU on every column."""
     g = np.asarray(gammas, float)
     left, right = F / np.sqrt(g) + E * np.sqrt(g), F / np.sqrt(g) - E * np.sqrt(g)
-    P = ic._snap(np.linalg.solve(left, right))
-    return P, np.linalg.inv(2.0 * np.eye(len(g)) - P)
+    P = ic._snap(linalg.solve_columns(left, right))
+    return P, linalg.solve_columns(2.0 * np.eye(len(g)) - P, np.eye(len(g)))
 
 
 def bits(x):

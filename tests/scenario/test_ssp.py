@@ -32,8 +32,8 @@ needs_dcmotor = pytest.mark.skipif(not DCMOTOR.exists(), reason="the third-party
 
 
 def substance(scenario):
-    """A scenario's fields without where it was read from."""
-    return {k: v for k, v in dataclasses.asdict(scenario).items() if k != "source"}
+    """A scenario's fields without where it and its times were read from."""
+    return {k: v for k, v in dataclasses.asdict(scenario).items() if k not in ("source", "times_from")}
 
 
 def table_i_copy(folder, replace=(), name="t.ssd"):

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import CouplingError
+from ..kernel import linalg
 from ..kernel.linalg import Sparse
 
 TOL = 1e-10
@@ -222,15 +223,15 @@ def compile_wave_map(E, F, gammas, where="coupling") -> WaveInterconnection:
 
 def _compile_block(left, right, where):
     """P = left^-1 right (snapped), |P^T P - I| and J_L = (2I - P)^-1 of one component."""
-    try:
-        P = _snap(np.linalg.solve(left, right))
-    except np.linalg.LinAlgError:
-        raise CouplingError(f"{where}: F + gamma E is singular; the coupling has no wave form") from None
+    P = linalg.solve_columns(left, right)
+    if P is None:
+        raise CouplingError(f"{where}: F + gamma E is singular; the coupling has no wave form")
+    P = _snap(P)
     n = P.shape[0]
     ortho = float(np.abs(P.T @ P - np.eye(n)).max())
     if ortho > 1e-9:
         raise CouplingError(f"{where}: compiled wave map is not orthogonal (|P^T P - I| = {ortho:.3g})")
-    return P, np.linalg.inv(2.0 * np.eye(n) - P), ortho
+    return P, linalg.solve_columns(2.0 * np.eye(n) - P, np.eye(n)), ortho
 
 
 def _gather(parts, n):

@@ -5,20 +5,23 @@ the same loaded binary; the subsystem's own instance is never stepped by a probe
 `quirks:` keys override the probes.
 
 - `no_set_fmu_state_prior`: the noSetFMUStatePriorToCurrentPoint a master that rolls back passes
-  to doStep. False is the standard's choice, but some FMUs stay where they are with false (status
-  OK, outputs constant after the first step). Two steps with false from a saved state are compared
-  with two steps with true on the other instance: an FMU that stays put with false and moves with
-  true gets true. Either flag is by the book here, as x_i^n is only ever restored at t_n, the
-  doSteps' own communication point. Masters that never roll back pass true to every FMU.
-- `restore`: the two steps with false are made again after fmi2SetFMUstate; the largest relative
+  to doStep. False is the standard's choice, but some FMUs stop advancing with false (status OK,
+  outputs constant after the first step, or back at the start point). STEPS consecutive steps with
+  false and then with true are made from the same restored state: false is kept only where the two
+  agree as exactly as a restore does (within NOISE times the restore's own difference, bit for bit
+  after an exact restore); otherwise the doSteps get true, with a note. Either flag is by the book
+  here, as x_i^n is only ever restored at t_n, the doSteps' own communication point. Masters that
+  never roll back pass true to every FMU.
+- `restore`: the steps with false are made again after fmi2SetFMUstate; the largest relative
   difference of the outputs (0: the FMU restores its state exactly).
 - `reentrant`: the second instance makes a step between the first one's input and its step; when
   that changes the first one's outputs, the instances share data in the binary. Then every
   further instance of the file (the lockstep reference's too) gets its own copy of the binary,
   after a second probe with such a copy; when even a copy disturbs, a second instance is refused
   in one line.
-- `responds`: whether the port's outputs move when its inputs do (over the two steps): a port that
+- `responds`: whether the port's outputs move when its inputs do (over the steps): a port that
   does not cannot be coupled, and a master would return a frozen trajectory for it.
+During the run, run/observers/freeze_watch.py watches for a subsystem that stops advancing anyway.
 An FMU that refuses a probe's step (its error is kept in `probe_error`) is left as if unprobed.
 """
 import math
@@ -31,13 +34,15 @@ KEYS = ("no_set_fmu_state_prior", "reentrant", "probe")     # a subsystem's `qui
 PERTURB = 1e-3           # the probe's input step, relative to 1 + |u|
 MAX_OUTPUTS = 64         # FMU outputs compared, at most (beside the port's)
 NOISE = 10.0             # a difference counts when above this many times the restore's own
+STEPS = 4                # consecutive doSteps each probe makes from the saved state
 
 
 @dataclass
 class FmuQuirks:
     """What the probes found for one FMU file (None: not probed)."""
     file: str
-    frozen_without_flag: bool = None       # stays put with noSetFMUStatePriorToCurrentPoint = false
+    flags_agree: bool = None               # both flags' steps agree within the restore's own difference
+    frozen_without_flag: bool = None       # stops advancing with noSetFMUStatePriorToCurrentPoint = false
     flag_difference: float = None          # relative output difference of the two flags' steps
     restore_difference: float = None       # relative output difference after fmi2SetFMUstate
     reentrant: bool = None                 # a second instance in the same binary leaves the first alone
@@ -48,7 +53,7 @@ class FmuQuirks:
 
     @property
     def needs_flag(self):
-        return bool(self.frozen_without_flag)
+        return self.flags_agree is False
 
     def own_copies(self):
         """Further instances get their own copy of the binary."""
@@ -182,35 +187,44 @@ def _open(sub, twins, own_copy=False):
 
 
 def _probe_twins(found, sub, twins):
-    """B steps with false from a saved state (restore and input response), C with true (the flag);
-    C then steps between B's input and B's step (reentrancy), and if it disturbs, D from its own
-    copy of the binary does the same."""
+    """B steps with false from a saved state (restore and input response); C steps between B's
+    input and B's step (reentrancy), and if it disturbs, D from its own copy of the binary does the
+    same; last, B steps with true from the same saved state (the flag: true promises that no earlier
+    state is set again)."""
     b, m_out = _open(sub, twins)
     t0, h = sub.fmu.start_time, sub.dt
     u0 = b.inputs()
     du = [PERTURB * (1.0 + abs(x)) for x in u0]
     u1, u_other = [x + d for x, d in zip(u0, du)], [x - d for x, d in zip(u0, du)]
-    hx = cvalues.pointer()
+    hx, without = cvalues.pointer(), (False,) * STEPS
     b.save(hx)
-    moved = b.run(u1, t0, h, (False, False))
+    moved = b.run(u1, t0, h, without)
     b.restore(hx)
-    rest = b.run(u0, t0, h, (False, False))
+    rest = b.run(u0, t0, h, without)
     b.restore(hx)
-    found.restore_difference = _relative(moved, b.run(u1, t0, h, (False, False)))
+    again = b.run(u1, t0, h, without)
+    found.restore_difference = _relative(moved, again)
     found.responds = [r[:m_out] for r in moved] != [r[:m_out] for r in rest] if m_out else None
-    c, _ = _open(sub, twins)
-    stepped = c.run(u1, t0, h, (True, True))                    # never restored: true is by the book
-    c.t = t0 + 2 * h
-    found.flag_difference = _relative(moved, stepped)
-    found.frozen_without_flag = moved[1] == moved[0] and stepped[1] != stepped[0]
     noise = NOISE * found.restore_difference
+    c, _ = _open(sub, twins)
+    c.t = t0
     found.interference = _interferes(b, c, hx, u1, u_other, t0, h, moved[0], noise)
     found.reentrant = found.interference == 0.0
     if not found.reentrant:
         d, _ = _open(sub, twins, own_copy=True)
         d.t = t0
         found.reentrant_copies = _interferes(b, d, hx, u1, u_other, t0, h, moved[0], noise) == 0.0
+    b.restore(hx)
+    stepped = b.run(u1, t0, h, (True,) * STEPS)
+    found.flag_difference = _relative(again, stepped)
+    found.flags_agree = found.flag_difference <= noise
+    found.frozen_without_flag = not found.flags_agree and _stalls(again) and not _stalls(stepped)
     b.free(hx)
+
+
+def _stalls(rows):
+    """The outputs are the same after every step from the second on (the FMU stopped advancing)."""
+    return all(row == rows[1] for row in rows[2:])
 
 
 @dataclass
@@ -258,7 +272,7 @@ class QuirkTable:
             flag, how = True, "no rollback"
         elif "no_set_fmu_state_prior" in keys:
             flag, how = bool(keys["no_set_fmu_state_prior"]), "quirks key"
-        elif found is not None and found.frozen_without_flag is not None:
+        elif found is not None and found.flags_agree is not None:
             flag, how = found.needs_flag, "probe"
         sub.no_prior = int(flag)
         found = {k: v for k, v in asdict(found).items() if k != "file"} if found is not None else {}
@@ -268,16 +282,16 @@ class QuirkTable:
     def _notes(found, where, rollback, keys):
         """One warning line per quirk found."""
         notes, name = [], found.file
-        if found.frozen_without_flag:
+        if found.flags_agree is False:
             given = ("its doSteps get true (quirks.no_set_fmu_state_prior overrides)" if rollback
                      and "no_set_fmu_state_prior" not in keys else "it gets true" if not rollback else
                      f"quirks.no_set_fmu_state_prior is {keys['no_set_fmu_state_prior']}")
-            notes.append(f"{where}: {name} stays where it is when doStep gets noSetFMUStatePriorToCurrentPoint "
-                              f"= false (outputs constant after the first step, status OK) and moves with true: "
-                              f"{given}")
-        elif found.flag_difference is not None and found.flag_difference > NOISE * found.restore_difference:
-            notes.append(f"{where}: {name} gives other outputs when doStep gets noSetFMUStatePriorToCurrentPoint"
-                              f" = true than with false (relative difference {found.flag_difference:.3g})")
+            how = ("does not advance when doStep gets noSetFMUStatePriorToCurrentPoint = false (outputs "
+                   "constant after the first step, status OK) and moves with true" if found.frozen_without_flag
+                   else f"gives other outputs over {STEPS} steps when doStep gets noSetFMUStatePriorToCurrentPoint"
+                        f" = false than with true (relative difference {found.flag_difference:.3g}, beyond its "
+                        f"restore's {found.restore_difference:.3g})")
+            notes.append(f"{where}: {name} {how}: {given}")
         if rollback and found.restore_difference:
             notes.append(f"{where}: {name} restores its state only to {found.restore_difference:.3g} "
                               f"(relative, two steps after fmi2SetFMUstate): iterating masters see that noise")

@@ -8,7 +8,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..fmi.values import BINARY, STRING, category, unit_of
-from ..kernel.linalg import DOT_EXACT
 from ..kernel.portview import ObservedPort
 
 
@@ -54,10 +53,9 @@ def row_sums(X):
 
 
 def row_dots(A, B):
-    """a @ b of each pair of rows of A and B, to the last bit (rows over DOT_EXACT long: one dot each)."""
-    if A.shape[1] <= DOT_EXACT:
-        return row_sums(A * B)
-    return np.array([float(a @ b) for a, b in zip(A, B)])
+    """linalg.dot of each pair of rows of A and B, to the last bit: products summed left to right from 0
+    (not numpy's a @ b, whose BLAS kernel, and so its order of sums, depends on the CPU)."""
+    return row_sums(A * B)
 
 
 def as_index(indices):

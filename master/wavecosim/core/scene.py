@@ -6,6 +6,7 @@ import numpy as np
 
 from . import interconnection as ic
 from ..fmi.builtin import builtin_fmus
+from ..kernel import linalg
 from ..errors import ConfigError, CouplingError, FmuError, SimulationEnded
 from ..fmi.fmu import Fmu
 from .frozen_port_map import PortSpec, Subsystem
@@ -199,11 +200,11 @@ class Scene:
         # columns of the unknown inputs (flows where flow is input, efforts otherwise) and known outputs
         Mx = np.where(is_flow_in, self.F, self.E)
         My = np.where(is_flow_in, self.E, self.F)
-        try:
-            return -np.linalg.solve(Mx, My)
-        except np.linalg.LinAlgError:
+        X = linalg.solve_columns(Mx, My)
+        if X is None:
             raise CouplingError(f"{self.scenario.source}: couplings: the port causalities do not fit the "
-                                f"interconnection (inputs cannot be computed from outputs)") from None
+                                f"interconnection (inputs cannot be computed from outputs)")
+        return -X
 
     def port_info(self):
         """Summary fields of physical ports: their signs and the wave adapters' doSteps per evaluation."""
@@ -230,9 +231,14 @@ class Scene:
         after a stall (an FMU smooth only to its own solver's tolerance); 0.0 for exact maps."""
         return max([s.map.worst_accepted for s in self.subsystems if s.adapter], default=0.0)
 
+    def fmu_calls(self):
+        """{subsystem: its FMU calls so far}, every FMU of the scene (those stepped alone too): each
+        Subsystem books the calls made on its FMU, where they are made (Python or the C kernel)."""
+        return {s.name: dict(s.calls) for s in self.subsystems + self.signal_only}
+
     def do_step_calls(self):
         """doStep calls made so far, over all subsystems (what a redo costs is the difference)."""
-        return sum(s.calls["doStep"] for s in self.subsystems)
+        return sum(c["doStep"] for c in self.fmu_calls().values())
 
     def split(self, x):
         """Per-subsystem slices of a stacked channel vector."""
@@ -294,13 +300,15 @@ def coupling_structure(scenario, sizes):
 
 
 def _open_fmu(scenario, sub, path, gamma, wave, pool=None):
-    """One FMU instance with the subsystem's parameters, start values and port mode; a name the FMU
-    lacks is reported at its key. Instances of one scene share the pool (one extraction per FMU file)."""
+    """One FMU instance with the subsystem's parameters, start values and port mode, left in
+    initialization mode; a name the FMU lacks is reported at its key. Instances of one scene share
+    the pool (one extraction per FMU file)."""
     reals = {**sub.parameters, **sub.start, "gamma": gamma}
     integers = {**sub.integers, "port_mode": 0 if wave else 1}
     try:
         return Fmu(path, sub.name, reals, integers, optional=("gamma", "port_mode"), pool=pool,
-                   start_time=scenario.start_time, tolerance=sub.tolerance, initialize=table_inputs(scenario, sub.name))
+                   start_time=scenario.start_time, tolerance=sub.tolerance, initialize=table_inputs(scenario, sub.name),
+                   hold=True)
     except FmuError as exc:
         key = next((f"{k}.{exc.variable}" for k in ("parameters", "start", "integers")
                     if exc.variable in getattr(sub, k)), "fmu")
@@ -355,14 +363,25 @@ def _subsystem(scenario, sub, path, gamma, wave, needs_rollback, pool=None):
         raise ConfigError(text if text.startswith(scenario.source) else f"{scenario.source}: {text}") from None
 
 
-def _signals(scenario, opened):
-    """The held signals over the opened subsystems, set once at t = 0 (so the orientation and gamma
-    probes see them); None when the scenario has no signals."""
-    if not scenario.signals:
-        return None
-    signals = Signals(scenario, {s.name: s for s in opened})
-    signals.hold(0)
+SETTLE_SWEEPS = 4      # sweeps of the initialization's propagation beyond one per FMU
+
+
+def _signals(scenario, opened, notes):
+    """The held signals over the opened subsystems: settled in initialization mode (Signals.settle,
+    its note on a loop Newton solved goes to `notes`), then every FMU leaves it and the signals are
+    set at t = 0 (so the orientation and gamma probes see them); None when the scenario has no signals."""
+    signals = Signals(scenario, {s.name: s for s in opened}) if scenario.signals else None
+    note = signals.settle(len(opened) + SETTLE_SWEEPS) if signals is not None else None
+    notes.extend([note] if note else [])
+    _end_initialization(opened)
+    if signals is not None:
+        signals.hold(0)
     return signals
+
+
+def _end_initialization(opened):
+    for s in opened:
+        s.fmu.end_initialization()
 
 
 def _open_all(scenario, subs, gammas, wave, needs_rollback, pool, quirks, opened, notes):
@@ -389,10 +408,10 @@ def build_scene(scenario, wave=True, needs_rollback=True, pool=None, quirks=None
     try:
         decisions = _open_all(scenario, scenario.subsystems + scenario.signal_subsystems, gammas, wave, needs_rollback,
                               pool, quirks, opened, notes)
+        signals = _signals(scenario, opened, notes)
         outputs, more = output_columns(scenario, opened)
         notes[:0] = list(dict.fromkeys(note for s in opened for note in s.fmu.notes))
         notes.extend(more)
-        signals = _signals(scenario, opened)
         subsystems = opened[:len(scenario.subsystems)]
         for subsystem in subsystems:
             sign = _orient(scenario, subsystem, notes)
@@ -419,6 +438,7 @@ def open_subsystems(scenario, names, wave=True):
     try:
         _open_all(scenario, [s for s in scenario.subsystems if s.name in names], gammas, wave, True, {}, QuirkTable(),
                   opened, notes)
+        _end_initialization(opened)
         for subsystem in opened:
             _orient(scenario, subsystem, notes)
         return opened

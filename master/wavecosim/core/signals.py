@@ -7,16 +7,32 @@ before the frozen states x_i^n are saved, so every query and the commit of step 
 held inputs (an FMI 2 state includes its inputs). All values are read before any is set, so the
 order of the signals never matters.
 
+In initialization mode the inputs that FMU outputs drive are settled first (Signals.settle): set
+in dependency order, sweep after sweep, until a sweep changes no value to the last bit, as an FMPy
+loop that repeats the propagation reports the start. An algebraic loop that does not settle is
+solved by a damped Newton on its inputs (a warning says so), or refused in one line naming its
+connections when Newton finds no solution.
+
 Signals carry every FMI type (wavecosim/fmi/values.py): a Real input takes a Real, Integer or
 Boolean value; an integer input an integer or Boolean (range-checked); a Boolean a Boolean; a
 String a String. This module is the one place that holds the values and their types: per
 subsystem and FMI type, the value references read and set in one call each.
 """
 import bisect
+import graphlib
 import math
+import struct
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
 from ..errors import ConfigError, FmuError, NumericalError
 from ..fmi.values import BOOLEAN, INTEGER, REAL, STRING, category
+
+NEWTON_ITERATIONS = 20      # of the damped Newton on an algebraic loop's inputs (Signals.settle)
+NEWTON_TOLERANCE = 1e-12    # its largest residual, relative to 1 + the largest input
+DIFFERENCE = 1e-7           # its Jacobian's difference step, relative to 1 + |input|
 
 
 class SourceTable:
@@ -129,6 +145,10 @@ class Signals:
         count = len(scenario.signals)
         self.convert, self.bounds, self.types = [None] * count, [None] * count, [None] * count
         self.tables, self.reads, self.writes = [], {}, {}    # (k, table, column, linear); {sub: {type: (vrs, ks)}}
+        self.sources = {}                                    # {k: (sub, FMI type, vr)} of signals an FMU drives
+        self.inputs = {}                                     # {k: (sub, FMI type, vr)} of every signal's input
+        self.looped = set()                                  # signals within an algebraic loop (settle)
+        self.held = {}                                       # {k: the value settle set last}
         for k, sig in enumerate(scenario.signals):
             where = f"{scenario.source}: signals[{k}]"
             name, var = sig.target.split(".", 1)
@@ -140,6 +160,7 @@ class Signals:
                 self.bounds[k] = sub.fmu.integer_range(fmi_type)
             self.types[k] = fmi_type
             _group(self.writes, sub, fmi_type, sub.fmu.vr(var), k)
+            self.inputs[k] = (sub, fmi_type, sub.fmu.vr(var))
         self.targets = [sig.target for sig in scenario.signals]
         self.signals = list(scenario.signals)
         self.driven = sorted({s.name for s in self.writes})
@@ -153,6 +174,7 @@ class Signals:
         fmu = subsystems[name].fmu
         source_type = _carried(where, fmu, name, var)
         _group(self.reads, subsystems[name], source_type, fmu.vr(var), k)
+        self.sources[k] = (subsystems[name], source_type, fmu.vr(var))
         return category(source_type)
 
     def values(self, t):
@@ -170,14 +192,129 @@ class Signals:
         """Read every signal at t_n, then set each on its input (held over macro-step n)."""
         t = self.t0 + n * self.dt
         values = self.values(t)
-        self._check(values, n, t)
+        self._check(enumerate(values), n)
         for sub, groups in self.writes.items():
             for fmi_type, (vrs, ks) in groups.items():
                 sub.fmu.set_values(fmi_type, vrs, [values[k] for k in ks])
 
-    def _check(self, values, n, t):
-        """A non-finite Real or an integer out of its input's range stops the run, naming the signal."""
-        for k, v in enumerate(values):
+    def settle(self, limit):
+        """In initialization mode: set every input an FMU output drives from that output (converted),
+        the FMUs in dependency order (Gauss-Seidel over the strongly connected groups), sweep after
+        sweep until one changes no value bit for bit. An algebraic loop still moving after `limit`
+        sweeps is solved by a damped Newton on its Real inputs, the rest swept again; returns a note
+        then (else None). A loop Newton cannot solve is a NumericalError naming its connections."""
+        order = self._dependency_order()
+        moving = self._sweeps(order, limit)
+        if not moving:
+            return None
+        loop = [k for k in moving if k in self.looped]
+        if not loop or any(category(self.types[k]) != REAL for k in loop):
+            raise NumericalError(self._unsettled(moving or loop, limit, ""))
+        residual = self._newton(loop)
+        if residual is None or self._sweeps(order, limit, fixed=set(loop)):
+            raise NumericalError(self._unsettled(loop, limit, " and a damped Newton on its inputs finds no solution"))
+        return (f"{self.where}: signals: the algebraic loop through {self._names(loop)} does not settle by "
+                f"propagation in initialization mode; solved by a damped Newton on its inputs (residual "
+                f"{residual:.3g})")
+
+    def _sweeps(self, order, limit, fixed=()):
+        """Sweeps over `order` (the signals in `fixed` left as they are) until one changes nothing;
+        the signals the last of `limit` sweeps still changed ([] when settled)."""
+        last, moving = None, []
+        for _ in range(limit):
+            held = []
+            for sub, fmi_type, vrs, ks in order:
+                mine = [(vr, k) for vr, k in zip(vrs, ks) if k not in fixed]
+                values = [self.convert[k](self._read(k)) for _, k in mine]
+                self._check(zip([k for _, k in mine], values), 0)
+                if mine:
+                    sub.fmu.set_values(fmi_type, [vr for vr, _ in mine], values)
+                self.held.update((k, v) for (_, k), v in zip(mine, values))
+                held.append([(k, _bits(v)) for (_, k), v in zip(mine, values)])
+            if held == last:
+                return []
+            moving, last = [k for new, old in zip(held, last or held) for (k, a), (_, b) in zip(new, old)
+                            if a != b], held
+        return moving
+
+    def _newton(self, loop):
+        """Damped Newton on the loop's inputs u for G(u) = u, G the converted outputs read after
+        setting u (Jacobian by differences); the FMUs are left at the solution. Its residual, or None."""
+        u = np.array([self.held[k] for k in loop], dtype=float)
+        r = self._loop_map(loop, u) - u
+        for _ in range(NEWTON_ITERATIONS):
+            worst = float(np.max(np.abs(r)))
+            if worst <= NEWTON_TOLERANCE * (1.0 + float(np.max(np.abs(u)))):
+                return worst
+            jacobian = np.empty((len(loop), len(loop)))
+            for j in range(len(loop)):
+                step = u.copy()
+                step[j] += DIFFERENCE * (1.0 + abs(u[j]))
+                jacobian[:, j] = (self._loop_map(loop, step) - step - r) / (step[j] - u[j])
+            try:
+                du = np.linalg.solve(jacobian, -r)
+            except np.linalg.LinAlgError:
+                return None
+            for halving in range(11):
+                trial = u + du / 2.0 ** halving
+                if np.all(np.isfinite(trial)):
+                    r_trial = self._loop_map(loop, trial) - trial
+                    if float(np.max(np.abs(r_trial))) < worst:
+                        break
+            else:
+                return None
+            u, r = trial, r_trial
+        return None
+
+    def _loop_map(self, loop, u):
+        """Set the loop's inputs to u, then read its sources: G(u), converted."""
+        for k, x in zip(loop, u):
+            sub, fmi_type, vr = self.inputs[k]
+            sub.fmu.set_values(fmi_type, [vr], [float(x)])
+        return np.array([self.convert[k](self._read(k)) for k in loop], dtype=float)
+
+    def _names(self, ks):
+        return ", ".join(f"{self.refs[k]} -> {self.targets[k]}" for k in ks)
+
+    def _unsettled(self, ks, limit, more):
+        return (f"{self.where}: signals: the algebraic loop through {self._names(ks)} does not settle in "
+                f"initialization mode ({limit} sweeps of setting inputs from outputs still change them){more}; "
+                f"break it with a delay, or give start values at its solution")
+
+    def _read(self, k):
+        """The raw value of FMU-driven signal k, read now."""
+        sub, fmi_type, vr = self.sources[k]
+        return sub.fmu.get_values(fmi_type, [vr])[0]
+
+    def _dependency_order(self):
+        """[(target subsystem, FMI type, vrs, signals)] of the FMU-driven signals, the targets ordered
+        so that a subsystem comes after those that drive it (a loop's members in the file's order)."""
+        subs = list(dict.fromkeys([self.sources[k][0] for k in self.sources] + list(self.writes)))
+        index = {id(s): j for j, s in enumerate(subs)}
+        edges = [(index[id(self.sources[k][0])], index[id(sub)]) for sub, groups in self.writes.items()
+                 for _, ks in groups.values() for k in ks if k in self.sources]
+        rows, cols = (list(x) for x in zip(*edges)) if edges else ([], [])
+        graph = coo_matrix((np.ones(len(edges)), (rows, cols)), shape=(len(subs), len(subs)))
+        _, group = connected_components(graph, directed=True, connection="strong")
+        self.looped = {k for sub, groups in self.writes.items() for _, ks in groups.values() for k in ks
+                       if k in self.sources and group[index[id(self.sources[k][0])]] == group[index[id(sub)]]}
+        before = graphlib.TopologicalSorter({int(g): set() for g in group})
+        for a, b in edges:
+            if group[a] != group[b]:
+                before.add(int(group[b]), int(group[a]))
+        rank = {g: r for r, g in enumerate(before.static_order())}
+        order = []
+        for sub in sorted(self.writes, key=lambda s: (rank[int(group[index[id(s)]])], index[id(s)])):
+            for fmi_type, (vrs, ks) in self.writes[sub].items():
+                mine = [(vr, k) for vr, k in zip(vrs, ks) if k in self.sources]
+                if mine:
+                    order.append((sub, fmi_type, [vr for vr, _ in mine], [k for _, k in mine]))
+        return order
+
+    def _check(self, pairs, n):
+        """A non-finite Real or an integer out of its input's range ((signal, value) pairs) stops the
+        run at step n, naming the signal."""
+        for k, v in pairs:
             lo_hi = self.bounds[k]
             if (isinstance(v, float) and not math.isfinite(v)) or (lo_hi and not lo_hi[0] <= v <= lo_hi[1]):
                 raise NumericalError(self._message(k, v, n))
@@ -213,6 +350,11 @@ class Signals:
             return self._message(k, int(value) if category(self.types[k]) == INTEGER else value, n)
         return {"signals": signals, "reads": calls[0], "writes": calls[1], "tables": tables if self.tables else None,
                 "nonfinite": message}
+
+
+def _bits(value):
+    """A value as compared by settle: a float by its bits (0.0 and -0.0 differ, a NaN equals itself)."""
+    return struct.pack("<d", value) if isinstance(value, float) else value
 
 
 def _carried_in_c(fmu, fmi_type):

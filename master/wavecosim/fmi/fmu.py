@@ -252,11 +252,21 @@ def set_pointer_hook(hook):
     return previous
 
 
+def _settable_in_initialization(v):
+    """Whether a variable may be set in initialization mode (fmpy's rule: an input, a tunable
+    non-parameter, or a non-constant variable with initial = exact; an FMI 3 structural parameter
+    only in configuration mode)."""
+    if v.causality == "structuralParameter":
+        return False
+    return v.causality == "input" or (v.causality != "parameter" and v.variability == "tunable") \
+        or (v.variability != "constant" and v.initial == "exact")
+
+
 class Fmu:
     """One instantiated, initialized FMU (FMI 2.0 or 3.0); `name` is the subsystem name used in messages."""
 
     def __init__(self, path, name, values=None, integer_values=None, start_time=0.0, optional=(), pool=None,
-                 tolerance=None, initialize=None, like=None):
+                 tolerance=None, initialize=None, like=None, hold=False):
         """Load, instantiate and initialize; `values` (and `integer_values`) are start values and
         parameters by name, each set with the FMI type its variable declares (Real, Integer,
         Enumeration, Boolean, String; in FMI 3 also Float32 and every IntN/UIntN); names in
@@ -265,7 +275,8 @@ class Fmu:
         (None: the DefaultExperiment's, or none when it gives none), as fmpy sets it up;
         `initialize(fmu)`, when given, runs in initialization mode (e.g. to set inputs). `like`, an Fmu
         of the same file, lends its parsed modelDescription, and its loaded binary when both are in one
-        folder (see twin)."""
+        folder (see twin). `hold`: the instance stays in initialization mode until
+        end_initialization() (a scene settles its connected inputs first, core/signals.py)."""
         self.path, self.name = Path(path), name
         self._pool = pool
         self._key, self.folder = shared_folder(self.path, pool)
@@ -290,7 +301,7 @@ class Fmu:
         self.can_save_state = bool(cs.canGetAndSetFMUstate)
         self.variables = like.variables if like is not None else {v.name: v for v in self.description.modelVariables}
         self.messages = MessageLog(name)        # bounded: the last few, and the run's log file
-        self.phase = "instantiated"        # of the FMI state machine: instantiated, step, error, fatal
+        self.phase = "instantiated"        # of the FMI state machine: instantiated, initialization, step, error, fatal
         try:
             self._fmi = self._bind(binding, cs.modelIdentifier, like)
         except AttributeError as exc:                 # the library lacks an FMI function fmpy loads
@@ -308,9 +319,15 @@ class Fmu:
         self.start_time, self.tolerance, self.initialize = start_time, tolerance, initialize
         try:
             self._setup(self.given, initialize)
+            if not hold:
+                self.end_initialization()
         except BaseException:
             self.close()                   # an instance that failed to initialize is freed, not leaked
             raise
+
+    def end_initialization(self):
+        """Leave initialization mode (fmi2ExitInitializationMode) into the step phase."""
+        self.checked(self._fmi.slave.exitInitializationMode, f"{self._fmi.prefix}ExitInitializationMode")
         self.phase = "step"
 
     def _read_description(self):
@@ -366,6 +383,8 @@ class Fmu:
             self.phase = "error"
 
     def _setup(self, given, initialize):
+        """Set up the experiment, set the given values, enter initialization mode and set again those
+        the standard lets be set there (fmpy's rule), then run `initialize`."""
         fmi, start_time = self._fmi, self.start_time
         fmi.setup_experiment(self, start_time, self.tolerance)
         by_type = {}
@@ -375,15 +394,22 @@ class Fmu:
             if setter is None or not convert[0](value):
                 raise FmuError(f"{self.name}: {name} is a {kind} variable of {self.path.name}; got {value!r}",
                                subsystem=self.name, variable=name)
-            by_type.setdefault(setter, ([], []))
-            by_type[setter][0].append(self.vr(name))
-            by_type[setter][1].append(convert[1](value))
-        for setter, (vrs, vals) in by_type.items():
-            self.checked(getattr(fmi.slave, setter), f"{fmi.prefix}{setter[0].upper()}{setter[1:]}", vrs, vals)
+            by_type.setdefault(setter, []).append((name, convert[1](value)))
+        self._set_given(by_type, lambda v: True)
         fmi.enter_initialization(self, start_time, self.tolerance)
+        self.phase = "initialization"
+        self._set_given(by_type, _settable_in_initialization)
         if initialize is not None:
             initialize(self)
-        self.checked(fmi.slave.exitInitializationMode, f"{fmi.prefix}ExitInitializationMode")
+
+    def _set_given(self, by_type, settable):
+        """Set the given values ({setter: [(name, value)]}) whose variable is `settable`."""
+        fmi = self._fmi
+        for setter, pairs in by_type.items():
+            chosen = [(self.vr(name), value) for name, value in pairs if settable(self.variables[name])]
+            if chosen:
+                self.checked(getattr(fmi.slave, setter), f"{fmi.prefix}{setter[0].upper()}{setter[1:]}",
+                             [vr for vr, _ in chosen], [value for _, value in chosen])
 
     def variable(self, name):
         if name not in self.variables:

@@ -3,14 +3,16 @@ through wavecosim.fmi.build. Every output sits in a folder named by a hash of it
 so installed copies, clones and versions never overwrite each other's builds, and a finished
 output is only ever moved into place whole (several processes may build at once)."""
 import ctypes
+import functools
 import hashlib
 import os
 import subprocess
+import sys
 import tempfile
 from pathlib import Path
 
 from . import abi
-from ..errors import FmuError
+from ..errors import ConfigError, FmuError
 
 SOURCES = Path(__file__).resolve().parent / "c"
 
@@ -39,11 +41,36 @@ class BuildError(RuntimeError):
 
 
 def cache_dir() -> Path:
-    """$WAVECOSIM_CACHE, else $XDG_CACHE_HOME/wavecosim, else ~/.cache/wavecosim."""
-    if os.environ.get("WAVECOSIM_CACHE"):
-        return Path(os.environ["WAVECOSIM_CACHE"])
-    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
-    return Path(base) / "wavecosim"
+    """$WAVECOSIM_CACHE, else $XDG_CACHE_HOME/wavecosim, else ~/.cache/wavecosim: the first one given,
+    made when missing. One that cannot be written gives a folder in the system's temporary directory,
+    said in one warning on stderr (and put in $WAVECOSIM_CACHE, so child processes take it too)."""
+    env = os.environ
+    return _writable_cache(env.get("WAVECOSIM_CACHE", ""), env.get("XDG_CACHE_HOME", ""), env.get("HOME", ""))
+
+
+@functools.lru_cache(maxsize=16)
+def _writable_cache(chosen, xdg, home):
+    """The cache for these values of $WAVECOSIM_CACHE, $XDG_CACHE_HOME and $HOME (see cache_dir)."""
+    wanted = "~/.cache/wavecosim"
+    try:
+        wanted = Path(chosen) if chosen else Path(xdg or Path.home() / ".cache") / "wavecosim"
+        wanted.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=wanted).close()
+        return wanted
+    except (OSError, RuntimeError) as exc:                  # RuntimeError: no home directory to be found
+        reason = getattr(exc, "strerror", None) or str(exc)
+    fallback = Path(tempfile.gettempdir()) / f"wavecosim-cache-{os.getuid()}"
+    try:
+        fallback.mkdir(mode=0o700, exist_ok=True)
+        if fallback.is_symlink() or fallback.stat().st_uid != os.getuid():
+            fallback = Path(tempfile.mkdtemp(prefix="wavecosim-cache-"))
+    except OSError as exc:
+        raise ConfigError(f"the cache {wanted} cannot be written ({reason}), nor {fallback} ({exc.strerror}): "
+                          f"set $WAVECOSIM_CACHE to a writable folder") from None
+    print(f"warning: the cache {wanted} cannot be written ({reason}); using {fallback} (set $WAVECOSIM_CACHE to "
+          f"choose a folder)", file=sys.stderr)
+    os.environ["WAVECOSIM_CACHE"] = str(fallback)
+    return fallback
 
 
 def fmi_headers() -> Path:

@@ -12,7 +12,6 @@ import numpy as np
 from ..errors import FmuError
 from .abi import mirrors
 from .drkernel import FUNCTIONS
-from .linalg import DOT_EXACT
 from .newton import NOT_CONVERGED, WHY, NewtonKernel, failed, library, not_converged
 
 
@@ -26,8 +25,8 @@ class DCSettings(ctypes.Structure):
 
 def supports(scene):
     """Whether the kernel can compute the certificates of this scene: every port is its FMU's own
-    wave map (no adapter, no input scaling) with at most DOT_EXACT channels."""
-    return all(s.plain_wave_port() and s.m <= DOT_EXACT for s in scene.subsystems)
+    wave map (no adapter, no input scaling)."""
+    return all(s.plain_wave_port() for s in scene.subsystems)
 
 
 def _lib():

@@ -1,5 +1,5 @@
 """Small vector arithmetic in a fixed operation order, shared by the Python reference path and
-mirrored line by line in the C fast path (fmus/kernel), so both give bit-identical numbers.
+mirrored line by line in the C kernel (kernel/c), so both give bit-identical numbers.
 
 The coupling maps P and J_L are stored sparse (`Sparse`, compressed rows with the columns of each
 row ascending): a row's sum over its stored entries, left to right from 0.0, has the same bits as
@@ -9,8 +9,6 @@ the dense sum over every column, because adding an exact zero to a running sum t
 import math
 
 import numpy as np
-
-DOT_EXACT = 8      # numpy's a @ b of float vectors up to this long adds left to right from 0 (tests check it)
 
 
 class Sparse:
@@ -164,6 +162,43 @@ def solve_sparse(rows, b):
     return x
 
 
+def solve_columns(A, B):
+    """X with A X = B, solve() on each column of B (one factorization's operations per column); None
+    when A is singular. The coupling's compiled maps use it, so their bits are the same on every CPU."""
+    B = np.asarray(B, dtype=np.float64)
+    columns = [solve(A, B[:, j]) for j in range(B.shape[1])]
+    if any(c is None for c in columns):
+        return None
+    return np.column_stack(columns) if columns else np.zeros(B.shape)
+
+
+def least_squares(V, b, rcond=1e-12):
+    """x minimizing |V x - b| by modified Gram-Schmidt over V's columns in order, sums left to right;
+    a column whose part outside the earlier ones is at most rcond times the largest column norm is
+    left out (its x is 0), as a rank-revealing solve drops it. The same bits on every CPU, where
+    LAPACK's least squares takes its CPU's kernels."""
+    V = np.asarray(V, dtype=np.float64)
+    cols = [V[:, j].tolist() for j in range(V.shape[1])]
+    scale = max((norm2(c) for c in cols), default=0.0)
+    Q, R, kept = [], {}, []
+    for j, v in enumerate(cols):
+        for i, q in zip(kept, Q):
+            R[i, j] = dot(q, v)
+            v = [vk - R[i, j] * qk for vk, qk in zip(v, q)]
+        length = norm2(v)
+        if length > rcond * scale:
+            R[j, j] = length
+            Q.append([vk / length for vk in v])
+            kept.append(j)
+    x = [0.0] * len(cols)
+    for idx in range(len(kept) - 1, -1, -1):
+        j, acc = kept[idx], dot(Q[idx], b)
+        for later in kept[idx + 1:]:
+            acc -= R[j, later] * x[later]
+        x[j] = acc / R[j, j]
+    return np.array(x)
+
+
 def _swap_rows(A, x, where, c, p):
     """Rows c and p of A (and x) exchanged, with the column index following."""
     for j in set(A[c]) | set(A[p]):
@@ -201,7 +236,7 @@ def norm1(x):
 
 
 def norm2(x):
-    """|x|, squares summed left to right (numpy's BLAS norm gives these bits up to 8 entries)."""
+    """|x|, squares summed left to right."""
     acc = 0.0
     for xj in x:
         acc += xj * xj
@@ -211,11 +246,11 @@ def norm2(x):
 def solve(A, b):
     """x with A x = b by LU with partial pivoting (the first row of largest |pivot|), as LAPACK's
     dgesv: multipliers times the pivot's reciprocal, rows updated and b reduced column by column,
-    then back substitution dividing by the pivots; for 1 x 1 and 2 x 2 these are numpy's
-    np.linalg.solve's bits. A row whose multiplier is zero is not updated (for finite entries that
+    then back substitution dividing by the pivots. A row whose multiplier is zero is not updated (for finite entries that
     is what subtracting zero gives: A never holds -0.0), so a banded A costs O(n^2 band).
     Elementwise numpy operations only (no sums), so kernel/c/newton.c's loops give the same
-    bits. None when a pivot is zero (A singular)."""
+    bits on every CPU (numpy's BLAS and LAPACK pick their kernels by CPU). None when a pivot is zero
+    (A singular)."""
     A, x = np.array(A, dtype=np.float64), np.array(b, dtype=np.float64)
     n = len(x)
     for c in range(n):

@@ -7,6 +7,7 @@ jacobi-iter, and only choose the next iterate differently; residual r = H(y) - y
 """
 import numpy as np
 
+from ..kernel import linalg
 from .fixed_point import JacobiIterMaster
 
 INITIAL_RELAXATION = 0.5     # the first update of each macro-step: y + 0.5 r
@@ -23,9 +24,9 @@ class AitkenMaster(JacobiIterMaster):
         r = y_tilde - y
         if self.r_prev is not None:
             dr = r - self.r_prev
-            denom = float(dr @ dr)
+            denom = linalg.dot(dr.tolist(), dr.tolist())
             if denom > 0.0:
-                self.omega = -self.omega * float(self.r_prev @ dr) / denom
+                self.omega = -self.omega * linalg.dot(self.r_prev.tolist(), dr.tolist()) / denom
         self.r_prev = r
         return y + self.omega * r
 
@@ -47,5 +48,5 @@ class IQNILSMaster(JacobiIterMaster):
         if not self.V:
             return y + INITIAL_RELAXATION * r
         V, W = np.column_stack(self.V), np.column_stack(self.W)
-        alpha = np.linalg.lstsq(V, -r, rcond=1e-12)[0]
-        return y_tilde + W @ alpha
+        alpha = linalg.least_squares(V, (-r).tolist())
+        return y_tilde + np.array(linalg.matvec(W, alpha.tolist()))

@@ -23,8 +23,14 @@ SUMMARY = {
     "eps": ("the inner tolerance, or null", "sqrt(J)"),
     "dt": ("the macro-step", "s"),
     "T": ("the stop time", "s"),
+    "start_time": ("the start time t₀", "s"),
+    "times_from": ("where `dt`, `start_time` and `T` came from, each in words: the command line, the scenario "
+                   "file, the SSD's DefaultExperiment, its OSP annotation (`osp:FixedStepAlgorithm`), OSP-IS "
+                   "(`OspSystemStructure.xml`), OMSimulator's fixed-step master, or an FMU's DefaultExperiment",
+                   "text"),
     "steps": ("macro-steps made", "1"),
-    "status": ("`finished`, `failed` or `interrupted`", "text"),
+    "status": ("`finished`, `failed`, `interrupted`, or `suspect`: the run went to its end but an observer "
+               "doubts it (the freeze watch found an FMU that does not advance; `message` says which)", "text"),
     "message": ("why the run failed or ended early (an FMU that asked to end it); empty otherwise", "text"),
     "iterations_mean": ("inner iterations per macro-step, on average", "1"),
     "iterations_max": ("the most inner iterations in one macro-step", "1"),
@@ -33,12 +39,21 @@ SUMMARY = {
     "total_time_s": ("from the FMUs opened to the summary: steps, observers, rows written", "s"),
     "loop_time_s": ("from the first macro-step to the last row written: the run's cost beyond set-up", "s"),
     "real_time_factor": ("simulated time over the master's wall time", "1"),
-    "fmu_calls": ("FMU calls the master made, `doStep`, `save` and `restore` (state get and set); the "
-                  "certificates' own calls not counted", "1"),
+    "fmu_calls": ("FMU calls the run made from its first step on, `doStep`, `save` and `restore` (state get and "
+                  "set), over every FMU (those stepped alone, signals only, too), the same on the C kernel route "
+                  "and the Python one; the observers' own calls (certificates, probes) not counted", "1"),
+    "fmu_calls_by_subsystem": ("the same per subsystem (they add up to `fmu_calls`)", "1"),
     "output_interval": ("a row is written every this many macro-steps (and at the last)", "steps"),
     "energy_guard": ("the energy guard in force: `ledger`, `monolithic`, `off`, or `n/a` for a master that does "
                      "not roll back", "text"),
     "block_steps": ("macro-steps made in blocks of many steps per call of the C kernel", "1"),
+    "quirks": ("per subsystem, the doStep flag it ran with, `no_set_fmu_state_prior`, and `chosen_by` (probe, "
+               "quirks key, no rollback, default); what the probes found is in metadata.json", "–"),
+    "notes": ("the set-up's warnings (quirks found, port signs probed), each also printed once on stderr", "text"),
+    # the freeze watch (observers/freeze_watch.py)
+    "freeze_watch": ("`steps`: how many macro-steps with changing inputs and the same outputs make a subsystem "
+                     "suspect; `suspect`: per such subsystem, `from_step`, `from_t` and `steps` of its longest "
+                     "frozen stretch (docs/troubleshooting.md)", "1; s"),
     # the energy guard (observers/energy_ledger.py, energy_guard.py)
     "energy_guard_steps": ("macro-steps the energy guard redid", "1"),
     "energy_guard_extra_doSteps": ("doStep calls the redos cost", "1"),

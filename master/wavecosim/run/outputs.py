@@ -44,6 +44,8 @@ class OutputFolder:
         self.path, self.fd = Path(path), None
         try:
             self.path.mkdir(parents=True, exist_ok=True)
+        except FileExistsError:
+            raise OutputError(f"{self.path}: is a file, not a folder; choose another --out") from None
         except OSError as exc:
             raise cannot(self.path, exc, "create the output folder") from None
         self.key = str(self.path.resolve())

@@ -79,7 +79,7 @@ class Table:
     """One table of float rows (`columns`), streamed to `path` (CSV) when given.
 
     `formats` maps a column to a formatter (default repr of floats); see `ints` and `Labels`.
-    Rows fill one of two blocks; a full block is handed to the writer threads (observers/writer.py)
+    Rows fill one of two blocks; a full block is handed to the writer threads (run/writer.py)
     while the other fills, and is filled again only once its rows are formatted (a table that keeps
     its rows in memory keeps its full blocks themselves and takes fresh ones)."""
 

@@ -41,6 +41,7 @@ from .observers.energy_guard import EnergyGuard
 from .observers.energy_ledger import EnergyLedger
 from .observers.errors import ErrorTracker, ScaledErrors, error_observer, stored_reference, stored_rows
 from .observers.fne_watch import FneWatch
+from .observers.freeze_watch import FreezeWatch
 from .observers.gamma import GammaLog, TunedGammaLog
 from .observers.passivity import Passivity
 from .outputs import cannot
@@ -50,6 +51,7 @@ from ..core.scene import build_scene
 from ..fmi.messages import LogFile
 
 FORMATS = ("csv", "mat")
+CALLS = ("doStep", "save", "restore")       # the FMU calls a run counts (fmu_calls)
 # The columns of steps.csv every run has, then the observers' (their `described`); docs/outputs.md
 # is generated from these.
 STEP_DESCRIBED = {
@@ -61,7 +63,7 @@ STEP_DESCRIBED = {
 }
 STEP_COLUMNS = tuple(STEP_DESCRIBED)
 OBSERVERS = (EnergyLedger, EnergyGuard, GammaLog, TunedGammaLog, FneWatch, CertificateSampler, CertificatePace,
-             Passivity, ErrorTracker, ScaledErrors)      # every observer, in the order they act (and their columns come)
+             Passivity, FreezeWatch, ErrorTracker, ScaledErrors)    # every observer, in the order they act (their columns too)
 BLOCK_STEPS = BLOCK                    # macro-steps per call of the master, at most a table block
 HAND_OVER_S = 1.0                      # rows booked are handed to the writer at least this often
 MAX_STEPS = 10 ** 8                    # more macro-steps than this only when asked (--force, max_steps=None)
@@ -241,6 +243,7 @@ def make_observers(scenario, scene, master, tuner, certificates, warn):
     if any(isinstance(o, (FneWatch, CertificateSampler)) for o in obs):
         obs.append(CertificatePace(pace))
     obs.append(Passivity(scene, unavailable))
+    obs.append(FreezeWatch(scene, warn))
     return obs
 
 
@@ -307,7 +310,8 @@ class LiveRun:
     def start(self):
         """Read the FMUs at t = 0, start the observers, record the first trajectory row."""
         self._tables()
-        self.calls_at_start, self.excluded = self._totals(), {k: 0 for k in ("doStep", "save", "restore")}
+        self.calls_at_start = self._counts()
+        self.excluded = [(0,) * len(CALLS)] * len(self.calls_at_start)
         first = self.sampler.read()
         for o in self.observers:
             o.start(first)
@@ -323,7 +327,7 @@ class LiveRun:
         self.after = [(o, row) for o, row in zip(self.observers, self.slices) if o is not self.guard]
         self.recent = {0: first.outputs}
         self._plan_blocks()
-        self.calls_at_start = self._totals()
+        self.calls_at_start = self._counts()
         self.loop_started = time.perf_counter()
 
     def step(self, n):
@@ -331,12 +335,13 @@ class LiveRun:
         returns the Reading of the FMUs after it."""
         t = self.t0 + n * self.dt
         self.scene.begin_step(n, t)                  # signals held, signal-only subsystems stepped
-        before = self._totals() if self.bracket else None
+        before = self._counts() if self.bracket else None
         for o in self.observers:
             o.before_step(n, t)
         if before is not None:                       # observers' own FMU calls are not the master's
-            for k, v in self._totals().items():
-                self.excluded[k] += v - before[k]
+            now = self._counts()
+            if now != before:
+                self.excluded = [tuple(x + a - b for x, a, b in zip(*c)) for c in zip(self.excluded, now, before)]
         if self.kernel_guard:                        # the kernel makes the step and the ledger's redo in one call
             self.master.keep_ledger(*self.guard.kernel_state())
         t0 = time.perf_counter()
@@ -518,8 +523,17 @@ class LiveRun:
             self.recent[self.led] = reading.outputs
         return self.led
 
-    def _totals(self):
-        return {k: sum(s.calls[k] for s in self.scene.subsystems) for k in ("doStep", "save", "restore")}
+    def _counts(self):
+        """Each FMU's calls so far (CALLS), one tuple per subsystem: those with a port, then those stepped alone."""
+        return [tuple(s.calls[k] for k in CALLS) for s in self.scene.subsystems + self.scene.signal_only]
+
+    def fmu_calls_by_subsystem(self):
+        """{subsystem: its doStep, save and restore calls from the first step on}, observers' probes excluded."""
+        now = self._counts()
+        start = getattr(self, "calls_at_start", now)                      # before the first step: none yet
+        excluded = getattr(self, "excluded", [(0,) * len(CALLS)] * len(now))
+        return {s.name: {k: a - b - x for k, a, b, x in zip(CALLS, c, b0, x0)}
+                for s, c, b0, x0 in zip(self.scene.subsystems + self.scene.signal_only, now, start, excluded)}
 
     def hand_over(self):
         """The rows booked so far to the writer threads now (the loop does every second)."""
@@ -568,21 +582,25 @@ class LiveRun:
         self.trajectory.commit_row()
 
     def fmu_calls(self):
-        """doStep, save and restore calls the master made (observers' probes excluded)."""
-        now = self._totals()
-        return {k: now[k] - self.calls_at_start[k] - self.excluded[k] for k in now}
+        """doStep, save and restore calls the run made, over every FMU (observers' probes excluded)."""
+        by = self.fmu_calls_by_subsystem().values()
+        return {k: sum(c[k] for c in by) for k in CALLS}
 
     def summary(self, status, message):
         settings, sc = self.scenario.master, self.scenario
         n, iters = self.steps_done, self._iteration_totals()
         out = {"label": self.label, "scenario": sc.name, "master": settings.algorithm, "K": settings.K,
-               "eps": settings.eps, "dt": sc.dt, "T": sc.T, "steps": n, "status": status, "message": message,
+               "eps": settings.eps, "dt": sc.dt, "T": sc.T, "start_time": sc.start_time, "times_from": sc.times_from,
+               "steps": n, "status": status, "message": message,
                "iterations_mean": iters[0] / n if n else 0.0, "iterations_max": iters[1],
                "wall_time_s": self.master_time, "total_time_s": time.perf_counter() - self.started,
                "loop_time_s": self.loop_time,
                "real_time_factor": (n * sc.dt) / self.master_time if self.master_time > 0 else float("nan"),
-               "fmu_calls": self.fmu_calls(), "output_interval": self.every,
-               "energy_guard": self.guard_mode, "block_steps": self.block_steps}
+               "fmu_calls": self.fmu_calls(), "fmu_calls_by_subsystem": self.fmu_calls_by_subsystem(),
+               "output_interval": self.every,
+               "energy_guard": self.guard_mode, "block_steps": self.block_steps,
+               "quirks": {name: {"no_set_fmu_state_prior": d.no_set_fmu_state_prior, "chosen_by": d.chosen_by}
+                          for name, d in self.scene.decisions.items()}, "notes": list(self.scene.notes)}
         for o in self.observers:
             out.update(o.summary())
         if self.master is not None:
@@ -599,6 +617,7 @@ class LiveRun:
         if self.write_error is not None and status == "finished":
             status, message = self.write_error.status, str(self.write_error)
         self.loop_time += time.perf_counter() - started
+        status, message = self._verdict(status, message)
         summary = self.summary(status, message)
         if release:
             self.close()
@@ -611,6 +630,13 @@ class LiveRun:
             except OutputError as exc:
                 self.write_error = self.write_error or exc
         return result
+
+    def _verdict(self, status, message):
+        """A finished run that an observer found suspect (a frozen FMU) is `suspect`, with why."""
+        why = [v for v in (o.verdict() for o in self.observers) if v]
+        if status != "finished" or not why:
+            return status, message
+        return "suspect", "; ".join(why + ([message] if message else []))
 
     def units(self):
         """{"trajectory": {column: unit}, "steps": {column: unit}} of the recorded columns: the outputs'

@@ -18,6 +18,7 @@ from ..core.quirks import KEYS as QUIRK_KEYS
 from ..masters import ALGORITHMS
 from ..masters.dr_options import ANDERSON_MAX, OPTION_MODES, STARTS
 from .experiment import from_fmus
+from .overrides import apply_overrides
 
 DEFAULT_CONFIG = DEFAULT
 GROWTH_BOUND = 1e12
@@ -235,6 +236,7 @@ class Scenario:
         "the start, at least 1) stops the run with a NumericalError; null: no bound (non-finite values still "
         "stop it)", "1", "number > 1 or null"))
     output_patterns: list = field(default_factory=list)       # globs narrowing the recorded columns
+    times_from: dict = field(default_factory=dict)            # {start_time, dt, T: where each value came from}
     order: list = field(default_factory=list)                 # every subsystem's name, in the file's order
     step_timeout: float = field(default=None, metadata=key(
         "seconds one call into an FMU may take before the run stops as timed out (`--step-timeout`)", "s",
@@ -243,6 +245,12 @@ class Scenario:
     @property
     def n_steps(self):
         return int(round((self.T - self.start_time) / self.dt))
+
+    def times_line(self):
+        """`dt=0.001 (its origin) start=0.0 (...) T=1.0 (...)`: the grid and where each value came from."""
+        return " ".join(f"{label}={value}" + (f" ({self.times_from[key]})" if key in self.times_from else "")
+                        for key, label, value in (("dt", "dt", self.dt), ("start_time", "start", self.start_time),
+                                                  ("T", "T", self.T)))
 
     def with_master(self, where="master", **changes):
         """A copy with master settings changed; a master the system cannot run is refused (`where`
@@ -553,11 +561,12 @@ def _mapping_without_duplicates(loader, node):
 _SafeLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _mapping_without_duplicates)
 
 
-def load_scenario(path=None, settings=None) -> Scenario:
+def load_scenario(path=None, settings=None, changes=()) -> Scenario:
     """Read and validate a scenario file (the built-in default when path is None); `settings` (the
-    command line's dt, T, start_time) stand for the values the file leaves out."""
+    command line's dt, T, start_time) stand for the values the file leaves out; `changes` are
+    (key path, value) set in the file's mapping first (`--set`)."""
     path = Path(path) if path else DEFAULT_CONFIG
-    return parse_scenario(load_raw(path), str(path), path.parent, settings)
+    return parse_scenario(apply_overrides(load_raw(path), changes), str(path), path.parent, settings)
 
 
 def load_raw(path) -> dict:
@@ -798,14 +807,15 @@ def parse_scenario(raw, source="<scenario>", base_dir=Path("."), settings=None) 
     ck = _Checker(source)
     raw = expand_repeats(raw, ck)
     ck.mapping(raw, "", keys_of(Scenario), required=("subsystems",))
-    raw = {**raw, **{k: v for k, v in (settings or {}).items() if v is not None and raw.get(k) is None}}
+    options = {k: v for k, v in (settings or {}).items() if v is not None and raw.get(k) is None}
+    raw = {**raw, **options}
     subs = raw["subsystems"]
     ck.mapping(subs, "subsystems", list(subs) if isinstance(subs, dict) else [])
     if len(subs) < 1:
         ck.fail("subsystems", "must name at least one subsystem")
     subsystems = [_subsystem(ck, str(n), s, base_dir) for n, s in subs.items()]
     names = [s.name for s in subsystems]
-    start_time, dt, T = _times(ck, raw, subsystems)
+    start_time, dt, T, times_from = _times(ck, raw, subsystems, options)
     couplings = raw.get("couplings") or []
     if not isinstance(couplings, list):
         ck.fail("couplings", "must be a list of couplings (or left out: a system without power bonds)")
@@ -821,7 +831,7 @@ def parse_scenario(raw, source="<scenario>", base_dir=Path("."), settings=None) 
                     outputs=outputs, error=error, description=str(raw.get("description", "")),
                     fne_watch=ck.boolean(raw.get("fne_watch", True), "fne_watch"),
                     signal_subsystems=signal_subsystems, sources=sources, signals=signals,
-                    output_patterns=patterns, order=names, start_time=start_time,
+                    output_patterns=patterns, order=names, start_time=start_time, times_from=times_from,
                     growth_bound=_growth_bound(ck, raw.get("growth_bound", GROWTH_BOUND)),
                     step_timeout=(ck.number(raw["step_timeout"], "step_timeout", positive=True)
                                   if raw.get("step_timeout") is not None else None))
@@ -837,12 +847,16 @@ def _growth_bound(ck, value):
     return bound
 
 
-def _times(ck, raw, subsystems):
-    """(start_time, dt, T): as given, else from the FMUs' DefaultExperiments (the start time they
-    agree on, else 0; the smallest stepSize; the largest stopTime); dt or T that nothing gives is
-    refused in one line naming it. T is the stop time: the run makes (T - start_time) / dt steps."""
+def _times(ck, raw, subsystems, options=()):
+    """(start_time, dt, T, where each came from): as given (in the file, or among the `options` of
+    the command line), else from the FMUs' DefaultExperiments (the start time they agree on, else 0;
+    the smallest stepSize; the largest stopTime); dt or T that nothing gives is refused in one line
+    naming it. T is the stop time: the run makes (T - start_time) / dt steps."""
     found = from_fmus(subsystems, [k for k in ("start_time", "dt", "T") if raw.get(k) is None])
     origin = {key: f" ({found[key][1]})" for key in found}
+    times_from = {"start_time": "the default 0", **{k: v for k, (_, v) in found.items()},
+                  **{k: "the command line" if k in options else "the scenario file" for k in ("start_time", "dt", "T")
+                     if raw.get(k) is not None}}
     if "start_time" in raw:
         start = ck.number(raw["start_time"], "start_time")
     elif found.get("start_time", (0.0,))[0] is None:
@@ -858,7 +872,7 @@ def _times(ck, raw, subsystems):
     if T <= start:
         ck.fail("T", f"the stop time must be after the start time {start:g}, got {T:g}{origin.get('T', '')}")
     check_whole_steps(T, dt, lambda msg: ck.fail("T", msg.removeprefix("T ") + origin.get("T", "")), start)
-    return start, dt, T
+    return start, dt, T, times_from
 
 
 def _gamma(ck, gamma, couplings):

@@ -7,6 +7,8 @@ import xml.etree.ElementTree as ET
 import zipfile
 from pathlib import Path
 
+from fmpy.util import auto_interval
+
 from ..fmi.builtin import builtin_fmus
 
 KEYS = {"start_time": "startTime", "dt": "stepSize", "T": "stopTime"}     # scenario key -> attribute
@@ -73,3 +75,12 @@ def from_fmus(subsystems, missing):
         value, name = (min if key == "dt" else max)(values)
         out[key] = (value, f"the DefaultExperiment {KEYS[key]} of {name}")
     return out
+
+
+def default_step(start, stop):
+    """(dt, the words that say where it came from) where nothing gives a step size: the interval fmpy's
+    simulate_fmu takes for an FMU without a DefaultExperiment stepSize (fmpy.util.auto_interval, a round
+    number giving 500 to 1000 steps from start to stop)."""
+    span = stop - start
+    value = float(auto_interval(span))
+    return value, f"fmpy's default for a run of {span:g} s: {round(span / value)} steps; --dt chooses another"

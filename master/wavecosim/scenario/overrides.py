@@ -97,6 +97,14 @@ def parse_set(option):
     return key, dists[0] if dists else [v for item in items for v in item]
 
 
+def parse_value(option):
+    """"KEY=VALUE" of one run (`run --set`) -> (KEY, the one value), read as parse_set reads it."""
+    key, values = parse_set(option)
+    if not isinstance(values, list) or len(values) != 1:
+        raise ConfigError(f"--set {key}: a run takes one value (a sweep takes lists and distributions)")
+    return key, values[0]
+
+
 VARIABLE_MAPPINGS = ("parameters", "start", "integers")
 
 

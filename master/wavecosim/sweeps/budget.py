@@ -12,6 +12,7 @@ from ..errors import Interrupted
 from .execute import Task, executor, resumed, task_scenario
 from ..run.recorder import write_json
 from ..scenario.overrides import expand, short_label
+from ..scenario.ssp import ssp_only
 from ..run.runner import reference_scenario, run
 
 SWEEP_FIELDS = ("K", "max_error", "rms_error", "final_error", "max_passivity_pos", "max_augmented_pos",
@@ -46,11 +47,13 @@ def sweep(scenario, Ks, out_dir, progress=None, certificates=True, reference=Non
 
 
 def plan(config, axes, out_dir, fixed=(), sample=None, seed=0, reference=True, certificates=True,
-         output_interval=1, step_timeout=None):
+         output_interval=1, step_timeout=None, ports=None, parameter_set=None):
     """The tasks of a general sweep, every one validated (a bad key or value is a one-line
     ConfigError before anything runs). axes: [(key, values or distribution)] from --set;
-    fixed: (key, value) applied to every run (e.g. T from --T)."""
+    fixed: (key, value) applied to every run (e.g. T from --T); ports, parameter_set: an SSP system's."""
+    ssp_only(config, ports, parameter_set)
     config = str(Path(config).resolve()) if config else str(DEFAULT_CONFIG)
+    ssp = {"ports": str(Path(ports).resolve()) if ports else None, "parameter_set": parameter_set}
     points = expand(axes, sample, seed)
     keys = tuple(k for k, _ in axes)
     threads = () if any(k == "master.threads" for k, _ in [*fixed, *axes]) else (("master.threads", "1"),)
@@ -59,7 +62,7 @@ def plan(config, axes, out_dir, fixed=(), sample=None, seed=0, reference=True, c
     for i, point in enumerate(points):
         label = f"{i:0{width}d}_{short_label(point)}"
         tasks.append(Task(i, config, (*threads, *fixed, *point), str(Path(out_dir) / "runs" / label), label,
-                          keys, reference, certificates, output_interval, step_timeout))
+                          keys, reference, certificates, output_interval, step_timeout, **ssp))
     scenarios = [task_scenario(t) for t in tasks]
     if scenarios:
         preflight(scenarios[0])

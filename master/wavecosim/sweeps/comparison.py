@@ -150,7 +150,7 @@ def compare_row(result, K, option="", subsystems=1):
     critical_path_doSteps: doSteps per macro-step that cannot run side by side (a sequential master's
     all, a parallel one's divided among its `subsystems`, each making the same calls)."""
     s = result.summary
-    finite = result.status == "finished"                 # a run stops at its first non-finite value
+    finite = result.status in ("finished", "suspect")    # a run stops at its first non-finite value
     growth = s.get("H_growth", float("nan"))
     safe, ledger_max, allowance = energy_safety(result) if s["steps"] else (False, float("nan"), float("nan"))
     per_step = s["fmu_calls"]["doStep"] / max(s["steps"], 1)

@@ -22,6 +22,7 @@ from ..errors import Interrupted, RunFailed, Terminated, WavecosimError, optiona
 from ..run.outputs import remove_run_files
 from ..run.recorder import clean_json, write_json
 from ..scenario.overrides import apply_overrides
+from ..scenario.ssp import import_ssp, is_ssp
 
 ROW_FILE = "row.json"
 
@@ -39,6 +40,8 @@ class Task:
     certificates: bool = True
     output_interval: int = 1
     step_timeout: float = None                 # seconds a call into an FMU may take (None: the scenario's)
+    ports: str = None                          # an SSP system's overlay (--ports) and parameter sets
+    parameter_set: str = None
     attempt: int = 1                           # 2 for a failed run tried again by --resume
 
 
@@ -47,9 +50,20 @@ def _raw(config, mtime):
     return load_raw(config)
 
 
+@lru_cache(maxsize=8)
+def _imported(config, mtime, ports, parameter_set, times):
+    """An SSP system as imported (its mapping is copied before a task changes it)."""
+    return import_ssp(config, ports, parameter_set, dict(times))
+
+
 def task_scenario(task):
-    """The validated Scenario of a task: the file's mapping with the overrides applied."""
+    """The validated Scenario of a task: the file's mapping (an SSP system's as imported, the times
+    among the overrides given to the import) with the overrides applied."""
     path = Path(task.config)
+    if is_ssp(path):
+        times = tuple((k, v) for k, v in task.overrides if k in ("dt", "T", "start_time"))
+        imported = _imported(str(path), path.stat().st_mtime_ns, task.ports, task.parameter_set, times)
+        return parse_scenario(apply_overrides(imported.raw, task.overrides), str(imported.ssd), imported.ssd.parent)
     raw = apply_overrides(_raw(str(path), path.stat().st_mtime_ns), task.overrides)
     return parse_scenario(raw, str(path), path.parent)
 

@@ -1,6 +1,6 @@
 /* Algorithm 1 of the paper for one macro-step, in C, calling the FMUs through their own fmi2
- * function pointers (see drkernel.h). The Python reference is master/masters/dr.py::algorithm1
- * with master/frozen_port_map.py::Subsystem; each line below names the line it mirrors. */
+ * function pointers (see drkernel.h). The Python reference is masters/dr.py::algorithm1
+ * with core/frozen_port_map.py::Subsystem; each line below names the line it mirrors. */
 #define _POSIX_C_SOURCE 200809L
 #include <float.h>
 #include <math.h>
@@ -123,7 +123,7 @@ static void cpu_relax(void) {
 #endif
 }
 
-/* ---- the arithmetic of master/linalg.py, in the same operation order ---- */
+/* ---- the arithmetic of kernel/linalg.py, in the same operation order ---- */
 
 /* y = M x (linalg.matvec). */
 static void csr_matvec(const Csr *M, const double *x, double *y, size_t n) {

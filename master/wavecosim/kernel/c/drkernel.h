@@ -1,11 +1,11 @@
-/* The fast path of the DR master (master/fast_path.py drives it through ctypes).
+/* The fast path of the DR master (masters/dr_fast.py drives it through kernel/drkernel.py).
  *
  * One call of dr_macro_step() runs Algorithm 1 of the paper for one macro-step, lines 3-22: save
  * x_i^n, K inner iterations (each queries every frozen port map S_i^n once), a = P b^*, and the
  * commit Phi_i(x_i^n, a_i). FMUs are called through their own fmi2 function pointers, so the
  * kernel works for any FMI 2.0 co-simulation FMU that can get and set its state.
  *
- * The arithmetic follows master/linalg.py and master/masters/dr.py operation by operation
+ * The arithmetic follows kernel/linalg.py and masters/dr.py operation by operation
  * (sums from 0.0, left to right; compiled with -ffp-contract=off), so the numbers are
  * bit-identical to the Python reference.
  *

@@ -72,6 +72,10 @@ class Observer:
         """Its figures for summary.json."""
         return {}
 
+    def verdict(self):
+        """Why a run that went to its end is suspect (e.g. a frozen FMU), or None."""
+        return None
+
     def unit(self, column):
         """The unit of one of its columns (metadata.json), from `described`."""
         entry = described_as(self.described, column)

@@ -79,10 +79,10 @@ def trace_impedances(scene, trace, gammas):
     out = {}
     for s, da, ds in _pairs(scene, trace):
         dd = da - ds
-        den = np.einsum("ij,ij->i", dd, dd)
+        den = row_dots(dd, dd)
         ok = den > 0.0
         if ok.any():
-            z = gammas[s.name] * (np.einsum("ij,ij->i", da, da) - np.einsum("ij,ij->i", ds, ds))[ok] / den[ok]
+            z = gammas[s.name] * (row_dots(da, da) - row_dots(ds, ds))[ok] / den[ok]
             out[s.name] = float(z.min())
     return out
 

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from ...errors import ConfigError
 from ...fmi.unpack import prune, touch, unpack
+from ...kernel.build import cache_dir
 
 SSD_NAME = "SystemStructure.ssd"
 CACHE_KEEP = 16                  # unpacked .ssp archives the cache keeps (the ones used last)
@@ -19,6 +20,12 @@ def is_ssp(path) -> bool:
     """True for what `wavecosim run` reads as SSP: a .ssd or .ssp file, or a folder with SystemStructure.ssd."""
     path = Path(path)
     return path.suffix.lower() in (".ssd", ".ssp") or (path.is_dir() and (path / SSD_NAME).exists())
+
+
+def ssp_only(path, ports, parameter_set):
+    """A ConfigError when `ports` or `parameter_set` is given for an input that is not SSP."""
+    if (ports is not None or parameter_set is not None) and not (path is not None and is_ssp(path)):
+        raise ConfigError("ports and parameter_set: only for an SSP input (.ssd, .ssp or a folder)")
 
 
 def locate_ssd(path) -> Path:
@@ -37,7 +44,8 @@ def locate_ssd(path) -> Path:
 
 
 def cache_root() -> Path:
-    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "wavecosim" / "ssp"
+    """Where .ssp archives are unpacked: the package's cache (kernel/build.py: cache_dir)."""
+    return cache_dir() / "ssp"
 
 
 def extract_ssp(path) -> Path:

@@ -1,20 +1,19 @@
 """The run's time grid when neither the command line, the overlay nor our annotation gives it.
 
-Stop time: ssd:DefaultExperiment stopTime, else the FMUs' DefaultExperiment (the largest stopTime,
-the scenario file's rule: scenario/experiment.py). Start time: ssd:DefaultExperiment startTime, else
-the scenario file's rule. Step size, the first of: OSP `BaseStepSize` (OspSystemStructure.xml beside
-the SSD), OMSimulator's fixed-step master (annotation org.openmodelica), the smallest `stepSize` of
-the FMUs' DefaultExperiment, and last the interval fmpy's simulate_fmu takes for an FMU without one
-(500 to 1000 steps over the run, a note says so). Without a stop time from anywhere, T (and so dt)
-is asked for in one line."""
+Start and stop time, the first of: ssd:DefaultExperiment startTime / stopTime, the SSD's OSP
+annotation (`osp:FixedStepAlgorithm startTime / stopTime`), OSP-IS `StartTime` / `StopTime`
+(OspSystemStructure.xml beside the SSD), and the FMUs' DefaultExperiment (the scenario file's
+rule: scenario/experiment.py). Step size, the first of: the OSP annotation's `baseStepSize`, OSP-IS
+`BaseStepSize`, OMSimulator's fixed-step master (annotation org.openmodelica), the smallest
+`stepSize` of the FMUs' DefaultExperiment, and last the interval fmpy's simulate_fmu takes for an
+FMU without one (500 to 1000 steps over the run, a note says so). Without a stop time from
+anywhere, T (and so dt) is asked for in one line. Each value's origin is kept (the run reports it)."""
 from types import SimpleNamespace
 
-from fmpy.util import auto_interval
-
 from ...errors import ConfigError
-from ..experiment import from_fmus
+from ..experiment import default_step, from_fmus
 from . import oms
-from .osp import base_step_size
+from .osp import annotated_times, system_times
 from .overlay import experiment
 from .xmlfile import at
 
@@ -27,21 +26,28 @@ def _from_fmus(flat, key):
     return from_fmus(subsystems, [key]).get(key)
 
 
+def _file_times(flat):
+    """{key: (value, origin)} of the OSP annotation over OSP-IS (the SSD's own DefaultExperiment aside)."""
+    return {**system_times(flat.path.parent), **annotated_times(flat.path, flat.root)}
+
+
 def times(flat):
     """[(key, value, origin)] of the start and stop time the files give."""
     start, stop = experiment(flat.path, flat.root)
-    out = [(START_KEY, start, "ssd:DefaultExperiment startTime")] if start is not None else []
+    osp = _file_times(flat)
+    out = [(START_KEY, start, "ssd:DefaultExperiment startTime")] if start is not None else (
+        [(START_KEY, *osp[START_KEY])] if START_KEY in osp else [])
     if stop is not None:
         return out + [("T", stop, "ssd:DefaultExperiment stopTime")]
-    found = _from_fmus(flat, "T")
+    found = osp.get("T") or _from_fmus(flat, "T")
     return out + ([("T", *found)] if found else [])
 
 
 def step(flat, raw):
     """(dt, origin, note or None) for a run whose settings give no dt."""
-    value, path = base_step_size(flat.path.parent)
-    if value is not None:
-        return value, f"BaseStepSize of {path.name}", None
+    osp = _file_times(flat)
+    if "dt" in osp:
+        return (*osp["dt"], None)
     value, element = oms.fixed_step(flat.path, flat.root)
     if value is not None:
         return value, f"OMSimulator's fixed-step master ({at(flat.path, element)})", None
@@ -51,8 +57,5 @@ def step(flat, raw):
     if "T" not in raw:
         raise ConfigError(f"{flat.path}: T: neither the SSD nor its FMUs give a stop time or a step size; "
                           f"give --T and --dt (or dt and T in the overlay, --ports FILE)")
-    duration = raw["T"] - (raw.get(START_KEY) or 0.0)
-    value = float(auto_interval(duration))
-    return value, "fmpy's interval for the run's length", (
-        f"{flat.path.name}: dt: neither the SSD, OSP nor the FMUs give a step size; dt = {value:g} as fmpy's "
-        f"simulate_fmu takes it for {duration:g} s (give --dt to choose)")
+    value, words = default_step(raw.get(START_KEY) or 0.0, raw["T"])
+    return value, "fmpy's default step", f"{flat.path.name}: dt = {value:g} ({words})"

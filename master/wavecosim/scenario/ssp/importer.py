@@ -2,7 +2,7 @@
 -> subsystems, time tables -> sources, parameter bindings and values through system connectors ->
 parameters/start, connections -> signals, power bonds -> couplings, what is recorded -> outputs,
 the time grid from the files (experiment.py). Reads files only; no FMU is instantiated."""
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from ...fmi.builtin import builtin_fmus
@@ -186,8 +186,14 @@ def _settings(flat, overlay, cli, out):
     return raw
 
 
-def load_ssp(path, ports=None, parameter_set=None, settings=None):
-    """(Scenario, Imported): the SSP system checked like a scenario file."""
+def load_ssp(path, ports=None, parameter_set=None, settings=None, changes=()):
+    """(Scenario, Imported): the SSP system checked like a scenario file, with `changes` ((key path,
+    value), `--set`) set in its mapping first, and where its times came from."""
     from ..config import parse_scenario
+    from ..overrides import apply_overrides
     imported = import_ssp(path, ports, parameter_set, settings)
-    return parse_scenario(imported.raw, str(imported.ssd), imported.ssd.parent), imported
+    scenario = parse_scenario(apply_overrides(imported.raw, changes), str(imported.ssd), imported.ssd.parent)
+    changed = {key.split(".")[-1] for key, _ in changes}
+    times_from = {**scenario.times_from, **{k: v for k, v in imported.origins.items()
+                                            if k in scenario.times_from and k not in changed}}
+    return replace(scenario, times_from=times_from), imported

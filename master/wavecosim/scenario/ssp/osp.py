@@ -1,15 +1,22 @@
 """OSP-IS (the Open Simulation Platform's interface specification, read by libcosim) beside an SSP
 system: `<fmu>_OspModelDescription.xml` next to an FMU names its power ports (variable groups
 Force + LinearVelocity, Torque + AngularVelocity, Voltage + Current), and `OspSystemStructure.xml`
-next to the SSD names power bonds between them, which are read as the two connections they stand for."""
+next to the SSD names power bonds between them, which are read as the two connections they stand for,
+and its BaseStepSize, StartTime and StopTime the run's times. libcosim's own SSD files give the times
+in an annotation (type com.opensimulationplatform, `osp:FixedStepAlgorithm baseStepSize startTime
+stopTime`)."""
+import math
+
 from lxml import etree
 
 from ...errors import ConfigError
 from .bonds import Signal
-from .xmlfile import fail
+from .xmlfile import SSC, at, fail, number, q
 
 OSP_PAIRS = {"Force": "LinearVelocity", "Torque": "AngularVelocity", "Voltage": "Current"}
 SYSTEM_FILE = "OspSystemStructure.xml"
+SYSTEM_TIMES = {"BaseStepSize": "dt", "StartTime": "start_time", "StopTime": "T"}    # element -> scenario key
+ANNOTATION = "com.opensimulationplatform"
 
 
 def _read(path):
@@ -102,18 +109,44 @@ def _directed(path, el, ends, causality):
     return Signal(source, target, 1.0, 0.0, [el], path)
 
 
-def base_step_size(folder):
-    """(BaseStepSize, its file) of an OspSystemStructure.xml beside the SSD, or (None, None)."""
+def system_times(folder):
+    """{key: (value, origin)} of the times an OspSystemStructure.xml beside the SSD gives (dt from
+    BaseStepSize, start_time from StartTime, T from StopTime; those it has), {} without one."""
     path = folder / SYSTEM_FILE
     if not path.exists():
-        return None, None
+        return {}
+    out = {}
     for el in _read(path).iter():
-        if _local(el) == "BaseStepSize":
-            try:
-                step = float((el.text or "").strip())
-            except ValueError:
-                step = float("nan")
-            if not step > 0 or step == float("inf"):
-                fail(path, el, f"BaseStepSize must be a positive number, got {(el.text or '').strip()!r}")
-            return step, path
-    return None, None
+        key = SYSTEM_TIMES.get(_local(el))
+        if key is None or key in out:
+            continue
+        text = (el.text or "").strip()
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not math.isfinite(value) or (key != "start_time" and value <= 0):
+            fail(path, el, f"{_local(el)} must be a {'' if key == 'start_time' else 'positive '}number, got {text!r}")
+        out[key] = (value, f"{_local(el)} of {path.name}")
+    return out
+
+
+def annotated_times(path, root):
+    """{key: (value, origin)} of the first osp:FixedStepAlgorithm in the SSD's com.opensimulationplatform
+    annotations, as libcosim reads it (dt from baseStepSize, start_time from startTime, T from
+    stopTime; those it gives)."""
+    for note in root.iter(q(SSC, "Annotation")):
+        if note.get("type") != ANNOTATION:
+            continue
+        for el in note.iter():
+            if _local(el) != "FixedStepAlgorithm":
+                continue
+            out = {}
+            for attribute, key in (("baseStepSize", "dt"), ("startTime", "start_time"), ("stopTime", "T")):
+                value = number(path, el, attribute, None)
+                if value is not None and key == "dt" and value <= 0:
+                    fail(path, el, f"baseStepSize must be a positive number, got {el.get(attribute)!r}")
+                if value is not None:
+                    out[key] = (value, f"SSD annotation osp:FixedStepAlgorithm {attribute} ({at(path, el)})")
+            return out
+    return {}

@@ -14,7 +14,8 @@ SSC = "http://ssp-standard.org/SSP1/SystemStructureCommon"
 SSV = "http://ssp-standard.org/SSP1/SystemStructureParameterValues"
 SSM = "http://ssp-standard.org/SSP1/SystemStructureParameterMapping"
 WC = "urn:wavecosim:ssp:1"                 # our own annotations (README, "SSP in")
-PREFIXES = {SSD: "ssd", SSC: "ssc", SSV: "ssv", SSM: "ssm", WC: "wc"}
+OSP = "http://opensimulationplatform.com/SSP/OSPAnnotations"     # libcosim's annotations
+PREFIXES = {SSD: "ssd", SSC: "ssc", SSV: "ssv", SSM: "ssm", WC: "wc", OSP: "osp"}
 
 
 def q(ns, tag):

@@ -1,0 +1,86 @@
+"""summary.json's fmu_calls: every FMU of the scene counted (those stepped alone, signals only, too),
+once, where the calls are made, the same on the C kernel route and the Python one; and equal to
+what an FMU counts itself (StrictMass's nDoStep, nGetFMUstate and nSetFMUstate outputs, which no
+restore undoes)."""
+import copy
+
+import pytest
+import yaml
+
+import wavecosim as wc
+from paths import CONFIGS, THIRD_PARTY
+from wavecosim.masters import MASTERS
+from wavecosim.run.runner import run
+from wavecosim.scenario.config import parse_scenario
+
+T = 0.05
+CALLS = ("doStep", "save", "restore")
+OWN = {"doStep": "nDoStep", "save": "nGetFMUstate", "restore": "nSetFMUstate"}
+# Two StrictMasses coupled by signals only (each one's velocity pushes the other): no port, every
+# FMU stepped alone.
+SIGNAL_PAIR = {"name": "signal_pair", "dt": 0.001, "T": T,
+               "subsystems": {"A": {"fmu": "StrictMass", "start": {"v": 0.5}}, "B": {"fmu": "StrictMass"}},
+               "signals": [{"from": "A.v", "to": "B.F", "factor": -2.0}, {"from": "B.v", "to": "A.F"}],
+               "outputs": {"vA": "A.v", "vB": "B.v", **{f"{k}{s}": f"{s}.{v}" for k, v in OWN.items() for s in "AB"}}}
+PAIR = yaml.safe_load((CONFIGS / "foreign_pair.yaml").read_text())
+PAIR["subsystems"]["A"]["fmu"] = "StrictMass"
+PAIR.update(T=T, fne_watch=False)
+PAIR["outputs"].update({f"{k}A": f"A.{v}" for k, v in OWN.items()})
+
+
+def simulate(scenario, fast):
+    return wc.simulate(scenario.with_master("options", fast=fast), reference=False, certificates=False,
+                       warn=lambda message: None)
+
+
+@pytest.mark.parametrize("scene,fmus", [
+    (CONFIGS / "two_oscillators.ssd", 2), (CONFIGS / "two_oscillators.yaml", 2), ("signal pair", 2),
+    ("StrictMass.fmu", 1), (THIRD_PARTY / "omsimulator" / "LinearTransformation", 2),
+    (THIRD_PARTY / "omsimulator" / "LinearTransformation3", 2),
+    (THIRD_PARTY / "reference_fmus" / "fmi2" / "VanDerPol.fmu", 1), (CONFIGS / "dcmotor.yaml", 3)])
+def test_an_explicit_run_makes_one_doStep_per_fmu_and_step_on_both_routes(scene, fmus, built_fmus):
+    """fmu_calls.doStep = steps x FMUs, with and without the C kernel, signal-only scenes, a single
+    FMU and an SSD included; fmu_calls_by_subsystem adds up to it."""
+    if scene == "signal pair":
+        scenario = parse_scenario(copy.deepcopy(SIGNAL_PAIR), "pair.yaml")
+    else:
+        path = built_fmus["StrictMass"] if scene == "StrictMass.fmu" else scene
+        if not THIRD_PARTY.is_dir() and (THIRD_PARTY in path.parents or path.name == "dcmotor.yaml"):
+            pytest.skip("the third-party FMUs are not here")
+        scenario = wc.load(path, T=T, warn=lambda message: None)
+    scenario = scenario.with_master("options", algorithm="explicit")
+    fast, python = simulate(scenario, True), simulate(scenario, False)
+    steps = fast.summary["steps"]
+    assert steps == scenario.n_steps and fast.status == "finished"
+    assert fast.summary["fmu_calls"] == python.summary["fmu_calls"] == {"doStep": steps * fmus, "save": 0, "restore": 0}
+    by = fast.summary["fmu_calls_by_subsystem"]
+    assert len(by) == fmus and all(c == {"doStep": steps, "save": 0, "restore": 0} for c in by.values())
+    assert by == python.summary["fmu_calls_by_subsystem"]
+
+
+def own_counts(result, subsystem):
+    """What the FMU counted itself over the run: its counters at the last row less at the first."""
+    return {k: int(result.column(f"{k}{subsystem}")[-1] - result.column(f"{k}{subsystem}")[0]) for k in CALLS}
+
+
+@pytest.mark.parametrize("fast", [True, False])
+def test_a_signal_only_scene_counts_what_its_fmus_count(fast):
+    result = run(parse_scenario(copy.deepcopy(SIGNAL_PAIR), "pair.yaml").with_master("options", fast=fast), None,
+                 warn=lambda message: None)
+    by = result.summary["fmu_calls_by_subsystem"]
+    assert by == {s: own_counts(result, s) for s in "AB"} and by["A"]["doStep"] == result.summary["steps"]
+    assert result.summary["fmu_calls"] == {k: by["A"][k] + by["B"][k] for k in CALLS}
+
+
+@pytest.mark.parametrize("master", list(MASTERS))
+@pytest.mark.parametrize("fast", [True, False])
+def test_every_master_counts_what_the_fmu_counts(master, fast):
+    """The foreign pair with StrictMass as the mass, every master and route: the mass's doSteps, state
+    saves and restores as summary.json gives them are those the FMU took (rollbacks included)."""
+    raw = copy.deepcopy(PAIR)
+    raw["master"] = {"algorithm": master, "K": 3, "fast": fast}
+    result = run(parse_scenario(raw, "pair.yaml"), None, certificates=False, warn=lambda message: None)
+    mine = result.summary["fmu_calls_by_subsystem"]["A"]
+    assert mine == own_counts(result, "A") and mine["doStep"] >= result.summary["steps"]
+    if MASTERS[master].needs_rollback:
+        assert mine["save"] == result.summary["steps"] and mine["restore"] > 0
