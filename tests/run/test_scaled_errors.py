@@ -51,9 +51,24 @@ def test_a_run_without_error_columns_has_every_real_outputs_error(tmp_path):
     assert "error" not in result.steps_table.columns
 
 
-def test_error_columns_still_override(tmp_path):
-    s = wc.simulate(wc.load(CONFIGS / "two_oscillators.yaml", T=0.2, K=3), warn=lambda m: None).summary
-    assert "errors" not in s and s["max_error"] > 0
+def test_error_columns_still_override_the_figures(tmp_path):
+    result = wc.simulate(wc.load(CONFIGS / "two_oscillators.yaml", T=0.2, K=3), warn=lambda m: None)
+    s = result.summary
+    assert s["max_error"] == float(np.nanmax(result.steps["error"])) != max(s["errors"].values())
+    assert set(s["errors"]) == set(result.trajectory.dtype.names[1:])
+
+
+def test_dr_on_the_in_repo_ssd_writes_max_error_and_every_columns_error(tmp_path):
+    out = tmp_path / "out"
+    done = subprocess.run([*CLI, "run", str(CONFIGS / "two_oscillators.ssd"), "--master", "dr", "--K", "3",
+                           "--T", "0.2", "--out", str(out)], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    s = json.loads((out / "summary.json").read_text())
+    expected = expected_errors(_table(out / "trajectory.csv"), _table(out / "trajectory_monolithic.csv"))
+    assert set(s["errors"]) == set(expected) == {"q1", "v1", "d", "q2", "v2", "bA", "bB"}
+    for name, value in expected.items():
+        assert s["errors"][name] == pytest.approx(value, rel=1e-6, abs=1e-300), name
+    assert s["max_error"] > 0
 
 
 @pytest.mark.skipif(not DCMOTOR.exists(), reason="the third-party dcmotor is not here")

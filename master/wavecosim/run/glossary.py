@@ -117,9 +117,9 @@ SUMMARY = {
                   "column's root mean square |Δy| over the grid divided by its scale", "the error columns' units; 1 without them"),
     "final_error": ("`error` at the last grid point; without `error` columns, the largest column's |Δy| "
                     "there divided by its scale", "the error columns' units; 1 without them"),
-    "errors": ("a scenario without `error` columns: per recorded Real output, the largest |Δy| against the "
-               "monolithic reference over the grid divided by the column's range in the reference (max − min); "
-               "a column constant to 10⁻⁹ of its size by its largest |value|, one zero throughout by 1", "1"),
+    "errors": ("per recorded Real output, the largest |Δy| against the monolithic reference over the grid "
+               "divided by the column's range in the reference (max − min); a column constant to 10⁻⁹ of its "
+               "size by its largest |value|, one zero throughout by 1", "1"),
     # the master (masters/)
     "fast_path": ("whether the master ran on the C kernel route", "boolean"),
     "fast_note": ("why it ran on the route it did", "text"),

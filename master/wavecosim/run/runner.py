@@ -39,7 +39,7 @@ from ..core.certificates import sampling
 from .observers.certificates import CertificatePace, CertificateSampler
 from .observers.energy_guard import EnergyGuard
 from .observers.energy_ledger import EnergyLedger
-from .observers.errors import ErrorTracker, ScaledErrors, error_observer, stored_reference, stored_rows
+from .observers.errors import ErrorTracker, ScaledErrors, error_observers, stored_reference, stored_rows
 from .observers.fne_watch import FneWatch
 from .observers.freeze_watch import FreezeWatch
 from .observers.gamma import GammaLog, TunedGammaLog
@@ -714,7 +714,8 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
         elif reference is not None:
             reference, rows = stored_reference(reference), stored_rows(reference)
         if reference is not None:
-            live.add_observer(error_observer(live.columns, live.sampler.types, scenario.error, reference, rows))
+            for observer in error_observers(live.columns, live.sampler.types, scenario.error, reference, rows):
+                live.add_observer(observer)
     except BaseException:
         live.close()
         raise

@@ -116,10 +116,11 @@ class ScaledErrors(Observer):
     """Error against the monolithic reference over every recorded Real output, each column's |Δy|
     divided by the column's range in the reference (column_scales), the range known only at the end,
     so the figures are summary figures. `reference`, `reference_rows` as ErrorTracker's."""
-    when = "a run with the monolithic reference and no `error` columns"
+    when = "a run with the monolithic reference"
     blocks = True
 
-    def __init__(self, output_names, real, reference, reference_rows=None):
+    def __init__(self, output_names, real, reference, reference_rows=None, figures=True):
+        self.figures = figures           # max_error, rms_error, final_error too (else `errors` alone)
         self.names = [c for c, is_real in zip(output_names, real) if is_real]
         self.idx = [k for k, is_real in enumerate(real) if is_real]
         self.reference = reference
@@ -169,13 +170,17 @@ class ScaledErrors(Observer):
             return {}
         scale = column_scales(self.low, self.high, self.peak)
         worst, rms, final = self.worst / scale, np.sqrt(self.sumsq / self.count) / scale, self.final / scale
-        return {"errors": dict(zip(self.names, worst.tolist())), "max_error": float(np.max(worst)),
-                "rms_error": float(np.max(rms)), "final_error": float(np.max(final))}
+        errors = {"errors": dict(zip(self.names, worst.tolist()))}
+        if not self.figures:
+            return errors
+        return {**errors, "max_error": float(np.max(worst)), "rms_error": float(np.max(rms)),
+                "final_error": float(np.max(final))}
 
 
-def error_observer(columns, types, error_names, reference, reference_rows=None):
-    """The errors of a run against its reference: the L2 norm over the scenario's `error` columns
-    when it names some (ErrorTracker), else every Real output scaled by its range (ScaledErrors)."""
-    if error_names:
-        return ErrorTracker(columns, error_names, reference, reference_rows)
-    return ScaledErrors(columns, [category(kind) == REAL for kind in types], reference, reference_rows)
+def error_observers(columns, types, error_names, reference, reference_rows=None):
+    """The errors of a run against its reference: every Real output scaled by its range (ScaledErrors:
+    `errors`), and the figures max_error, rms_error, final_error of the L2 norm over the scenario's
+    `error` columns where it names some (ErrorTracker), else of the scaled columns."""
+    scaled = ScaledErrors(columns, [category(kind) == REAL for kind in types], reference, reference_rows,
+                          figures=not error_names)
+    return [ErrorTracker(columns, error_names, reference, reference_rows), scaled] if error_names else [scaled]
