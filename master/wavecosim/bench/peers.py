@@ -240,7 +240,7 @@ def _split(ref, names):
 
 
 STEPS = 200                  # macro-steps of each comparison (libcosim's runs of real systems are slow-ish)
-FALLBACK = {"dt": 0.01, "T": 1.0}      # where nothing gives a step: dt, and T after the start (as one runs IO.fmu)
+FALLBACK = {"dt": 0.01, "T": 1.0}      # an FMU without a DefaultExperiment step: dt, and T after its start
 
 
 def corpus(third_party, scenes=()):
@@ -254,25 +254,21 @@ def corpus(third_party, scenes=()):
 
 
 def load_system(path, steps=STEPS):
-    """The scenario wavecosim reads from the file alone (FALLBACK where nothing gives a step), cut to
-    at most `steps` macro-steps; ConfigError where wavecosim refuses the file."""
+    """The scenario wavecosim reads from the file alone, an FMU whose DefaultExperiment gives no step
+    with FALLBACK (as one runs it), cut to at most `steps` macro-steps; ConfigError where wavecosim
+    refuses the file."""
     from ..scenario.fmu import is_fmu, load_fmu
     from ..scenario.ssp import load_ssp
-
-    def start():
-        """The FMU's DefaultExperiment startTime (0 for an SSP system: the fallback's T is after it)."""
+    if is_fmu(path):
         from fmpy import read_model_description
-        experiment = read_model_description(str(path), validate=False).defaultExperiment if is_fmu(path) else None
-        return float(experiment.startTime) if experiment is not None and experiment.startTime else 0.0
-
-    def load(times):
-        return load_fmu(path, None, times, quiet) if is_fmu(path) else load_ssp(path, settings=times)[0]
-    try:
-        scenario = load({})
-    except ConfigError as exc:
-        if "not given" not in str(exc):
-            raise
-        scenario = load({"dt": FALLBACK["dt"], "T": start() + FALLBACK["T"]})
+        experiment = read_model_description(str(path), validate=False).defaultExperiment
+        times = {}
+        if experiment is None or experiment.stepSize is None:
+            start = float(experiment.startTime) if experiment is not None and experiment.startTime else 0.0
+            times = {"dt": FALLBACK["dt"], "T": start + FALLBACK["T"]}
+        scenario = load_fmu(path, None, times, quiet)
+    else:
+        scenario = load_ssp(path)[0]
     if scenario.n_steps > steps:
         scenario = scenario.with_changes(T=scenario.start_time + steps * scenario.dt)
     return scenario
