@@ -107,7 +107,7 @@ def _fmpy(system, dt, steps, refs, start_time):
     md = read_model_description(str(system), validate=False)
     if md.coSimulation is None:
         raise Refused("no co-simulation interface")
-    names = {ref: var for ref, _, var in refs}          # one FMU: every column is its
+    names = {ref: var for ref, _, var in refs}          # one FMU: every column is a variable of it
     reals = {v.name for v in md.modelVariables if v.type in ("Real", "Float64", "Float32")}
     names = {ref: var for ref, var in names.items() if var in reals}
     result = simulate_fmu(str(system), validate=False, start_time=start_time, stop_time=start_time + steps * dt,
@@ -171,9 +171,12 @@ def peer_run(peer, system, dt, steps, refs, start_time=0.0):
                                        "refs": list(refs), "start_time": start_time}))
         package = str(Path(__file__).resolve().parents[2])
         env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (package, os.environ.get("PYTHONPATH")) if p)}
-        done = subprocess.run([sys.executable, "-c", "from wavecosim.bench.peers import child; child()",
-                               str(request), str(answer)], capture_output=True, text=True, env=env,
-                              timeout=CHILD_TIMEOUT_S, cwd=tmp)
+        try:
+            done = subprocess.run([sys.executable, "-c", "from wavecosim.bench.peers import child; child()",
+                                   str(request), str(answer)], capture_output=True, text=True, env=env,
+                                  timeout=CHILD_TIMEOUT_S, cwd=tmp)
+        except subprocess.TimeoutExpired:
+            raise Refused(f"{TITLES[peer]} runs more than {CHILD_TIMEOUT_S} s on it") from None
         if not answer.exists():
             last = next((line.strip() for line in reversed(done.stderr.splitlines()) if line.strip()), "")
             how = signal.Signals(-done.returncode).name if done.returncode < 0 else f"exit {done.returncode}"
