@@ -490,7 +490,7 @@ last bit. Regenerate this page with
 
 The peer columns run each file (the in-repo `configs/*.ssd` scenes too) through a peer in a
 process of its own and through wavecosim's explicit master, at most 200 macro-steps of the file's
-step (0.01 s over 1 s where nothing gives one), and compare every Real output column both record:
+step (0.01 s over 1 s for an FMU whose DefaultExperiment gives none), and compare every Real output column both record:
 `agrees` when max |Δy| / the column's range in the peer's run is at most 10⁻⁹, `differs as
 expected` with the reason (the FMUs' DefaultExperiment tolerance, which wavecosim passes to their
 set-up and libcosim and Ecos do not; a peer's known gap), else `DIFFERS`; a peer that cannot run
