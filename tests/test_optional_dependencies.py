@@ -40,7 +40,7 @@ def test_the_helper_imports_or_names_the_extra():
 @pytest.mark.slow
 @pytest.mark.skipif(not (THIRD_PARTY / "omsimulator").is_dir(), reason="the third-party systems are not here")
 def test_the_bench_without_libcosimpy_says_which_extra(tmp_path):
-    done = subprocess.run([*CLI, "bench", "--only", "real_fmus", "--quick"], capture_output=True, text=True,
+    done = subprocess.run([*CLI, "bench", "--only", "real_fmus", "--quick"], capture_output=True, encoding="utf-8",
                           timeout=600, env=hidden(tmp_path, "libcosimpy"))
     assert "Traceback" not in done.stdout + done.stderr
     notes = [line.strip() for line in done.stdout.splitlines() if line.strip().startswith("libcosim:")]
