@@ -30,7 +30,7 @@ from ..kernel.linalg import total
 from ..core.gamma import GammaTuner
 from ..masters import MASTERS
 from ..masters.base import REASONS, WaveMaster, require_wave_tuning
-from .bounds import Bounds
+from .bounds import Bounds, named_for_cause
 from . import containment
 from ..masters.dr_options import auto_gamma
 from .metadata import run_metadata
@@ -783,6 +783,7 @@ def _loop(live, ref, progress, contain=None):
         except SimulationEnded as exc:              # an FMU ended it: finished, with the steps before
             return "finished", exc
         except WavecosimError as exc:
+            exc = named_for_cause(live.scene, exc)
             return exc.status, exc
     return "finished", None
 
