@@ -276,8 +276,8 @@ def dask_cluster(scheduler, workers):
         except (OSError, TimeoutError) as exc:
             raise ConfigError(f"--scheduler {scheduler}: no Dask scheduler answered within {CONNECT_TIMEOUT_S} s "
                               f"({type(exc).__name__})") from None
-    cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
-                           silence_logs=logging.ERROR)
+    cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                       dashboard_address=None, silence_logs=logging.ERROR)
     return Client(cluster), cluster
 
 
