@@ -63,7 +63,6 @@ class Plain:
             slave.enterInitializationMode(tolerance=tolerance, startTime=start_time)
         else:
             slave.enterInitializationMode()
-        slave.exitInitializationMode()
 
     def kind(self, name):
         """The FMI type of a variable."""
@@ -100,6 +99,9 @@ class Plain:
                 terminate, last = True, self.slave.getRealStatus(fmi2LastSuccessfulTime)
         return ("last" if math.isclose(last, t + dt) else "before") if terminate else None
 
+    def end_initialization(self):
+        self.slave.exitInitializationMode()
+
     def close(self):
         self.slave.terminate()
         self.slave.freeInstance()
@@ -112,8 +114,9 @@ def recorded(scenario, result):
 
 def plain_loop(scenario, columns):
     """{column: values at every grid point} of `columns` ({column: SUBSYSTEM.variable}), from a plain
-    fmpy loop over the scenario's subsystems (signals only): inputs set from the outputs (and tables)
-    at t_n, then one doStep each."""
+    fmpy loop over the scenario's subsystems (signals only): in initialization mode, inputs set from
+    the outputs until no value changes (as libcosim and FMPy settle a system); then per step inputs
+    set from the outputs (and tables) at t_n, and one doStep each."""
     t0 = getattr(scenario, "start_time", 0.0)
     with tempfile.TemporaryDirectory() as tmp:
         fmus = {s.name: Plain(s, Path(tmp), t0) for s in scenario.signal_subsystems}
@@ -131,10 +134,19 @@ def plain_loop(scenario, columns):
             for sig, v in zip(scenario.signals, values):
                 name, var = sig.target.split(".", 1)
                 fmus[name].set(var, v)
+            return values
 
         def record():
             rows.append([fmus[ref.split(".", 1)[0]].get(ref.split(".", 1)[1]) for ref in columns.values()])
 
+        last = None
+        for _ in range(len(fmus) + 4):
+            values = hold(t0)
+            if values == last:
+                break
+            last = values
+        for fmu in fmus.values():
+            fmu.end_initialization()
         hold(t0)
         record()
         for n in range(scenario.n_steps):
