@@ -150,7 +150,7 @@ RUNNERS = {"libcosim": _libcosim, "fmpy": _fmpy, "ecos": _ecos}
 
 def child():
     """In the child process: read the request (JSON) from argv[1], write the result (JSON) to argv[2]."""
-    request = json.loads(Path(sys.argv[1]).read_text())
+    request = json.loads(Path(sys.argv[1]).read_text(encoding="utf-8"))
     try:
         out = {"values": RUNNERS[request["peer"]](request["system"], request["dt"], request["steps"],
                                                   request["refs"], request["start_time"])}
@@ -181,7 +181,7 @@ def peer_run(peer, system, dt, steps, refs, start_time=0.0):
             last = next((line.strip() for line in reversed(done.stderr.splitlines()) if line.strip()), "")
             how = signal.Signals(-done.returncode).name if done.returncode < 0 else f"exit {done.returncode}"
             raise Refused(f"{TITLES[peer]} aborts on it ({how})" + (f": {last}" if last else ""))
-        out = json.loads(answer.read_text())
+        out = json.loads(answer.read_text(encoding="utf-8"))
     if "refused" in out:
         raise Refused(out["refused"])
     return {ref: np.array(values, dtype=float) for ref, values in out["values"].items()}

@@ -141,7 +141,7 @@ def _outcome(future, task):
 def stored_row(task):
     """The row a task's folder holds from an earlier sweep with the same overrides, else None."""
     try:
-        row = json.loads((Path(task.out_dir) / ROW_FILE).read_text())
+        row = json.loads((Path(task.out_dir) / ROW_FILE).read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
     return row if all(row.get(k) == v for k, v in task.overrides if k in task.columns) else None
@@ -150,7 +150,7 @@ def stored_row(task):
 def finished_row(task):
     """The stored row of a task whose folder holds a finished run with the same overrides, else None."""
     try:
-        summary = json.loads((Path(task.out_dir) / "summary.json").read_text())
+        summary = json.loads((Path(task.out_dir) / "summary.json").read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
     row = stored_row(task)
@@ -238,7 +238,7 @@ def _child_row(task, child, started):
     if row is not None and row.get("attempts", 1) == task.attempt:
         return row
     try:
-        summary = json.loads((Path(task.out_dir) / "summary.json").read_text())
+        summary = json.loads((Path(task.out_dir) / "summary.json").read_text(encoding="utf-8"))
     except (OSError, ValueError):
         stopped = code in (Interrupted.exit_code, Terminated.exit_code)
         summary = {"status": "interrupted" if stopped else "crashed",
