@@ -186,10 +186,14 @@ def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None, star
 @click.option("--threads", help="Threads evaluating the subsystems: auto, or N (up to min(N, CPUs, subsystems)); "
                                 "the numbers are the same for any N.")
 @step_timeout_option
+@click.option("--setup-timeout", type=click.FloatRange(min=0, min_open=True), default=60.0, show_default=True,
+              metavar="SECONDS", help="End the run when its set-up (loading the FMUs, instantiating and initializing "
+              "them, their probes) makes no progress for SECONDS; compiling the kernel or an FMU does not count.")
 @overwrite_option
 @click.option("--force", is_flag=True, help=f"Run even more than {MAX_STEPS:,} macro-steps.")
 def run_cmd(config, K, eps, gamma, dt, T, quiet, start_time, output_interval, formats, ports, parameter_set, input_csv,
-            outputs, algorithm, out, no_certificates, no_reference, plots, threads, step_timeout, overwrite, force):
+            outputs, algorithm, out, no_certificates, no_reference, plots, threads, step_timeout, setup_timeout,
+            overwrite, force):
     """Run one scenario (with the monolithic reference alongside where there are power bonds) and
     write its trajectory, per-step certificates, summary and metadata. CONFIG is a scenario file,
     an SSP system (.ssd, .ssp, folder) or one FMU (.fmu), run as fmpy's simulate runs it.
@@ -215,10 +219,10 @@ def run_cmd(config, K, eps, gamma, dt, T, quiet, start_time, output_interval, fo
             for p in run_plots(result, result.reference, out):
                 click.echo(f"wrote {p}")
     with OutputFolder(out, overwrite):
-        return _supervised(work, out / "summary.json", step_timeout or scenario.step_timeout)
+        return _supervised(work, out / "summary.json", step_timeout or scenario.step_timeout, setup_timeout)
 
 
-def _supervised(work, summary, step_timeout):
+def _supervised(work, summary, step_timeout, setup_timeout=None):
     """work() in a supervised child process (run/supervisor.py); its exit code, raised as ChildExit
     when it is not 0 (the child has printed its one line). WAVECOSIM_IN_PROCESS=1 runs it here (for a
     debugger or a profiler; a crash then takes everything with it)."""
@@ -227,7 +231,9 @@ def _supervised(work, summary, step_timeout):
         work()
         return 0
     from .run.supervisor import supervise
-    code = supervise(lambda: _exit_status(work), summary=summary, step_timeout=step_timeout)
+    from .run.supervisor import SETUP_TIMEOUT_S
+    code = supervise(lambda: _exit_status(work), summary=summary, step_timeout=step_timeout,
+                     setup_timeout=setup_timeout or SETUP_TIMEOUT_S)
     if code:
         raise ChildExit(code)
     return 0

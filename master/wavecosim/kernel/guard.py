@@ -38,7 +38,7 @@ class GuardFault(ctypes.Structure):
 class RunStatus(ctypes.Structure):
     """guard.c's RunStatus: the page a supervised run's parent and child share (run/channel.py)."""
     _fields_ = [("magic", ctypes.c_uint32), ("state", ctypes.c_int32), ("exit_code", ctypes.c_int32),
-                ("request", ctypes.c_int32), ("pid", ctypes.c_int32), ("spare", ctypes.c_int32),
+                ("request", ctypes.c_int32), ("pid", ctypes.c_int32), ("step", ctypes.c_int32),
                 ("heartbeat", ctypes.c_double), ("fault", GuardFault)]
 
 
@@ -79,8 +79,15 @@ def freeze_signal():
     return _library().guard_freeze_signal()
 
 
+def claim_frozen():
+    """Record a freeze the main thread did not take (its signal blocked, ignored or handled by an FMU)
+    and wake the rescue; False when a fault was recorded before."""
+    return _library().guard_claim_frozen() == 1
+
+
 def die_with_parent(signum):
-    """This process gets `signum` when its parent dies (Linux; elsewhere nothing happens)."""
+    """This process gets `signum` when its parent dies (Linux prctl PR_SET_PDEATHSIG; elsewhere nothing
+    happens)."""
     try:
         ctypes.CDLL(None).prctl(_PR_SET_PDEATHSIG, signum)
     except (AttributeError, OSError):

@@ -274,6 +274,7 @@ class LiveRun:
         self.rows_pass, self.kernel_passes = None, False    # the blocks' C passes (_prepare_blocks)
         self.in_block = None                                # n0 of the kernel call in progress
         self.write_error = None                             # an OutputError met while finishing
+        self.calls_at_start = self.excluded = None          # set by start(): a run that failed before has none
 
     def add_observer(self, observer: Observer):
         """Before start(): one more observer (e.g. the error tracker), acting last."""
@@ -696,6 +697,12 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
     if contain is not None:
         contain.watch(live, ref)
     status, error = _loop(live, ref, progress, contain)
+    if status not in ("finished", "interrupted") and any(p is not None and p.calls_at_start is None
+                                                         for p in (live, ref)):
+        for part in (ref, live):                   # a run that failed before its first row: nothing to write
+            if part is not None:
+                part.close()
+        raise error
     message = str(error) if error else ""
     if isinstance(error, Interrupted):
         message = f"{error} after {live.steps_done} steps"
