@@ -178,7 +178,7 @@ def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None, star
                    "output and connected input, named COMPONENT.variable (or the file's outputs).")
 @click.option("--master", "algorithm", type=click.Choice(ALGORITHMS),
               help="Master algorithm (default: from CONFIG; else dr where there are power bonds, explicit without).")
-@click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("out/run"), show_default=True,
+@click.option("--out", type=click.Path(file_okay=False, path_type=Path, resolve_path=True), default=Path("out/run"), show_default=True,
               help="Output folder for trajectory.csv, steps.csv, summary.json and metadata.json.")
 @click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and the Condition 1 watch (faster).")
 @click.option("--no-reference", is_flag=True, help="Skip the monolithic reference run (no error figures).")
@@ -266,7 +266,7 @@ sweep_options = options([
     click.option("--K", "--Ks", "--K-list", "ks", help="Budgets K: a list like 0,3,8 or a range 0..63 "
                  "(default for the paper's experiment: 0,3,8,20,35,50)."),
     *[opt for opt in common if opt is not common[0]],
-    click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("out/sweep"),
+    click.option("--out", type=click.Path(file_okay=False, path_type=Path, resolve_path=True), default=Path("out/sweep"),
                  show_default=True),
     click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and "
                  "the Condition 1 watch."),
@@ -382,7 +382,7 @@ def _sweep_progress(total, skipped):
               help="Comma-separated masters to compare.")
 @click.option("--Ks", "--K-list", "ks", default=None,
               help="Comma-separated budgets K for the iterative masters (default: a grid per master).")
-@click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("out/compare"), show_default=True)
+@click.option("--out", type=click.Path(file_okay=False, path_type=Path, resolve_path=True), default=Path("out/compare"), show_default=True)
 @click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and the Condition 1 watch.")
 @click.option("--plots", is_flag=True, help="Also write pareto.png and energy_by_master.png.")
 @click.option("--options", "dr_options", default="", metavar="NAMES",
@@ -453,7 +453,7 @@ def validate_cmd(config, ports, parameter_set, input_csv, dt, T, start_time):
 @cli.command("import-ssp")
 @click.argument("ssp", type=click.Path(exists=False, path_type=Path))
 @ssp_options
-@click.option("-o", "--out", type=click.Path(dir_okay=False, path_type=Path), required=True,
+@click.option("-o", "--out", type=click.Path(dir_okay=False, path_type=Path, resolve_path=True), required=True,
               help="The YAML draft to write.")
 def import_ssp_cmd(ssp, ports, parameter_set, out):
     """Write an SSP system (.ssd, .ssp or a folder) as a scenario file to edit, each part commented
