@@ -6,6 +6,7 @@ chdir mid-run and a parent killed outright. Each: its exit code, one line, the r
 as the summary says) and nothing left in the temporary folder nor running."""
 import json
 import os
+import re
 import signal
 import subprocess
 import time
@@ -141,6 +142,19 @@ def test_a_binary_that_does_not_load_is_an_fmu_error(hostile, tmp_path):
     line = _one_line(proc, 3)
     assert line == "error: subsystem B: its binary FaultySide.so does not load (invalid ELF header)"
     assert list(temp.iterdir()) == []
+
+
+@pytest.mark.parametrize("master", ["dr", pytest.param("jacobi-iter", marks=pytest.mark.slow)])
+def test_a_restore_that_drifts_during_the_run_stops_it(master, hostile):
+    """The probes at set-up find the restore exact; from step 50 on it multiplies v by 1 + 1e-4. The
+    re-check after the steps catches it: exit 3, the steps made so far kept."""
+    proc, out, temp = hostile(12, "--no-reference", "--master", master)
+    line = _one_line(proc, 3)
+    assert re.fullmatch(r"error: subsystem B: its restore no longer reproduces its state: fmi2SetFMUstate after "
+                        r"step (\d+) changed its outputs by [0-9.e+-]+ \(relative\); a master that rolls back would "
+                        r"give wrong results", line), line
+    steps = int(re.search(r"after step (\d+)", line).group(1))
+    assert STEP < steps <= 100 and _kept(out, steps)["status"] == "failed" and list(temp.iterdir()) == []
 
 
 def test_a_chdir_mid_run_writes_every_file_into_the_folder_named(hostile, tmp_path):

@@ -20,8 +20,12 @@ the same loaded binary; the subsystem's own instance is never stepped by a probe
 - `responds`: whether the port's outputs move when its inputs do (over the two steps): a port that
   does not cannot be coupled, and a master would return a frozen trajectory for it.
 An FMU that refuses a probe's step (its error is kept in `probe_error`) is left as if unprobed.
+
+A restore found exact is re-checked during the run (`RestoreWatch`): an FMU whose restore goes
+wrong later would otherwise make the iterating masters silently wrong.
 """
 import math
+import time
 from dataclasses import asdict, dataclass
 
 from ..errors import ConfigError, FmuError
@@ -31,6 +35,7 @@ KEYS = ("no_set_fmu_state_prior", "reentrant", "probe")     # a subsystem's `qui
 PERTURB = 1e-3           # the probe's input step, relative to 1 + |u|
 MAX_OUTPUTS = 64         # FMU outputs compared, at most (beside the port's)
 NOISE = 10.0             # a difference counts when above this many times the restore's own
+RECHECK_SHARE = 0.02     # the restore's re-checks take at most this share of the run's time
 
 
 @dataclass
@@ -290,3 +295,44 @@ class QuirkTable:
             notes.append(f"{where}: the port outputs of {name} do not move when its inputs do (two steps "
                               f"from the initial state): the coupling cannot move it, so the run would be frozen")
         return notes
+
+
+class RestoreWatch:
+    """The restore re-checked during a run, on each subsystem whose probe found it exact (a master that
+    rolls back relies on it): its state saved, its outputs read, the state set back and the outputs
+    read again, which must be the same. The checks are made after the steps (`after(n)`), as seldom as
+    keeps their time under RECHECK_SHARE of the run's; they leave an exact FMU as it was."""
+
+    def __init__(self, scene, rollback):
+        exact = [s for s in scene.subsystems if rollback and s.fmu is not None
+                 and (scene.decisions.get(s.name) and scene.decisions[s.name].found.get("restore_difference") == 0.0)]
+        self.checks = [(s, _Calls(s.fmu, cvalues.uints([]), _outputs(s)[0])) for s in exact]
+        self.next, self.spent, self.started = 1, 0.0, time.perf_counter()
+        self.handle = cvalues.pointer()
+
+    def after(self, n):
+        """After macro-step n - 1 (n steps made): a check when one is due; FmuError when a restore drifted."""
+        if not self.checks or n < self.next:
+            return
+        began = time.perf_counter()
+        for sub, calls in self.checks:
+            self._check(sub, calls, n)
+        now = time.perf_counter()
+        self.spent += now - began
+        own = max(now - self.started - self.spent, 1e-9)            # the run's own time so far
+        wait = max(0.0, self.spent / RECHECK_SHARE - (now - self.started))
+        self.next = n + max(1, math.ceil(wait * n / own))
+
+    def _check(self, sub, calls, n):
+        out = cvalues.size(len(calls.out_vr))
+        calls.save(self.handle)
+        calls.call("fmi2GetReal", calls.out_vr, out, calls.y)
+        before = list(calls.y)
+        calls.restore(self.handle)
+        calls.call("fmi2GetReal", calls.out_vr, out, calls.y)
+        after = list(calls.y)
+        calls.free(self.handle)
+        if before != after:
+            raise FmuError(f"subsystem {sub.name}: its restore no longer reproduces its state: fmi2SetFMUstate "
+                           f"after step {n} changed its outputs by {_relative([before], [after]):.3g} (relative); "
+                           f"a master that rolls back would give wrong results", subsystem=sub.name, step=n)

@@ -46,6 +46,7 @@ from .observers.passivity import Passivity
 from .outputs import cannot
 from .recorder import BLOCK, Interrupts, Labels, Table, Texts, ints, write_json, write_mat
 from ..core.readings import Sampler
+from ..core.quirks import RestoreWatch
 from ..core.scene import build_scene
 from ..fmi.messages import LogFile
 
@@ -64,6 +65,7 @@ OBSERVERS = (EnergyLedger, EnergyGuard, GammaLog, TunedGammaLog, FneWatch, Certi
              Passivity, ErrorTracker)      # every observer, in the order they act (and their columns come)
 BLOCK_STEPS = BLOCK                    # macro-steps per call of the master, at most a table block
 HAND_OVER_S = 1.0                      # rows booked are handed to the writer at least this often
+DURABLE_S = 0.05                       # in a supervised run: the most time of steps a process killed outright loses
 MAX_STEPS = 10 ** 8                    # more macro-steps than this only when asked (--force, max_steps=None)
 assert REASONS[:len(KERNEL_REASONS)] == KERNEL_REASONS     # the kernel's reason codes are the runner's
 
@@ -273,6 +275,8 @@ class LiveRun:
         self.block_steps = 0                                # macro-steps made in blocks
         self.rows_pass, self.kernel_passes = None, False    # the blocks' C passes (_prepare_blocks)
         self.in_block = None                                # n0 of the kernel call in progress
+        self.block_cap = BLOCK_STEPS                        # macro-steps per kernel call at most (see durable)
+        self.durable = False
         self.write_error = None                             # an OutputError met while finishing
         self.calls_at_start = self.excluded = None          # set by start(): a run that failed before has none
 
@@ -324,6 +328,7 @@ class LiveRun:
         self.after = [(o, row) for o, row in zip(self.observers, self.slices) if o is not self.guard]
         self.recent = {0: first.outputs}
         self._plan_blocks()
+        self.restores = RestoreWatch(self.scene, self.master.needs_rollback)
         self.calls_at_start = self._totals()
         self.loop_started = time.perf_counter()
 
@@ -408,8 +413,18 @@ class LiveRun:
         if not (self.blocks and self.master.can_run_steps(n)):
             return 1
         if not self.paced:
-            return min(BLOCK_STEPS, self.n_steps - n)
-        return max(1, min([BLOCK_STEPS, self.n_steps - n] + [o.next_before(n) - n for o in self.paced]))
+            return min(self.block_cap, self.n_steps - n)
+        return max(1, min([self.block_cap, self.n_steps - n] + [o.next_before(n) - n for o in self.paced]))
+
+    def make_durable(self):
+        """A supervised run: its kernel calls last about DURABLE_S at most (they start short and grow),
+        as the rows of a call still in progress are lost when the process is killed outright."""
+        self.durable, self.block_cap = True, min(BLOCK_STEPS, 32)
+
+    def _resize_blocks(self, done, seconds):
+        if self.durable and done > 0:
+            fit = int(DURABLE_S * done / seconds) if seconds > 0 else BLOCK_STEPS
+            self.block_cap = max(1, min(BLOCK_STEPS, fit, 2 * self.block_cap))
 
     def advance(self, n, count):
         """Macro-steps from n on: up to `count` in one call of the master when count > 1, else step(n);
@@ -434,6 +449,7 @@ class LiveRun:
         done, log, error = self.master.run_steps(n0, count, self.cap, self.kernel_passes)
         self.in_block = None
         self.master_time += time.perf_counter() - t0
+        self._resize_blocks(done, time.perf_counter() - t0)
         self.block_steps += done
         whole = done - 1 if log.stopped and not self.ledger else done      # the ledger's kernel books every step
         if whole:
@@ -727,10 +743,13 @@ def check_steps(scenario, max_steps=MAX_STEPS):
 
 def _loop(live, ref, progress, contain=None):
     """Every macro-step of the run (and of its lockstep reference); returns (status, exception).
-    Rows go to the writer at least every HAND_OVER_S seconds; a supervised run (contain) is told
-    which run makes the next steps."""
+    Rows go to the writer at least every HAND_OVER_S seconds (DURABLE_S in a supervised run); a
+    supervised run (contain) is told which run makes the next steps."""
     every = max(1, live.n_steps // 200)
     active = contain.active if contain is not None else (lambda part: None)
+    hand_over_s = HAND_OVER_S if contain is None else DURABLE_S
+    if contain is not None:
+        live.make_durable()
     with Interrupts() as stop:
         try:
             for part in (ref, live):
@@ -747,11 +766,12 @@ def _loop(live, ref, progress, contain=None):
                         raise ref.failure
                 active(live)
                 done = live.advance(n, count)
+                live.restores.after(n + done)
                 stop.check()
                 if progress and ((n + done) // every > n // every or n + done == live.n_steps):
                     progress(n + done, live.n_steps)
                 n += done
-                if time.perf_counter() - handed > HAND_OVER_S:
+                if time.perf_counter() - handed > hand_over_s:
                     for part in (ref, live):
                         if part is not None:
                             part.hand_over()

@@ -16,7 +16,7 @@ the files, a last line cut by the death removed, the fault's subsystem, call and
 The parent keeps its own watch, whatever the FMU does with signals: a child that stopped itself,
 whose watchdog went silent, or that did not begin its rescue soon after it was asked is ended with
 SIGKILL, its whole process group (helpers an FMU forked) with it. The child gets SIGTERM when the
-parent dies; a janitor process (`sh`, started first) then ends what is left of its group and
+parent dies; a janitor process (`sh`, started beside it) then ends what is left of its group and
 removes the channel folder.
 """
 import codecs
@@ -43,8 +43,8 @@ HEARTBEAT_GRACE_S = 5.0   # a child whose watchdog is silent this long past its 
 STOPPED_GRACE_S = 5.0     # a child stopped (SIGSTOP) with no timeout to wait for is ended after this long
 _JANITORS = set()         # the janitors' stdin descriptors: no child holds one open
 SETUP_TIMEOUT_S = 60.0    # the set-up timeout by default (`--setup-timeout`)
-JANITOR = ("trap '' INT TERM HUP; read pid; read end; i=0; while kill -0 $pid 2>/dev/null && [ $i -lt 50 ]; "
-           "do sleep 0.1; i=$((i+1)); done; kill -KILL -$pid 2>/dev/null; rm -rf \"$1\"")
+JANITOR = ("trap '' INT TERM HUP; read end; i=0; while kill -0 $2 2>/dev/null && [ $i -lt 50 ]; "
+           "do sleep 0.1; i=$((i+1)); done; kill -KILL -$2 2>/dev/null; rm -rf \"$1\"")
 
 
 class Relay(io.TextIOBase):
@@ -89,8 +89,6 @@ class Child:
         self.step_timeout, self.setup_timeout = step_timeout, setup_timeout
         self.announce, self.error, self.cause = announce, None, None
         self.channel = Channel.create()
-        self.janitor = _janitor(self.channel.folder)
-        _JANITORS.add(self.janitor.stdin.fileno())
         streams = [sys.stdout, sys.stderr] if relay else []
         pipes = [os.pipe() for _ in streams]
         death_r, death_w = os.pipe()
@@ -111,8 +109,8 @@ class Child:
         for _, w in pipes:
             os.close(w)
         self.channel.status.pid = self.pid
-        self.janitor.stdin.write(f"{self.pid}\n".encode())
-        self.janitor.stdin.flush()
+        self.janitor = _janitor(self.channel.folder, self.pid)
+        _JANITORS.add(self.janitor.stdin.fileno())
         self.selector = selectors.DefaultSelector()
         self.selector.register(death_r, selectors.EVENT_READ, None)
         for (r, _), stream in zip(pipes, streams):
@@ -297,11 +295,11 @@ def _kill_group(pid):
         pass
 
 
-def _janitor(folder):
-    """A shell that waits for this process to end (its stdin closes), then for the child (its pid is
-    the first line; it gets SIGTERM when this process dies) at most 5 s, kills what is left of the
-    child's group and removes the channel folder: nothing outlives a parent killed outright."""
-    return subprocess.Popen(["sh", "-c", JANITOR, "janitor", str(folder)], stdin=subprocess.PIPE,
+def _janitor(folder, pid):
+    """A shell that waits for this process to end (its stdin closes), then for the child `pid` (which
+    gets SIGTERM when this process dies) at most 5 s, kills what is left of the child's group and
+    removes the channel folder: nothing outlives a parent killed outright."""
+    return subprocess.Popen(["sh", "-c", JANITOR, "janitor", str(folder), str(pid)], stdin=subprocess.PIPE,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
 
 
