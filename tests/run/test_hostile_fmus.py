@@ -53,11 +53,12 @@ def _running_in(folder):
 
 
 def _rows(path):
-    return path.read_bytes().count(b"\n") - 1 if path.exists() else 0
+    """The rows of a CSV file below its header (0 when it is empty or missing)."""
+    return max(path.read_bytes().count(b"\n") - 1, 0) if path.exists() else 0
 
 
 def _one_line(proc, code):
-    lines = proc.stderr.strip().splitlines()
+    lines = [ln for ln in proc.stderr.strip().splitlines() if not ln.startswith("wavecosim: building")]
     assert proc.returncode == code and len(lines) == 1 and "Traceback" not in proc.stderr, proc.stderr
     return lines[0]
 
@@ -65,7 +66,7 @@ def _one_line(proc, code):
 def _kept(out, steps=None):
     """The steps the summary says are kept, checked against the rows on disk (and `steps`, if given)."""
     summary = json.loads((out / "summary.json").read_text())
-    assert _rows(out / "steps.csv") == summary["steps"] == _rows(out / "trajectory.csv") - 1
+    assert _rows(out / "steps.csv") == summary["steps"] == max(_rows(out / "trajectory.csv") - 1, 0)
     assert steps is None or summary["steps"] == steps
     return summary
 
@@ -86,7 +87,8 @@ def test_a_process_that_stops_itself_is_ended(hostile):
     proc, out, temp = hostile(6, "--no-reference")
     line = _one_line(proc, 6)
     assert line.startswith("error: a step did not finish within 1 s (step timeout); it stopped itself (SIGSTOP)")
-    assert _kept(out)["status"] == "timed out" and list(temp.iterdir()) == []
+    summary = _kept(out)                            # the kernel call in progress is lost; it was short
+    assert summary["status"] == "timed out" and 0 < summary["steps"] < STEP and list(temp.iterdir()) == []
 
 
 def test_a_helper_the_fmu_forked_neither_holds_the_run_nor_outlives_it(hostile):
@@ -148,7 +150,7 @@ def test_a_binary_that_does_not_load_is_an_fmu_error(hostile, tmp_path):
 def test_a_restore_that_drifts_during_the_run_stops_it(master, hostile):
     """The probes at set-up find the restore exact; from step 50 on it multiplies v by 1 + 1e-4. The
     re-check after the steps catches it: exit 3, the steps made so far kept."""
-    proc, out, temp = hostile(12, "--no-reference", "--master", master)
+    proc, out, temp = hostile(12, "--no-reference", "--no-certificates", "--master", master)
     line = _one_line(proc, 3)
     assert re.fullmatch(r"error: subsystem B: its restore no longer reproduces its state: fmi2SetFMUstate after "
                         r"step (\d+) changed its outputs by [0-9.e+-]+ \(relative\); a master that rolls back would "

@@ -38,7 +38,7 @@ class GuardFault(ctypes.Structure):
 class RunStatus(ctypes.Structure):
     """guard.c's RunStatus: the page a supervised run's parent and child share (run/channel.py)."""
     _fields_ = [("magic", ctypes.c_uint32), ("state", ctypes.c_int32), ("exit_code", ctypes.c_int32),
-                ("request", ctypes.c_int32), ("pid", ctypes.c_int32), ("step", ctypes.c_int32),
+                ("request", ctypes.c_int32), ("pid", ctypes.c_int32), ("spare", ctypes.c_int32),
                 ("heartbeat", ctypes.c_double), ("fault", GuardFault)]
 
 

@@ -46,7 +46,6 @@ class Containment:
         self.channel, self.status = channel, channel.status
         self.step_timeout, self.setup_timeout, self.announce = step_timeout, setup_timeout, announce
         self.parts, self.current, self.labels, self.in_setup = [], None, {}, False
-        self.status.step = -1
         self._rescue_r, self._rescue_w = os.pipe()
         guard.arm(self.status.fault, self._rescue_w)
         threading.Thread(target=self._rescue, name="wavecosim-rescue", daemon=True).start()
@@ -110,7 +109,6 @@ class Containment:
             now = time.monotonic()
             self.status.heartbeat = now
             key = self._progress()
-            self.status.step = -1 if key is None else key[2]
             limit = self._limit()
             if key != last or (self.status.state == SETUP and _compiling()):
                 last, since, tries = key, now, [0, 0]

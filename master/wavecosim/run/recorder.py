@@ -99,7 +99,6 @@ class Table:
                 path.parent.mkdir(parents=True, exist_ok=True)
                 self._file = open(path, "wb")
                 self._file.write((header(self.columns) + "\r\n").encode())
-                self._file.flush()                    # on disk before the first step: a death leaves a table
             except OSError as exc:
                 raise cannot(path, exc) from None
             self._writer = Writer(self._file)

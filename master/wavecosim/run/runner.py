@@ -417,8 +417,9 @@ class LiveRun:
         return max(1, min([self.block_cap, self.n_steps - n] + [o.next_before(n) - n for o in self.paced]))
 
     def make_durable(self):
-        """A supervised run: its kernel calls last about DURABLE_S at most (they start short and grow),
-        as the rows of a call still in progress are lost when the process is killed outright."""
+        """A supervised run: its rows are in the files after every kernel call, and its kernel calls last
+        about DURABLE_S at most (they start short and grow): the rows of a call still in progress are
+        lost when the process is killed outright."""
         self.durable, self.block_cap = True, min(BLOCK_STEPS, 32)
 
     def _resize_blocks(self, done, seconds):
@@ -494,8 +495,7 @@ class LiveRun:
             keep = (ks % self.every == 0) | (ks == self.n_steps)
             self.steps.append_block(rows[keep])
             self.trajectory.append_block(trajectory[keep])
-        self.steps.hand_over()
-        self.trajectory.hand_over()
+        self.hand_over()
 
     def _aim(self, steps_at, trajectory_at):
         """The C passes of a block at its first row of the steps and of the trajectory (addresses; the
@@ -539,10 +539,13 @@ class LiveRun:
         return {k: sum(s.calls[k] for s in self.scene.subsystems) for k in ("doStep", "save", "restore")}
 
     def hand_over(self):
-        """The rows booked so far to the writer threads now (the loop does every second)."""
-        for table in (getattr(self, "trajectory", None), getattr(self, "steps", None)):
-            if table is not None:
-                table.hand_over()
+        """The rows booked so far to the writer threads now (the loop does every second); a durable run's
+        are in the files when it returns (a process killed outright keeps them)."""
+        tables = [t for t in (getattr(self, "steps", None), getattr(self, "trajectory", None)) if t is not None]
+        for table in tables:
+            table.hand_over()
+        for table in tables if self.durable else ():
+            table.wait()
 
     def step_in_progress(self):
         """The macro-step being made now (inside a kernel call: the one the kernel is at)."""
@@ -748,8 +751,9 @@ def _loop(live, ref, progress, contain=None):
     every = max(1, live.n_steps // 200)
     active = contain.active if contain is not None else (lambda part: None)
     hand_over_s = HAND_OVER_S if contain is None else DURABLE_S
-    if contain is not None:
-        live.make_durable()
+    for part in (live, ref) if contain is not None else ():
+        if part is not None:
+            part.make_durable()
     with Interrupts() as stop:
         try:
             for part in (ref, live):

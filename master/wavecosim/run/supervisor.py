@@ -214,8 +214,7 @@ class Child:
         if status.state == SETUP:
             return StepTimeout, f"the set-up did not finish within {self.setup_timeout:g} s (set-up timeout); {why}"
         late = f"did not finish within {self.step_timeout:g} s (step timeout)" if self.step_timeout else "did not finish"
-        at = f"step {status.step}" if status.step >= 0 else "a step"
-        return StepTimeout, f"{at} {late}; {why}"
+        return StepTimeout, f"a step {late}; {why}"
 
     def _end(self, cls, message):
         """Kill the child's process group now; its summary says `message` (an error of class cls)."""

@@ -41,11 +41,10 @@ typedef struct {
 } GuardFault;
 
 /* The page a supervised run's parent and child share (wavecosim/run/channel.py): the child's state
- * and exit code, what the parent or the watchdog asks, the macro-step in progress (-1: none), the
- * watchdog's heartbeat, and the fault. */
+ * and exit code, what the parent or the watchdog asks, the watchdog's heartbeat, and the fault. */
 typedef struct {
     unsigned magic;
-    int state, exit_code, request, pid, step;
+    int state, exit_code, request, pid, spare;
     double heartbeat;
     GuardFault fault;
 } RunStatus;
