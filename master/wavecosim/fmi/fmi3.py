@@ -28,8 +28,6 @@ FUNCTIONS = {"fmi2GetFMUstate": ("fmi3GetFMUState", "fmi3shim_getFMUstate"),
 _OUT = ("eventHandlingNeeded", "terminateSimulation", "earlyReturn", "lastSuccessfulTime")
 
 
-@mirrors("fmi3shim", "Fmi3Shim")
-
 class BinaryError(FmuError):
     """An FMU's shared library that does not load: the FMU's fault, not the scenario's."""
 
@@ -45,9 +43,10 @@ def load_binary(slave_class, fmu, model_identifier):
             raise
         reason = str(exc).rsplit(": ", 1)[-1].strip()
         raise BinaryError(f"{fmu.name}: its binary {model_identifier}{sharedLibraryExtension} does not load ({reason})",
-                       subsystem=fmu.name) from None
+                          subsystem=fmu.name) from None
 
 
+@mirrors("fmi3shim", "Fmi3Shim")
 class Shim(ctypes.Structure):
     """kernel/c/fmi3shim.c, Fmi3Shim: the instance, its fmi3 functions, the last doStep's out-arguments."""
     _fields_ = [("instance", ctypes.c_void_p), *[(FUNCTIONS[k][0], ctypes.c_void_p) for k in FUNCTIONS],
