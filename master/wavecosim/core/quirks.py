@@ -25,7 +25,6 @@ A restore found exact is re-checked during the run (`RestoreWatch`): an FMU whos
 wrong later would otherwise make the iterating masters silently wrong.
 """
 import math
-import time
 from dataclasses import asdict, dataclass
 
 from ..errors import ConfigError, FmuError
@@ -35,7 +34,7 @@ KEYS = ("no_set_fmu_state_prior", "reentrant", "probe")     # a subsystem's `qui
 PERTURB = 1e-3           # the probe's input step, relative to 1 + |u|
 MAX_OUTPUTS = 64         # FMU outputs compared, at most (beside the port's)
 NOISE = 10.0             # a difference counts when above this many times the restore's own
-RECHECK_SHARE = 0.02     # the restore's re-checks take at most this share of the run's time
+RECHECK_EVERY = 1024     # the restore is re-checked after steps 2, 4, 8, ..., then every this many steps
 
 
 @dataclass
@@ -300,28 +299,24 @@ class QuirkTable:
 class RestoreWatch:
     """The restore re-checked during a run, on each subsystem whose probe found it exact (a master that
     rolls back relies on it): its state saved, its outputs read, the state set back and the outputs
-    read again, which must be the same. The checks are made after the steps (`after(n)`), as seldom as
-    keeps their time under RECHECK_SHARE of the run's; they leave an exact FMU as it was."""
+    read again, which must be the same. The checks come after fixed steps (`next`: 2, 4, 8, ...,
+    RECHECK_EVERY, then every RECHECK_EVERY steps), the same in every run and route, so a restore
+    that moves an FMU a little moves it alike everywhere; five FMU calls per RECHECK_EVERY steps."""
 
     def __init__(self, scene, rollback):
         exact = [s for s in scene.subsystems if rollback and s.fmu is not None
                  and (scene.decisions.get(s.name) and scene.decisions[s.name].found.get("restore_difference") == 0.0)]
         self.checks = [(s, _Calls(s.fmu, cvalues.uints([]), _outputs(s)[0])) for s in exact]
-        self.next, self.spent, self.started = 1, 0.0, time.perf_counter()
+        self.next = 2 if self.checks else math.inf
         self.handle = cvalues.pointer()
 
     def after(self, n):
-        """After macro-step n - 1 (n steps made): a check when one is due; FmuError when a restore drifted."""
-        if not self.checks or n < self.next:
+        """After macro-step n - 1 (n steps made): the check due there; FmuError when a restore drifted."""
+        if n != self.next:
             return
-        began = time.perf_counter()
         for sub, calls in self.checks:
             self._check(sub, calls, n)
-        now = time.perf_counter()
-        self.spent += now - began
-        own = max(now - self.started - self.spent, 1e-9)            # the run's own time so far
-        wait = max(0.0, self.spent / RECHECK_SHARE - (now - self.started))
-        self.next = n + max(1, math.ceil(wait * n / own))
+        self.next = 2 * n if n < RECHECK_EVERY else n + RECHECK_EVERY
 
     def _check(self, sub, calls, n):
         out = cvalues.size(len(calls.out_vr))

@@ -412,9 +412,10 @@ class LiveRun:
         """How many macro-steps advance(n, ...) may make in one call of the master."""
         if not (self.blocks and self.master.can_run_steps(n)):
             return 1
+        end = min(self.n_steps, self.restores.next)              # a block ends where the restore is checked
         if not self.paced:
-            return min(self.block_cap, self.n_steps - n)
-        return max(1, min([self.block_cap, self.n_steps - n] + [o.next_before(n) - n for o in self.paced]))
+            return min(self.block_cap, end - n)
+        return max(1, min([self.block_cap, end - n] + [o.next_before(n) - n for o in self.paced]))
 
     def make_durable(self):
         """A supervised run: its rows are in the files after every kernel call, and its kernel calls last
