@@ -21,8 +21,8 @@ the same loaded binary; the subsystem's own instance is never stepped by a probe
   does not cannot be coupled, and a master would return a frozen trajectory for it.
 An FMU that refuses a probe's step (its error is kept in `probe_error`) is left as if unprobed.
 
-A restore found exact is re-checked during the run (`RestoreWatch`): an FMU whose restore goes
-wrong later would otherwise make the iterating masters silently wrong.
+A restore found exact is re-checked during a supervised run (`RestoreWatch`): an FMU whose restore
+goes wrong later would otherwise make the iterating masters silently wrong.
 """
 import math
 from dataclasses import asdict, dataclass

@@ -328,7 +328,7 @@ class LiveRun:
         self.after = [(o, row) for o, row in zip(self.observers, self.slices) if o is not self.guard]
         self.recent = {0: first.outputs}
         self._plan_blocks()
-        self.restores = RestoreWatch(self.scene, self.master.needs_rollback)
+        self.restores = RestoreWatch(self.scene, self.master.needs_rollback and self.durable)
         self.calls_at_start = self._totals()
         self.loop_started = time.perf_counter()
 
@@ -418,9 +418,9 @@ class LiveRun:
         return max(1, min([self.block_cap, end - n] + [o.next_before(n) - n for o in self.paced]))
 
     def make_durable(self):
-        """A supervised run: its rows are in the files after every kernel call, and its kernel calls last
-        about DURABLE_S at most (they start short and grow): the rows of a call still in progress are
-        lost when the process is killed outright."""
+        """A supervised run (before start): its rows are in the files after every kernel call, and its
+        kernel calls last about DURABLE_S at most (they start short and grow): the rows of a call still
+        in progress are lost when the process is killed outright. Its restores are re-checked."""
         self.durable, self.block_cap = True, min(BLOCK_STEPS, 32)
 
     def _resize_blocks(self, done, seconds):
