@@ -111,7 +111,9 @@ def test_a_crash_in_a_thread_the_fmu_started(hostile):
     ("instantiate", 0, {"FAULTYSIDE_HANG": "instantiate"}, "fmi2Instantiate"),
     ("restore", 13, {}, "fmi2SetFMUstate")])
 def test_a_hang_in_the_set_up_ends_at_the_set_up_timeout(where, fault, env, call, hostile):
-    proc, out, temp = hostile(fault, env=env)
+    started = time.monotonic()
+    proc, out, temp = hostile(fault, "--step-timeout", "30", env=env)          # the set-up's own timeout ends it
+    assert time.monotonic() - started < 20
     line = _one_line(proc, 6)
     assert line == ("error: the set-up did not finish within 2 s (set-up timeout); stopped inside an FMU "
                     f"(FaultySide.so) in {call}")
