@@ -717,12 +717,7 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
     if contain is not None:
         contain.watch(live, ref)
     status, error = _loop(live, ref, progress, contain)
-    if status not in ("finished", "interrupted") and any(p is not None and p.calls_at_start is None
-                                                         for p in (live, ref)):
-        for part in (ref, live):                   # a run that failed before its first row: nothing to write
-            if part is not None:
-                part.close()
-        raise error
+    _raise_before_first_row(status, error, live, ref)
     message = str(error) if error else ""
     if isinstance(error, Interrupted):
         message = f"{error} after {live.steps_done} steps"
@@ -736,6 +731,17 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
     if failure is not None:
         raise RunFailed(failure, result) from failure
     return result
+
+
+def _raise_before_first_row(status, error, live, ref):
+    """A run that failed before one of its parts had its first row (an FMU's NaN at t = 0 in the
+    reference, which starts first) has nothing to write: its FMUs are released and its error raised."""
+    parts = [p for p in (ref, live) if p is not None]
+    if status in ("finished", "interrupted") or all(p.calls_at_start is not None for p in parts):
+        return
+    for part in parts:
+        part.close()
+    raise error
 
 
 def check_steps(scenario, max_steps=MAX_STEPS):
