@@ -21,13 +21,14 @@
 #include <unistd.h>
 
 #include "abi.h"
+#include "guard.h"
 
 #define GUARD_FRAMES 48
 #define FREEZE_SIGNAL SIGUSR2
 
 enum { FAULT_NONE, FAULT_SIGNAL, FAULT_EXIT, FAULT_FROZEN };
 
-typedef struct {
+typedef struct GuardFault {
     int kind;                  /* FAULT_* */
     int signal;                /* the signal (FAULT_SIGNAL, FAULT_FROZEN) */
     int code;                  /* si_code, or the status given to exit(); -1: a freeze the watchdog took */
