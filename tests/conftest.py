@@ -285,7 +285,7 @@ def input_signals(path):
 
 
 @pytest.fixture(scope="session")
-def faulty_scenario():
+def faulty_scenario(built_fmus):
     """faulty_scenario(fault, step, T, **integers) -> the Table I scenario (a mapping) with B a FaultySide
     (models/faulty_side) that faults at macro-step `step` (the faults of its config.h: 1 segfault,
     2 exit(0), 3 endless loop, 4 abort(), 5..14 signal-blind hangs, stops, thread and fork crashes and
