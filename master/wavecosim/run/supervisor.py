@@ -24,7 +24,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from ..kernel.guard import die_with_parent, freeze_signal
+from ..kernel.guard import die_with_parent, freeze_signal, require
 from .channel import Channel, DONE, RESCUING, RUNNING, STOP, TERM, TIMEOUT
 from .containment import Containment, announcement, flush_streams
 
@@ -70,6 +70,7 @@ class Child:
     def __init__(self, body, summary=None, step_timeout=None, relay=True, announce=True):
         """relay: the child's Python output comes back through this process's streams (else it
         writes to the inherited descriptors); announce: the error line of a fault is printed."""
+        require()
         self.summary_path = Path(summary) if summary is not None else None
         self.step_timeout, self.announce, self.error = step_timeout, announce, None
         self.channel = Channel.create()
