@@ -3,6 +3,7 @@ own FMUs built (setup.py), found before the cache when their sources' stamp matc
 without a compiler, what needs one says so in one line. The slow case builds a wheel, installs it into
 a fresh venv and runs it with gcc hidden from PATH and an empty cache."""
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -88,9 +89,9 @@ def test_a_builtin_fmus_build_is_known_by_its_path(built_fmus):
 
 @pytest.fixture(scope="module")
 def installed():
-    """A wheel of this tree installed into a fresh venv: (a bin folder holding only its python and
-    wavecosim, the wheel). In a folder of its own: pytest's may be cleared by other pytest sessions
-    during the minutes this takes."""
+    """A wheel of this tree installed into a fresh venv: (its folder, a bin folder holding only the
+    venv's python and wavecosim, the wheel). Every file of these tests lies in that folder: pytest's
+    own may be cleared by other pytest sessions during the minutes this takes."""
     with tempfile.TemporaryDirectory(prefix="wavecosim-wheel-") as folder:
         yield _install(Path(folder))
 
@@ -101,23 +102,31 @@ def _install(tmp: Path):
     wheel = next((tmp / "dist").glob("wavecosim-*.whl"))
     venv = tmp / "venv"
     subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
-    subprocess.run([str(venv / "bin" / "python"), "-m", "pip", "install", "-q", str(wheel)], check=True)
+    alone = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}     # no other wavecosim in sight
+    subprocess.run([str(venv / "bin" / "python"), "-m", "pip", "install", "-q", str(wheel)], check=True, env=alone)
     shown = tmp / "bin"
     shown.mkdir()
     for tool in ("python", "wavecosim"):
         (shown / tool).symlink_to(venv / "bin" / tool)
-    return shown, wheel
+    return tmp, shown, wheel
 
 
-def hidden_gcc(shown, tmp, *args):
-    """`wavecosim *args` in `tmp` with PATH = `shown` (no compiler) and an empty cache under `tmp`."""
-    env = {"PATH": str(shown), "HOME": str(tmp / "home"), "XDG_CACHE_HOME": str(tmp / "home" / ".cache")}
-    return subprocess.run(["wavecosim", *args], cwd=tmp, env=env, capture_output=True, text=True, timeout=300)
+@pytest.fixture
+def work(installed):
+    """A fresh folder beside the venv to run in."""
+    return Path(tempfile.mkdtemp(dir=installed[0]))
+
+
+def hidden_gcc(installed, work, *args):
+    """`wavecosim *args` in `work` with PATH = only the venv's python and wavecosim (no compiler) and an
+    empty cache under `work`."""
+    env = {"PATH": str(installed[1]), "HOME": str(work / "home"), "XDG_CACHE_HOME": str(work / "home" / ".cache")}
+    return subprocess.run(["wavecosim", *args], cwd=work, env=env, capture_output=True, text=True, timeout=300)
 
 
 @pytest.mark.slow  # builds a wheel and installs it with its dependencies: minutes
 def test_the_wheel_holds_every_kernel_library_and_builtin_fmu(installed):
-    names = zipfile.ZipFile(installed[1]).namelist()
+    names = zipfile.ZipFile(installed[2]).namelist()
     libraries = {Path(n).name for n in names if "/_built/lib/" in n}
     fmus = {Path(n).stem for n in names if "/_built/fmus/" in n}
     assert libraries == {f"lib{name}.so" for name in build.library_names()}
@@ -126,27 +135,28 @@ def test_the_wheel_holds_every_kernel_library_and_builtin_fmu(installed):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("what", ["third-party FMU", "built-in benchmark"])
-def test_the_installed_wheel_runs_on_the_c_kernel_without_a_compiler(installed, tmp_path, what):
+def test_the_installed_wheel_runs_on_the_c_kernel_without_a_compiler(installed, work, what):
     if what == "third-party FMU" and not VANDERPOL.exists():
         pytest.skip("the Reference FMUs (../shared/third_party) are absent")
     args = [str(VANDERPOL), "--T", "1"] if what == "third-party FMU" else ["--T", "0.1"]
-    done = hidden_gcc(installed[0], tmp_path, "run", *args, "--out", "out")
+    done = hidden_gcc(installed, work, "run", *args, "--out", "out")
     assert done.returncode == 0, done.stderr
-    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    summary = json.loads((work / "out" / "summary.json").read_text())
     assert summary["status"] == "finished" and summary["fast_note"] == "C kernel"
-    assert not (tmp_path / "home").exists()
+    assert not (work / "home").exists()
 
 
 @pytest.mark.slow
-def test_an_fmu_shipped_as_sources_needs_the_compiler_and_says_so_in_one_line(installed, tmp_path):
-    with zipfile.ZipFile(installed[1]) as wheel:
+def test_an_fmu_shipped_as_sources_needs_the_compiler_and_says_so_in_one_line(installed, work):
+    with zipfile.ZipFile(installed[2]) as wheel:
         member = next(n for n in wheel.namelist() if n.endswith("/ForeignMass.fmu"))
-        (tmp_path / "shipped.fmu").write_bytes(wheel.read(member))
-    with zipfile.ZipFile(tmp_path / "shipped.fmu") as src, zipfile.ZipFile(tmp_path / "Sources.fmu", "w") as out:
+        (work / "shipped.fmu").write_bytes(wheel.read(member))
+    with zipfile.ZipFile(work / "shipped.fmu") as src, zipfile.ZipFile(work / "Sources.fmu", "w") as out:
         for item in src.infolist():
             if not item.filename.startswith("binaries/"):
                 out.writestr(item, src.read(item))
-    done = hidden_gcc(installed[0], tmp_path, "run", "Sources.fmu", "--T", "0.1", "--dt", "0.01", "--out", "out")
-    lines = done.stderr.strip().splitlines()
-    assert done.returncode == 3 and len(lines) == 1, done.stderr
-    assert "its sources did not build: gcc was not found on PATH" in lines[0] and lines[0].endswith("install gcc")
+    done = hidden_gcc(installed, work, "run", "Sources.fmu", "--T", "0.1", "--dt", "0.01", "--out", "out")
+    errors = [line for line in done.stderr.splitlines() if line.startswith("error")]
+    assert done.returncode == 2 and len(errors) == 1, done.stderr          # an FMU refused at set-up
+    assert "its sources did not build: gcc was not found on PATH; it is needed to build ForeignMass.so: install gcc" \
+        in errors[0]
