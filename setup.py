@@ -33,6 +33,8 @@ def build_binaries(package: Path):
     shutil.rmtree(package / "_built", ignore_errors=True)
     start = time.perf_counter()
     _fmi_build(package).build_all(log=lambda msg: None)
+    for kept in [*(package / "_built").rglob(".*.lock"), *(package / "_built").rglob("*.sha256")]:
+        kept.unlink()                    # what the cache keeps beside its builds: its locks and checksums
     print(f"wavecosim: the C kernel and the package's FMUs built into {package / '_built'} "
           f"in {time.perf_counter() - start:.0f} s")
 
