@@ -30,7 +30,6 @@ def build_binaries(package: Path):
     """Every kernel library and built-in FMU into package/_built/, laid out as the cache."""
     os.environ.pop("WAVECOSIM_SANITIZE", None)
     os.environ["WAVECOSIM_CACHE"] = str(package / "_built")
-    shutil.rmtree(package / "_built", ignore_errors=True)
     start = time.perf_counter()
     _fmi_build(package).build_all(log=lambda msg: None)
     for kept in [*(package / "_built").rglob(".*.lock"), *(package / "_built").rglob("*.sha256")]:
@@ -44,10 +43,12 @@ class BuildWithBinaries(build_py):
 
     def run(self):
         super().run()
+        package = Path(self.build_lib) / "wavecosim"
+        shutil.rmtree(package / "_built", ignore_errors=True)          # never an earlier build's parts
         if getattr(self, "editable_mode", False):
             return
         if shutil.which(COMPILER):
-            build_binaries(Path(self.build_lib) / "wavecosim")
+            build_binaries(package)
         else:
             print(f"wavecosim: {COMPILER} was not found on PATH: the package holds no compiled parts and builds "
                   f"them on first use (install {COMPILER} and build again for a package that needs none)")
