@@ -16,7 +16,7 @@ PASSIVITY_RTOL = 1e-12
 
 @pytest.fixture(scope="session")
 def built_fmus():
-    """{identifier: Path} of every FMU built from models/ and specs/ by fmus/build.py."""
+    """{identifier: Path} of every FMU built from models/ and specs/ by wavecosim/fmi/build.py."""
     return build_all()
 
 

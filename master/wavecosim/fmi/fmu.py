@@ -6,6 +6,7 @@ FMI 3 specifics (instantiation, typed setters, the fmi2-signature shim) live in 
 Only kernel/ and fmi/ import ctypes; the parts above pass C values made by wavecosim.kernel.cvalues.
 """
 import atexit
+import contextlib
 import copy
 import ctypes
 import itertools
@@ -274,16 +275,22 @@ class ModelExchange2(ModelExchange, Fmi2):
     """An FMI 2.0 FMU with model exchange only, stepped as co-simulation (wavecosim/fmi/me.py)."""
 
 
-_pointer_hook = None       # hook(fmu, fname, lookup) -> the address function_pointer gives (see set_pointer_hook)
+_pointer_hook = None       # hook(name, component, fname, lookup) -> the address function_pointer gives (see interposed)
 
 
-def set_pointer_hook(hook):
-    """Route every Fmu.function_pointer through hook(fmu, fname, lookup), lookup(fname) being the
-    FMU's own address (the bench's floor records the kernel's FMU calls so); None: no hook. Returns
-    the hook it replaced."""
+@contextlib.contextmanager
+def interposed(hook):
+    """Within the block, Fmu.function_pointer(fname) gives hook(name, component, fname, lookup) (the
+    instance's name and fmi2Component) instead of the FMU's own address lookup(fname): the one seam through which a tool stands between the C kernel and an
+    FMU's functions (the bench's floor records the kernel's FMU calls so, bench/real_fmus.py). The
+    kernel takes its pointers when a master opens its route, so the master must open in the block;
+    None: no hook. Not thread-safe: one block at a time."""
     global _pointer_hook
     previous, _pointer_hook = _pointer_hook, hook
-    return previous
+    try:
+        yield
+    finally:
+        _pointer_hook = previous
 
 
 def _settable_in_initialization(v):
@@ -534,15 +541,15 @@ class Fmu:
 
     def raw_function(self, fname):
         """A callable with the fmi2 signature of `fname` (e.g. "fmi2DoStep") taking `component` first:
-        the FMU's own ctypes function for FMI 2, a wrapper of its fmi3 function for FMI 3 (wavecosim/fmi3.py).
+        the FMU's own ctypes function for FMI 2, a wrapper of its fmi3 function for FMI 3 (wavecosim/fmi/fmi3.py).
         No argtypes: callers pass pre-converted arguments."""
         return self._fmi.raw_function(fname)
 
     def function_pointer(self, fname) -> int:
         """Address of a C function with the fmi2 signature of `fname` taking `component`, for the C fast
-        path: the FMU's own for FMI 2, kernel/c/fmi3shim.c's for FMI 3 (or what a pointer hook gives)."""
+        path: the FMU's own for FMI 2, kernel/c/fmi3shim.c's for FMI 3 (or the hook's within `interposed`)."""
         if _pointer_hook is not None:
-            return _pointer_hook(self, fname, self._fmi.function_pointer)
+            return _pointer_hook(self.name, self.component, fname, self._fmi.function_pointer)
         return self._fmi.function_pointer(fname)
 
     def function_name(self, fname):

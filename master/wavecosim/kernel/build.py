@@ -15,7 +15,7 @@ import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 
-from . import abi
+from . import abi, contract
 from ..errors import ConfigError, FmuError
 
 SOURCES = Path(__file__).resolve().parent / "c"
@@ -201,6 +201,12 @@ def library_sources(name):
     return [SOURCES / f"{name}.c", *parts, *sorted(SOURCES.glob("*.h"))]
 
 
+def library_headers(name):
+    """The headers that declare lib<name>.so's functions (its contract): <file>.h of each of its C files."""
+    files = [f"{name}.c", *sorted(f for f, lib in PART_OF_LIBRARY.items() if lib == name)]
+    return [f"{Path(f).stem}.h" for f in files if (SOURCES / f"{Path(f).stem}.h").exists()]
+
+
 def library_names():
     """Every kernel library: one per C file that is not part of another's."""
     return sorted(c.stem for c in SOURCES.glob("*.c") if c.name not in PART_OF_LIBRARY)
@@ -219,14 +225,15 @@ def build_library(name, force=False, log=print) -> Path:
 
 
 def helper_library(name):
-    """lib<name>.so loaded with ctypes (built on first use) and its mirrored structs checked (abi.py;
-    FmuError on a mismatch); None when it cannot be built (no C compiler)."""
+    """lib<name>.so loaded with ctypes (built on first use), its functions given the signatures its
+    headers declare (contract.py) and its mirrored structs checked (abi.py; FmuError on a mismatch);
+    None when it cannot be built (no C compiler)."""
     if name not in _loaded:
         try:
             lib = ctypes.CDLL(str(build_library(name, log=lambda msg: None)))
         except (BuildError, OSError) as exc:
             lib, _failed[name] = None, str(exc).splitlines()[0]
-        _loaded[name] = lib and abi.loaded(name, lib)
+        _loaded[name] = lib and abi.loaded(name, contract.bind(name, lib, library_headers(name)))
     return _loaded[name]
 
 

@@ -11,6 +11,7 @@ import numpy as np
 
 from ..errors import FmuError, NumericalError
 from .abi import mirrors
+from .contract import constant
 from .drkernel import Kernel, load_library
 
 _int_p, _double_p = ctypes.POINTER(ctypes.c_int), ctypes.POINTER(ctypes.c_double)
@@ -21,8 +22,9 @@ ACCEPT_REL = 1e-5       # relative to the port-wave scale |a| + |b|
 MAX_ITER = 30
 STALL = 3
 NON_FINITE, SINGULAR = "non-finite residual", "singular Jacobian"
-WHY = {1: NON_FINITE, 2: SINGULAR, 4: "out of memory"}       # newton.h: NT_NONFINITE, NT_SINGULAR, NT_NO_MEMORY
-NOT_CONVERGED = 3                                                 # newton.h: NT_NOT_CONVERGED
+WHY = {constant("newton.h", code): why for code, why in (("NT_NONFINITE", NON_FINITE), ("NT_SINGULAR", SINGULAR),
+                                                        ("NT_NO_MEMORY", "out of memory"))}
+NOT_CONVERGED = constant("newton.h", "NT_NOT_CONVERGED")
 
 
 @mirrors("drkernel", "NTSettings")
@@ -30,21 +32,6 @@ class NTSettings(ctypes.Structure):
     """newton.h: Newton's constants, monolithic.py's."""
     _fields_ = [("tol", ctypes.c_double), ("accept", ctypes.c_double), ("accept_rel", ctypes.c_double),
                 ("max_iter", ctypes.c_int), ("stall", ctypes.c_int)]
-
-
-def library():
-    lib = load_library()
-    if not hasattr(lib, "_newton_ready"):
-        p = ctypes.c_void_p
-        lib.nt_create.restype = p
-        lib.nt_create.argtypes = [p, _int_p, _int_p, _double_p, ctypes.POINTER(NTSettings)]
-        lib.nt_set_map.argtypes = [p, _int_p, _int_p, _double_p]
-        lib.nt_step.argtypes = [p, p, p, p, p, p]                   # arrays by address
-        lib.nt_solve.argtypes = [p, p, p, p, p]
-        lib.nt_destroy.argtypes = [p]
-        lib.nt_destroy.restype = None
-        lib._newton_ready = True
-    return lib
 
 
 def _csr(P):
@@ -55,10 +42,10 @@ class NewtonKernel:
     """A DR kernel over the scene's subsystems (wave mode) and the Newton macro-step on it."""
 
     def __init__(self, scene, P):
-        self.lib = library()
+        self.lib = load_library()
         self.base = Kernel(scene, None, None)
-        self.base.configure(scene.scenario.dt, 0)
-        self.n = scene.n_channels
+        self.base.configure(scene.dt, 0)
+        self.n = scene.n
         self.settings = NTSettings(TOL, ACCEPT, ACCEPT_REL, MAX_ITER, STALL)
         self.handle = self.lib.nt_create(self.base.handle, *_csr(P), ctypes.byref(self.settings))
         if not self.handle:
@@ -107,17 +94,6 @@ class NewtonKernel:
             self.lib.nt_destroy(self.handle)
             self.handle = None
         self.base.close()
-
-
-def book_kernel_step(subsystems, n, t, queries):
-    """Book a kernel macro-step on the Subsystems (frozen at x^n, `queries` S-evaluations and the
-    commit); a wave adapter's FMU calls are its own count."""
-    for s in subsystems:
-        if s.adapter:
-            s.note_kernel_step(n, t, 0, 0)
-            s.map.book()
-        else:
-            s.note_kernel_step(n, t, queries)
 
 
 def not_converged(where, res, scale):

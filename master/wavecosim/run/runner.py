@@ -39,7 +39,7 @@ from ..core.certificates import sampling
 from .observers.certificates import CertificatePace, CertificateSampler
 from .observers.energy_guard import EnergyGuard
 from .observers.energy_ledger import EnergyLedger
-from .observers.errors import ErrorTracker, stored_reference, stored_rows
+from .observers.errors import ErrorTracker, ScaledErrors, error_observers, stored_reference, stored_rows
 from .observers.fne_watch import FneWatch
 from .observers.freeze_watch import FreezeWatch
 from .observers.gamma import GammaLog, TunedGammaLog
@@ -63,7 +63,7 @@ STEP_DESCRIBED = {
 }
 STEP_COLUMNS = tuple(STEP_DESCRIBED)
 OBSERVERS = (EnergyLedger, EnergyGuard, GammaLog, TunedGammaLog, FneWatch, CertificateSampler, CertificatePace,
-             Passivity, FreezeWatch, ErrorTracker)    # every observer, in the order they act (their columns too)
+             Passivity, FreezeWatch, ErrorTracker, ScaledErrors)    # every observer, in the order they act (their columns too)
 BLOCK_STEPS = BLOCK                    # macro-steps per call of the master, at most a table block
 HAND_OVER_S = 1.0                      # rows booked are handed to the writer at least this often
 MAX_STEPS = 10 ** 8                    # more macro-steps than this only when asked (--force, max_steps=None)
@@ -713,8 +713,9 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
             reference = lambda k: ref.recent.get(k)          # noqa: E731  (ref steps first)
         elif reference is not None:
             reference, rows = stored_reference(reference), stored_rows(reference)
-        if reference is not None and scenario.error:
-            live.add_observer(ErrorTracker(live.columns, scenario.error, reference, rows))
+        if reference is not None:
+            for observer in error_observers(live.columns, live.sampler.types, scenario.error, reference, rows):
+                live.add_observer(observer)
     except BaseException:
         live.close()
         raise

@@ -5,11 +5,9 @@
 #include <stdarg.h>
 #include <stdio.h>
 
-#include "fmi2Functions.h"
+#include "fmilog.h"
 
 #define MESSAGE_BYTES 4096             /* a longer message is cut here (the master keeps 2000 characters) */
-
-typedef void (*LogSink)(fmi2ComponentEnvironment, fmi2String, fmi2Status, fmi2String, fmi2String);
 
 static LogSink sink = NULL;
 
