@@ -63,8 +63,7 @@ def message_logger(messages):
     if not _formatter:
         lib = helper_library("fmilog")
         if lib is not None:
-            lib.fmilog_set_sink.argtypes = [fmi2CallbackLoggerTYPE]
-            lib.fmilog_set_sink(_SINK)
+            lib.fmilog_set_sink(ctypes.cast(_SINK, ctypes.c_void_p))
         _formatter.append(lib and ctypes.cast(lib.fmilog_logger, fmi2CallbackLoggerTYPE))
     if _formatter[0] is None:
         return fmi2CallbackLoggerTYPE(lambda env, instance, status, category, message: messages.append(
