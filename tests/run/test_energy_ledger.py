@@ -16,8 +16,8 @@ import yaml
 from paths import ROOT
 from wavecosim.scenario.config import parse_scenario
 from wavecosim.errors import ConfigError
-from wavecosim.run.observers import energy_ledger
-from wavecosim.run.observers.energy_ledger import ANCHORED, BLENDED, ITERATED, KEPT, PROJECTED, ZERO
+from wavecosim.masters import ledger as energy_ledger
+from wavecosim.masters.ledger import ANCHORED, BLENDED, ITERATED, KEPT, PROJECTED, ZERO
 from wavecosim.kernel import drkernel as fast_path
 from wavecosim.run import runner
 from wavecosim.run.runner import run
@@ -278,7 +278,7 @@ def redo_once(fast, K, fraction, eps=None, steps=20, path=TABLE_I):
     master = FastDRMaster(scene, dataclasses.replace(sc.master, fast=fast, eps=eps))
     try:
         for n in range(steps):
-            log = master.step(n, n * sc.dt)
+            log = master.make_step(n, n * sc.dt)             # the master's own steps, its ledger left out
         inputs, outputs = master.committed_inputs(log), master.committed_outputs
         supplied = master.supply(inputs, outputs)[0]
         done = energy_ledger.EnergyLedger(master)._redo(log, inputs, outputs, supplied, supplied - fraction * abs(supplied))

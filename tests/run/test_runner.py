@@ -201,7 +201,7 @@ def test_blocks_cut_to_the_time_budget(tmp_path, monkeypatch):
     from wavecosim.masters import dr_fast
     made, run_steps = [], dr_fast.FastDRMaster.run_steps
 
-    def counted(master, n0, count, H_cap, passes=False):
+    def counted(master, n0, count, H_cap=None, passes=False):
         result = run_steps(master, n0, count, H_cap, passes)
         made.append(result[0])
         return result

@@ -18,29 +18,18 @@ Wave masters (WaveMaster) own the compiled wave map P, J_L and the committed wav
 else writes them; observers act through the methods below.
 """
 import math
-from dataclasses import dataclass
 from typing import Optional, Protocol, runtime_checkable
 
 from ..errors import ConfigError
 from ..kernel.linalg import dot, matvec
+from .energy_guard import EnergyGuard
+from .ledger import EnergyLedger
 from .monolithic import solve_interface
+from .steplog import StepLog
 
 
 MIN_INNER_S = 1e-9        # an inner deadline this short stops the loop after its first iteration
 REASONS = ("budget", "tolerance", "deadline", "explicit", "converged", "energy-guard", "none")
-
-
-@dataclass
-class StepLog:
-    """What one macro-step did: inner iterations, last inner residual and why the iteration stopped.
-
-    Wave masters also give the incident waves used (a_hat), and DR the iterates u^0 and u^K."""
-    iterations: int = 0
-    residual: float = float("nan")
-    reason: str = "none"
-    a_hat: list = None
-    u0: list = None
-    uK: list = None
 
 
 @runtime_checkable
@@ -48,8 +37,6 @@ class Route(Protocol):
     """The kernel route of a master: what the runner may ask of a master whose macro-steps run in C,
     in blocks of many macro-steps per kernel call, bit for bit its Python reference made step by
     step. `Master.route()` gives it, or None when the master runs step by step only."""
-
-    keeps_ledger: bool        # the energy ledger can be kept inside its blocks (keep_ledger)
 
     def can_run_steps(self, n) -> bool:
         """Whether run_steps may make macro-step n now."""
@@ -63,20 +50,16 @@ class Route(Protocol):
     def set_passes(self, passes):
         """The passes over the log (kernel/blocks.py, Pass) run_steps makes as it logs the steps."""
 
-    def run_steps(self, n0, count, H_cap=math.inf, passes=False):
-        """Macro-steps n0 .. n0 + count - 1 in one call, stopping early after a step whose H may exceed
-        H_cap, whose observed values are not finite, or whose bounded ones are above the bound:
-        (steps done, their BlockLog, an FmuError or None). passes: the kernel makes the passes
-        (set_passes) over the steps as it goes, the BlockLog's `passed` first ones."""
+    def run_steps(self, n0, count, H_cap=None, passes=False):
+        """Macro-steps n0 .. n0 + count - 1 in one call, each guarded as step() guards it, stopping
+        early after a step whose H may exceed H_cap (None: what the master's guard sets), whose
+        observed values are not finite, or whose bounded ones are above the bound: (steps done, their
+        BlockLog, an FmuError or None); a stopped call's last step judged by the guard is the log's
+        `last` (None: booked in the log). passes: the kernel makes the passes (set_passes) over the
+        steps as it goes, the BlockLog's `passed` first ones."""
 
     def step_log(self, log, j) -> StepLog:
         """The StepLog of row j of a BlockLog."""
-
-    def guards_steps(self) -> bool:
-        """Whether step() can keep the energy ledger in the kernel too (keep_ledger) right now."""
-
-    def keep_ledger(self, ledger, traffic, rtol):
-        """The energy ledger's state for the kernel's next steps and blocks."""
 
     def step_in_progress(self) -> int:
         """The macro-step the kernel is making now (asked from another thread during run_steps)."""
@@ -104,6 +87,7 @@ class Master:
         self.deadline_s = settings.deadline_us * 1e-6 if settings.deadline_us else None
         self.inner_deadline_s = self.deadline_s          # the inner loop's share of the deadline
         self.step_started = 0.0                          # perf_counter() when the last step began
+        self.guard = chosen_guard(self, settings)        # what judges each commit (energy_guard), or None
 
     def reserve_time(self, seconds):
         """Stop the inner loop `seconds` before master.deadline_us, leaving them for a redo."""
@@ -111,6 +95,13 @@ class Master:
             self.inner_deadline_s = max(self.deadline_s - seconds, MIN_INNER_S)
 
     def step(self, n, t) -> StepLog:
+        """Macro-step n: the master's own step (make_step), then its guard's verdict on the commit
+        (it may undo the commit and make it again)."""
+        log = self.make_step(n, t)
+        return log if self.guard is None else self.guard.after_commit(n, t, log)
+
+    def make_step(self, n, t) -> StepLog:
+        """Macro-step n as the master's algorithm makes it, with its one commit."""
         raise NotImplementedError
 
     def route(self) -> Optional[Route]:
@@ -228,6 +219,20 @@ class WaveMaster(Master):
         1/2 (|a|^2 + |b|^2), the scale of its roundoff."""
         aa, bb = dot(inputs, inputs), dot(outputs, outputs)
         return 0.5 * (aa - bb), 0.5 * (aa + bb)
+
+
+def chosen_guard(master, settings):
+    """The guard of master.energy_guard (else the master's default) where it applies: the ledger on a
+    master that can undo its commit, the monolithic guard on one that iterates where every subsystem
+    has a stored energy H; None without a port (nothing exchanges energy)."""
+    mode, scene = settings.energy_guard or master.default_guard, master.scene
+    if not master.guardable or not scene.n_channels:
+        return None
+    if mode == "ledger":
+        return EnergyLedger(master)
+    if mode == "monolithic" and master.iterates and all(s.port.energy is not None for s in scene.subsystems):
+        return EnergyGuard(master)
+    return None
 
 
 def require_wave_tuning(master, mode, source):

@@ -153,7 +153,7 @@ class DRMaster(WaveMaster):
             self._trace.append((u, b))
         return b
 
-    def step(self, n, t) -> StepLog:
+    def make_step(self, n, t) -> StepLog:
         self.step_started = time.perf_counter()
         self.scene.freeze(n, t)                                        # line 3: S^n from x^n
         if self._trace is not None:

@@ -18,8 +18,9 @@ import time
 from ..kernel.drkernel import REASONS, Kernel, kernel_refusal
 from ..kernel.certs import KernelCertificates, supports
 from ..kernel.newton import NewtonKernel
-from .base import StepLog
 from .dr import DRMaster
+from .ledger import EnergyLedger
+from .steplog import StepLog
 from .threads import ThreadPlanner
 from .dr_options import STARTS
 
@@ -36,8 +37,6 @@ class FastDRMaster(DRMaster):
     def __init__(self, scene, settings):
         super().__init__(scene, settings)
         self.kernel, self.fast, self.planner = None, False, None
-        self.guarded = None       # the kernel's BlockLog of the last step when step() made the ledger's guard too
-        self._guarding = False    # keep_ledger was called: step() makes iteration, commit and redo in one call
         self._newton = None       # the certificates' interface Newton in C (newton_path.NewtonKernel), when asked
         self._certs = None        # the certificates inside the blocks (certs_path.KernelCertificates), when asked
         # the certificates' C passes need every port to be the FMU's own wave map (no wave adapter)
@@ -53,7 +52,7 @@ class FastDRMaster(DRMaster):
         self.planner = ThreadPlanner(self.kernel, settings.threads, len(self.subsystems))
         self._step_s = 0.0        # seconds per macro-step of the last run_steps call
         self._call = 0            # n0 of the last kernel call (salvage after a fault inside it)
-        self._redo_seen = 0       # the kernel's count of redo doSteps when redo_doSteps last looked
+        self._redo_seen = 0       # the kernel's count of redo doSteps when _redo_doSteps last looked
 
     def _send_options(self):
         """The named options to the kernel (it forgets b^{n-1} and the Anderson differences)."""
@@ -126,12 +125,36 @@ class FastDRMaster(DRMaster):
         return True
 
     def step(self, n, t) -> StepLog:
-        if self.kernel is None:
+        """Macro-step n; with the energy ledger and the kernel, iteration, commit, ledger check and redo
+        in one kernel call (dr_run_steps of one step, within master.deadline_us as in blocks)."""
+        if self.kernel is None or not isinstance(self.guard, EnergyLedger):
             return super().step(n, t)
+        self._keep_ledger()
+        log = self._kernel_step(n, t, lambda measure: self._ledger_step(n, measure))
+        row = self._ledger_log.ledger_rows[:, 0]
+        log.ledger = (row[0], row[1], row[3], row[4], row[5])      # supplied, ledger; scale, action, rounds
+        return log
+
+    def make_step(self, n, t) -> StepLog:
+        if self.kernel is None:
+            return super().make_step(n, t)
+        return self._kernel_step(n, t, lambda measure: (self.kernel.macro_step(n, t, measure), 0))
+
+    def _ledger_step(self, n, measure):
+        """Macro-step n and the ledger's check and redo in one kernel call: (its DRStep, redo rounds)."""
+        _, self._ledger_log, error = self.kernel.run_steps(n, 1, math.inf, measure)
+        if error is not None:
+            raise error
+        self.guard.book(self._ledger_log, self._redo_doSteps())
+        return self.kernel.io, int(self._ledger_log.ledger["rounds"][0])
+
+    def _kernel_step(self, n, t, call):
+        """Macro-step n by the kernel, `call(measure)` giving (its DRStep, the ledger's redo rounds);
+        booked as DRMaster.step books it."""
         kernel = self.kernel
         self.step_started = time.perf_counter()
         measure, timed = self.planner.begin()
-        io, redone = self._kernel_step(n, t, measure)
+        io, redone = call(measure)
         k = io.iterations
         if timed:   # K queries, the commit, the redo
             self.planner.end(measure, (time.perf_counter() - self.step_started) / (k + 1 + redone))
@@ -146,17 +169,10 @@ class FastDRMaster(DRMaster):
         return StepLog(iterations=k, residual=io.residual, reason=REASONS[io.reason], a_hat=out[n_ch:2 * n_ch],
                        u0=u0, uK=uK)
 
-    def _kernel_step(self, n, t, measure):
-        """Macro-step n in one kernel call: (its DRStep, the ledger's redo rounds). With the ledger kept
-        (keep_ledger) the call is dr_run_steps of one step: iteration, commit, ledger check and redo,
-        within master.deadline_us as in blocks, and its BlockLog goes to self.guarded."""
-        if not self._guarding:
-            self.guarded = None
-            return self.kernel.macro_step(n, t, measure), 0
-        _, self.guarded, error = self.kernel.run_steps(n, 1, math.inf, measure)
-        if error is not None:
-            raise error
-        return self.kernel.io, int(self.guarded.ledger["rounds"][0])
+    def _keep_ledger(self):
+        """The ledger's state for the kernel's next steps and blocks, which it keeps within
+        master.deadline_us (see drkernel.Kernel.keep_ledger)."""
+        self.kernel.keep_ledger(*self.guard.kernel_state(), self.deadline_s)
 
     def redo_in_kernel(self, supplied, budget, left_s, round_s):
         """The energy ledger's redo of the step just made, by the kernel (fast_path.Kernel.redo); its
@@ -168,8 +184,6 @@ class FastDRMaster(DRMaster):
         self._b, self._a_before = self.kernel.b[:], self.kernel.a_hat[:]
         self._note_kernel_steps(self.subsystems[0].step_index, self.subsystems[0].t, 0, 0, done[4])
         return (*done, self.kernel.a_hat[:])
-
-    keeps_ledger = True
 
     def route(self):
         """This master as its kernel route (base.Route) while the kernel runs."""
@@ -190,26 +204,32 @@ class FastDRMaster(DRMaster):
         """The passes run_steps makes as the kernel logs the steps (kernel/drkernel.py, Kernel.set_passes)."""
         self.kernel.set_passes(passes)
 
-    def guards_steps(self):
-        """Whether step() can keep the energy ledger in the kernel (keep_ledger): whenever the kernel runs
-        (it reads the wave adapters' accuracy, the ledger's tol, at each step)."""
-        return self.kernel is not None
-
-    def keep_ledger(self, ledger, traffic, rtol):
-        """The energy ledger's state for the kernel's next steps and blocks, which it keeps within
-        master.deadline_us (see fast_path.Kernel.keep_ledger)."""
-        self.kernel.keep_ledger(ledger, traffic, rtol, self.deadline_s)
-        self._guarding = True
-
-    def run_steps(self, n0, count, H_cap=math.inf, passes=False):
+    def run_steps(self, n0, count, H_cap=None, passes=False):
         """Macro-steps n0 .. n0 + count - 1 in one kernel call, stopping early after a step whose H
-        may exceed H_cap or whose observed values are not finite (fast_path.Kernel.run_steps), and
-        making no more than about BLOCK_SECONDS of work: (steps done, their BlockLog, the FmuError
-        of the step after them or None); passes: the kernel makes its passes (set_passes) as it goes.
-        b^n and b^{n+1} of the last step done become the master's, so undo_step works as after step()."""
+        may exceed H_cap (None: the monolithic guard's cap) or whose observed values are not finite
+        (fast_path.Kernel.run_steps), and making no more than about BLOCK_SECONDS of work: (steps
+        done, their BlockLog, the FmuError of the step after them or None); passes: the kernel makes
+        its passes (set_passes) as it goes. The energy ledger is kept inside the call; a step it
+        stopped after otherwise has its guard's verdict in the log's `last`. b^n and b^{n+1} of the
+        last step done become the master's, so undo_step works as after step()."""
+        ledger = isinstance(self.guard, EnergyLedger)
+        if H_cap is None:
+            H_cap = getattr(self.guard, "cap", math.inf)
+        if ledger:
+            self._keep_ledger()
         if not self.planner.started:
-            return self._first_steps(n0, count, H_cap, passes)
-        return self._kernel_steps(n0, count, H_cap, passes)
+            done, log, error = self._first_steps(n0, count, H_cap, passes)
+        else:
+            done, log, error = self._kernel_steps(n0, count, H_cap, passes)
+        if ledger and done:
+            self.guard.book(log, self._redo_doSteps())
+        elif log.stopped and done:
+            log.last = self._judged(n0 + done - 1, self.step_log(log, done - 1))
+        return done, log, error
+
+    def _judged(self, n, log):
+        """The StepLog of step n after its guard's verdict (the guard may redo it)."""
+        return log if self.guard is None else self.guard.after_commit(n, self.t0 + n * self.dt, log)
 
     def _first_steps(self, n0, count, H_cap, passes):
         """The first call: macro-step n0 alone and timed picks the thread plan, then the others
@@ -249,9 +269,12 @@ class FastDRMaster(DRMaster):
         made = self.kernel.step_in_progress()
         if self._certs is not None:
             self._certs.disarm(made - self._call)
-        return made - n0, self.kernel.joined_log(made - n0, False)
+        log = self.kernel.joined_log(made - n0, False)
+        if isinstance(self.guard, EnergyLedger) and made > n0:
+            self.guard.book(log, self._redo_doSteps())
+        return made - n0, log
 
-    def redo_doSteps(self):
+    def _redo_doSteps(self):
         """doSteps of the FMUs in the ledger's redos since the last ask (the kernel counts them: a wave
         adapter's query takes a varying number)."""
         made, self._redo_seen = self._redo_seen, self.kernel.redo_do_steps()

@@ -25,7 +25,7 @@ class JacobiIterMaster(KernelRoute, RollbackPhysicalMaster):
         self.K, self.eps = settings.K, settings.eps
         self.attach_kernel(scene, settings, type(self).update is JacobiIterMaster.update)   # blocks: Picard only
 
-    def step(self, n, t) -> StepLog:
+    def make_step(self, n, t) -> StepLog:
         if self.kernel is not None and self.blocks:
             return self._kernel_step(n, t)
         if self.kernel is not None:

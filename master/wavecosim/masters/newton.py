@@ -28,7 +28,7 @@ class NewtonMaster(KernelOwner, WaveMaster):
         if self.kernel is not None:
             self.kernel.set_map(self.P)
 
-    def step(self, n, t) -> StepLog:
+    def make_step(self, n, t) -> StepLog:
         if self.kernel is not None:
             return self._kernel_step(n, t)
         self.scene.freeze(n, t)

@@ -37,8 +37,8 @@ from .metadata import run_metadata
 from .observers import Observer
 from ..core.certificates import sampling
 from .observers.certificates import CertificatePace, CertificateSampler
-from .observers.energy_guard import EnergyGuard
-from .observers.energy_ledger import EnergyLedger
+from ..masters.ledger import EnergyLedger
+from .observers.energy_ledger import LedgerColumns
 from .observers.errors import ErrorTracker, stored_reference, stored_rows
 from .observers.fne_watch import FneWatch
 from .observers.freeze_watch import FreezeWatch
@@ -62,7 +62,7 @@ STEP_DESCRIBED = {
     "reason": (f"why the inner loop stopped: {', '.join(REASONS)}", "text"),
 }
 STEP_COLUMNS = tuple(STEP_DESCRIBED)
-OBSERVERS = (EnergyLedger, EnergyGuard, GammaLog, TunedGammaLog, FneWatch, CertificateSampler, CertificatePace,
+OBSERVERS = (LedgerColumns, GammaLog, TunedGammaLog, FneWatch, CertificateSampler, CertificatePace,
              Passivity, FreezeWatch, ErrorTracker)    # every observer, in the order they act (their columns too)
 BLOCK_STEPS = BLOCK                    # macro-steps per call of the master, at most a table block
 HAND_OVER_S = 1.0                      # rows booked are handed to the writer at least this often
@@ -215,20 +215,17 @@ def open_parts(scenario, warn, share=None):
 
 
 def make_observers(scenario, scene, master, tuner, certificates, warn):
-    """The observers this run needs, in the order they act (the energy guard first); none where no
-    subsystem has a port (nothing exchanges energy)."""
+    """The observers this run needs, in the order they write their columns (the energy ledger's
+    first); none where no subsystem has a port (nothing exchanges energy)."""
     obs, unavailable = [], []
     if not scene.n_channels:
         return obs
     has_H = all(s.port.energy is not None for s in scene.subsystems)
     guard = scenario.master.energy_guard or master.default_guard
-    if guard == "ledger" and master.guardable:
-        obs.append(EnergyLedger(master))
-    elif guard == "monolithic" and master.guardable and master.iterates:
-        if has_H:
-            obs.append(EnergyGuard(master))
-        else:
-            unavailable.append("energy_guard (monolithic: needs every subsystem's stored energy H)")
+    if isinstance(master.guard, EnergyLedger):
+        obs.append(LedgerColumns())
+    elif guard == "monolithic" and master.guardable and master.iterates and not has_H:
+        unavailable.append("energy_guard (monolithic: needs every subsystem's stored energy H)")
     if isinstance(master, WaveMaster):
         obs.append(TunedGammaLog(scene, master, tuner) if tuner and tuner.retune else GammaLog(scene, master, tuner))
     certs = scenario.certificates
@@ -258,6 +255,7 @@ class LiveRun:
         self.scene, self.master, tuner = open_parts(scenario, self.warn, share)
         self.observers = make_observers(scenario, self.scene, self.master, tuner, certificates, self.warn)
         self.guard_mode = (settings.energy_guard or self.master.default_guard) if self.master.guardable else "n/a"
+        self.guard = self.master.guard                 # its figures go into summary.json
         if any(o.needs_trace for o in self.observers):
             self.master.enable_trace(True)
         self.out_dir, self.formats = (Path(out_dir) if out_dir is not None else None), formats
@@ -322,17 +320,15 @@ class LiveRun:
         self.first = {"H": total(first.H), "error": next((o.first for o in self.observers
                                                         if isinstance(o, ErrorTracker)), math.nan)}
         self.bracket = any(type(o).before_step is not Observer.before_step for o in self.observers)
-        self.guard, self.guard_row = next(((o, row) for o, row in zip(self.observers, self.slices) if o.redoes),
-                                          (None, None))
-        self.after = [(o, row) for o, row in zip(self.observers, self.slices) if o is not self.guard]
+        self.after = list(zip(self.observers, self.slices))
         self.recent = {0: first.outputs}
         self._plan_blocks()
         self.calls_at_start = self._counts()
         self.loop_started = time.perf_counter()
 
     def step(self, n):
-        """Macro-step n: observers before, the master, observers after (the guard may redo), one row;
-        returns the Reading of the FMUs after it."""
+        """Macro-step n: observers before, the master (its guard may redo the step), observers after,
+        one row; returns the Reading of the FMUs after it."""
         t = self.t0 + n * self.dt
         self.scene.begin_step(n, t)                  # signals held, signal-only subsystems stepped
         before = self._counts() if self.bracket else None
@@ -342,8 +338,6 @@ class LiveRun:
             now = self._counts()
             if now != before:
                 self.excluded = [tuple(x + a - b for x, a, b in zip(*c)) for c in zip(self.excluded, now, before)]
-        if self.kernel_guard:                        # the kernel makes the step and the ledger's redo in one call
-            self.master.keep_ledger(*self.guard.kernel_state())
         t0 = time.perf_counter()
         log = self.master.step(n, t)
         self.master_time += time.perf_counter() - t0
@@ -353,14 +347,8 @@ class LiveRun:
         return reading
 
     def _after_master(self, n, t, log):
-        """After the master made step n: read the FMUs, the guard (it may redo), the observers, one row."""
+        """After the master made step n: read the FMUs, the observers, one row."""
         reading = self.sampler.read()
-        if self.guard is not None:
-            t0 = time.perf_counter()
-            redo = self.guard.after_step(n, t, log, reading, self.guard_row)
-            self.master_time += time.perf_counter() - t0
-            if redo is not None:
-                log, reading = redo, self.sampler.read()
         for o, row in self.after:
             o.after_step(n, t, log, reading, row)
         self._record(n, log, reading)
@@ -371,23 +359,15 @@ class LiveRun:
     def _plan_blocks(self):
         """Blocks when the master can make them, every observer takes them and nothing acts before a
         step (a paced observer: before the steps it names; blocks stop before them)."""
-        guard = self.guard
-        self.cap = guard.cap if isinstance(guard, EnergyGuard) else math.inf
-        self.ledger = isinstance(guard, EnergyLedger)
-        route = self.master.route()
-        self.kernel_guard = self.ledger and route is not None and route.guards_steps()
-        self.blocks = (route is not None
+        self.blocks = (self.master.route() is not None
                        and all(o.paced or type(o).before_step is Observer.before_step for o in self.observers)
                        and all(o.blocks for o, _ in self.after)
-                       and (guard is None or isinstance(guard, EnergyGuard)
-                            or (self.ledger and route.keeps_ledger))          # classical: step by step
                        and not self.scene.steps_in_python and self.sampler.whole and blocks.library() is not None)
         self.paced = [o for o in self.observers if o.paced]          # blocks stop before their steps
         if self.blocks:
             layout = self.master.observe(self.sampler.observed, BLOCK_STEPS,
                                          (self.bounds.limit, self.bounds.bounded(self.sampler.rows("outputs"))))
-            self.block_observers = [(o, self.spans[id(o)]) for o in ([guard] if self.ledger else [])
-                                    + [o for o, _ in self.after]]
+            self.block_observers = [(o, self.spans[id(o)]) for o in self.observers]
             self._prepare_blocks(layout)
 
     def _prepare_blocks(self, layout):
@@ -425,26 +405,23 @@ class LiveRun:
 
     def step_block(self, n0, count):
         """Macro-steps n0 .. n0 + count - 1 in one call of the master; the master stops early after a
-        step the energy guard must judge (or with a non-finite value), which is then finished as in
-        step() (the ledger is kept, and redone, in the kernel: such a step is in the block, and a
-        non-finite value ends the run after it). Returns the steps made; raises the FmuError of the
-        step after them."""
-        if self.ledger:
-            self.master.keep_ledger(*self.guard.kernel_state())
+        step its guard must judge (or with a non-finite value), which is then recorded as in step()
+        (the ledger is kept, and redone, in the kernel: such a step is in the block, and a non-finite
+        value ends the run after it). Returns the steps made; raises the FmuError of the step after them."""
         if self.kernel_passes:
             self._aim(self.steps.reserve_at(count), self.trajectory.reserve_at(count))
         t0 = time.perf_counter()
         self.in_block = n0
-        done, log, error = self.master.run_steps(n0, count, self.cap, self.kernel_passes)
+        done, log, error = self.master.run_steps(n0, count, passes=self.kernel_passes)
         self.in_block = None
         self.master_time += time.perf_counter() - t0
         self.block_steps += done
-        whole = done - 1 if log.stopped and not self.ledger else done      # the ledger's kernel books every step
+        whole = done - 1 if log.last is not None else done      # the ledger's kernel books every step
         if whole:
             self._after_block(n0, log.first(whole))
         if whole < done:
             n = n0 + whole
-            self._after_master(n, self.t0 + n * self.dt, self.master.step_log(log, whole))
+            self._after_master(n, self.t0 + n * self.dt, log.last)
         elif log.stopped:
             self.bounds.check(self.sampler.read(), n0 + done - 1)
         self.loop_time = time.perf_counter() - self.loop_started
@@ -601,6 +578,8 @@ class LiveRun:
                "energy_guard": self.guard_mode, "block_steps": self.block_steps,
                "quirks": {name: {"no_set_fmu_state_prior": d.no_set_fmu_state_prior, "chosen_by": d.chosen_by}
                           for name, d in self.scene.decisions.items()}, "notes": list(self.scene.notes)}
+        if self.guard is not None:
+            out.update(self.guard.summary())
         for o in self.observers:
             out.update(o.summary())
         if self.master is not None:

@@ -2,9 +2,9 @@
 
 The runner asks each observer once, before the loop, which per-step columns it fills and whether
 it needs the master's inner queries; an observer that is off is simply not in the list, so it
-costs nothing. Per macro-step the runner calls `before_step`, then the master, then
-`after_step` in list order; the energy guard (`redoes`, first in the list) may redo the step by
-returning a new StepLog, after which the runner reads the FMUs again. When every observer has
+costs nothing. Per macro-step the runner calls `before_step`, then the master (whose own guard may
+redo the step), reads the FMUs, then calls `after_step` in list order; observers read what the step
+logged and the FMUs' values, write their columns, and change nothing. When every observer has
 `blocks` set, the runner may run many macro-steps in one call of the master and give them to
 `after_block` at once (or to its `block_pass`, which the kernel makes as it goes); its figures must
 equal, to the last bit, those of `after_step` called step by step. A `paced` observer acts before
@@ -25,13 +25,12 @@ def described_as(described, column):
 
 
 class Observer:
-    """Base of the runtime concerns (certificates, energy guard, gamma tuner, Condition 1 watch)."""
+    """Base of the runtime concerns (certificates, the ledger's columns, gamma tuner, Condition 1 watch)."""
     columns = ()          # per-step columns it fills (steps.csv), in order
     described = {}        # every column it may fill -> (meaning, unit); docs/outputs.md is generated from it
     when = ""             # when a run has it (docs/outputs.md)
     formats = {}          # column -> formatter for steps.csv (default: floats), e.g. recorder.Labels
     needs_trace = False   # it reads the master's inner queries (u^k, S(u^k)) of each step
-    redoes = False        # an energy guard: it acts first and may redo the step
     blocks = False        # it has after_block or a block_pass (and nothing to do before a step, unless paced)
     paced = False         # it acts before the steps next_before() names only, and blocks may run between
 
@@ -47,8 +46,7 @@ class Observer:
 
     def after_step(self, n, t, log, reading, row):
         """After macro-step n: `reading` holds the FMUs' values at x^{n+1}; write this observer's
-        columns into `row` (its own slice of the step row, in the order of `columns`) and return a new
-        StepLog only if the step was redone."""
+        columns into `row` (its own slice of the step row, in the order of `columns`)."""
 
     def prepare_block(self, logs, readings):
         """In set-up, before any block: `logs` and `readings` are empty (no step) but laid out as the
