@@ -103,3 +103,38 @@ def test_only_the_kernel_and_the_fmi_layer_import_ctypes():
             if any(n.split(".")[0] == "ctypes" for n in names) and part(name) not in C_ABI:
                 found.append(name)
     assert found == []
+
+
+def public_names(cls):
+    """The names a class offers its callers: its attributes and methods, inherited ones included."""
+    return [n for n in dir(cls) if not n.startswith("_")]
+
+
+def test_few_doors():
+    """The DR master and a live run each offer at most 20 names; the runner module stays short (its
+    concerns are modules of run/: live.py, blockrun.py, closing.py, parts.py, result.py)."""
+    from wavecosim.masters.dr_fast import FastDRMaster
+    from wavecosim.run.live import LiveRun
+    for cls in (FastDRMaster, LiveRun):
+        assert len(public_names(cls)) <= 20, (cls.__name__, public_names(cls))
+    lines = (PACKAGE / "run" / "runner.py").read_text(encoding="utf-8").count("\n")
+    assert lines <= 400, f"run/runner.py has {lines} lines"
+
+
+QUERIES = {"fixed_point", "kernel_certificates"}     # what an observer may ask a master: the step is left as it was
+
+
+def test_observers_only_observe():
+    """A master owns every change to a step (its guard included): an observer has no way to redo a
+    step, and no module under run/observers calls a master but for the QUERIES."""
+    from wavecosim.run.observers import Observer
+    assert not hasattr(Observer, "redoes")
+    calls = []
+    for path in (PACKAGE / "run" / "observers").glob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute):
+                owner = node.func.value
+                name = owner.attr if isinstance(owner, ast.Attribute) else getattr(owner, "id", "")
+                if name == "master" and node.func.attr not in QUERIES:
+                    calls.append(f"{path.name}:{node.lineno} master.{node.func.attr}")
+    assert calls == []

@@ -13,7 +13,7 @@ StepLog. Class attributes say what it needs and how it is shown:
   evaluations     FMU evaluations per subsystem of one macro-step when fixed (DR: K + 1), else None;
                   it paces the sampled certificates (certificates.sampling)
   guardable       its commit can supply energy, and it can undo the commit and redo it with other
-                  inputs (undo_step, recommit, probe, supply): the energy guards apply
+                  inputs (_undo_step, _recommit, _probe, _supply): the energy guards apply
 Wave masters (WaveMaster) own the compiled wave map P, J_L and the committed wave b^n: nothing
 else writes them; observers act through the methods below.
 """
@@ -76,7 +76,7 @@ class Master:
     budgets = (None,)
     style = ("gray", "o")
     iterates = False          # gives the DR iterates u^0, u^K (Theorem 1, Condition 1 watch, energy guard)
-    guardable = False         # an energy guard applies (undo_step, recommit, probe, supply)
+    guardable = False         # an energy guard applies (_undo_step, _recommit, _probe, _supply)
     default_guard = "off"     # master.energy_guard when the scenario does not say
     evaluations = None        # FMU evaluations per subsystem of a macro-step, when fixed
 
@@ -89,7 +89,7 @@ class Master:
         self.step_started = 0.0                          # perf_counter() when the last step began
         self.guard = chosen_guard(self, settings)        # what judges each commit (energy_guard), or None
 
-    def reserve_time(self, seconds):
+    def _reserve_time(self, seconds):
         """Stop the inner loop `seconds` before master.deadline_us, leaving them for a redo."""
         if self.deadline_s is not None:
             self.inner_deadline_s = max(self.deadline_s - seconds, MIN_INNER_S)
@@ -108,24 +108,24 @@ class Master:
         """The kernel route of this master when it runs (blocks of macro-steps in C), else None."""
         return None
 
-    def probe(self, inputs):
+    def _probe(self, inputs):
         """After undo_step: the outputs of macro-step n from x^n with `inputs` (stacked); state discarded."""
         return self.scene.S(inputs)
 
-    def redo_in_kernel(self, supplied, budget, left_s, round_s):
+    def _redo_in_kernel(self, supplied, budget, left_s, round_s):
         """The energy ledger's redo of the step just made, done in C with left_s seconds to its
         deadline and round_s per evaluation round: (s, supply, traffic, action, rounds); None where
         there is no kernel (the ledger then redoes it through the methods above)."""
         return None
 
-    def anchors(self):
+    def _anchor_queries(self):
         """Inputs of the step just made whose outputs from x^n are known, as (inputs, outputs, supply),
         that the energy ledger may commit instead (DR: its queries); none by default."""
         return []
 
-    def remaining_iterations(self, log):
+    def _remaining_iterations(self, log):
         """Inner iterations the step's budget has left after it stopped, that the energy ledger may
-        spend (iterate_on) before it changes the inputs; none by default."""
+        spend (_iterate_on) before it changes the inputs; none by default."""
         return 0
 
     def kernel_certificates(self, floor):
@@ -171,7 +171,7 @@ class WaveMaster(Master):
     def _set_b(self, b):
         self._b = b
 
-    def commit(self, a_hat):
+    def _commit(self, a_hat):
         """Lines 20-22, eq. (21): advance every subsystem from x^n with a_hat; b^{n+1} becomes b^n."""
         self._b_step_start = self._b
         self._set_b(self.scene.advance(a_hat))
@@ -182,7 +182,7 @@ class WaveMaster(Master):
         self._compile()
         self._set_b(list(b))
 
-    def undo_step(self):
+    def _undo_step(self):
         """Put every subsystem back at x^n and b^n back, after the commit of macro-step n."""
         self.scene.restore_frozen()
         self._set_b(self._b_step_start)
@@ -192,29 +192,29 @@ class WaveMaster(Master):
         the FMUs are left at x^n."""
         return solve_interface(self.scene, self.P, self._b, where=f" at step {n} (t = {t:.6g})")[0].tolist()
 
-    def interface_solution(self, n, t, tag=""):
+    def _interface_solution(self, n, t, tag=""):
         """The monolithic incident waves at the frozen x^n: a = P b*, b* = S^n(P b*) (eqs. 14-15),
         solved from b^n; returns (a, iterations, residual)."""
         b_star, iters, res, _ = solve_interface(self.scene, self.P, self._b, where=f"{tag} at step {n} (t = {t:.6g})")
         return matvec(self.P, b_star.tolist()), iters, res
 
-    def recommit(self, a_hat):
+    def _recommit(self, a_hat):
         """After undo_step: commit macro-step n again with other incident waves; returns b^{n+1}."""
-        self.commit(a_hat)
+        self._commit(a_hat)
         return self._b
 
     @property
-    def committed_outputs(self):
+    def _committed_outputs(self):
         """The outputs of the last commit: b^{n+1}."""
         return self._b
 
     @staticmethod
-    def committed_inputs(log):
+    def _committed_inputs(log):
         """The stacked inputs the step committed with: the incident waves a_hat."""
         return log.a_hat
 
     @staticmethod
-    def supply(inputs, outputs):
+    def _supply(inputs, outputs):
         """Energy the interface supplies over a step, 1/2 (|a|^2 - |b|^2) (eq. 5), and its traffic
         1/2 (|a|^2 + |b|^2), the scale of its roundoff."""
         aa, bb = dot(inputs, inputs), dot(outputs, outputs)

@@ -19,12 +19,11 @@ from ..kernel.drkernel import REASONS, Kernel, kernel_refusal
 from ..kernel.certs import KernelCertificates, supports
 from ..kernel.newton import NewtonKernel
 from .dr import DRMaster
+from .dr_route import DRRoute
 from .ledger import EnergyLedger
 from .steplog import StepLog
 from .threads import ThreadPlanner
 from .dr_options import STARTS
-
-BLOCK_SECONDS = 0.25      # run_steps makes about this much work at most, so Ctrl-C and progress stay prompt
 
 
 class FastDRMaster(DRMaster):
@@ -36,7 +35,7 @@ class FastDRMaster(DRMaster):
 
     def __init__(self, scene, settings):
         super().__init__(scene, settings)
-        self.kernel, self.fast, self.planner = None, False, None
+        self.kernel, self.fast, self.planner, self._route = None, False, None, None
         self._newton = None       # the certificates' interface Newton in C (newton_path.NewtonKernel), when asked
         self._certs = None        # the certificates inside the blocks (certs_path.KernelCertificates), when asked
         # the certificates' C passes need every port to be the FMU's own wave map (no wave adapter)
@@ -49,9 +48,8 @@ class FastDRMaster(DRMaster):
         self.kernel.set_anchors((settings.energy_guard or self.default_guard) == "ledger")
         self._send_options()
         self.fast, self.fast_note = True, "C kernel"
+        self._route = DRRoute(self)
         self.planner = ThreadPlanner(self.kernel, settings.threads, len(self.subsystems))
-        self._step_s = 0.0        # seconds per macro-step of the last run_steps call
-        self._call = 0            # n0 of the last kernel call (salvage after a fault inside it)
         self._redo_seen = 0       # the kernel's count of redo doSteps when _redo_doSteps last looked
 
     def _send_options(self):
@@ -70,15 +68,15 @@ class FastDRMaster(DRMaster):
         if self.kernel is not None:
             self.kernel.b[:] = [float(x) for x in b]
 
-    def commit(self, a_hat):
+    def _commit(self, a_hat):
         """A commit made from Python (a guard's redo): the kernel's a_hat, a^{n-1} of its next start, too."""
-        super().commit(a_hat)
+        super()._commit(a_hat)
         if self.kernel is not None:
             self.kernel.a_hat[:] = [float(x) for x in a_hat]
 
-    def undo_step(self):
+    def _undo_step(self):
         """x^n, b^n and a^{n-1} back (the kernel's start too)."""
-        super().undo_step()
+        super()._undo_step()
         if self.kernel is not None:
             self.kernel.set_previous(self._a_before)
 
@@ -113,8 +111,8 @@ class FastDRMaster(DRMaster):
         if self.kernel is not None:
             self._send_options()                                   # b^{n-1} and the Anderson memory forgotten
 
-    def reserve_time(self, seconds):
-        super().reserve_time(seconds)
+    def _reserve_time(self, seconds):
+        super()._reserve_time(seconds)
         if self.kernel is not None:
             self.kernel.configure(self.dt, self.K, self.eps, self.inner_deadline_s)
 
@@ -174,7 +172,7 @@ class FastDRMaster(DRMaster):
         master.deadline_us (see drkernel.Kernel.keep_ledger)."""
         self.kernel.keep_ledger(*self.guard.kernel_state(), self.deadline_s)
 
-    def redo_in_kernel(self, supplied, budget, left_s, round_s):
+    def _redo_in_kernel(self, supplied, budget, left_s, round_s):
         """The energy ledger's redo of the step just made, by the kernel (fast_path.Kernel.redo); its
         rounds are booked on the Subsystems and b^{n+1} becomes the redo's. Returns (s, supply,
         traffic, action, rounds, inputs committed)."""
@@ -186,93 +184,8 @@ class FastDRMaster(DRMaster):
         return (*done, self.kernel.a_hat[:])
 
     def route(self):
-        """This master as its kernel route (base.Route) while the kernel runs."""
-        return self if self.fast else None
-
-    def can_run_steps(self, n):
-        """Whether run_steps may make macro-step n: the kernel runs and no thread plan is on trial
-        (threads=auto times each on one macro-step, alone)."""
-        return self.kernel is not None and not self.planner.on_trial
-
-    def observe(self, names, steps=0, bound=None):
-        """The variables of each subsystem run_steps reads after every commit (names[i], H_i first),
-        with room for blocks of `steps` steps made now, and the growth bound on some of them; returns
-        an empty BlockLog of the blocks' layout."""
-        return self.kernel.observe(names, steps, bound)
-
-    def set_passes(self, passes):
-        """The passes run_steps makes as the kernel logs the steps (kernel/drkernel.py, Kernel.set_passes)."""
-        self.kernel.set_passes(passes)
-
-    def run_steps(self, n0, count, H_cap=None, passes=False):
-        """Macro-steps n0 .. n0 + count - 1 in one kernel call, stopping early after a step whose H
-        may exceed H_cap (None: the monolithic guard's cap) or whose observed values are not finite
-        (fast_path.Kernel.run_steps), and making no more than about BLOCK_SECONDS of work: (steps
-        done, their BlockLog, the FmuError of the step after them or None); passes: the kernel makes
-        its passes (set_passes) as it goes. The energy ledger is kept inside the call; a step it
-        stopped after otherwise has its guard's verdict in the log's `last`. b^n and b^{n+1} of the
-        last step done become the master's, so undo_step works as after step()."""
-        ledger = isinstance(self.guard, EnergyLedger)
-        if H_cap is None:
-            H_cap = getattr(self.guard, "cap", math.inf)
-        if ledger:
-            self._keep_ledger()
-        if not self.planner.started:
-            done, log, error = self._first_steps(n0, count, H_cap, passes)
-        else:
-            done, log, error = self._kernel_steps(n0, count, H_cap, passes)
-        if ledger and done:
-            self.guard.book(log, self._redo_doSteps())
-        elif log.stopped and done:
-            log.last = self._judged(n0 + done - 1, self.step_log(log, done - 1))
-        return done, log, error
-
-    def _judged(self, n, log):
-        """The StepLog of step n after its guard's verdict (the guard may redo it)."""
-        return log if self.guard is None else self.guard.after_commit(n, self.t0 + n * self.dt, log)
-
-    def _first_steps(self, n0, count, H_cap, passes):
-        """The first call: macro-step n0 alone and timed picks the thread plan, then the others
-        follow in a second call unless a plan goes on trial (on the next step, alone)."""
-        done, first, error = self._kernel_steps(n0, 1, H_cap, passes)
-        if not done or first.stopped or self.planner.on_trial or count == 1:
-            return done, first, error
-        done, rest, error = self._kernel_steps(n0 + 1, count - 1, H_cap, passes, at=1)    # logged after the first
-        return done + 1, self.kernel.joined_log(done + 1, rest.stopped), error
-
-    def _kernel_steps(self, n0, count, H_cap, passes, at=0):
-        """One call of the kernel, of at most about BLOCK_SECONDS at the last call's pace, booked; it
-        logs after the last call's first `at` steps (fast_path.Kernel.run_steps). The thread planner
-        may have it time the evaluations."""
-        if self._step_s > 0.0:
-            count = max(1, min(count, int(BLOCK_SECONDS / self._step_s)))
-        measure, _ = self.planner.begin()
-        started = time.perf_counter()
-        if self._certs is not None:
-            self._certs.arm(n0, count)
-        self._call = n0
-        done, log, error = self.kernel.run_steps(n0, count, H_cap, measure, at, passes)
-        if self._certs is not None:
-            error = self._certs.disarm(done) or error
-        if done:
-            self._step_s = (time.perf_counter() - started) / done
-            rounds = 1.0 + float(log.iterations.mean()) + float(log.ledger["rounds"].mean())
-            self.planner.end(measure, self._step_s / rounds)
-        self._book(n0, done, log)
-        return done, log, error
-
-    def step_in_progress(self):
-        return self.kernel.step_in_progress()
-
-    def salvage(self, n0):
-        """The steps from n0 the kernel call in progress (begun at self._call) logged before a fault."""
-        made = self.kernel.step_in_progress()
-        if self._certs is not None:
-            self._certs.disarm(made - self._call)
-        log = self.kernel.joined_log(made - n0, False)
-        if isinstance(self.guard, EnergyLedger) and made > n0:
-            self.guard.book(log, self._redo_doSteps())
-        return made - n0, log
+        """Its kernel route (dr_route.DRRoute, a base.Route) while the kernel runs, else None."""
+        return self._route
 
     def _redo_doSteps(self):
         """doSteps of the FMUs in the ledger's redos since the last ask (the kernel counts them: a wave
@@ -305,34 +218,15 @@ class FastDRMaster(DRMaster):
             else:
                 s.note_kernel_step(n, t, iterations, steps, redone)
 
-    def step_log(self, log, j):
-        """The StepLog of row j of a BlockLog (without u^0 and u^K)."""
-        return StepLog(iterations=int(log.iterations[j]), residual=float(log.residual[j]),
-                       reason=REASONS[int(log.reason[j])], a_hat=log.a_hat[j].tolist())
-
-    @property
-    def threads(self):
-        """Threads evaluating the subsystems now (1 on the Python reference)."""
-        return self.planner.threads if self.planner is not None else 1
-
-    @property
-    def thread_note(self):
-        """Why that many (masters/threads.py)."""
-        return self.planner.note if self.planner is not None else "serial"
-
-    @property
-    def costs_us(self):
-        """µs per evaluation of each subsystem, as last timed (None before)."""
-        return self.planner.costs if self.planner is not None else None
-
     def run_info(self):
         """For the run summary: which path and thread plan ran."""
-        return {**super().run_info(), "fast_path": self.fast, "fast_note": self.fast_note, "threads": self.threads,
-                "thread_note": self.thread_note}
+        planner = self.planner
+        return {**super().run_info(), "fast_path": self.fast, "fast_note": self.fast_note,
+                "threads": planner.threads if planner else 1, "thread_note": planner.note if planner else "serial"}
 
     def close(self):
         for part in (self._certs, self.kernel, self._newton):
             if part is not None:
                 part.close()
-        self.kernel = self._newton = self._certs = None
+        self.kernel = self._newton = self._certs = self._route = None
         super().close()

@@ -35,12 +35,12 @@ class EnergyGuard:
             return log
         master = self.master
         calls = master.scene.do_step_calls()
-        master.undo_step()
+        master._undo_step()
         try:
-            a_hat, iters, res = master.interface_solution(n, t, " (energy guard)")
+            a_hat, iters, res = master._interface_solution(n, t, " (energy guard)")
         except NumericalError:
             a_hat, iters, res = [0.0] * len(master.b), 0, float("nan")   # matched loads: each port only dissipates
-        master.recommit(a_hat)
+        master._recommit(a_hat)
         self.redone += 1
         self.extra += master.scene.do_step_calls() - calls
         return StepLog(iterations=iters, residual=res, reason="energy-guard", a_hat=a_hat)

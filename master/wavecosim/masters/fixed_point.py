@@ -30,7 +30,7 @@ class JacobiIterMaster(KernelRoute, RollbackPhysicalMaster):
             return self._kernel_step(n, t)
         if self.kernel is not None:
             return self.planned(lambda measure: self._passes(n, t, measure))[0]
-        return self._iterate(n, t, lambda y: self.sweep(y, lambda sub, inputs: sub.query(inputs)), self.commit)
+        return self._iterate(n, t, lambda y: self.sweep(y, lambda sub, inputs: sub.query(inputs)), self._commit)
 
     def _passes(self, n, t, measure):
         """The macro-step with its passes in C (classical.h, cl_pass) and the update here: (its StepLog,)."""

@@ -8,7 +8,7 @@ import time
 from ..kernel.classical import ClassicalKernel
 from ..kernel.drkernel import REASONS, kernel_refusal
 from .base import KernelOwner, StepLog
-from .dr_fast import BLOCK_SECONDS
+from .dr_route import BLOCK_SECONDS
 from .threads import ThreadPlanner
 
 

@@ -13,11 +13,11 @@ A step that would lift L above tol is undone (x^n restored) and made again, spen
 before accuracy, each stage only when the one before does not fit (I <= the allowance, tol - L),
 every commit checked (docs/energy.md):
 1. `iterated`: the inner iteration goes on from where it stopped (tolerance or deadline) to the
-   rest of its budget K, and commits anew (Master.remaining_iterations, iterate_on);
+   rest of its budget K, and commits anew (Master._remaining_iterations, _iterate_on);
 2. `projected`: a_hat moves against the gradient of the step's supply to where a model of it
    reaches TARGET * allowance (projected; the model's slopes from the secant to the last query);
 3. `blended`: the commit moves from a_hat towards an anchor, a query of the step whose supply is
-   known and fits (Master.anchors: the last query, or the latest with supply <= 0); along the
+   known and fits (Master._anchor_queries: the last query, or the latest with supply <= 0); along the
    segment the outputs are interpolated from the two known ones, the supply is a quadratic in the
    fraction s, and the anchor whose crossing lies nearest a_hat is taken (best_anchor);
 4. `anchored`: that anchor's own input (its outputs, and so its supply, are known: it fits);
@@ -129,21 +129,21 @@ class Redo:
         """Whether `rounds` evaluation rounds are left before the deadline (the redo's own counted)."""
         return self.left_s - self.rounds * self.round_s >= rounds * self.round_s
 
-    def commit(self, inputs, s, action):
+    def _commit(self, inputs, s, action):
         """Commit `inputs` (None: zeros) after an undo; the redo's result if it fits (zeros always do),
         else None with the step undone again."""
         inputs = [0.0] * self.master.scene.n_channels if inputs is None else inputs
-        out = self.master.recommit(inputs)
+        out = self.master._recommit(inputs)
         self.rounds += 1
         return self.kept(s, inputs, out, action)
 
     def kept(self, s, inputs, out, action):
         """The result when the commit just made fits (or is zero), else None with the step undone and
         that commit the one the next stages correct."""
-        supplied, traffic = self.master.supply(inputs, out)
+        supplied, traffic = self.master._supply(inputs, out)
         if supplied <= self.budget or action == ZERO:
             return s, supplied, traffic, action, self.rounds, inputs
-        self.master.undo_step()
+        self.master._undo_step()
         if action == ITERATED:
             self.a, self.y, self.supplied = inputs, out, supplied
         return None
@@ -195,8 +195,8 @@ class EnergyLedger:
         """Book I^n of the commit just made; redo it when the ledger would exceed tol. Returns the
         step's StepLog (the redo's when redone) with its figures in `ledger`."""
         master = self.master
-        inputs, outputs = master.committed_inputs(log), master.committed_outputs
-        supplied, traffic = master.supply(inputs, outputs)
+        inputs, outputs = master._committed_inputs(log), master._committed_outputs
+        supplied, traffic = master._supply(inputs, outputs)
         self._time_round(log)
         tol = self.rtol() * (self.traffic + traffic)
         s, action, rounds = 1.0, KEPT, 0
@@ -219,50 +219,50 @@ class EnergyLedger:
         """Undo the step and make it again by the stages of the module docstring; (s, supply, traffic,
         action, rounds, inputs committed). A master with a kernel makes the redo in C."""
         master, left, started = self.master, self._time_left(), time.perf_counter()
-        done = master.redo_in_kernel(supplied_1, budget, left, self.redo_round_s)
+        done = master._redo_in_kernel(supplied_1, budget, left, self.redo_round_s)
         if done is not None:                            # the same operations, in C (drkernel.c ledger_redo)
             self._time_redo(time.perf_counter() - started, done[4])
             return done
         redo = Redo(master, budget, inputs, out_1, supplied_1, left, self.redo_round_s)
-        master.undo_step()
+        master._undo_step()
         done = (self._iterated(redo, log) or self._projected(redo) or self._anchored(redo) or self._scaled(redo)
-                or redo.commit(None, 0.0, ZERO))
+                or redo._commit(None, 0.0, ZERO))
         self._time_redo(time.perf_counter() - started, done[4])
         return done
 
     def _iterated(self, redo, log):
         """Stage 1: the rest of the inner budget (three rounds of the deadline left), committed."""
-        more = self.master.remaining_iterations(log)
+        more = self.master._remaining_iterations(log)
         if more <= 0 or not redo.has(3):
             return None
         deadline = time.perf_counter() + redo.left_s - 2.0 * redo.round_s if math.isfinite(redo.left_s) else None
-        new, made = self.master.iterate_on(log, more, deadline)
+        new, made = self.master._iterate_on(log, more, deadline)
         redo.rounds += made + 1
-        return redo.kept(1.0, self.master.committed_inputs(new), self.master.committed_outputs, ITERATED)
+        return redo.kept(1.0, self.master._committed_inputs(new), self.master._committed_outputs, ITERATED)
 
     def _projected(self, redo):
         """Stage 2: against the supply's gradient (ledger.projected; two rounds left)."""
-        anchors = self.master.anchors()
+        anchors = self.master._anchor_queries()
         if not anchors or not redo.has(2):
             return None
         scene = self.master.scene
         a = projected([(off, sub.m) for sub, off in zip(scene.subsystems, scene.offsets)], redo.a, redo.y, anchors[0], redo.supplied, TARGET * redo.budget)
         if a is None:
             return None
-        return redo.commit(a, 1.0 - distance(a, redo.a) / math.sqrt(dot(redo.a, redo.a)), PROJECTED)
+        return redo._commit(a, 1.0 - distance(a, redo.a) / math.sqrt(dot(redo.a, redo.a)), PROJECTED)
 
     def _anchored(self, redo):
         """Stages 3 and 4: towards the best anchor (two rounds left), else, or on a miss, the anchor."""
-        best = best_anchor(self.master.supply, self.master.anchors(), redo.a, redo.y, redo.supplied,
+        best = best_anchor(self.master._supply, self.master._anchor_queries(), redo.a, redo.y, redo.supplied,
                            TARGET * redo.budget)
         if best is None:
             return None
         s, q = best
         if redo.has(2):
-            done = redo.commit(blend(q[0], redo.a, s), s, BLENDED)
+            done = redo._commit(blend(q[0], redo.a, s), s, BLENDED)
             if done is not None:
                 return done
-        return redo.commit(q[0], 0.0, ANCHORED)
+        return redo._commit(q[0], 0.0, ANCHORED)
 
     def _scaled(self, redo):
         """Stage 5: probe s = 0, fit the quadratic supply I(s), commit at its largest root of TARGET *
@@ -270,10 +270,10 @@ class EnergyLedger:
         if not redo.has(2):
             return None
         zero = [0.0] * self.n_inputs
-        out_0 = self.master.probe(zero)
+        out_0 = self.master._probe(zero)
         redo.rounds += 1
-        s = segment_root(self.master.supply, zero, redo.a, out_0, redo.y, redo.supplied, TARGET * redo.budget)
-        return redo.commit(blend(zero, redo.a, s), s, SCALED)
+        s = segment_root(self.master._supply, zero, redo.a, out_0, redo.y, redo.supplied, TARGET * redo.budget)
+        return redo._commit(blend(zero, redo.a, s), s, SCALED)
 
     def _time_left(self):
         """Seconds to master.deadline_us from now (infinite without a deadline)."""
@@ -292,7 +292,7 @@ class EnergyLedger:
         spent = (time.perf_counter() - master.step_started) / (log.iterations + 1)
         self.round_s = smoothed(self.round_s, spent)
         self.redo_round_s = self.redo_round_s or self.round_s
-        master.reserve_time(self.round_s + self.redo_round_s)
+        master._reserve_time(self.round_s + self.redo_round_s)
 
     def _time_redo(self, seconds, rounds):
         """Track the time per evaluation round of a redo (Python calls: slower than the kernel's)."""

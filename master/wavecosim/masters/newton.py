@@ -34,7 +34,7 @@ class NewtonMaster(KernelOwner, WaveMaster):
         self.scene.freeze(n, t)
         b_star, iters, res, _ = solve_interface(self.scene, self.P, self.b, where=f" at step {n} (t = {t:.6g})")
         a_hat = matvec(self.P, b_star.tolist())
-        self.commit(a_hat)
+        self._commit(a_hat)
         return StepLog(iterations=iters, residual=res, reason="converged", a_hat=a_hat)
 
     def _kernel_step(self, n, t) -> StepLog:
