@@ -16,7 +16,7 @@ PASSIVITY_RTOL = 1e-12
 
 @pytest.fixture(scope="session")
 def built_fmus():
-    """{identifier: Path} of every FMU built from models/ and specs/ by fmus/build.py."""
+    """{identifier: Path} of every FMU built from models/ and specs/ by wavecosim/fmi/build.py."""
     return build_all()
 
 
@@ -288,7 +288,8 @@ def input_signals(path):
 def faulty_scenario():
     """faulty_scenario(fault, step, T, **integers) -> the Table I scenario (a mapping) with B a FaultySide
     (models/faulty_side) that faults in doStep at macro-step `step`: 1 segfault, 2 exit(0), 3 endless
-    loop, 4 abort(); integers such as log_bytes go to the FMU too."""
+    loop, 4 abort(), 5 an error logged as a printf format with its arguments, 6 NaN outputs with status
+    OK, 7 a broken restore from that step on; integers such as log_bytes go to the FMU too."""
     import copy
     import yaml
     from wavecosim.scenario.config import DEFAULT_CONFIG

@@ -598,10 +598,15 @@ fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real t, fmi2Real h, fmi2Boolean no
     d->time = t;
     if (advance(d, h, msg, sizeof msg) != 0) {
         *d = backup;
+#if FAULTY_LAYER
+        c->cb.logger(c->cb.componentEnvironment, c->name, fmi2Error, "logStatusError",
+                     "fmi2DoStep failed: %s at t = %g", msg, t);
+        return fmi2Error;
+#endif
         return fail(c, "fmi2DoStep", "at t = %.17g: %s", t, msg);
     }
     write_energy(d);
-    int bad = first_non_finite(d);
+    int bad = FAULTY_LAYER ? -1 : first_non_finite(d);
     if (bad >= 0) {
         double value = d->r[bad];
         *d = backup;

@@ -40,6 +40,10 @@
  *                        model.c implements model_outputs, which the layer calls on entering
  *                        initialization mode and after every set in initialization or step mode.
  *   MODEL_EXTRA_FIELDS   optional: more state kept in ModelData (arrays of internal DOFs)
+ *   FAULTY_LAYER         optional, for test models that misbehave on purpose: 1 keeps a step that
+ *                        leaves a non-finite real (its outputs are then NaN with status OK), and a
+ *                        failed step is logged as many FMUs log, the format and its printf arguments
+ *                        handed to the master's logger to format
  *
  * Integer, Boolean and String outputs are written by the model (model_initialize, model_step_io);
  * inputs of every type are held over the step. The layer reads and writes only: every variable by
@@ -62,6 +66,9 @@
 #endif
 #ifndef HAS_FEEDTHROUGH
 #define HAS_FEEDTHROUGH 0
+#endif
+#ifndef FAULTY_LAYER
+#define FAULTY_LAYER 0
 #endif
 
 #if HAS_WAVE_PORT && !defined(PORT_CHANNELS)

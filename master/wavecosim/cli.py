@@ -1,6 +1,7 @@
 """The `wavecosim` command line: a thin shell over config, runner and sweep.
 
 Every WavecosimError becomes one line on stderr and its class's exit code (2 for bad input)."""
+import math
 import sys
 import time
 from pathlib import Path
@@ -16,6 +17,29 @@ from .masters import ALGORITHMS, MASTERS
 from .run.outputs import OutputFolder
 from .run.recorder import write_json
 from .run.runner import MAX_STEPS, check_steps
+from .scenario.overrides import MAX_RUNS
+
+
+C_INT_MAX = 2 ** 31 - 1           # the kernel takes budgets, intervals and counts as C ints
+
+
+def whole(minimum, maximum=C_INT_MAX):
+    """An integer option within [minimum, maximum]: by default what a C int holds."""
+    return click.IntRange(min=minimum, max=maximum)
+
+
+class Finite(click.FloatRange):
+    """A number option that must be finite (nan and inf refused) and within the range given."""
+    name = "finite number"
+
+    def convert(self, value, param, ctx):
+        number = super().convert(value, param, ctx)
+        if not math.isfinite(number):
+            self.fail(f"{value!r} is not a finite number", param, ctx)
+        return number
+
+
+POSITIVE = Finite(min=0, min_open=True)
 
 
 def _progress(label, quiet):
@@ -61,8 +85,8 @@ def parse_budgets(ks, option="--Ks"):
         Ks = None
     if not isinstance(Ks, list) or not all(isinstance(k, int) and not isinstance(k, bool) for k in Ks):
         raise ConfigError(f"{option}: must be comma-separated integers or a range a..b, got {ks!r}")
-    if not Ks or min(Ks) < 0:
-        raise ConfigError(f"{option}: budgets must be integers >= 0, got {ks!r}")
+    if not Ks or min(Ks) < 0 or max(Ks) > C_INT_MAX:
+        raise ConfigError(f"{option}: budgets must be integers from 0 to {C_INT_MAX}, got {ks!r}")
     return Ks
 
 
@@ -80,7 +104,7 @@ def print_table(rows, fields):
 
 
 step_timeout_option = click.option(
-    "--step-timeout", type=click.FloatRange(min=0, min_open=True), metavar="SECONDS",
+    "--step-timeout", type=POSITIVE, metavar="SECONDS",
     help="End the run when a macro-step does not finish within SECONDS, as when a call into an FMU does not "
          "return (the scenario's step_timeout otherwise; default: no limit). Steps before it are kept.")
 
@@ -92,12 +116,12 @@ overwrite_option = click.option(
 
 system_argument = click.argument("config", required=False, type=click.Path(path_type=Path))   # also an SSP folder
 common = [
-    click.option("--K", "K", type=click.IntRange(min=0), help="Inner-iteration budget K per macro-step."),
-    click.option("--eps", type=click.FloatRange(min=0, min_open=True), help="Inner tolerance: stop when |u_new - u| <= eps."),
+    click.option("--K", "K", type=whole(0), help="Inner-iteration budget K per macro-step."),
+    click.option("--eps", type=POSITIVE, help="Inner tolerance: stop when |u_new - u| <= eps."),
     click.option("--gamma", help="Scattering impedance (> 0), or auto / auto-retune / fast-unsafe."),
-    click.option("--dt", type=click.FloatRange(min=0, min_open=True),
+    click.option("--dt", type=POSITIVE,
                  help="Macro-step size (s); default: the file's, else the smallest DefaultExperiment stepSize of the FMUs."),
-    click.option("--T", "T", type=float,
+    click.option("--T", "T", type=Finite(),
                  help="Stop time (s); default: the file's, else the largest DefaultExperiment stopTime of the FMUs."),
     click.option("--quiet", is_flag=True, help="No progress output."),
 ]
@@ -125,7 +149,7 @@ def cli():
 
 
 output_options = [
-    click.option("--output-interval", type=click.IntRange(min=1), default=1, show_default=True,
+    click.option("--output-interval", type=whole(1), default=1, show_default=True,
                  help="Record every N-th macro-step (and the last) in the CSV files; figures use every step."),
     click.option("--format", "formats", type=click.Choice(["csv", "mat"]), multiple=True,
                  help="Also write MATLAB files (trajectory.mat, steps.mat) with --format mat; CSV is always written."),
@@ -154,7 +178,7 @@ ssp_options = options([
 
 
 experiment_options = options([
-    click.option("--start-time", type=float, help="Start time t0 (s) of the grid t0 + n dt; default: the file's, "
+    click.option("--start-time", type=Finite(), help="Start time t0 (s) of the grid t0 + n dt; default: the file's, "
                  "else the DefaultExperiment startTime of the FMUs, else 0."),
 ])
 
@@ -289,9 +313,10 @@ sweep_options = options([
     click.option("--set", "sets", multiple=True, metavar="KEY=VALUES", help="Sweep a scenario key: "
                  "KEY=0,3,8 | a..b | linspace(a,b,n) | geomspace(a,b,n) | uniform(lo,hi) | loguniform(lo,hi) | "
                  "normal(mu,sigma) | randint(lo,hi) (see docs/sweeps.md). Repeat for a grid."),
-    click.option("--sample", type=click.IntRange(min=1), help="Monte Carlo: draw N values of each distribution."),
-    click.option("--seed", type=int, default=0, show_default=True, help="Seed of the Monte Carlo draws."),
-    click.option("--workers", type=click.IntRange(min=1), help="Processes (or LocalCluster workers); "
+    click.option("--sample", type=whole(1, MAX_RUNS), help="Monte Carlo: draw N values of each distribution."),
+    click.option("--seed", type=whole(0, 2 ** 63 - 1), default=0, show_default=True,
+                 help="Seed of the Monte Carlo draws."),
+    click.option("--workers", type=whole(1, 1024), help="Processes (or LocalCluster workers); "
                  "default: the number of CPUs; 1 runs in this process."),
     click.option("--scheduler", help="Run on Dask: a scheduler address (tcp://host:8786) or 'local' for an "
                  "embedded LocalCluster of --workers processes."),
@@ -347,6 +372,9 @@ def _general_sweep(config, ks, sets, changes, out, o):
 
     from .scenario.overrides import parse_set, scalar
     from .sweeps.budget import plan, run_sweep
+    from .sweeps.execute import check_scheduler
+    if o["scheduler"]:
+        check_scheduler(o["scheduler"])
     axes = [parse_set(s) for s in list(sets)]
     if ks:
         axes.insert(0, ("master.K", parse_budgets(ks, "--K")))

@@ -1,11 +1,15 @@
 /* A damped mass with an effort port (it can take LinearSide's place) that misbehaves on purpose inside
  * doStep at a chosen macro-step, so the tests can check that a run contains a crashing, exiting,
  * hanging or chatty FMU: fault 1 dereferences a null pointer (SIGSEGV), 2 calls exit(0), 3 loops
- * forever, 4 calls abort(). The fault strikes in the first doStep that starts at t = fault_step * h.
- * With log_bytes > 0 every successful step logs a warning of that many characters. */
+ * forever, 4 calls abort(), 5 fails the step with a message logged as a printf format and its
+ * arguments, 6 returns NaN outputs with status OK, 7 restores its state only in part (from fault_step
+ * on, every step depends on the doSteps the instance made before). Faults 1..6 strike in the first
+ * doStep that starts at t = fault_step * h. With log_bytes > 0 every successful step logs a warning of
+ * that many characters. */
 #define MODEL_IDENTIFIER FaultySide
 #define MODEL_GUID "{3c0f4a52-8e1d-4d2b-9a6e-7f1b2c3d0f17}"
-#define MODEL_DESCRIPTION "Damped mass that segfaults, exits, hangs or aborts in doStep at a chosen step (tests)"
+#define MODEL_DESCRIPTION "Damped mass that crashes, hangs, fails, gives NaN or restores badly at a chosen step (tests)"
+#define FAULTY_LAYER 1
 
 #define REAL_VARIABLES(X) \
     X(mass, PARAMETER, 4.0, "kg", "the mass") \
@@ -22,7 +26,8 @@
 
 #define INTEGER_VARIABLES(X) \
     X(port_mode, 0, "0 = wave port (input a, output b), 1 = physical port (input F)") \
-    X(fault, 0, "0 none, 1 segfault, 2 exit(0), 3 endless loop, 4 abort() in doStep at fault_step") \
+    X(fault, 0, "0 none, 1 segfault, 2 exit(0), 3 endless loop, 4 abort(), 5 error, 6 NaN outputs in doStep " \
+              "at fault_step, 7 a broken restore from it on") \
     X(fault_step, -1, "the macro-step whose doStep faults (-1: none)") \
     X(log_bytes, 0, "characters of the warning logged after every step (0: none, at most 250)")
 

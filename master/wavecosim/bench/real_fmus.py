@@ -24,7 +24,7 @@ from pathlib import Path
 
 from ..examples import path as example, third_party
 from ..errors import WavecosimError
-from ..fmi.fmu import set_pointer_hook
+from ..fmi.fmu import interposed
 from ..kernel.floor import FloorRecorder
 from ..run.runner import open_parts, run
 from ..scenario.config import load_scenario, parse_scenario
@@ -77,13 +77,12 @@ def _whole_run(scenario):
 def _recorded(scenario):
     """A FloorRecorder holding the FMU calls of one run of the scenario."""
     recorder = FloorRecorder()
-    previous = set_pointer_hook(recorder.hook)
     try:
-        recorder.start()
-        run(scenario, certificates=False, warn=quiet)
+        with interposed(recorder.hook):
+            recorder.start()
+            run(scenario, certificates=False, warn=quiet)
     finally:
         recorder.stop()
-        set_pointer_hook(previous)
     return recorder
 
 
@@ -92,7 +91,7 @@ def _floor(scenario, recorder):
     scene, master, _ = open_parts(scenario, quiet)
     try:
         master.close()
-        fmus = {s.name: s.fmu for s in scene.subsystems + scene.signal_only}
+        fmus = {s.name: (s.fmu.component, s.fmu.function_pointer) for s in scene.subsystems + scene.signal_only}
         return 1e6 * recorder.replay(fmus) / scenario.n_steps
     finally:
         scene.close()

@@ -11,6 +11,7 @@ from ..errors import ConfigError, CouplingError, FmuError, SimulationEnded
 from ..fmi.fmu import Fmu
 from .frozen_port_map import PortSpec, Subsystem
 from .gamma import choose_relaxation, initial_gammas
+from .kernel_scene import describe, unusable
 from .ports import probe_signs
 from .quirks import QuirkTable
 from .recording import output_columns
@@ -141,6 +142,15 @@ class Scene:
         a master cannot make many of them in one kernel call; the kernel holds Real signals and steps
         the signal-only subsystems itself (kernel_signals)."""
         return (self.signals is not None or bool(self.signal_only)) and self.kernel_signals() is None
+
+    def kernel_scene(self):
+        """The scene as the C kernel's bindings take it (core/kernel_scene.py), made when a master opens
+        its kernel route (a wave adapter moves to C then)."""
+        return describe(self)
+
+    def kernel_unusable(self):
+        """Why the C kernel cannot run this scene, or None (core/kernel_scene.py)."""
+        return unusable(self)
 
     def kernel_signals(self):
         """begin_step as plain data for the kernel's blocks (wavecosim/kernel/signals.py: the FMUs, port

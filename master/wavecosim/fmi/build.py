@@ -12,8 +12,8 @@ import tempfile
 import zipfile
 from pathlib import Path
 
-from ..kernel.build import (CFLAGS, BuildError, build_library, fmi_headers, library_names, place, run, stamp,
-                            target)
+from ..kernel.build import (CFLAGS, BuildError, build_library, cached, fmi_headers, library_names, place, run,
+                            stamp, target)
 
 DATA = Path(__file__).resolve().parent.parent / "data"
 LAYER = DATA / "fmus" / "layer"
@@ -54,9 +54,11 @@ def build_model(model_dir: Path, force=False, log=print) -> Path:
     """Compile one model into <cache>/fmus/<stamp>/<Id>.fmu; returns its path."""
     ident = model_identifier(model_dir)
     path = target("fmus", stamp(_sources(model_dir)), f"{ident}.fmu")
-    if path.exists() and not force:
-        return path
-    log(f"building {path}")
+    return cached(path, lambda: _compile(model_dir, ident, path), force, log)
+
+
+def _compile(model_dir, ident, path):
+    """The FMU of one model, compiled and zipped into place at `path`."""
     includes = ["-I", fmi_headers(), "-I", LAYER, "-I", model_dir]
     with tempfile.TemporaryDirectory() as tmp:
         describe, so = Path(tmp) / "describe", Path(tmp) / f"{ident}.so"

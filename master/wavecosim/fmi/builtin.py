@@ -18,10 +18,10 @@ def build_all(force=False, log=None) -> dict:
 
 
 def builtin_fmus() -> dict:
-    """{identifier: path} of the FMUs built from the package's models (once per process); the
-    first build in a cache says so on stderr, as it takes a while."""
+    """{identifier: path} of the FMUs built from the package's models (once per process, again when a
+    file of the cache has gone); the first build in a cache says so on stderr, as it takes a while."""
     global _built
-    if _built is None:
+    if _built is None or not all(path.is_file() for path in _built.values()):     # the cache was emptied meanwhile
         told = []
 
         def tell(msg):

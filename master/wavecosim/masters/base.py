@@ -21,6 +21,7 @@ import math
 from typing import Optional, Protocol, runtime_checkable
 
 from ..errors import ConfigError
+from ..kernel.drkernel import REASONS as KERNEL_REASONS
 from ..kernel.linalg import dot, matvec
 from .energy_guard import EnergyGuard
 from .ledger import EnergyLedger
@@ -29,7 +30,18 @@ from .steplog import StepLog
 
 
 MIN_INNER_S = 1e-9        # an inner deadline this short stops the loop after its first iteration
-REASONS = ("budget", "tolerance", "deadline", "explicit", "converged", "energy-guard", "none")
+REASONS = (*KERNEL_REASONS, "none")          # drkernel.h DRReason, and a step no loop ran for
+
+
+def kernel_refusal(scene, mode):
+    """Why a master's Python reference runs instead of its kernel route (None: the kernel can run),
+    for master.fast `mode`; `true` insists (a config error when the kernel cannot run)."""
+    if mode == "false":
+        return "master.fast is false"
+    why = scene.kernel_unusable()
+    if why is not None and mode == "true":
+        raise ConfigError(f"{scene.scenario.source}: master.fast: true, but {why}")
+    return why
 
 
 @runtime_checkable
@@ -129,7 +141,7 @@ class Master:
         return 0
 
     def kernel_certificates(self, floor):
-        """The sampled certificates computed inside this master's blocks of steps (certs_path), or
+        """The sampled certificates computed inside this master's blocks of steps (kernel/certs.py), or
         None: the observers then compute them step by step."""
         return None
 

@@ -15,9 +15,10 @@ caller does all the arithmetic, so the thread plan never changes a number.
 import math
 import time
 
-from ..kernel.drkernel import REASONS, Kernel, kernel_refusal
+from ..kernel.drkernel import REASONS, Kernel
 from ..kernel.certs import KernelCertificates, supports
 from ..kernel.newton import NewtonKernel
+from .base import kernel_refusal
 from .dr import DRMaster
 from .dr_route import DRRoute
 from .ledger import EnergyLedger
@@ -36,14 +37,15 @@ class FastDRMaster(DRMaster):
     def __init__(self, scene, settings):
         super().__init__(scene, settings)
         self.kernel, self.fast, self.planner, self._route = None, False, None, None
-        self._newton = None       # the certificates' interface Newton in C (newton_path.NewtonKernel), when asked
-        self._certs = None        # the certificates inside the blocks (certs_path.KernelCertificates), when asked
+        self._newton = None       # the certificates' interface Newton in C (kernel/newton.py NewtonKernel), when asked
+        self._certs = None        # the certificates inside the blocks (kernel/certs.py KernelCertificates), when asked
         # the certificates' C passes need every port to be the FMU's own wave map (no wave adapter)
         self._exact = not any(s.adapter for s in scene.subsystems)
         self.fast_note = self._kernel_refusal(scene, str(settings.fast).lower())
         if self.fast_note is not None:
             return
-        self.kernel = Kernel(scene, self.P, self.J_L)
+        self._kernel_scene = scene.kernel_scene()        # what the kernel's bindings know of the scene
+        self.kernel = Kernel(self._kernel_scene, self.P, self.J_L)
         self.kernel.configure(self.dt, self.K, self.eps, self.deadline_s)
         self.kernel.set_anchors((settings.energy_guard or self.default_guard) == "ledger")
         self._send_options()
@@ -96,14 +98,14 @@ class FastDRMaster(DRMaster):
 
     def _newton_kernel(self):
         if self._newton is None:
-            self._newton = NewtonKernel(self.scene, self.P)
+            self._newton = NewtonKernel(self._kernel_scene, self.P)
         return self._newton
 
     def kernel_certificates(self, floor):
-        """The certificates inside this master's blocks (certs_path.KernelCertificates; the watch keeps
+        """The certificates inside this master's blocks (kernel/certs.py KernelCertificates; the watch keeps
         pairs above `floor`), made on the first ask; None where the blocks cannot compute them."""
-        if self._certs is None and self.kernel is not None and self._exact and supports(self.scene):
-            self._certs = KernelCertificates(self.kernel, self._newton_kernel(), self.scene, floor)
+        if self._certs is None and self.kernel is not None and self._exact and supports(self._kernel_scene):
+            self._certs = KernelCertificates(self.kernel, self._newton_kernel(), self._kernel_scene, floor)
         return self._certs
 
     def retune(self, b):
@@ -173,7 +175,7 @@ class FastDRMaster(DRMaster):
         self.kernel.keep_ledger(*self.guard.kernel_state(), self.deadline_s)
 
     def _redo_in_kernel(self, supplied, budget, left_s, round_s):
-        """The energy ledger's redo of the step just made, by the kernel (fast_path.Kernel.redo); its
+        """The energy ledger's redo of the step just made, by the kernel (kernel/drkernel.py Kernel.redo); its
         rounds are booked on the Subsystems and b^{n+1} becomes the redo's. Returns (s, supply,
         traffic, action, rounds, inputs committed)."""
         if self.kernel is None:

@@ -38,7 +38,7 @@ class DRRoute:
     def run_steps(self, n0, count, H_cap=None, passes=False):
         """Macro-steps n0 .. n0 + count - 1 in one kernel call, stopping early after a step whose H
         may exceed H_cap (None: the monolithic guard's cap) or whose observed values are not finite
-        (fast_path.Kernel.run_steps), and making no more than about BLOCK_SECONDS of work: (steps
+        (kernel/drkernel.py Kernel.run_steps), and making no more than about BLOCK_SECONDS of work: (steps
         done, their BlockLog, the FmuError of the step after them or None); passes: the kernel makes
         its passes (set_passes) as it goes. The energy ledger is kept inside the call; a step it
         stopped after otherwise has its guard's verdict in the log's `last`. b^n and b^{n+1} of the
@@ -76,7 +76,7 @@ class DRRoute:
 
     def _kernel_steps(self, n0, count, H_cap, passes, at=0):
         """One call of the kernel, of at most about BLOCK_SECONDS at the last call's pace, booked; it
-        logs after the last call's first `at` steps (fast_path.Kernel.run_steps). The thread planner
+        logs after the last call's first `at` steps (kernel/drkernel.py Kernel.run_steps). The thread planner
         may have it time the evaluations."""
         m = self.master
         if self._step_s > 0.0:

@@ -140,7 +140,8 @@ SUMMARY = {
 
 METADATA = {
     "scenario": ("the scenario as resolved: every key of the scenario file after defaults, the FMUs' "
-                 "DefaultExperiment and the command line's options", "–"),
+                 "DefaultExperiment and the command line's options; each time table (`sources`) by its `csv` file, "
+                 "`sha256`, `rows` and `columns`, its values left in the file", "–"),
     "units": ("the unit of every column: `trajectory` (from the FMUs' modelDescriptions: a variable's unit, "
               "else its declared type's; \"\" where none is given) and `steps` (as this page gives them, "
               "γ and the error resolved from the FMUs)", "–"),

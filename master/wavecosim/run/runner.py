@@ -8,6 +8,7 @@ import time
 
 from ..errors import ConfigError, Interrupted, RunFailed, SimulationEnded, Terminated, WavecosimError
 from . import containment
+from .bounds import named_for_cause
 from .live import BLOCK_STEPS, LiveRun
 from .observers.errors import ErrorTracker, stored_reference, stored_rows
 from .parts import OBSERVERS, STEP_COLUMNS, STEP_DESCRIBED, _once, _warn_stderr, open_parts
@@ -118,6 +119,7 @@ def _loop(live, ref, progress, contain=None):
         except SimulationEnded as exc:              # an FMU ended it: finished, with the steps before
             return "finished", exc
         except WavecosimError as exc:
+            exc = named_for_cause(live.scene, exc)
             return exc.status, exc
     return "finished", None
 

@@ -13,6 +13,8 @@ from fmpy import read_model_description
 from fmpy.simulation import _get_output_variables
 
 from ..errors import ConfigError, FmuError
+from ..fmi.unpack import regular_file
+from .config import input_file
 from .experiment import default_experiment, default_step
 
 
@@ -66,9 +68,10 @@ def fmu_raw(path, input_csv=None, warn=None):
     """The scenario mapping of one FMU (and its input file): the subsystem, what fmpy records, and a
     source table with one signal per column; a column that names no input is a ConfigError naming
     the closest input; inputs no column names (they keep their start values) are reported to `warn`."""
-    path = Path(path).resolve()
-    if not path.is_file():
-        raise FmuError(f"FMU file not found: {path}")
+    found = regular_file(path, ConfigError)
+    if found is None:
+        raise FmuError(f"FMU file not found: {Path(path).resolve()}")
+    path = found
     description = model_description(path)
     name = component_name(path)
     raw = {"name": path.stem, "subsystems": {name: {"fmu": str(path)}}}
@@ -77,7 +80,7 @@ def fmu_raw(path, input_csv=None, warn=None):
         raw["outputs"] = outputs
     if input_csv is None:
         return raw
-    input_csv = Path(input_csv).resolve()
+    input_csv = input_file(input_csv, "--input")
     inputs = [v.name for v in description.modelVariables if v.causality == "input"]
     columns = _header(input_csv, "--input")[1:]
     for column in columns:

@@ -8,6 +8,7 @@ A local task runs in a child of its own (run/supervisor.py): one that crashes, c
 times out is a row with that status and message, and the others go on.
 """
 import json
+import re
 import selectors
 import signal
 import time
@@ -249,16 +250,34 @@ def _child_row(task, child, started):
     return _book_row(task, row, started)
 
 
+SCHEDULER = re.compile(r"^(tcp|tls)://(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):(\d{1,5})$")
+CONNECT_TIMEOUT_S = 10          # seconds to reach a Dask scheduler before the sweep is refused
+
+
+def check_scheduler(scheduler):
+    """--scheduler: 'local' or an address tcp://HOST:PORT (tls:// too), checked before anything is planned."""
+    found = SCHEDULER.match(scheduler or "")
+    if scheduler != "local" and not (found and 0 < int(found.group(3)) < 65536):
+        raise ConfigError(f"--scheduler {scheduler!r}: must be 'local' or a Dask scheduler's address "
+                          f"tcp://HOST:PORT (or tls://HOST:PORT)")
+    return scheduler
+
+
 def dask_cluster(scheduler, workers):
-    """(client, cluster): a Dask client of the scheduler at an address, or of an embedded
-    LocalCluster of `workers` one-thread worker processes for scheduler "local"."""
+    """(client, cluster): a Dask client of the scheduler at an address (reached within
+    CONNECT_TIMEOUT_S), or of an embedded LocalCluster of `workers` one-thread worker processes for
+    scheduler "local"."""
     import logging
     try:
         from distributed import Client, LocalCluster
     except ImportError:
         raise ConfigError("--executor dask needs Dask's distributed package: pip install 'wavecosim[dask]'") from None
-    if scheduler != "local":
-        return Client(scheduler), None
+    if check_scheduler(scheduler) != "local":
+        try:
+            return Client(scheduler, timeout=CONNECT_TIMEOUT_S), None
+        except (OSError, TimeoutError) as exc:
+            raise ConfigError(f"--scheduler {scheduler}: no Dask scheduler answered within {CONNECT_TIMEOUT_S} s "
+                              f"({type(exc).__name__})") from None
     cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
                            silence_logs=logging.ERROR)
     return Client(cluster), cluster
