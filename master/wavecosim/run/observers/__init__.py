@@ -12,6 +12,10 @@ some steps only (`next_before`): blocks run between them.
 """
 import re
 
+import numpy as np
+
+from ...kernel.drkernel import LEDGER_LOG
+
 SUBSYSTEM = "<subsystem>"     # stands for a subsystem's name in a column pattern
 
 
@@ -44,9 +48,21 @@ class Observer:
         """A paced observer: the first macro-step >= n before which it acts (math.inf: none)."""
         raise NotImplementedError
 
+    def block(self, n0, logs, readings):
+        """Its columns over macro-steps n0 .. n0 + steps - 1 as an array (steps x columns), from the
+        steps' log (a BlockLog, or a StepLog as a block of one: OneStep) and the FMUs' values after
+        each (a BlockReading, or a Reading as a block of one: OneReading), in numpy: the one definition
+        of its columns, step by step and in blocks alike. None where the observer writes its columns
+        in after_step and after_block instead."""
+        return None
+
     def after_step(self, n, t, log, reading, row):
         """After macro-step n: `reading` holds the FMUs' values at x^{n+1}; write this observer's
-        columns into `row` (its own slice of the step row, in the order of `columns`)."""
+        columns into `row` (its own slice of the step row, in the order of `columns`). By default
+        the first row of block() over this step alone."""
+        columns = self.block(n, OneStep(log), OneReading(reading))
+        if columns is not None:
+            row[:] = columns[0]
 
     def prepare_block(self, logs, readings):
         """In set-up, before any block: `logs` and `readings` are empty (no step) but laid out as the
@@ -63,8 +79,9 @@ class Observer:
         """After macro-steps n0 .. n0 + len(rows) - 1 made in one call: `logs` (fast_path.BlockLog)
         and `readings` (readings.BlockReading) hold one row per step; write this observer's columns
         into `rows` (steps x its columns), exactly as after_step would, step after step. `at`: where
-        rows lives for a pass in C (address of its first value, doubles between columns), or None."""
-        raise NotImplementedError
+        rows lives for a pass in C (address of its first value, doubles between columns), or None.
+        By default block() over the steps."""
+        rows[:] = self.block(n0, logs, readings)
 
     def summary(self) -> dict:
         """Its figures for summary.json."""
@@ -78,3 +95,36 @@ class Observer:
         """The unit of one of its columns (metadata.json), from `described`."""
         entry = described_as(self.described, column)
         return entry[1] if entry else ""
+
+
+class OneStep:
+    """A StepLog as a block of one step: the fields a BlockLog gives as arrays, one row or column."""
+
+    def __init__(self, log):
+        self.log = log
+
+    def __len__(self):
+        return 1
+
+    iterations = property(lambda self: np.array([float(self.log.iterations)]))
+    residual = property(lambda self: np.array([self.log.residual]))
+    a_hat = property(lambda self: np.array([self.log.a_hat], dtype=float))
+
+    @property
+    def ledger_rows(self):
+        """The energy ledger's figures as the kernel logs them (LEDGER_LOG x 1; NaN where not kept)."""
+        rows = np.full((len(LEDGER_LOG), 1), np.nan)
+        rows[[0, 1, 3, 4, 5], 0] = self.log.ledger                # supplied, ledger; scale, action, rounds
+        return rows
+
+
+class OneReading:
+    """A Reading as a block of one step: H, E, F, B and outputs as BlockReading's (one row each)."""
+
+    def __init__(self, reading):
+        self.reading = reading
+
+    def __getattr__(self, key):
+        if key not in ("H", "E", "F", "B", "outputs"):
+            raise AttributeError(key)
+        return np.array([getattr(self.reading, key)], dtype=float)

@@ -25,9 +25,6 @@ class LedgerColumns(Observer):
                           "was kept", "1"),
     }
 
-    def after_step(self, n, t, log, reading, row):
-        row[:] = log.ledger
-
-    def after_block(self, n0, logs, readings, rows, at=None):
+    def block(self, n0, logs, readings):
         logged = logs.ledger_rows
-        rows[:, :2], rows[:, 2:] = logged[0:2].T, logged[3:6].T      # supplied, ledger; scale, action, rounds
+        return logged[[0, 1, 3, 4, 5]].T                       # supplied, ledger; scale, action, rounds
