@@ -46,6 +46,7 @@ class FastDRMaster(DRMaster):
             return
         self._kernel_scene = scene.kernel_scene()        # what the kernel's bindings know of the scene
         self.kernel = Kernel(self._kernel_scene, self.P, self.J_L)
+        self._b = self._own_b                     # b^n from now on in the kernel alone
         self.kernel.configure(self.dt, self.K, self.eps, self.deadline_s)
         self.kernel.set_anchors((settings.energy_guard or self.default_guard) == "ledger")
         self._send_options()
@@ -65,10 +66,17 @@ class FastDRMaster(DRMaster):
         """Why the reference path runs (None: the kernel can run); master.fast: true insists."""
         return kernel_refusal(scene, mode)
 
-    def _set_b(self, b):
-        super()._set_b(b)
-        if self.kernel is not None:
+    @property
+    def _b(self):
+        """b^n, one copy: the kernel's while it runs (it commits in C), else the master's own."""
+        return self.kernel.b[:] if getattr(self, "kernel", None) is not None else self._own_b
+
+    @_b.setter
+    def _b(self, b):
+        if getattr(self, "kernel", None) is not None:
             self.kernel.b[:] = [float(x) for x in b]
+        else:
+            self._own_b = b
 
     def _commit(self, a_hat):
         """A commit made from Python (a guard's redo): the kernel's a_hat, a^{n-1} of its next start, too."""
@@ -151,7 +159,7 @@ class FastDRMaster(DRMaster):
     def _kernel_step(self, n, t, call):
         """Macro-step n by the kernel, `call(measure)` giving (its DRStep, the ledger's redo rounds);
         booked as DRMaster.step books it."""
-        kernel = self.kernel
+        kernel, b_n = self.kernel, self._b
         self.step_started = time.perf_counter()
         measure, timed = self.planner.begin()
         io, redone = call(measure)
@@ -161,7 +169,7 @@ class FastDRMaster(DRMaster):
         self._note_kernel_steps(n, t, k, 1, redone)   # frozen at x^n (saved by the kernel), calls counted
         n_ch = kernel.n
         out = kernel.results[:]                  # b^{n+1}, a, u^0, u^K
-        self._b_step_start, self._b = self._b, out[:n_ch]
+        self._b_step_start = b_n
         self._a_step_start, self._a_before = self._a_before, out[n_ch:2 * n_ch]
         if self._trace is not None:
             self._trace = kernel.recorded(k)
@@ -181,7 +189,7 @@ class FastDRMaster(DRMaster):
         if self.kernel is None:
             return None
         done = self.kernel.redo(supplied, budget, left_s, round_s)
-        self._b, self._a_before = self.kernel.b[:], self.kernel.a_hat[:]
+        self._a_before = self.kernel.a_hat[:]
         self._note_kernel_steps(self.subsystems[0].step_index, self.subsystems[0].t, 0, 0, done[4])
         return (*done, self.kernel.a_hat[:])
 
@@ -195,15 +203,15 @@ class FastDRMaster(DRMaster):
         made, self._redo_seen = self._redo_seen, self.kernel.redo_do_steps()
         return self._redo_seen - made
 
-    def _book(self, n0, done, log):
-        """Book macro-steps n0 .. n0 + done - 1 of the kernel: calls and step on the Subsystems, b^n, b^{n+1}."""
+    def _book(self, n0, done, log, b_n):
+        """Book macro-steps n0 .. n0 + done - 1 of the kernel, b_n the b^n of the first: calls and step on
+        the Subsystems, the b^n of the last step (for an undo) and a^{n-1}."""
         if not done:
             return
         last = n0 + done - 1
         iterations, redone = int(log.iterations.sum()), int(log.ledger["rounds"].sum())
         self._note_kernel_steps(last, self.t0 + last * self.dt, iterations, done, redone)
-        self._b_step_start = log.b[done - 2].tolist() if done > 1 else self._b
-        self._b = self.kernel.b[:]
+        self._b_step_start = log.b[done - 2].tolist() if done > 1 else b_n
         self._a_step_start = log.a_hat[done - 2].tolist() if done > 1 else self._a_before
         self._a_before = self.kernel.a_hat[:]
         if self._trace is not None:
@@ -227,6 +235,8 @@ class FastDRMaster(DRMaster):
                 "threads": planner.threads if planner else 1, "thread_note": planner.note if planner else "serial"}
 
     def close(self):
+        if self.kernel is not None:
+            self._own_b = self.kernel.b[:]            # b^n kept past the kernel's release
         for part in (self._certs, self.kernel, self._newton):
             if part is not None:
                 part.close()
