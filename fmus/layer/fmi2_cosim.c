@@ -327,6 +327,7 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
     strcpy(c->name, tmp.name);
     set_start_values(&c->d);
     c->phase = ST_INSTANTIATED;
+    MODEL_HOOK(&c->d, "fmi2Instantiate");
     return c;
 }
 
@@ -371,6 +372,7 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component comp) {
                     c->d.r[bad]);
     }
     c->phase = ST_STEP;
+    MODEL_HOOK(&c->d, "fmi2ExitInitializationMode");
     return fmi2OK;
 }
 
@@ -519,6 +521,7 @@ fmi2Status fmi2SetFMUstate(fmi2Component comp, fmi2FMUstate state) {
     if (!s || s->magic != STATE_MAGIC) return fail(c, "fmi2SetFMUstate", "not a state of %s (magic 0x%08x)", MODEL_IDENTIFIER_STR, s ? s->magic : 0u);
     c->phase = s->phase;
     c->d = s->d;
+    MODEL_HOOK(&c->d, "fmi2SetFMUstate");
     return fmi2OK;
 }
 

@@ -219,7 +219,7 @@ def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None, star
               help="Master algorithm (default: from CONFIG; else dr where there are power bonds, explicit without).")
 @click.option("--set", "sets", multiple=True, metavar="KEY=VALUE", help="Set a scenario key for this run, "
               "KEY as in sweep --set (master.K=8, subsystems.A.parameters.k=2.5). Repeat for more.")
-@click.option("--out", type=click.Path(path_type=Path), default=Path("out/run"), show_default=True,
+@click.option("--out", type=click.Path(path_type=Path, resolve_path=True), default=Path("out/run"), show_default=True,
               help="Output folder for trajectory.csv, steps.csv, summary.json and metadata.json.")
 @click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and the Condition 1 watch (faster).")
 @click.option("--no-reference", is_flag=True, help="Skip the monolithic reference run (no error figures).")
@@ -228,11 +228,14 @@ def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None, star
 @click.option("--threads", help="Threads evaluating the subsystems: auto, or N (up to min(N, CPUs, subsystems)); "
                                 "the numbers are the same for any N.")
 @step_timeout_option
+@click.option("--setup-timeout", type=click.FloatRange(min=0, min_open=True), default=60.0, show_default=True,
+              metavar="SECONDS", help="End the run when its set-up (loading the FMUs, instantiating and initializing "
+              "them, their probes) makes no progress for SECONDS; compiling the kernel or an FMU does not count.")
 @overwrite_option
 @click.option("--force", is_flag=True, help=f"Run even more than {MAX_STEPS:,} macro-steps.")
 def run_cmd(config, K, eps, gamma, dt, T, quiet, start_time, output_interval, formats, ports, parameter_set, input_csv,
             outputs, algorithm, sets, out, no_certificates, no_reference, plots, plot_patterns, threads, step_timeout,
-            overwrite, force):
+            setup_timeout, overwrite, force):
     """Run one scenario (with the monolithic reference alongside where there are power bonds) and
     write its trajectory, per-step certificates, summary and metadata. CONFIG is a scenario file,
     an SSP system (.ssd, .ssp, folder) or one FMU (.fmu), run as fmpy's simulate runs it.
@@ -258,10 +261,10 @@ def run_cmd(config, K, eps, gamma, dt, T, quiet, start_time, output_interval, fo
             for p in run_plots(result, result.reference, out, scenario, plot_patterns, _plot_note):
                 click.echo(f"wrote {p}")
     with OutputFolder(out, overwrite):
-        return _supervised(work, out / "summary.json", step_timeout or scenario.step_timeout)
+        return _supervised(work, out / "summary.json", step_timeout or scenario.step_timeout, setup_timeout)
 
 
-def _supervised(work, summary, step_timeout):
+def _supervised(work, summary, step_timeout, setup_timeout=None):
     """work() in a supervised child process (run/supervisor.py); its exit code, raised as ChildExit
     when it is not 0 (the child has printed its one line). WAVECOSIM_IN_PROCESS=1 runs it here (for a
     debugger or a profiler; a crash then takes everything with it)."""
@@ -270,7 +273,9 @@ def _supervised(work, summary, step_timeout):
         work()
         return 0
     from .run.supervisor import supervise
-    code = supervise(lambda: _exit_status(work), summary=summary, step_timeout=step_timeout)
+    from .run.supervisor import SETUP_TIMEOUT_S
+    code = supervise(lambda: _exit_status(work), summary=summary, step_timeout=step_timeout,
+                     setup_timeout=setup_timeout or SETUP_TIMEOUT_S)
     if code:
         raise ChildExit(code)
     return 0
@@ -303,7 +308,7 @@ sweep_options = options([
     click.option("--K", "--Ks", "--K-list", "ks", help="Budgets K: a list like 0,3,8 or a range 0..63 "
                  "(default for the paper's experiment: 0,3,8,20,35,50)."),
     *[opt for opt in common if opt is not common[0]],
-    click.option("--out", type=click.Path(path_type=Path), default=Path("out/sweep"),
+    click.option("--out", type=click.Path(path_type=Path, resolve_path=True), default=Path("out/sweep"),
                  show_default=True),
     click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and "
                  "the Condition 1 watch."),
@@ -427,7 +432,7 @@ def _sweep_progress(total, skipped):
               help="Comma-separated masters to compare.")
 @click.option("--Ks", "--K-list", "ks", default=None,
               help="Comma-separated budgets K for the iterative masters (default: a grid per master).")
-@click.option("--out", type=click.Path(path_type=Path), default=Path("out/compare"), show_default=True)
+@click.option("--out", type=click.Path(path_type=Path, resolve_path=True), default=Path("out/compare"), show_default=True)
 @click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and the Condition 1 watch.")
 @click.option("--plots", is_flag=True, help="Also write pareto.png and energy_by_master.png.")
 @click.option("--options", "dr_options", default="", metavar="NAMES",
@@ -498,7 +503,7 @@ def validate_cmd(config, ports, parameter_set, input_csv, dt, T, start_time):
 @cli.command("import-ssp")
 @click.argument("ssp", type=click.Path(exists=False, path_type=Path))
 @ssp_options
-@click.option("-o", "--out", type=click.Path(dir_okay=False, path_type=Path), required=True,
+@click.option("-o", "--out", type=click.Path(dir_okay=False, path_type=Path, resolve_path=True), required=True,
               help="The YAML draft to write.")
 def import_ssp_cmd(ssp, ports, parameter_set, out):
     """Write an SSP system (.ssd, .ssp or a folder) as a scenario file to edit, each part commented

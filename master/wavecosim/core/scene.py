@@ -9,6 +9,7 @@ from ..fmi.builtin import builtin_fmus
 from ..kernel import linalg
 from ..errors import ConfigError, CouplingError, FmuError, SimulationEnded
 from ..fmi.fmu import Fmu
+from ..fmi.fmi3 import BinaryError
 from .frozen_port_map import PortSpec, Subsystem
 from .gamma import choose_relaxation, initial_gammas
 from .kernel_scene import describe, unusable
@@ -319,6 +320,8 @@ def _open_fmu(scenario, sub, path, gamma, wave, pool=None):
         return Fmu(path, sub.name, reals, integers, optional=("gamma", "port_mode"), pool=pool,
                    start_time=scenario.start_time, tolerance=sub.tolerance, initialize=table_inputs(scenario, sub.name),
                    hold=True)
+    except BinaryError as exc:
+        raise FmuError(f"subsystem {exc}", subsystem=sub.name) from None
     except FmuError as exc:
         key = next((f"{k}.{exc.variable}" for k in ("parameters", "start", "integers")
                     if exc.variable in getattr(sub, k)), "fmu")

@@ -29,6 +29,7 @@ from ..errors import FmuError
 from ..kernel.build import helper_library
 from .me import ModelExchange
 from .messages import MessageLog, cut
+from .fmi3 import load_binary
 from .sources import provide_binary
 from .unpack import regular_file, unpack
 from .values import BOOLEAN, REAL, as_python, category, integer_range, is_int32, is_number
@@ -207,8 +208,7 @@ class Fmi2:
         (the binary already loaded, its functions looked up: `borrowed`)."""
         self._callbacks = self._make_callbacks(fmu.messages)
         self.borrowed = slave is not None
-        self.slave = slave or FMU2Slave(guid=fmu.description.guid, unzipDirectory=str(fmu.folder),
-                                        modelIdentifier=model_identifier, instanceName=fmu.name)
+        self.slave = slave or load_binary(FMU2Slave, fmu, model_identifier)
         fmu.checked(self.slave.instantiate, "fmi2Instantiate", callbacks=self._callbacks)
         self.component = self.slave.component
 

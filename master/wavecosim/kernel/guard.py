@@ -79,8 +79,15 @@ def freeze_signal():
     return _library().guard_freeze_signal()
 
 
+def claim_frozen():
+    """Record a freeze the main thread did not take (its signal blocked, ignored or handled by an FMU)
+    and wake the rescue; False when a fault was recorded before."""
+    return _library().guard_claim_frozen() == 1
+
+
 def die_with_parent(signum):
-    """This process gets `signum` when its parent dies (Linux; elsewhere nothing happens)."""
+    """This process gets `signum` when its parent dies (Linux prctl PR_SET_PDEATHSIG; elsewhere nothing
+    happens)."""
     try:
         ctypes.CDLL(None).prctl(_PR_SET_PDEATHSIG, signum)
     except (AttributeError, OSError):

@@ -59,6 +59,7 @@ class BlockSteps:
         done, log, error = self.route.run_steps(n0, count, passes=self.kernel_passes)
         self.in_block = None
         self.master_time += time.perf_counter() - t0
+        self._resize_blocks(done, time.perf_counter() - t0)
         self.block_steps += done
         whole = done - 1 if log.last is not None else done      # the ledger's kernel books every step
         if whole:
@@ -103,8 +104,7 @@ class BlockSteps:
             keep = (ks % self.every == 0) | (ks == self.n_steps)
             self.steps.append_block(rows[keep])
             self.trajectory.append_block(trajectory[keep])
-        self.steps.hand_over()
-        self.trajectory.hand_over()
+        self.hand_over()
 
     def _aim(self, steps_at, trajectory_at):
         """The C passes of a block at its first row of the steps and of the trajectory (addresses; the

@@ -111,9 +111,15 @@ SUMMARY = {
     "energy_drift": ("the energy the interface supplied over the run, Σₙ interface_supply", "J"),
     "certificates_unavailable": ("the figures this run could not compute, and why (an FMU without H)", "text"),
     # errors against the monolithic reference (observers/errors.py)
-    "max_error": ("the largest `error` over the grid", "the error columns' units"),
-    "rms_error": ("the root mean square of `error` over the grid", "the error columns' units"),
-    "final_error": ("`error` at the last grid point", "the error columns' units"),
+    "max_error": ("the largest `error` over the grid; without `error` columns, the largest of `errors`",
+                  "the error columns' units; 1 without them"),
+    "rms_error": ("the root mean square of `error` over the grid; without `error` columns, the largest "
+                  "column's root mean square |Δy| over the grid divided by its scale", "the error columns' units; 1 without them"),
+    "final_error": ("`error` at the last grid point; without `error` columns, the largest column's |Δy| "
+                    "there divided by its scale", "the error columns' units; 1 without them"),
+    "errors": ("per recorded Real output, the largest |Δy| against the monolithic reference over the grid "
+               "divided by the column's range in the reference (max − min); a column constant to 10⁻⁹ of its "
+               "size by its largest |value|, one zero throughout by 1", "1"),
     # the master (masters/)
     "fast_path": ("whether the master ran on the C kernel route", "boolean"),
     "fast_note": ("why it ran on the route it did", "text"),

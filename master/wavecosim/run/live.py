@@ -24,6 +24,7 @@ from .bounds import Bounds
 from .observers import Observer
 from .observers.errors import ErrorTracker
 from .recorder import BLOCK, Labels, Table, Texts, ints
+from ..core.quirks import RestoreWatch
 from ..core.readings import Sampler
 from ..fmi.messages import LogFile
 from .blockrun import BlockSteps
@@ -33,6 +34,7 @@ from .result import grid_clock
 
 CALLS = ("doStep", "save", "restore")       # the FMU calls a run counts (fmu_calls)
 BLOCK_STEPS = BLOCK                    # macro-steps per call of the master, at most a table block
+DURABLE_S = 0.05                       # in a supervised run: the most time of steps a process killed outright loses
 assert REASONS[:len(KERNEL_REASONS)] == KERNEL_REASONS     # the kernel's reason codes are the runner's
 
 
@@ -66,7 +68,10 @@ class LiveRun(BlockSteps, RunFiles):
         self.block_steps = 0                                # macro-steps made in blocks
         self.rows_pass, self.kernel_passes = None, False    # the blocks' C passes (_prepare_blocks)
         self.in_block = None                                # n0 of the kernel call in progress
+        self.block_cap = BLOCK_STEPS                        # macro-steps per kernel call at most (see durable)
+        self.durable = False
         self.write_error = None                             # an OutputError met while finishing
+        self.calls_at_start = self.excluded = None          # set by start(): a run that failed before has none
 
     def add_observer(self, observer: Observer):
         """Before start(): one more observer (e.g. the error tracker), acting last."""
@@ -115,6 +120,7 @@ class LiveRun(BlockSteps, RunFiles):
         self.after = list(zip(self.observers, self.slices))
         self.recent = {0: first.outputs}
         self._plan_blocks()
+        self.restores = RestoreWatch(self.scene, self.master.needs_rollback and self.durable)
         self.calls_at_start = self._counts()
         self.loop_started = time.perf_counter()
 
@@ -152,9 +158,21 @@ class LiveRun(BlockSteps, RunFiles):
         """How many macro-steps advance(n, ...) may make in one call of the master."""
         if not (self.blocks and self.route.can_run_steps(n)):
             return 1
+        end = min(self.n_steps, self.restores.next)              # a block ends where the restore is checked
         if not self.paced:
-            return min(BLOCK_STEPS, self.n_steps - n)
-        return max(1, min([BLOCK_STEPS, self.n_steps - n] + [o.next_before(n) - n for o in self.paced]))
+            return min(self.block_cap, end - n)
+        return max(1, min([self.block_cap, end - n] + [o.next_before(n) - n for o in self.paced]))
+
+    def make_durable(self):
+        """A supervised run (before start): its rows are in the files after every kernel call, and its
+        kernel calls last about DURABLE_S at most (they start short and grow): the rows of a call still
+        in progress are lost when the process is killed outright. Its restores are re-checked."""
+        self.durable, self.block_cap = True, min(BLOCK_STEPS, 32)
+
+    def _resize_blocks(self, done, seconds):
+        if self.durable and done > 0:
+            fit = int(DURABLE_S * done / seconds) if seconds > 0 else BLOCK_STEPS
+            self.block_cap = max(1, min(BLOCK_STEPS, fit, 2 * self.block_cap))
 
     def advance(self, n, count):
         """Macro-steps from n on: up to `count` in one call of the master when count > 1, else step(n);
@@ -186,16 +204,19 @@ class LiveRun(BlockSteps, RunFiles):
     def fmu_calls_by_subsystem(self):
         """{subsystem: its doStep, save and restore calls from the first step on}, observers' probes excluded."""
         now = self._counts()
-        start = getattr(self, "calls_at_start", now)                      # before the first step: none yet
-        excluded = getattr(self, "excluded", [(0,) * len(CALLS)] * len(now))
+        start = now if self.calls_at_start is None else self.calls_at_start     # before the first step: none yet
+        excluded = [(0,) * len(CALLS)] * len(now) if self.excluded is None else self.excluded
         return {s.name: {k: a - b - x for k, a, b, x in zip(CALLS, c, b0, x0)}
                 for s, c, b0, x0 in zip(self.scene.subsystems + self.scene.signal_only, now, start, excluded)}
 
     def hand_over(self):
-        """The rows booked so far to the writer threads now (the loop does every second)."""
-        for table in (getattr(self, "trajectory", None), getattr(self, "steps", None)):
-            if table is not None:
-                table.hand_over()
+        """The rows booked so far to the writer threads now (the loop does every second); a durable run's
+        are in the files when it returns (a process killed outright keeps them)."""
+        tables = [t for t in (getattr(self, "steps", None), getattr(self, "trajectory", None)) if t is not None]
+        for table in tables:
+            table.hand_over()
+        for table in tables if self.durable else ():
+            table.wait()
 
     def step_in_progress(self):
         """The macro-step being made now (inside a kernel call: the one the kernel is at)."""

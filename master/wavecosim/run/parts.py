@@ -11,7 +11,7 @@ from ..core.certificates import sampling
 from .observers.certificates import CertificatePace, CertificateSampler
 from ..masters.ledger import EnergyLedger
 from .observers.energy_ledger import LedgerColumns
-from .observers.errors import ErrorTracker
+from .observers.errors import ErrorTracker, ScaledErrors
 from .observers.fne_watch import FneWatch
 from .observers.freeze_watch import FreezeWatch
 from .observers.gamma import GammaLog, TunedGammaLog
@@ -29,7 +29,7 @@ STEP_DESCRIBED = {
 }
 STEP_COLUMNS = tuple(STEP_DESCRIBED)
 OBSERVERS = (LedgerColumns, GammaLog, TunedGammaLog, FneWatch, CertificateSampler, CertificatePace,
-             Passivity, FreezeWatch, ErrorTracker)    # every observer, in the order they act (their columns too)
+             Passivity, FreezeWatch, ErrorTracker, ScaledErrors)    # every observer, in the order they act (their columns too)
 
 
 def _warn_stderr(message):

@@ -9,8 +9,8 @@ import time
 from ..errors import ConfigError, Interrupted, RunFailed, SimulationEnded, Terminated, WavecosimError
 from . import containment
 from .bounds import named_for_cause
-from .live import BLOCK_STEPS, LiveRun
-from .observers.errors import ErrorTracker, stored_reference, stored_rows
+from .live import BLOCK_STEPS, DURABLE_S, LiveRun
+from .observers.errors import error_observers, stored_reference, stored_rows
 from .parts import OBSERVERS, STEP_COLUMNS, STEP_DESCRIBED, _once, _warn_stderr, open_parts
 from .recorder import Interrupts
 from .result import RunResult, grid_clock, grid_inverse, grid_times
@@ -19,6 +19,7 @@ __all__ = ["BLOCK_STEPS", "LiveRun", "OBSERVERS", "STEP_COLUMNS", "STEP_DESCRIBE
            "grid_clock", "grid_inverse", "grid_times", "run", "check_steps", "reference_scenario", "MAX_STEPS"]
 
 HAND_OVER_S = 1.0                      # rows booked are handed to the writer at least this often
+DURABLE_S = 0.05                       # in a supervised run: the most time of steps a process killed outright loses
 MAX_STEPS = 10 ** 8                    # more macro-steps than this only when asked (--force, max_steps=None)
 
 
@@ -50,8 +51,9 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
             reference = lambda k: ref.recent.get(k)          # noqa: E731  (ref steps first)
         elif reference is not None:
             reference, rows = stored_reference(reference), stored_rows(reference)
-        if reference is not None and scenario.error:
-            live.add_observer(ErrorTracker(live.columns, scenario.error, reference, rows))
+        if reference is not None:
+            for observer in error_observers(live.columns, live.sampler.types, scenario.error, reference, rows):
+                live.add_observer(observer)
     except BaseException:
         live.close()
         raise
@@ -59,6 +61,7 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
     if contain is not None:
         contain.watch(live, ref)
     status, error = _loop(live, ref, progress, contain)
+    _raise_before_first_row(status, error, live, ref)
     message = str(error) if error else ""
     if isinstance(error, Interrupted):
         message = f"{error} after {live.steps_done} steps"
@@ -74,6 +77,17 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
     return result
 
 
+def _raise_before_first_row(status, error, live, ref):
+    """A run that failed before one of its parts had its first row (an FMU's NaN at t = 0 in the
+    reference, which starts first) has nothing to write: its FMUs are released and its error raised."""
+    parts = [p for p in (ref, live) if p is not None]
+    if status in ("finished", "interrupted") or all(p.calls_at_start is not None for p in parts):
+        return
+    for part in parts:
+        part.close()
+    raise error
+
+
 def check_steps(scenario, max_steps=MAX_STEPS):
     """A ConfigError when the scenario has more than max_steps macro-steps (None: no limit)."""
     if max_steps is not None and scenario.n_steps > max_steps:
@@ -83,10 +97,14 @@ def check_steps(scenario, max_steps=MAX_STEPS):
 
 def _loop(live, ref, progress, contain=None):
     """Every macro-step of the run (and of its lockstep reference); returns (status, exception).
-    Rows go to the writer at least every HAND_OVER_S seconds; a supervised run (contain) is told
-    which run makes the next steps."""
+    Rows go to the writer at least every HAND_OVER_S seconds (DURABLE_S in a supervised run); a
+    supervised run (contain) is told which run makes the next steps."""
     every = max(1, live.n_steps // 200)
     active = contain.active if contain is not None else (lambda part: None)
+    hand_over_s = HAND_OVER_S if contain is None else DURABLE_S
+    for part in (live, ref) if contain is not None else ():
+        if part is not None:
+            part.make_durable()
     with Interrupts() as stop:
         try:
             for part in (ref, live):
@@ -103,11 +121,12 @@ def _loop(live, ref, progress, contain=None):
                         raise ref.failure
                 active(live)
                 done = live.advance(n, count)
+                live.restores.after(n + done)
                 stop.check()
                 if progress and ((n + done) // every > n // every or n + done == live.n_steps):
                     progress(n + done, live.n_steps)
                 n += done
-                if time.perf_counter() - handed > HAND_OVER_S:
+                if time.perf_counter() - handed > hand_over_s:
                     for part in (ref, live):
                         if part is not None:
                             part.hand_over()

@@ -597,7 +597,7 @@ def load_raw(path) -> dict:
     if regular_file(path, ConfigError, MAX_FILE_BYTES) is None:
         raise ConfigError(f"{path}: scenario file not found")
     try:
-        raw = yaml.load(path.read_text(), Loader=_SafeLoader)
+        raw = yaml.load(path.read_text(encoding="utf-8"), Loader=_SafeLoader)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}" if mark else "?"

@@ -89,7 +89,7 @@ def write_rows(out_dir, rows, meta):
     write_json(out_dir / "runs.json", {**meta, "runs": rows})
     columns = list(dict.fromkeys(k for row in rows for k in row))
     tmp = out_dir / "runs.csv.part"
-    with open(tmp, "w", newline="") as fh:
+    with open(tmp, "w", newline="", encoding="utf-8") as fh:
         writer = csv.DictWriter(fh, columns)
         writer.writeheader()
         writer.writerows([{k: repr(v) if isinstance(v, float) else v for k, v in row.items()} for row in rows])

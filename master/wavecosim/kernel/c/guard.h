@@ -19,4 +19,8 @@ int guard_freeze_main(void);
 int guard_freeze_signal(void);
 int guard_frames(void);
 
+/* Records a freeze the main thread never took (the FMU blocks, ignores or handles the freeze signal
+ * itself) and wakes the rescue; 1 if this filled the record. */
+int guard_claim_frozen(void);
+
 #endif
