@@ -240,7 +240,7 @@ def test_a_plain_block_after_a_timed_one_logs_the_ledger_defaults_again(scenario
     timed by a deadline that logs inside them (after the columns of an earlier call) writes its
     times there, so the next plain call over those columns writes the defaults again; so does a plain
     call over more columns than the last plain rows written, or with another round time."""
-    sc = scenario("two_oscillators", algorithm="dr", K=3)
+    sc = scenario("two_oscillators", algorithm="dr", K=3, energy_guard="off")        # the kernel keeps no ledger
     with both_routes(sc) as ((_, fast), scenes):
         fast.route().observe(Sampler(scenes[1], sc.outputs).observed, 12)
         kernel = fast.kernel

@@ -21,7 +21,7 @@ from ..kernel.newton import NewtonKernel
 from .base import kernel_refusal
 from .dr import DRMaster
 from .dr_route import DRRoute
-from .ledger import EnergyLedger
+from .ledger import RTOL, EnergyLedger
 from .steplog import StepLog
 from .threads import ThreadPlanner
 from .dr_options import STARTS
@@ -50,6 +50,8 @@ class FastDRMaster(DRMaster):
         self.kernel.configure(self.dt, self.K, self.eps, self.deadline_s)
         self.kernel.set_anchors((settings.energy_guard or self.default_guard) == "ledger")
         self._send_options()
+        if isinstance(self.guard, EnergyLedger):       # the kernel keeps L and its traffic from here on
+            self.kernel.keep_ledger(0.0, 0.0, RTOL, self.deadline_s)
         self.fast, self.fast_note = True, "C kernel"
         self._route = DRRoute(self)
         self.planner = ThreadPlanner(self.kernel, settings.threads, len(self.subsystems))
@@ -137,7 +139,6 @@ class FastDRMaster(DRMaster):
         in one kernel call (dr_run_steps of one step, within master.deadline_us as in blocks)."""
         if self.kernel is None or not isinstance(self.guard, EnergyLedger):
             return super().step(n, t)
-        self._keep_ledger()
         log = self._kernel_step(n, t, lambda measure: self._ledger_step(n, measure))
         row = self._ledger_log.ledger_rows[:, 0]
         log.ledger = (row[0], row[1], row[3], row[4], row[5])      # supplied, ledger; scale, action, rounds
@@ -176,11 +177,6 @@ class FastDRMaster(DRMaster):
         u0, uK = (None, None) if redone else (out[2 * n_ch:3 * n_ch], out[3 * n_ch:])   # a redo's log has none
         return StepLog(iterations=k, residual=io.residual, reason=REASONS[io.reason], a_hat=out[n_ch:2 * n_ch],
                        u0=u0, uK=uK)
-
-    def _keep_ledger(self):
-        """The ledger's state for the kernel's next steps and blocks, which it keeps within
-        master.deadline_us (see drkernel.Kernel.keep_ledger)."""
-        self.kernel.keep_ledger(*self.guard.kernel_state(), self.deadline_s)
 
     def _redo_in_kernel(self, supplied, budget, left_s, round_s):
         """The energy ledger's redo of the step just made, by the kernel (kernel/drkernel.py Kernel.redo); its

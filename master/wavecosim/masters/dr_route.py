@@ -47,8 +47,6 @@ class DRRoute:
         ledger = isinstance(m.guard, EnergyLedger)
         if H_cap is None:
             H_cap = getattr(m.guard, "cap", math.inf)
-        if ledger:
-            m._keep_ledger()
         if not m.planner.started:
             done, log, error = self._first_steps(n0, count, H_cap, passes)
         else:

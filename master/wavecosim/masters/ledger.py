@@ -164,18 +164,15 @@ class EnergyLedger:
         self.round_s, self.redo_round_s = 0.0, 0.0      # running time of one evaluation round: master's, redo's
         self.step_times = []            # under a deadline, per step: (wall, acted, round it may overrun by, CPU) s
 
-    def kernel_state(self):
-        """(L, traffic, RTOL): what the C kernel needs to keep the ledger itself (blocks); it adds the
-        wave adapters' noise (map_noise) at each step itself, as rtol() does here."""
-        return self.L, self.traffic, RTOL
-
     def rtol(self):
         """The allowance per unit of traffic: RTOL, plus the frozen maps' own accuracy (0.0 when exact)."""
         return RTOL + self.master.scene.map_noise()
 
     def book(self, logs, extra):
-        """Book steps a kernel call made: it kept the ledger itself, redoing steps as _redo does, bit
-        for bit (drkernel.c, ledger_step), with `extra` doSteps in its redos."""
+        """Book steps a kernel call made: the kernel keeps L and its traffic itself from the start of a
+        run (FastDRMaster hands it RTOL once; it adds the wave adapters' noise, map_noise, at each step
+        as rtol() does here), redoing steps as _redo does, bit for bit (drkernel.c, ledger_step), with
+        `extra` doSteps in its redos; L and the traffic are read back from its log."""
         led = logs.ledger
         action = led["action"]
         acted = int(np.count_nonzero(action))
