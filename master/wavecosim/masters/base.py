@@ -1,7 +1,9 @@
 """The contract every master meets, so the runner never asks a master for its name.
 
-A master advances every subsystem of a Scene by one macro-step in `step(n, t)` and returns a
-StepLog. Class attributes say what it needs and how it is shown:
+A master advances every subsystem of a Scene by one macro-step in `step(n, t)`, its own
+`make_step` and then its guard's verdict on the commit, and returns a StepLog; the run calls it, its
+`route()` and `close()` in the order docs/architecture.md gives, and nothing else. Class attributes
+say what it needs and how it is shown:
   wave            the FMUs run in wave port mode (else physical port variables)
   needs_rollback  it freezes and restores FMU states (so FMUs must get and set their state)
   budgets         the grid of inner budgets K `compare` tries ((None,): no inner budget)
@@ -15,7 +17,8 @@ StepLog. Class attributes say what it needs and how it is shown:
   guardable       its commit can supply energy, and it can undo the commit and redo it with other
                   inputs (_undo_step, _recommit, _probe, _supply): the energy guards apply
 Wave masters (WaveMaster) own the compiled wave map P, J_L and the committed wave b^n: nothing
-else writes them; observers act through the methods below.
+else writes them. The methods with a leading underscore are the seam between a master and its
+guard (masters/ledger.py, masters/energy_guard.py): nothing outside masters/ calls them.
 """
 import math
 from typing import Optional, Protocol, runtime_checkable
@@ -121,7 +124,7 @@ class Master:
         return None
 
     def _probe(self, inputs):
-        """After undo_step: the outputs of macro-step n from x^n with `inputs` (stacked); state discarded."""
+        """After _undo_step: the outputs of macro-step n from x^n with `inputs` (stacked); state discarded."""
         return self.scene.S(inputs)
 
     def _redo_in_kernel(self, supplied, budget, left_s, round_s):
@@ -211,7 +214,7 @@ class WaveMaster(Master):
         return matvec(self.P, b_star.tolist()), iters, res
 
     def _recommit(self, a_hat):
-        """After undo_step: commit macro-step n again with other incident waves; returns b^{n+1}."""
+        """After _undo_step: commit macro-step n again with other incident waves; returns b^{n+1}."""
         self._commit(a_hat)
         return self._b
 

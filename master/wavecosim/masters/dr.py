@@ -129,7 +129,7 @@ class DRMaster(WaveMaster):
         return self.K - log.iterations
 
     def _iterate_on(self, log, more, deadline):
-        """After undo_step: up to `more` further inner iterations of this macro-step from log's u^K,
+        """After _undo_step: up to `more` further inner iterations of this macro-step from log's u^K,
         without the tolerance exit, then the commit; returns the step's log with the new a_hat and
         the iterations made."""
         more_log = algorithm1(self.scene.S, self.P, self.J_L, self.b, more, None, deadline, log.uK, self.relaxation,

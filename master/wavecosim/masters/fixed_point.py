@@ -91,7 +91,7 @@ class JacobiIterMaster(KernelRoute, RollbackPhysicalMaster):
 
     def took_block(self, log, done):
         """After a block of kernel steps: y^n and y^{n+1} of its last step and its committed inputs
-        (copied: the next call overwrites the log), so undo_step works as after step()."""
+        (copied: the next call overwrites the log), so _undo_step works as after step()."""
         self.y_step_start = log.b_at(done - 2) if done > 1 else self.y
         self.y, self.u = log.b_at(done - 1), log.a_hat_at(done - 1)
 

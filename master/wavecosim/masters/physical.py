@@ -54,7 +54,7 @@ class RollbackPhysicalMaster(PhysicalMaster):
         self.y = self.y_step_start
 
     def _recommit(self, inputs):
-        """After undo_step: commit macro-step n again with these stacked inputs; returns y^{n+1}."""
+        """After _undo_step: commit macro-step n again with these stacked inputs; returns y^{n+1}."""
         self.y_step_start, self.u = self.y, np.asarray(inputs, float)
         self.y = np.asarray(self.scene.advance(list(inputs)))
         return self.y
