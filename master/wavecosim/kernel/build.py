@@ -1,7 +1,9 @@
 """Compiling C into a per-user cache: the kernel's libraries (kernel/c/*.c) here, the models' FMUs
 through wavecosim.fmi.build. Every output sits in a folder named by a hash of its sources and flags,
 so installed copies, clones and versions never overwrite each other's builds, and a finished
-output is only ever moved into place whole (several processes may build at once)."""
+output is only ever moved into place whole (several processes may build at once). An installed
+wheel holds the same folders, built by its build step (setup.py), in the package's _built/: a
+build found there is used before the cache, so no compiler is needed at run time."""
 import ctypes
 import fcntl
 import functools
@@ -17,6 +19,8 @@ from . import abi, contract
 from ..errors import ConfigError, FmuError
 
 SOURCES = Path(__file__).resolve().parent / "c"
+PREBUILT = SOURCES.parent.parent / "_built"
+COMPILER = "gcc"
 
 
 def _sanitizer_flags(value):
@@ -37,6 +41,7 @@ PART_OF_LIBRARY = {"classical.c": "drkernel", "newton.c": "drkernel", "certs.c":
                    "signals.c": "drkernel"}
 _loaded = {}
 _verified = {}                   # {path: (size, mtime)} of cached builds whose checksum was checked here
+_failed = {}         # library name -> why it could not be built or loaded
 
 
 class BuildError(RuntimeError):
@@ -87,7 +92,7 @@ def run(cmd, what):
     try:
         proc = subprocess.run([str(c) for c in cmd], capture_output=True, text=True)
     except FileNotFoundError:
-        raise BuildError(f"{cmd[0]} was not found on PATH; it is needed to build {what}") from None
+        raise BuildError(f"{cmd[0]} was not found on PATH; it is needed to build {what}: install {cmd[0]}") from None
     if proc.returncode != 0:
         raise BuildError(f"building {what} failed: {' '.join(map(str, cmd))}\n{proc.stderr.strip()}")
     return proc.stdout
@@ -148,6 +153,19 @@ def build_lock(path: Path):
         yield
 
 
+def prebuilt(kind, key, name):
+    """The package's own build of `name` whose stamp is `key` (a wheel's _built/, laid out as the
+    cache), else None."""
+    path = PREBUILT / kind / key / name
+    return path if path.exists() else None
+
+
+def is_build(path, kind) -> bool:
+    """Whether `path` is a build of `kind` (<root>/<kind>/<stamp>/<name>) in the package or the cache."""
+    folder = Path(path).parent.parent
+    return folder == PREBUILT / kind or folder == cache_dir() / kind
+
+
 def place(build, path: Path):
     """Call build(tmp) for a file made in a private temporary path, then move it to `path` whole, its
     checksum beside it (written first: a build without its checksum is never taken as whole)."""
@@ -197,8 +215,11 @@ def library_names():
 def build_library(name, force=False, log=print) -> Path:
     """lib<name>.so from library_sources(name), built into the cache unless it is there."""
     sources = library_sources(name)
-    path = target("lib", stamp(sources), f"lib{name}.so")
-    return cached(path, lambda: place(lambda tmp: run(["gcc", *CFLAGS, "-shared", "-I", fmi_headers(),
+    key = stamp(sources)
+    if not force and (shipped := prebuilt("lib", key, f"lib{name}.so")):
+        return shipped
+    path = target("lib", key, f"lib{name}.so")
+    return cached(path, lambda: place(lambda tmp: run([COMPILER, *CFLAGS, "-shared", "-I", fmi_headers(),
                                                        *[s for s in sources if s.suffix == ".c"], "-o", tmp, "-lm",
                                                        "-ldl"], f"the kernel library {name}"), path), force, log)
 
@@ -210,8 +231,8 @@ def helper_library(name):
     if name not in _loaded:
         try:
             lib = ctypes.CDLL(str(build_library(name, log=lambda msg: None)))
-        except (BuildError, OSError):
-            lib = None
+        except (BuildError, OSError) as exc:
+            lib, _failed[name] = None, str(exc).splitlines()[0]
         _loaded[name] = lib and abi.loaded(name, contract.bind(name, lib, library_headers(name)))
     return _loaded[name]
 
@@ -220,6 +241,6 @@ def kernel_library(name, what):
     """helper_library(name), or an FmuError naming `what` when it cannot be built or loaded."""
     lib = helper_library(name)
     if lib is None:
-        raise FmuError(f"{what}: the kernel library lib{name}.so could not be built from {SOURCES} "
-                       f"(is gcc installed?)")
+        raise FmuError(f"{what}: the kernel library lib{name}.so is not in the package and could not be built: "
+                       f"{_failed[name]}")
     return lib

@@ -58,6 +58,12 @@ def _library():
     return lib
 
 
+def require():
+    """Load the guard library now: a supervised run calls this before it forks, so a library that is
+    neither in the package nor buildable is the parent's one-line FmuError."""
+    _library()
+
+
 def arm(fault, notify_fd):
     """Hold the process's faults from now on (call from the main thread): `fault` is a GuardFault the
     handlers fill, `notify_fd` the write end of the rescue pipe. Raises OSError if it cannot."""

@@ -31,7 +31,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from ..kernel.guard import die_with_parent, freeze_signal
+from ..kernel.guard import die_with_parent, freeze_signal, require
 from ..errors import FmuCrashed, Interrupted, StepTimeout, Terminated
 from .channel import Channel, DONE, RESCUING, SETUP, STOP, TERM, TIMEOUT
 from .containment import Containment, announcement, flush_streams
@@ -85,6 +85,7 @@ class Child:
                  setup_timeout=SETUP_TIMEOUT_S):
         """relay: the child's Python output comes back through this process's streams (else it
         writes to the inherited descriptors); announce: the error line of a fault is printed."""
+        require()
         self.summary_path = Path(summary) if summary is not None else None
         self.step_timeout, self.setup_timeout = step_timeout, setup_timeout
         self.announce, self.error, self.cause = announce, None, None
