@@ -149,3 +149,38 @@ def test_the_kernels_bindings_read_no_scene_subsystem_or_fmu():
             if isinstance(node, ast.Name) and node.id in ("Scene", "Subsystem", "Fmu"):
                 found.append(f"{path.name}:{node.lineno} {node.id}")
     assert found == [], found
+
+
+def public_names(cls):
+    """The names a class offers its callers: its attributes and methods, inherited ones included."""
+    return [n for n in dir(cls) if not n.startswith("_")]
+
+
+def test_few_doors():
+    """The DR master and a live run each offer at most 20 names; the runner module stays short (its
+    concerns are modules of run/: live.py, blockrun.py, closing.py, parts.py, result.py)."""
+    from wavecosim.masters.dr_fast import FastDRMaster
+    from wavecosim.run.live import LiveRun
+    for cls in (FastDRMaster, LiveRun):
+        assert len(public_names(cls)) <= 20, (cls.__name__, public_names(cls))
+    lines = (PACKAGE / "run" / "runner.py").read_text(encoding="utf-8").count("\n")
+    assert lines <= 400, f"run/runner.py has {lines} lines"
+
+
+QUERIES = {"fixed_point", "kernel_certificates"}     # what an observer may ask a master: the step is left as it was
+
+
+def test_observers_only_observe():
+    """A master owns every change to a step (its guard included): an observer has no way to redo a
+    step, and no module under run/observers calls a master but for the QUERIES."""
+    from wavecosim.run.observers import Observer
+    assert not hasattr(Observer, "redoes")
+    calls = []
+    for path in (PACKAGE / "run" / "observers").glob("*.py"):
+        for node in ast.walk(tree(path)):
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute):
+                owner = node.func.value
+                name = owner.attr if isinstance(owner, ast.Attribute) else getattr(owner, "id", "")
+                if name == "master" and node.func.attr not in QUERIES:
+                    calls.append(f"{path.name}:{node.lineno} master.{node.func.attr}")
+    assert calls == []

@@ -27,8 +27,9 @@ def test_auto_threads_stays_serial_for_light_fmus(table_i):
     try:
         for n in range(3):
             master.step(n, n * table_i.dt)
-        assert master.threads == 1 and master.thread_note.startswith("serial"), master.thread_note
-        assert all(c > 0 for c in master.costs_us)
+        planner = master.planner
+        assert planner.threads == 1 and planner.note.startswith("serial"), planner.note
+        assert all(c > 0 for c in planner.costs)
     finally:
         master.close()
         scene.close()

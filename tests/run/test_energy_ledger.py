@@ -16,10 +16,10 @@ import yaml
 from paths import ROOT
 from wavecosim.scenario.config import parse_scenario
 from wavecosim.errors import ConfigError
-from wavecosim.run.observers import energy_ledger
-from wavecosim.run.observers.energy_ledger import ANCHORED, BLENDED, ITERATED, KEPT, PROJECTED, ZERO
+from wavecosim.masters import ledger as energy_ledger
+from wavecosim.masters.ledger import ANCHORED, BLENDED, ITERATED, KEPT, PROJECTED, ZERO
 from wavecosim.kernel import drkernel as fast_path
-from wavecosim.run import runner
+from wavecosim.run import live, runner
 from wavecosim.run.runner import run
 
 ROUNDOFF = 1e-12
@@ -199,7 +199,7 @@ def test_the_kernels_redo_is_the_reference_in_every_action(monkeypatch, blocks, 
     """Redone steps (continued iterations, projections, blends towards a query) made by the kernel
     in blocks or step by step (one dr_run_steps call per step), byte for byte the Python reference's."""
     if not blocks:
-        monkeypatch.setattr(runner, "BLOCK_STEPS", 1)
+        monkeypatch.setattr(live, "BLOCK_STEPS", 1)
     path, K, master, parameters, actions = REDO_SCENES[scene]
     base = scenario(path, "ledger", K, T=5.0 if path == STAR else None, parameters=parameters, master=master)
     ref, fast = (run(base.with_master(fast=f), certificates=False) for f in ("false", "true"))
@@ -222,7 +222,7 @@ def test_step_by_step_with_certificates_under_a_deadline_is_block_mode_bit_for_b
     base = scenario(CHAIN, "ledger", 6).with_master(deadline_us=1e7)
     blocks = run(base, certificates=False)
     with monkeypatch.context() as m:
-        m.setattr(runner, "BLOCK_STEPS", 1)
+        m.setattr(live, "BLOCK_STEPS", 1)
         steps = run(base, certificates=True)
     assert blocks.summary["block_steps"] == blocks.summary["steps"] and steps.summary["block_steps"] == 0
     assert calls == {"macro_step": 0, "redo": 0}
@@ -278,9 +278,9 @@ def redo_once(fast, K, fraction, eps=None, steps=20, path=TABLE_I):
     master = FastDRMaster(scene, dataclasses.replace(sc.master, fast=fast, eps=eps))
     try:
         for n in range(steps):
-            log = master.step(n, n * sc.dt)
-        inputs, outputs = master.committed_inputs(log), master.committed_outputs
-        supplied = master.supply(inputs, outputs)[0]
+            log = master.make_step(n, n * sc.dt)             # the master's own steps, its ledger left out
+        inputs, outputs = master._committed_inputs(log), master._committed_outputs
+        supplied = master._supply(inputs, outputs)[0]
         done = energy_ledger.EnergyLedger(master)._redo(log, inputs, outputs, supplied, supplied - fraction * abs(supplied))
         return done, list(master.b), [dict(s.calls) for s in master.subsystems], master.kernel is not None
     finally:

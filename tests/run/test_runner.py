@@ -14,6 +14,7 @@ from scipy.io import loadmat
 from test_runner_failures import newton_failure
 
 from paths import ROOT
+import wavecosim.run.live as live
 import wavecosim.run.runner as runner
 from wavecosim.sweeps.budget import reference_run
 from wavecosim.cli import main
@@ -104,7 +105,7 @@ def step_by_step(monkeypatch, scenario, out, block=runner.BLOCK_STEPS, **options
     results = []
     for size, kind in ((1, "steps"), (block, "blocks")):
         with monkeypatch.context() as m:
-            m.setattr(runner, "BLOCK_STEPS", size)
+            m.setattr(live, "BLOCK_STEPS", size)
             results.append(run(scenario, out / kind, certificates=False, file_suffix=False, **options))
     return results
 
@@ -161,7 +162,7 @@ def test_blocks_keep_every_row_before_an_fmu_failure(tmp_path, monkeypatch):
     path.write_text(yaml.safe_dump(newton_failure(), sort_keys=False))
     for kind, size in (("steps", 1), ("blocks", runner.BLOCK_STEPS)):
         with monkeypatch.context() as m, pytest.raises(SystemExit) as info:
-            m.setattr(runner, "BLOCK_STEPS", size)
+            m.setattr(live, "BLOCK_STEPS", size)
             main(["run", str(path), "--out", str(tmp_path / kind), "--quiet", "--no-reference", "--no-certificates"])
         assert info.value.code == 3
     for name in ("trajectory.csv", "steps.csv"):
@@ -198,15 +199,15 @@ def test_block_sums_are_the_step_sums():
 def test_blocks_cut_to_the_time_budget(tmp_path, monkeypatch):
     """A call of run_steps makes about BLOCK_SECONDS of work at most (Ctrl-C and progress stay
     prompt); short blocks give the same files."""
-    from wavecosim.masters import dr_fast
-    made, run_steps = [], dr_fast.FastDRMaster.run_steps
+    from wavecosim.masters import dr_route
+    made, run_steps = [], dr_route.DRRoute.run_steps
 
-    def counted(master, n0, count, H_cap, passes=False):
-        result = run_steps(master, n0, count, H_cap, passes)
+    def counted(route, n0, count, H_cap=None, passes=False):
+        result = run_steps(route, n0, count, H_cap, passes)
         made.append(result[0])
         return result
-    monkeypatch.setattr(dr_fast.FastDRMaster, "run_steps", counted)
-    monkeypatch.setattr(dr_fast, "BLOCK_SECONDS", 2e-4)
+    monkeypatch.setattr(dr_route.DRRoute, "run_steps", counted)
+    monkeypatch.setattr(dr_route, "BLOCK_SECONDS", 2e-4)
     one, blocks = step_by_step(monkeypatch, load_scenario().with_master(K=50).with_changes(T=3.0), tmp_path)
     same_files_and_figures(one, blocks, tmp_path)
     assert len(made) > 3 and max(made) < 300 and sum(made) == blocks.summary["block_steps"] >= 299
@@ -235,7 +236,7 @@ def test_blocks_with_certificates(tmp_path, monkeypatch, K, every, guard, blocke
     results = []
     for size, kind in ((1, "steps"), (block, "blocks")):
         with monkeypatch.context() as m:
-            m.setattr(runner, "BLOCK_STEPS", size)
+            m.setattr(live, "BLOCK_STEPS", size)
             results.append(run(sc, tmp_path / kind, file_suffix=False))
     one, blocks = results
     for name in ("trajectory.csv", "steps.csv"):

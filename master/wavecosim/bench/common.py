@@ -20,10 +20,10 @@ def master_seconds(master, n_steps, dt, blocks=False):
 
 def make_steps(master, n0, n_steps, dt, blocks=False):
     """Macro-steps n0 .. n_steps - 1 of a master: step by step, or in blocks once it can."""
-    n = n0
+    n, route = n0, master.route()
     while n < n_steps:
-        if blocks and master.can_run_steps(n):
-            done, _, error = master.run_steps(n, min(BLOCK_STEPS, n_steps - n))
+        if blocks and route is not None and route.can_run_steps(n):
+            done, _, error = route.run_steps(n, min(BLOCK_STEPS, n_steps - n))
             if error is not None:
                 raise error
             n += done

@@ -215,8 +215,8 @@ def parallel(scenario, n_steps, repeats, progress=print):
     try:
         for n in range(3):                   # step 0 times the subsystems, step 1 tries two threads
             master.step(n, n * scenario.dt)
-        auto = master.thread_note
-        costs = master.costs_us
+        auto = master.planner.note
+        costs = master.planner.costs
     finally:
         master.close()
         scene.close()

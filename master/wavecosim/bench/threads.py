@@ -32,7 +32,7 @@ def _one(scenario, threads, n_steps):
     master = FastDRMaster(scene, settings)
     try:
         seconds = master_seconds(master, n_steps, scenario.dt, blocks=True)
-        return seconds, master.threads, master.costs_us
+        return seconds, master.planner.threads, master.planner.costs
     finally:
         master.close()
         scene.close()

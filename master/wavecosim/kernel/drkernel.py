@@ -105,15 +105,18 @@ class BlockLog:
     ledger's (LEDGER_LOG x steps). `stopped`: the kernel stopped early after the last step (its H may
     exceed the cap, or a value is not finite). `address`, `ld`: where the log lives for the C passes
     (its first value, doubles between rows); the views are made when first read. `passed`: its first
-    steps the kernel's passes went over (blocks.Pass), the rest are the caller's."""
+    steps the kernel's passes went over (blocks.Pass), the rest are the caller's. `last`: the StepLog
+    of a stopped call's last step after the master's guard judged it (None: the step is booked in
+    the log, as the energy ledger's are)."""
 
-    __slots__ = ("columns", "n", "stopped", "address", "ld", "passed")
+    __slots__ = ("columns", "n", "stopped", "address", "ld", "passed", "last")
 
     def __init__(self, columns, n, stopped=False, address=None, ld=None, passed=0):
         self.columns, self.n, self.stopped = columns, n, stopped     # one row per logged value
         self.address = columns.ctypes.data if address is None else address
         self.ld = columns.strides[0] // 8 if ld is None else ld
         self.passed = passed         # its first steps the kernel's passes went over (run_steps' passes)
+        self.last = None
 
     a_rows = property(lambda self: range(3, 3 + self.n))                 # the rows of a_hat
     observed_at = property(lambda self: 3 + 2 * self.n)                  # the first observed value's row

@@ -1,7 +1,9 @@
 """The contract every master meets, so the runner never asks a master for its name.
 
-A master advances every subsystem of a Scene by one macro-step in `step(n, t)` and returns a
-StepLog. Class attributes say what it needs and how it is shown:
+A master advances every subsystem of a Scene by one macro-step in `step(n, t)`, its own
+`make_step` and then its guard's verdict on the commit, and returns a StepLog; the run calls it, its
+`route()` and `close()` in the order docs/architecture.md gives, and nothing else. Class attributes
+say what it needs and how it is shown:
   wave            the FMUs run in wave port mode (else physical port variables)
   needs_rollback  it freezes and restores FMU states (so FMUs must get and set their state)
   budgets         the grid of inner budgets K `compare` tries ((None,): no inner budget)
@@ -13,18 +15,21 @@ StepLog. Class attributes say what it needs and how it is shown:
   evaluations     FMU evaluations per subsystem of one macro-step when fixed (DR: K + 1), else None;
                   it paces the sampled certificates (certificates.sampling)
   guardable       its commit can supply energy, and it can undo the commit and redo it with other
-                  inputs (undo_step, recommit, probe, supply): the energy guards apply
+                  inputs (_undo_step, _recommit, _probe, _supply): the energy guards apply
 Wave masters (WaveMaster) own the compiled wave map P, J_L and the committed wave b^n: nothing
-else writes them; observers act through the methods below.
+else writes them. The methods with a leading underscore are the seam between a master and its
+guard (masters/ledger.py, masters/energy_guard.py): nothing outside masters/ calls them.
 """
 import math
-from dataclasses import dataclass
 from typing import Optional, Protocol, runtime_checkable
 
 from ..errors import ConfigError
 from ..kernel.drkernel import REASONS as KERNEL_REASONS
 from ..kernel.linalg import dot, matvec
+from .energy_guard import EnergyGuard
+from .ledger import EnergyLedger
 from .monolithic import solve_interface
+from .steplog import StepLog
 
 
 MIN_INNER_S = 1e-9        # an inner deadline this short stops the loop after its first iteration
@@ -42,26 +47,11 @@ def kernel_refusal(scene, mode):
     return why
 
 
-@dataclass
-class StepLog:
-    """What one macro-step did: inner iterations, last inner residual and why the iteration stopped.
-
-    Wave masters also give the incident waves used (a_hat), and DR the iterates u^0 and u^K."""
-    iterations: int = 0
-    residual: float = float("nan")
-    reason: str = "none"
-    a_hat: list = None
-    u0: list = None
-    uK: list = None
-
-
 @runtime_checkable
 class Route(Protocol):
     """The kernel route of a master: what the runner may ask of a master whose macro-steps run in C,
     in blocks of many macro-steps per kernel call, bit for bit its Python reference made step by
     step. `Master.route()` gives it, or None when the master runs step by step only."""
-
-    keeps_ledger: bool        # the energy ledger can be kept inside its blocks (keep_ledger)
 
     def can_run_steps(self, n) -> bool:
         """Whether run_steps may make macro-step n now."""
@@ -75,20 +65,16 @@ class Route(Protocol):
     def set_passes(self, passes):
         """The passes over the log (kernel/blocks.py, Pass) run_steps makes as it logs the steps."""
 
-    def run_steps(self, n0, count, H_cap=math.inf, passes=False):
-        """Macro-steps n0 .. n0 + count - 1 in one call, stopping early after a step whose H may exceed
-        H_cap, whose observed values are not finite, or whose bounded ones are above the bound:
-        (steps done, their BlockLog, an FmuError or None). passes: the kernel makes the passes
-        (set_passes) over the steps as it goes, the BlockLog's `passed` first ones."""
+    def run_steps(self, n0, count, H_cap=None, passes=False):
+        """Macro-steps n0 .. n0 + count - 1 in one call, each guarded as step() guards it, stopping
+        early after a step whose H may exceed H_cap (None: what the master's guard sets), whose
+        observed values are not finite, or whose bounded ones are above the bound: (steps done, their
+        BlockLog, an FmuError or None); a stopped call's last step judged by the guard is the log's
+        `last` (None: booked in the log). passes: the kernel makes the passes (set_passes) over the
+        steps as it goes, the BlockLog's `passed` first ones."""
 
     def step_log(self, log, j) -> StepLog:
         """The StepLog of row j of a BlockLog."""
-
-    def guards_steps(self) -> bool:
-        """Whether step() can keep the energy ledger in the kernel too (keep_ledger) right now."""
-
-    def keep_ledger(self, ledger, traffic, rtol):
-        """The energy ledger's state for the kernel's next steps and blocks."""
 
     def step_in_progress(self) -> int:
         """The macro-step the kernel is making now (asked from another thread during run_steps)."""
@@ -105,7 +91,7 @@ class Master:
     budgets = (None,)
     style = ("gray", "o")
     iterates = False          # gives the DR iterates u^0, u^K (Theorem 1, Condition 1 watch, energy guard)
-    guardable = False         # an energy guard applies (undo_step, recommit, probe, supply)
+    guardable = False         # an energy guard applies (_undo_step, _recommit, _probe, _supply)
     default_guard = "off"     # master.energy_guard when the scenario does not say
     evaluations = None        # FMU evaluations per subsystem of a macro-step, when fixed
 
@@ -116,37 +102,45 @@ class Master:
         self.deadline_s = settings.deadline_us * 1e-6 if settings.deadline_us else None
         self.inner_deadline_s = self.deadline_s          # the inner loop's share of the deadline
         self.step_started = 0.0                          # perf_counter() when the last step began
+        self.guard = chosen_guard(self, settings)        # what judges each commit (energy_guard), or None
 
-    def reserve_time(self, seconds):
+    def _reserve_time(self, seconds):
         """Stop the inner loop `seconds` before master.deadline_us, leaving them for a redo."""
         if self.deadline_s is not None:
             self.inner_deadline_s = max(self.deadline_s - seconds, MIN_INNER_S)
 
     def step(self, n, t) -> StepLog:
+        """Macro-step n: the master's own step (make_step), then its guard's verdict on the commit
+        (it may undo the commit and make it again)."""
+        log = self.make_step(n, t)
+        return log if self.guard is None else self.guard.after_commit(n, t, log)
+
+    def make_step(self, n, t) -> StepLog:
+        """Macro-step n as the master's algorithm makes it, with its one commit."""
         raise NotImplementedError
 
     def route(self) -> Optional[Route]:
         """The kernel route of this master when it runs (blocks of macro-steps in C), else None."""
         return None
 
-    def probe(self, inputs):
-        """After undo_step: the outputs of macro-step n from x^n with `inputs` (stacked); state discarded."""
+    def _probe(self, inputs):
+        """After _undo_step: the outputs of macro-step n from x^n with `inputs` (stacked); state discarded."""
         return self.scene.S(inputs)
 
-    def redo_in_kernel(self, supplied, budget, left_s, round_s):
+    def _redo_in_kernel(self, supplied, budget, left_s, round_s):
         """The energy ledger's redo of the step just made, done in C with left_s seconds to its
         deadline and round_s per evaluation round: (s, supply, traffic, action, rounds); None where
         there is no kernel (the ledger then redoes it through the methods above)."""
         return None
 
-    def anchors(self):
+    def _anchor_queries(self):
         """Inputs of the step just made whose outputs from x^n are known, as (inputs, outputs, supply),
         that the energy ledger may commit instead (DR: its queries); none by default."""
         return []
 
-    def remaining_iterations(self, log):
+    def _remaining_iterations(self, log):
         """Inner iterations the step's budget has left after it stopped, that the energy ledger may
-        spend (iterate_on) before it changes the inputs; none by default."""
+        spend (_iterate_on) before it changes the inputs; none by default."""
         return 0
 
     def kernel_certificates(self, floor):
@@ -192,7 +186,7 @@ class WaveMaster(Master):
     def _set_b(self, b):
         self._b = b
 
-    def commit(self, a_hat):
+    def _commit(self, a_hat):
         """Lines 20-22, eq. (21): advance every subsystem from x^n with a_hat; b^{n+1} becomes b^n."""
         self._b_step_start = self._b
         self._set_b(self.scene.advance(a_hat))
@@ -203,7 +197,7 @@ class WaveMaster(Master):
         self._compile()
         self._set_b(list(b))
 
-    def undo_step(self):
+    def _undo_step(self):
         """Put every subsystem back at x^n and b^n back, after the commit of macro-step n."""
         self.scene.restore_frozen()
         self._set_b(self._b_step_start)
@@ -213,33 +207,47 @@ class WaveMaster(Master):
         the FMUs are left at x^n."""
         return solve_interface(self.scene, self.P, self._b, where=f" at step {n} (t = {t:.6g})")[0].tolist()
 
-    def interface_solution(self, n, t, tag=""):
+    def _interface_solution(self, n, t, tag=""):
         """The monolithic incident waves at the frozen x^n: a = P b*, b* = S^n(P b*) (eqs. 14-15),
         solved from b^n; returns (a, iterations, residual)."""
         b_star, iters, res, _ = solve_interface(self.scene, self.P, self._b, where=f"{tag} at step {n} (t = {t:.6g})")
         return matvec(self.P, b_star.tolist()), iters, res
 
-    def recommit(self, a_hat):
-        """After undo_step: commit macro-step n again with other incident waves; returns b^{n+1}."""
-        self.commit(a_hat)
+    def _recommit(self, a_hat):
+        """After _undo_step: commit macro-step n again with other incident waves; returns b^{n+1}."""
+        self._commit(a_hat)
         return self._b
 
     @property
-    def committed_outputs(self):
+    def _committed_outputs(self):
         """The outputs of the last commit: b^{n+1}."""
         return self._b
 
     @staticmethod
-    def committed_inputs(log):
+    def _committed_inputs(log):
         """The stacked inputs the step committed with: the incident waves a_hat."""
         return log.a_hat
 
     @staticmethod
-    def supply(inputs, outputs):
+    def _supply(inputs, outputs):
         """Energy the interface supplies over a step, 1/2 (|a|^2 - |b|^2) (eq. 5), and its traffic
         1/2 (|a|^2 + |b|^2), the scale of its roundoff."""
         aa, bb = dot(inputs, inputs), dot(outputs, outputs)
         return 0.5 * (aa - bb), 0.5 * (aa + bb)
+
+
+def chosen_guard(master, settings):
+    """The guard of master.energy_guard (else the master's default) where it applies: the ledger on a
+    master that can undo its commit, the monolithic guard on one that iterates where every subsystem
+    has a stored energy H; None without a port (nothing exchanges energy)."""
+    mode, scene = settings.energy_guard or master.default_guard, master.scene
+    if not master.guardable or not scene.n_channels:
+        return None
+    if mode == "ledger":
+        return EnergyLedger(master)
+    if mode == "monolithic" and master.iterates and all(s.port.energy is not None for s in scene.subsystems):
+        return EnergyGuard(master)
+    return None
 
 
 def require_wave_tuning(master, mode, source):

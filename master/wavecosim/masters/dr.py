@@ -15,7 +15,7 @@ class Anchors:
         self.last = self.safe = None
 
     def add(self, u, b):
-        self.last = (u, b, WaveMaster.supply(u, b)[0])
+        self.last = (u, b, WaveMaster._supply(u, b)[0])
         if self.last[2] <= 0.0:
             self.safe = self.last
 
@@ -96,12 +96,12 @@ class DRMaster(WaveMaster):
         self._b_before = self._a_before = None                         # b^{n-1}, a^{n-1} were at the old gammas
         self.anderson = self._anderson()                               # so were the Anderson differences
 
-    def commit(self, a_hat):
-        super().commit(a_hat)
+    def _commit(self, a_hat):
+        super()._commit(a_hat)
         self._a_step_start, self._a_before = self._a_before, a_hat
 
-    def undo_step(self):
-        super().undo_step()
+    def _undo_step(self):
+        super()._undo_step()
         self._a_before = self._a_step_start
 
     def run_info(self):
@@ -113,28 +113,28 @@ class DRMaster(WaveMaster):
             info["relaxation_rates"] = {k: v for k, v in self.relaxation_choice.items() if k != "relaxation"}
         return info
 
-    def start_iterate(self):
+    def _start_iterate(self):
         """u^{n,0} of master.start (dr_options.start_point); remembers b^n."""
         if self.start == "paper":
             return None
         u, self._b_before = start_point(self.start, self.P, self.b, self._b_before, self._a_before), self.b
         return u
 
-    def anchors(self):
+    def _anchor_queries(self):
         """The queries of the step just made that the energy ledger may commit (Anchors.candidates)."""
         return self._anchors.candidates()
 
-    def remaining_iterations(self, log):
+    def _remaining_iterations(self, log):
         """Inner iterations the step's budget K has left after it stopped (tolerance, deadline)."""
         return self.K - log.iterations
 
-    def iterate_on(self, log, more, deadline):
-        """After undo_step: up to `more` further inner iterations of this macro-step from log's u^K,
+    def _iterate_on(self, log, more, deadline):
+        """After _undo_step: up to `more` further inner iterations of this macro-step from log's u^K,
         without the tolerance exit, then the commit; returns the step's log with the new a_hat and
         the iterations made."""
         more_log = algorithm1(self.scene.S, self.P, self.J_L, self.b, more, None, deadline, log.uK, self.relaxation,
                               self.anderson, self._anchors)
-        self.commit(more_log.a_hat)
+        self._commit(more_log.a_hat)
         return StepLog(iterations=log.iterations, residual=log.residual, reason=log.reason, a_hat=more_log.a_hat,
                        u0=log.u0, uK=more_log.uK), more_log.iterations
 
@@ -153,7 +153,7 @@ class DRMaster(WaveMaster):
             self._trace.append((u, b))
         return b
 
-    def step(self, n, t) -> StepLog:
+    def make_step(self, n, t) -> StepLog:
         self.step_started = time.perf_counter()
         self.scene.freeze(n, t)                                        # line 3: S^n from x^n
         if self._trace is not None:
@@ -162,7 +162,7 @@ class DRMaster(WaveMaster):
         if self.anderson is not None:
             self.anderson.reset()
         self._anchors = Anchors()
-        log = algorithm1(self._S, self.P, self.J_L, self.b, self.K, self.eps, deadline, self.start_iterate(),
+        log = algorithm1(self._S, self.P, self.J_L, self.b, self.K, self.eps, deadline, self._start_iterate(),
                          self.relaxation, self.anderson, self._anchors)
-        self.commit(log.a_hat)                                         # lines 20-22, eq. (21)
+        self._commit(log.a_hat)                                         # lines 20-22, eq. (21)
         return log

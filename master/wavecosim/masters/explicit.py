@@ -16,7 +16,7 @@ class ExplicitMaster(KernelRoute, PhysicalMaster):
         super().__init__(scene, settings)
         self.attach_kernel(scene, settings)
 
-    def step(self, n, t) -> StepLog:
+    def make_step(self, n, t) -> StepLog:
         if self.kernel is not None:
             _, self.y = self.planned(lambda measure: self.kernel.explicit_step(n, t, self.y, int(self.sequential),
                                                                               measure))

@@ -25,12 +25,12 @@ class JacobiIterMaster(KernelRoute, RollbackPhysicalMaster):
         self.K, self.eps = settings.K, settings.eps
         self.attach_kernel(scene, settings, type(self).update is JacobiIterMaster.update)   # blocks: Picard only
 
-    def step(self, n, t) -> StepLog:
+    def make_step(self, n, t) -> StepLog:
         if self.kernel is not None and self.blocks:
             return self._kernel_step(n, t)
         if self.kernel is not None:
             return self.planned(lambda measure: self._passes(n, t, measure))[0]
-        return self._iterate(n, t, lambda y: self.sweep(y, lambda sub, inputs: sub.query(inputs)), self.commit)
+        return self._iterate(n, t, lambda y: self.sweep(y, lambda sub, inputs: sub.query(inputs)), self._commit)
 
     def _passes(self, n, t, measure):
         """The macro-step with its passes in C (classical.h, cl_pass) and the update here: (its StepLog,)."""
@@ -91,7 +91,7 @@ class JacobiIterMaster(KernelRoute, RollbackPhysicalMaster):
 
     def took_block(self, log, done):
         """After a block of kernel steps: y^n and y^{n+1} of its last step and its committed inputs
-        (copied: the next call overwrites the log), so undo_step works as after step()."""
+        (copied: the next call overwrites the log), so _undo_step works as after step()."""
         self.y_step_start = log.b_at(done - 2) if done > 1 else self.y
         self.y, self.u = log.b_at(done - 1), log.a_hat_at(done - 1)
 

@@ -1,14 +1,14 @@
 """The kernel route of the classical masters, as a mixin: the ClassicalKernel (wavecosim/kernel/classical.py)
 when `master.fast` allows it, and blocks of macro-steps in one kernel call when the runner asks, through
-the same seams as FastDRMaster (fast, can_run_steps, observe, run_steps, step_log). The runner makes
-blocks only without an energy guard (their default): the ledger is kept step by step for them."""
+the same seams as FastDRMaster (fast, can_run_steps, observe, run_steps, step_log). There is a route
+only without an energy guard (their default): the ledger is kept step by step for them."""
 import math
 import time
 
 from ..kernel.classical import ClassicalKernel
 from ..kernel.drkernel import REASONS
 from .base import KernelOwner, StepLog, kernel_refusal
-from .dr_fast import BLOCK_SECONDS
+from .dr_route import BLOCK_SECONDS
 from .threads import ThreadPlanner
 
 
@@ -47,8 +47,6 @@ class KernelRoute(KernelOwner):
             self.planner.end(measure, (time.perf_counter() - started) / (out[0].iterations + 1))
         return out
 
-    keeps_ledger = False          # the ledger is kept step by step for these masters
-
     def block_iterations(self, log):
         """The inner iterations of a block of kernel steps, all steps together."""
         return int(log.iterations.sum())
@@ -60,13 +58,7 @@ class KernelRoute(KernelOwner):
 
     def route(self):
         """This master as its kernel route (base.Route) while the kernel makes its macro-steps."""
-        return self if self.kernel is not None and self.blocks else None
-
-    def guards_steps(self):
-        return False
-
-    def keep_ledger(self, ledger, traffic, rtol):
-        raise NotImplementedError("the classical masters keep the energy ledger step by step")
+        return self if self.kernel is not None and self.blocks and self.guard is None else None
 
     def can_run_steps(self, n):
         """The kernel runs and no thread plan is on trial (it is timed on one macro-step, alone)."""
@@ -84,7 +76,8 @@ class KernelRoute(KernelOwner):
 
     def run_steps(self, n0, count, H_cap=math.inf, passes=False):
         """Macro-steps n0 .. n0 + count - 1 in one kernel call of at most about BLOCK_SECONDS of work,
-        stopping early as FastDRMaster.run_steps: (steps done, their BlockLog, the FmuError or None)."""
+        stopping early as FastDRMaster.run_steps: (steps done, their BlockLog, the FmuError or None);
+        a stopped call's last step has its StepLog in the log's `last`."""
         if self._step_s > 0.0:
             count = max(1, min(count, int(BLOCK_SECONDS / self._step_s)))
         self.configure_kernel()
@@ -99,6 +92,8 @@ class KernelRoute(KernelOwner):
             last = n0 + done - 1
             self.book_kernel(last, self.t0 + last * self.dt, iterations, done)
             self.took_block(log, done)
+            if log.stopped:
+                log.last = self.step_log(log, done - 1)
         return done, log, error
 
     def step_in_progress(self):

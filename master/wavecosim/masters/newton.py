@@ -27,13 +27,13 @@ class NewtonMaster(KernelOwner, WaveMaster):
         if self.kernel is not None:
             self.kernel.set_map(self.P)
 
-    def step(self, n, t) -> StepLog:
+    def make_step(self, n, t) -> StepLog:
         if self.kernel is not None:
             return self._kernel_step(n, t)
         self.scene.freeze(n, t)
         b_star, iters, res, _ = solve_interface(self.scene, self.P, self.b, where=f" at step {n} (t = {t:.6g})")
         a_hat = matvec(self.P, b_star.tolist())
-        self.commit(a_hat)
+        self._commit(a_hat)
         return StepLog(iterations=iters, residual=res, reason="converged", a_hat=a_hat)
 
     def _kernel_step(self, n, t) -> StepLog:

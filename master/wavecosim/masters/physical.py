@@ -43,31 +43,31 @@ class RollbackPhysicalMaster(PhysicalMaster):
         self.y_step_start = self.y
         self.u = np.zeros(scene.n_channels)          # the inputs of the last commit
 
-    def commit(self, y):
+    def _commit(self, y):
         """The one commit of the macro-step, with inputs G y (sequentially for Gauss-Seidel)."""
         self.y_step_start = self.y
         self.y = self.sweep(y, lambda sub, inputs: sub.advance(inputs), self.u)
 
-    def undo_step(self):
+    def _undo_step(self):
         """Every subsystem back at x^n and y^n back, after the commit of macro-step n."""
         self.scene.restore_frozen()
         self.y = self.y_step_start
 
-    def recommit(self, inputs):
-        """After undo_step: commit macro-step n again with these stacked inputs; returns y^{n+1}."""
+    def _recommit(self, inputs):
+        """After _undo_step: commit macro-step n again with these stacked inputs; returns y^{n+1}."""
         self.y_step_start, self.u = self.y, np.asarray(inputs, float)
         self.y = np.asarray(self.scene.advance(list(inputs)))
         return self.y
 
     @property
-    def committed_outputs(self):
+    def _committed_outputs(self):
         """The outputs of the last commit: y^{n+1}."""
         return list(self.y)
 
-    def committed_inputs(self, log):
+    def _committed_inputs(self, log):
         return list(self.u)
 
-    def supply(self, inputs, outputs):
+    def _supply(self, inputs, outputs):
         """Energy into the ports over a step, dt sum(input * output) (each a conjugate pair), and its
         traffic dt sum |input * output|."""
         powers = [u * y for u, y in zip(inputs, outputs)]

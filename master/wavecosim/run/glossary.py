@@ -54,7 +54,7 @@ SUMMARY = {
     "freeze_watch": ("`steps`: how many macro-steps with changing inputs and the same outputs make a subsystem "
                      "suspect; `suspect`: per such subsystem, `from_step`, `from_t` and `steps` of its longest "
                      "frozen stretch (docs/troubleshooting.md)", "1; s"),
-    # the energy guard (observers/energy_ledger.py, energy_guard.py)
+    # the energy guard (masters/ledger.py, masters/energy_guard.py)
     "energy_guard_steps": ("macro-steps the energy guard redid", "1"),
     "energy_guard_extra_doSteps": ("doStep calls the redos cost", "1"),
     "max_ledger": ("the largest ledger value Lⁿ over the run (at or below roundoff: the interface never supplied "

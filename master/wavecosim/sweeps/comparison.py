@@ -12,7 +12,7 @@ stops the comparison.
 A run is energy-safe (`energy_safe`, what `cheapest` asks of a row) when the interface never
 supplied net energy: the largest cumulative interface supply max_n sum_{k<=n} I^k (`ledger_max`) is
 within roundoff (a run with the energy ledger: within the ledger's own tolerance; otherwise
-energy_ledger.RTOL times the energy that went through the ports), and, where every subsystem's H is
+ledger.RTOL times the energy that went through the ports), and, where every subsystem's H is
 known and no signal drives the scene, H never rose above H(0) by more than that. With signals (their
 work is unknown) the ledger alone decides.
 """
@@ -22,7 +22,7 @@ import numpy as np
 
 from ..errors import ConfigError, RunFailed
 from ..masters import MASTERS
-from ..run.observers.energy_ledger import RTOL
+from ..masters.ledger import RTOL
 from ..run.recorder import write_json
 from ..run.runner import run
 from .budget import reference_run

@@ -617,14 +617,14 @@ static int stop_after(const DRKernel *k, const double *obs, size_t ld, double H_
     return sum + 4.0 * k->n_sub * DBL_EPSILON * magnitude > H_cap;
 }
 
-/* ---- the interface energy ledger and its scaled redo (wavecosim/run/observers/energy_ledger.py) ---- */
+/* ---- the interface energy ledger and its scaled redo (wavecosim/masters/ledger.py) ---- */
 
-#define LEDGER_TARGET 0.9          /* energy_ledger.TARGET */
-#define LEDGER_SMOOTH 0.1          /* energy_ledger.SMOOTH */
+#define LEDGER_TARGET 0.9          /* ledger.TARGET */
+#define LEDGER_SMOOTH 0.1          /* ledger.SMOOTH */
 #define LEDGER_MIN_INNER_S 1e-9    /* masters/base.py MIN_INNER_S */
 
 /* The supply of the input q + s (a - q), its outputs interpolated between yq (at q) and ya (at a)
- * (energy_ledger.segment_root's model). */
+ * (ledger.segment_root's model). */
 static double blended_supply(const double *q, const double *a, const double *yq, const double *ya, size_t n,
                              double s) {
     double aa = 0.0, bb = 0.0;
@@ -639,7 +639,7 @@ static double blended_supply(const double *q, const double *a, const double *yq,
     return 0.5 * (aa - bb);
 }
 
-/* energy_ledger.largest_root, operation for operation (Python's max keeps the first of equals). */
+/* ledger.largest_root, operation for operation (Python's max keeps the first of equals). */
 static double largest_root(double q0, double qh, double q1, double target) {
     double alpha = 2.0 * (q1 - 2.0 * qh + q0), beta = q1 - q0 - alpha, gamma = q0 - target;
     double roots[2];
@@ -685,13 +685,13 @@ static void track(double *estimate, double seconds) {
 
 static void track_round(DRStep *io, double seconds) { track(&io->round_s, seconds); }
 
-/* energy_ledger.segment_root: the fraction s in [0, 1) where the supply of q + s (a - q) reaches target. */
+/* ledger.segment_root: the fraction s in [0, 1) where the supply of q + s (a - q) reaches target. */
 static double segment_root(const double *q, const double *a, const double *yq, const double *ya, size_t n,
                            double supplied_a, double target) {
     return largest_root(blended_supply(q, a, yq, ya, n, 0.0), blended_supply(q, a, yq, ya, n, 0.5), supplied_a, target);
 }
 
-/* One redo (energy_ledger.Redo): the step it corrects (inputs a and outputs y in k->redo, supply),
+/* One redo (ledger.Redo): the step it corrects (inputs a and outputs y in k->redo, supply),
  * its allowance, the time left (s) and per round, the rounds made, and the result out[0..4]. */
 typedef struct {
     DRKernel *k;
@@ -737,7 +737,7 @@ static int redo_commit(Redo *r, double s, int action) {
     return redo_kept(r, s, action);
 }
 
-/* k->a_hat = q + s (a - q) (energy_ledger.blend). */
+/* k->a_hat = q + s (a - q) (ledger.blend). */
 static void blend_into(DRKernel *k, const double *q, const double *a, double s) {
     for (size_t j = 0; j < k->n; j++) k->a_hat[j] = q[j] + s * (a[j] - q[j]);
 }
@@ -760,7 +760,7 @@ static int redo_iterated(Redo *r) {
     return redo_commit(r, 1.0, DR_LEDGER_ITERATED);
 }
 
-/* energy_ledger.projected into k->a_hat: a (k->redo) moved against the gradient g = a - rho y of the
+/* ledger.projected into k->a_hat: a (k->redo) moved against the gradient g = a - rho y of the
  * step's supply (rho per subsystem: the secant to the last query, clamped to [0, 1]) to the smaller
  * root t of supplied - t |g|^2 + t^2 / 2 sum (1 - rho^2) g^2 = target. 0, or -1 without a root. */
 static int project_into(DRKernel *k, double supplied, double target) {
@@ -800,7 +800,7 @@ static int redo_projected(Redo *r) {
     return redo_commit(r, s, DR_LEDGER_PROJECTED);
 }
 
-/* Stages 3 and 4 (EnergyLedger._anchored, energy_ledger.best_anchor): of the anchors (the last query,
+/* Stages 3 and 4 (EnergyLedger._anchored, ledger.best_anchor): of the anchors (the last query,
  * the latest safe one) whose supply fits, the one whose crossing of the target lies nearest a; the
  * commit there (two rounds left), else, or on a miss, at the anchor itself. */
 static int redo_anchored(Redo *r) {

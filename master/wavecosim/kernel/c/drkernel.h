@@ -69,7 +69,7 @@ typedef struct {
     int failed_function; /* out: DR_FN_* of that call */
     int failed_status;   /* out: the fmi2Status it returned */
     int stopped;         /* out (dr_run_steps): 1 if it stopped early, after the last step it logged */
-    int ledger_on;       /* in (dr_run_steps): keep the interface energy ledger (wavecosim/run/observers/energy_ledger.py) */
+    int ledger_on;       /* in (dr_run_steps): keep the interface energy ledger (wavecosim/masters/ledger.py) */
     double ledger;       /* in/out: L, the energy the interface supplied so far (steps accepted) */
     double traffic;      /* in/out: the interface's cumulative traffic 1/2 (|a|^2 + |b|^2) */
     double ledger_rtol;  /* in: a step with L + I^n > (rtol + the adapters' noise, dr_set_adapter) (traffic + its
@@ -189,7 +189,7 @@ void dr_prepare_log(DRKernel *k, const DRStep *io, double *rows, long ld, int co
  * column; a call may go on in the columns after an earlier call's):
  * iterations, reason, residual, a (n), b^{n+1} (n), then every subsystem's observed values in
  * subsystem order, then the ledger's DR_LEDGER_COLUMNS. With io->ledger_on it keeps the interface
- * energy ledger of wavecosim/run/observers/energy_ledger.py, bit for bit: a step that would lift L above
+ * energy ledger of wavecosim/masters/ledger.py, bit for bit: a step that would lift L above
  * tol is undone and committed again with its inputs scaled (a, b and the observed values logged are
  * the redo's, its reason DR_ENERGY_GUARD); with io->step_deadline_s the inner loop stops early enough
  * for its overrun and the commit to end by the deadline (two rounds at first, then the time steps
@@ -211,7 +211,7 @@ enum { DR_MAX_PASSES = 4, DR_PASS_STEPS = 128 };
 int dr_set_passes(DRKernel *k, int n, DRPassFn *const *fns, void *const *args);
 
 /* The energy ledger's redo of the step dr_macro_step just committed (a_hat and b as it left them),
- * whose commit supplied `supplied` beyond the ledger's `budget` (wavecosim/run/observers/energy_ledger.py
+ * whose commit supplied `supplied` beyond the ledger's `budget` (wavecosim/masters/ledger.py
  * _redo), with left_s seconds to the step's deadline (INFINITY: none) and round_s per evaluation
  * round: every subsystem back at x_i^n, then the stages iterated, projected, blended, anchored, scaled, zero,
  * each when the one before did not fit. a_hat becomes the inputs committed, b the new b^{n+1};
