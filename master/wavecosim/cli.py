@@ -166,6 +166,24 @@ def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None, star
     return load_scenario(config, times, list(changes.items()))
 
 
+tolerance_options = options([
+    click.option("--tolerance", type=click.FloatRange(min=0, min_open=True),
+                 help="The tolerance mode: the macro-step varies to keep the error near this relative tolerance "
+                      "(--dt is the first step; master.tolerance)."),
+    click.option("--atol", type=click.FloatRange(min=0, min_open=True), help="The tolerance mode's absolute tolerance."),
+    click.option("--dt-min", type=click.FloatRange(min=0, min_open=True), help="The tolerance mode's smallest step (s)."),
+    click.option("--dt-max", type=click.FloatRange(min=0, min_open=True), help="The tolerance mode's largest step (s)."),
+    click.option("--estimate", type=click.Choice(["predictor", "doubling"]),
+                 help="The tolerance mode's error estimate (default: predictor)."),
+])
+
+
+def tolerance_sets(**given):
+    """The tolerance options as --set entries (master.KEY=VALUE) for those given."""
+    return tuple(f"master.{k}={v!r}" if not isinstance(v, str) else f"master.{k}={v}" for k, v in given.items()
+                 if v is not None)
+
+
 @cli.command("run")
 @click.argument("config", required=False, type=click.Path(path_type=Path))
 @with_common
@@ -186,6 +204,9 @@ def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None, star
               help="Output folder for trajectory.csv, steps.csv, summary.json and metadata.json.")
 @click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and the Condition 1 watch (faster).")
 @click.option("--no-reference", is_flag=True, help="Skip the monolithic reference run (no error figures).")
+@click.option("--reference", "fine", type=click.Choice(["fine"]), help="fine: also run the monolithic reference "
+              "at a refined step and report true_error, the error against it (docs/masters.md).")
+@tolerance_options
 @click.option("--plots", is_flag=True, help="Also write PNG figures into the output folder.")
 @click.option("--threads", help="Threads evaluating the subsystems: auto, or N (up to min(N, CPUs, subsystems)); "
                                 "the numbers are the same for any N.")
@@ -193,8 +214,8 @@ def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None, star
 @overwrite_option
 @click.option("--force", is_flag=True, help=f"Run even more than {MAX_STEPS:,} macro-steps.")
 def run_cmd(config, K, eps, gamma, dt, T, quiet, start_time, output_interval, formats, ports, parameter_set, input_csv,
-            outputs, algorithm, sets, out, no_certificates, no_reference, plots, threads, step_timeout, overwrite,
-            force):
+            outputs, algorithm, sets, out, no_certificates, no_reference, fine, tolerance, atol, dt_min, dt_max,
+            estimate, plots, threads, step_timeout, overwrite, force):
     """Run one scenario (with the monolithic reference alongside where there are power bonds) and
     write its trajectory, per-step certificates, summary and metadata. CONFIG is a scenario file,
     an SSP system (.ssd, .ssp, folder) or one FMU (.fmu), run as fmpy's simulate runs it.
@@ -202,6 +223,7 @@ def run_cmd(config, K, eps, gamma, dt, T, quiet, start_time, output_interval, fo
     The steps are made in a child process: an FMU that crashes, calls exit() or (with --step-timeout)
     does not return leaves every step before it on disk, a summary.json saying what happened, and
     an exit code of its own (docs/troubleshooting.md). An earlier run's files in OUT are replaced."""
+    sets = sets + tolerance_sets(tolerance=tolerance, atol=atol, dt_min=dt_min, dt_max=dt_max, estimate=estimate)
     scenario = _apply_overrides(_read_config(config, ports, parameter_set, dt, T, gamma, start_time, input_csv, sets),
                                 K, eps, gamma, dt, T, algorithm, start_time, outputs)
     if threads is not None:
@@ -212,7 +234,7 @@ def run_cmd(config, K, eps, gamma, dt, T, quiet, start_time, output_interval, fo
 
     def work():
         result = simulate(scenario, out_dir=out, progress=_progress("run", quiet) or False,
-                          certificates=not no_certificates, reference=not no_reference,
+                          certificates=not no_certificates, reference=fine or not no_reference,
                           output_interval=output_interval, formats=("csv", *formats), max_steps=max_steps)
         _report_run(scenario, result, out)
         if plots:
@@ -249,7 +271,7 @@ def _report_run(scenario, result, out):
                    f"{s['gamma_changes']} changes; "
                    f"{'inside the FNE bounds' if s['gamma_guaranteed'] else 'OUTSIDE an FNE bound: Theorem 1 not guaranteed'}"
                    f"{'' if s.get('fne_watch_ok', True) else '; the Condition 1 watch found a violation'})")
-    print_table([s], [f for f in ("steps", "max_error", "rms_error", "final_error", "max_passivity_pos",
+    print_table([s], [f for f in ("steps", "rejected_steps", "max_error", "true_error", "rms_error", "final_error", "max_passivity_pos",
                                   "max_augmented_pos", "min_fne_margin", "iterations_mean", "wall_time_s",
                                   "total_time_s", "energy_guard_steps") if f in s])
     if "signal_note" in s:

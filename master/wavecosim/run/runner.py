@@ -29,6 +29,7 @@ from ..kernel.drkernel import REASONS as KERNEL_REASONS
 from ..kernel.linalg import total
 from ..core.gamma import GammaTuner
 from ..masters import MASTERS
+from ..masters.adaptive import adaptive
 from ..masters.base import REASONS, WaveMaster, require_wave_tuning
 from .bounds import Bounds
 from . import containment
@@ -44,6 +45,7 @@ from .observers.fne_watch import FneWatch
 from .observers.freeze_watch import FreezeWatch
 from .observers.gamma import GammaLog, TunedGammaLog
 from .observers.passivity import Passivity
+from .observers.step_control import StepControl
 from .outputs import cannot
 from .recorder import BLOCK, Interrupts, Labels, Table, Texts, ints, write_json, write_mat
 from ..core.readings import Sampler
@@ -63,7 +65,7 @@ STEP_DESCRIBED = {
 }
 STEP_COLUMNS = tuple(STEP_DESCRIBED)
 OBSERVERS = (EnergyLedger, EnergyGuard, GammaLog, TunedGammaLog, FneWatch, CertificateSampler, CertificatePace,
-             Passivity, FreezeWatch, ErrorTracker)    # every observer, in the order they act (their columns too)
+             Passivity, FreezeWatch, StepControl, ErrorTracker)    # every observer, in the order they act (their columns too)
 BLOCK_STEPS = BLOCK                    # macro-steps per call of the master, at most a table block
 HAND_OVER_S = 1.0                      # rows booked are handed to the writer at least this often
 MAX_STEPS = 10 ** 8                    # more macro-steps than this only when asked (--force, max_steps=None)
@@ -192,7 +194,7 @@ def _once(warn):
 def open_parts(scenario, warn, share=None):
     """Scene, master and gamma tuner of a run; whatever was opened is closed if set-up fails. A run
     alongside another (the lockstep reference) shares the other scene's FMU binaries and quirks."""
-    cls = MASTERS[scenario.master.algorithm]
+    cls = adaptive(MASTERS[scenario.master.algorithm], scenario.master)
     scene = build_scene(scenario, wave=cls.wave, needs_rollback=cls.needs_rollback,
                         pool=share.pool if share else None, quirks=share.quirks if share else None)
     for note in scene.notes:
@@ -244,6 +246,8 @@ def make_observers(scenario, scene, master, tuner, certificates, warn):
         obs.append(CertificatePace(pace))
     obs.append(Passivity(scene, unavailable))
     obs.append(FreezeWatch(scene, warn))
+    if master.variable:
+        obs.append(StepControl(master))
     return obs
 
 
@@ -278,6 +282,16 @@ class LiveRun:
         self.in_block = None                                # n0 of the kernel call in progress
         self.write_error = None                             # an OutputError met while finishing
 
+    def more(self, n):
+        """Whether steps are left after n: the fixed grid's count, or the varying step's end time."""
+        return self.master.more(n) if self.master.variable else n < self.n_steps
+
+    def progress_of(self, n):
+        """Steps done as the progress shows them: n, or the share of the time made, in fixed steps."""
+        if not self.master.variable:
+            return n
+        return min(self.n_steps, round((self.time_of(n) - self.t0) / self.dt))
+
     def add_observer(self, observer: Observer):
         """Before start(): one more observer (e.g. the error tracker), acting last."""
         self.observers.append(observer)
@@ -300,6 +314,8 @@ class LiveRun:
             at += len(o.columns)
         clock, t0 = grid_clock(self.dt), self.t0
         self.time_of = lambda k: t0 + clock(k)          # t_k = t0 + k dt
+        if self.master.variable:                        # the accepted steps' times
+            self.time_of, self.every = self.master.time_at, 1
 
     def _output_formats(self):
         """Integer and Boolean outputs written as integers, String (Binary) outputs as quoted text."""
@@ -333,7 +349,7 @@ class LiveRun:
     def step(self, n):
         """Macro-step n: observers before, the master, observers after (the guard may redo), one row;
         returns the Reading of the FMUs after it."""
-        t = self.t0 + n * self.dt
+        t = self.time_of(n) if self.master.variable else self.t0 + n * self.dt
         self.scene.begin_step(n, t)                  # signals held, signal-only subsystems stepped
         before = self._counts() if self.bracket else None
         for o in self.observers:
@@ -696,8 +712,8 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
     max_steps macro-steps is refused before anything is opened or allocated."""
     check_steps(scenario, max_steps)
     warn = _once(warn or _warn_stderr)                 # the lockstep reference repeats set-up notes
-    if reference == "lockstep" and not scenario.couplings:
-        reference = None
+    if reference == "lockstep" and (not scenario.couplings or scenario.master.tolerance is not None):
+        reference = None                   # no same-grid reference for a varying step: true_error instead
     live = LiveRun(scenario, out_dir, label, certificates, warn, file_suffix, output_interval, formats)
     ref = None
     try:
@@ -757,7 +773,7 @@ def _loop(live, ref, progress, contain=None):
                     active(part)
                     part.start()
             n, handed = 0, time.perf_counter()
-            while n < live.n_steps:
+            while live.more(n):
                 count = live.block_size(n)
                 if ref is not None:
                     active(ref)
@@ -767,8 +783,8 @@ def _loop(live, ref, progress, contain=None):
                 active(live)
                 done = live.advance(n, count)
                 stop.check()
-                if progress and ((n + done) // every > n // every or n + done == live.n_steps):
-                    progress(n + done, live.n_steps)
+                if progress and ((n + done) // every > n // every or not live.more(n + done)):
+                    progress(live.progress_of(n + done), live.n_steps)
                 n += done
                 if time.perf_counter() - handed > HAND_OVER_S:
                     for part in (ref, live):
