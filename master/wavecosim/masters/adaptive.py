@@ -78,7 +78,7 @@ class Controller:
 
     def inner_eps(self, size, h):
         """The inner loop's stop: INNER_SHARE of the step's allowance on a variable of this size."""
-        return INNER_SHARE * self.rtol * size * h / self.span if size > 0 else None
+        return INNER_SHARE * self.rtol * size * math.sqrt(h / self.span) if size > 0 else None
 
 
 def check_tolerance_mode(scene, settings, source):
