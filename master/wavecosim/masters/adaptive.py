@@ -216,7 +216,7 @@ class AdaptiveStep:
     def step(self, n, t):
         if self.points:                     # the last accepted step as committed (an energy guard may redo it)
             self.points[-1] = self._stage()
-            self.control.observe(self.points[-1])
+        self.control.observe(self.points[-1] if self.points else self._stage())
         saved, rejected = self._save(), 0
         h = self._fit(t, self.control.h if len(self.points) > self.p else max(self.control.h_min,
                                                                                self.control.h * STARTUP))

@@ -1,22 +1,23 @@
 """The error against the true solution: the monolithic reference (the `newton` master) run at a
-refined step, FINE times finer than the run's smallest step (at most FINE_STEPS steps), each output
-column interpolated onto the run's accepted times and its error scaled by the column's range."""
+refined step, FINE times finer than the run's typical step (the smaller of dt and the median of the
+accepted steps; at most FINE_STEPS steps), each output column interpolated onto the run's accepted
+times and its error scaled by the column's range."""
 import math
 
 import numpy as np
 
 from .runner import reference_scenario, run
 
-FINE = 16                   # the reference's step: the run's smallest step / FINE
-FINE_STEPS = 400_000        # at most this many reference steps (the step is then the span / FINE_STEPS)
+FINE = 16                   # the reference's step: the run's typical step / FINE
+FINE_STEPS = 200_000        # at most this many reference steps (the step is then the span / FINE_STEPS)
 
 
 def fine_dt(scenario, result):
-    """The reference's step: a whole fraction of the span, FINE times below the run's smallest step."""
+    """The reference's step: a whole fraction of the span, FINE times below the run's typical step."""
     t = result.t
-    smallest = float(np.min(np.diff(t))) if len(t) > 1 else scenario.dt
+    typical = min(float(np.median(np.diff(t))), scenario.dt) if len(t) > 1 else scenario.dt
     span = scenario.T - scenario.start_time
-    steps = min(FINE_STEPS, math.ceil(FINE * span / min(smallest, scenario.dt) - 1e-9))
+    steps = min(FINE_STEPS, math.ceil(FINE * span / typical - 1e-9))
     return span / steps
 
 
