@@ -168,7 +168,8 @@ class AdaptiveStep:
     def _restore(self, saved):
         for s in self.subsystems:
             s.back_to_snapshot() if self.snapshots else s.restore_frozen()
-        self.h_set = saved[0]
+            s.set_step(saved[0])
+        self.dt = self.h_set = saved[0]
         for k, v in saved[1].items():
             setattr(self, k, v.copy())
 
