@@ -412,10 +412,13 @@ def _sweep_progress(total, skipped):
                    "warm, gamma-auto, gamma-fastest, fastest-relaxed, fastest-relaxed-anderson, "
                    "fastest-relaxed-extrapolated, fastest-relaxed-memory, fastest-memory, "
                    "fastest-memory-eps3, fastest-memory-eps5.")
+@click.option("--tolerances", metavar="LIST", help="Instead: the tolerance mode at each of these tolerances (e.g. "
+              "1e-2,1e-4,1e-6; with each of --masters, default dr,gauss-seidel) and step doubling, beside a grid of "
+              "fixed (dt, K), all against one fine reference: tolerances.csv, tolerances.json, tolerances.png.")
 @step_timeout_option
 @overwrite_option
 def compare_cmd(config, K, eps, gamma, dt, T, quiet, start_time, ports, parameter_set, masters, ks, out,
-                no_certificates, plots, dr_options, step_timeout, overwrite):
+                no_certificates, plots, dr_options, tolerances, step_timeout, overwrite):
     """Every master over a grid of budgets against the monolithic reference: error, energy, cost."""
     from .sweeps.comparison import COMPARE_FIELDS, parse_options
     options = parse_options(dr_options)
@@ -430,6 +433,9 @@ def compare_cmd(config, K, eps, gamma, dt, T, quiet, start_time, ports, paramete
         Ks = parse_budgets(ks)
     scenario = _apply_overrides(_read_config(config, ports, parameter_set, dt, T, gamma, start_time), None, eps,
                                 gamma, dt, T, start_time=start_time)
+    if tolerances is not None:
+        chosen = names if click.get_current_context().get_parameter_source("masters").name != "DEFAULT" else None
+        return _compare_tolerances(scenario, _tolerance_list(tolerances), chosen, out, quiet, overwrite)
 
     def work():
         table = api.compare(scenario, names, Ks, out_dir=out, progress=(lambda label: _progress(label, quiet)),
@@ -447,6 +453,34 @@ def compare_cmd(config, K, eps, gamma, dt, T, quiet, start_time, ports, paramete
                 click.echo(f"wrote {p}")
     with OutputFolder(out, overwrite):
         return _supervised(work, None, step_timeout or scenario.step_timeout)
+
+
+def _tolerance_list(text):
+    """--tolerances "1e-2,1e-4" -> [0.01, 0.0001], each a number > 0."""
+    try:
+        values = [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        values = []
+    if not values or not all(v > 0 for v in values):
+        raise ConfigError(f"--tolerances: must be comma-separated numbers > 0, got {text!r}")
+    return values
+
+
+def _compare_tolerances(scenario, tolerances, masters, out, quiet, overwrite):
+    """compare --tolerances: the rows, the table on stdout, tolerances.png."""
+    from .plots import tolerance_plots
+    from .sweeps.tolerances import FIELDS, TOLERANCE_MASTERS, compare_tolerances
+
+    def work():
+        shown = None if quiet else (lambda row: click.echo(f"  {row['mode']} {row['master']}: true error "
+                                                           f"{row['true_error']:.3g}", err=True))
+        rows = compare_tolerances(scenario, tolerances, out, tuple(masters or TOLERANCE_MASTERS), shown)
+        click.echo(f"{scenario.name}: {len(rows)} runs -> {out / 'tolerances.csv'}")
+        print_table(rows, list(FIELDS))
+        for p in tolerance_plots(rows, scenario.name, out):
+            click.echo(f"wrote {p}")
+    with OutputFolder(out, overwrite):
+        return _supervised(work, None, scenario.step_timeout)
 
 
 @cli.command("validate")

@@ -4,10 +4,9 @@ estimate against the tolerance; a step whose estimate is too large is undone and
 `adaptive(cls)` gives a subclass of any master whose step(n, t) is the controlled step: it sets the
 step size h on every subsystem, makes the master's own step once (or three times, `doubling`), and
 accepts or rejects it. Estimates (docs/masters.md, choosing a tolerance):
-  predictor  the committed interface variables z^{n+1} (each port's effort and flow) against their
-             extrapolation by the polynomial of degree p through the last p + 1 accepted points
-             (Milne's device); p is the master's order, 1 without an inner loop, 2 with one. No FMU
-             call of its own.
+  predictor  the watched outputs z^{n+1} (the error columns) against their extrapolation by the
+             polynomial of degree p through the last p + 1 accepted points (Milne's device), scaled
+             to the step's h^(p+1); p is the master's order (`order`). No FMU call of its own.
   doubling   two steps of h/2 against one step of h from the same state (Richardson, as MasterSim
              and PyFMI); the step of h is the one committed, so the energy ledger books it as any step.
 Both are scaled per unit step (times (T - t0) / h), so the error over the run, not of one step,
@@ -113,6 +112,14 @@ def watched(scene):
     return out
 
 
+def order(master):
+    """The order in h of the master's error over the run: 2 for an iterating wave master over FMUs'
+    own wave ports (each step is the FMUs' implicit step with the solved interface), else 1 (the
+    inputs are held over the step, or the wave adapter holds them)."""
+    own_waves = master.wave and not any(s.adapter for s in master.subsystems)
+    return 2 if master.needs_rollback and own_waves else 1
+
+
 class AdaptiveStep:
     """Mixin over a master: its step(n, t) is the controlled step (module docstring)."""
     variable = True
@@ -122,7 +129,7 @@ class AdaptiveStep:
         check_tolerance_mode(scene, settings, scene.scenario.source)
         sc = scene.scenario
         self.end, self.span = sc.T, sc.T - sc.start_time
-        self.p = 2 if self.needs_rollback else 1
+        self.p = order(self)
         self.control = Controller(settings, sc.dt, self.span, self.p)
         self.doubling = settings.estimate == "doubling"
         self.can_reject = all(s.fmu.can_save_state for s in scene.subsystems)
