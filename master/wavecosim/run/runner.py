@@ -597,6 +597,10 @@ class LiveRun:
         row[0], row[1:] = self.time_of(n + 1), reading.outputs
         self.trajectory.commit_row()
 
+    def _simulated(self, n):
+        """The simulated time of n steps."""
+        return self.time_of(n) - self.t0 if self.master is not None and self.master.variable else n * self.dt
+
     def fmu_calls(self):
         """doStep, save and restore calls the run made, over every FMU (observers' probes excluded)."""
         by = self.fmu_calls_by_subsystem().values()
@@ -611,7 +615,7 @@ class LiveRun:
                "iterations_mean": iters[0] / n if n else 0.0, "iterations_max": iters[1],
                "wall_time_s": self.master_time, "total_time_s": time.perf_counter() - self.started,
                "loop_time_s": self.loop_time,
-               "real_time_factor": (n * sc.dt) / self.master_time if self.master_time > 0 else float("nan"),
+               "real_time_factor": self._simulated(n) / self.master_time if self.master_time > 0 else float("nan"),
                "fmu_calls": self.fmu_calls(), "fmu_calls_by_subsystem": self.fmu_calls_by_subsystem(),
                "output_interval": self.every,
                "energy_guard": self.guard_mode, "block_steps": self.block_steps,
