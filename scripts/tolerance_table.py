@@ -2,13 +2,16 @@
 (dr and gauss-seidel, predictor estimate) and step doubling at each tolerance beside a grid of fixed
 (dt, K), every run's true error against one fine reference (wavecosim.sweeps.tolerances):
 
-    .venv/bin/python scripts/tolerance_table.py [OUT]     # rows into OUT/<scene>/, the table into the page
+    .venv/bin/python scripts/tolerance_table.py [OUT]           # rows into OUT/<scene>/, the table into the page
+    .venv/bin/python scripts/tolerance_table.py OUT --again     # the table again from the rows in OUT
+    .venv/bin/python scripts/tolerance_table.py OUT --scenes=chain,dcmotor     # only these scenes
 
 Per tolerance-mode run the table gives its true error over the tolerance, its FMU doSteps and wall
-time, and the doSteps of the cheapest fixed run whose true error is at most this run's (none: no
-fixed run of the grid is that accurate) and of step doubling at the same tolerance. The page holds
+time, the doSteps the cheapest fixed (master, K) needs for the same true error (its runs' log-log
+line; ~: extrapolated past its most accurate run) and those of step doubling at the same tolerance. The page holds
 it between `<!-- measured: tolerances -->` and `<!-- end of measured -->`.
 """
+import json
 import re
 import sys
 from pathlib import Path
@@ -26,9 +29,12 @@ PAGE = ROOT / "docs" / "masters.md"
 BLOCK = re.compile(r"(<!-- measured: tolerances -->\n).*?(<!-- end of measured -->)", re.S)
 
 
-def scene_rows(name, T, out):
-    sc = load_scenario(ROOT / "configs" / f"{name}.yaml").with_changes("the table", T=T)
+def scene_rows(name, T, out, again):
+    """The scene's rows: measured now, or read back from an earlier measurement (again)."""
     folder = out / name
+    if again:
+        return json.loads((folder / "tolerances.json").read_text())
+    sc = load_scenario(ROOT / "configs" / f"{name}.yaml").with_changes("the table", T=T)
     folder.mkdir(parents=True, exist_ok=True)
     return compare_tolerances(sc, TOLERANCES, folder)
 
@@ -42,8 +48,7 @@ def lines(name, T, rows):
         best = best_fixed(rows, r["true_error"])
         twin = next((d for d in rows if d["mode"] == "doubling" and d["tolerance"] == r["tolerance"]
                      and d["master"] == r["master"]), None)
-        fixed = (f"{best['doStep']} ({best['master']}{' K=' + str(best['K']) if best['K'] != '' else ''}, "
-                 f"dt {best['dt']:.3g}); {r['doStep'] / best['doStep']:.2f}" if best else "none as accurate")
+        fixed = (f"{'~' if best[1] else ''}{best[0]:.0f} ({best[2]}); {r['doStep'] / best[0]:.2f}" if best else "–")
         doubling = f"{twin['doStep']}; {r['doStep'] / twin['doStep']:.2f}" if twin else "–"
         out.append(f"| {name} (T = {T:g}) | {r['master']} | {r['tolerance']:.0e} | {r['true_error']:.2e} | "
                    f"{r['true_error'] / r['tolerance']:.2f} | {r['doStep']} | {r['wall_time_s']:.2f} | {fixed} | "
@@ -51,18 +56,23 @@ def lines(name, T, rows):
     return out
 
 
-def main(out):
-    head = ["| scene | master | tolerance | true error | / tolerance | doSteps | wall (s) | best fixed as accurate: "
-            "doSteps (run); ratio | doubling: doSteps; ratio |", "|---|---|---|---|---|---|---|---|---|"]
+def main(out, again=False, only=None):
+    head = ["| scene | master | tolerance | true error | / tolerance | doSteps | wall (s) | best fixed at that error: "
+            "doSteps (master); ratio | doubling: doSteps; ratio |", "|---|---|---|---|---|---|---|---|---|"]
     body = []
     for name, T in SCENES:
-        if name == "dcmotor" and not (ROOT.parent / "shared" / "third_party").exists():
+        if only and name not in only:
             continue
-        body += lines(name, T, scene_rows(name, T, out))
+        if (name == "dcmotor" and not (ROOT.parent / "shared" / "third_party").exists()) or \
+                (again and not (out / name / "tolerances.json").exists()):
+            continue
+        body += lines(name, T, scene_rows(name, T, out, again))
         print("\n".join(body[-len(TOLERANCES) * 2:]), flush=True)
     text = PAGE.read_text()
     PAGE.write_text(BLOCK.sub(lambda m: m.group(1) + "\n".join(head + body) + "\n" + m.group(2), text))
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1]) if len(sys.argv) > 1 else ROOT / "out" / "tolerances")
+    given = [a for a in sys.argv[1:] if not a.startswith("--")]
+    only = next((a.split("=", 1)[1].split(",") for a in sys.argv if a.startswith("--scenes=")), None)
+    main(Path(given[0]) if given else ROOT / "out" / "tolerances", "--again" in sys.argv, only)

@@ -15,7 +15,7 @@ TOLERANCE_MASTERS = ("dr", "gauss-seidel")          # the tolerance mode's maste
 FIXED = (("explicit", None), ("gauss-seidel", None), ("dr", 5), ("dr", 20), ("newton", None))
 REFINE = (1, 4, 16)                                 # the fixed grid's steps: dt / each
 FIELDS = ("mode", "master", "K", "tolerance", "dt", "true_error", "doStep", "save", "restore", "wall_time_s",
-          "accepted_steps", "rejected_steps", "status")
+          "accepted_steps", "rejected_steps", "max_ledger", "status")
 MAX_STEPS = 2_000_000                               # a fixed run of more steps is left out of the grid
 
 
@@ -56,7 +56,7 @@ def measure(mode, sc, reference):
     s = result.summary
     return {**row, "true_error": true_error(result, reference)["true_error"], **s["fmu_calls"],
             "wall_time_s": time.perf_counter() - started, "accepted_steps": s.get("accepted_steps", s["steps"]),
-            "rejected_steps": s.get("rejected_steps", 0), "status": s["status"]}
+            "rejected_steps": s.get("rejected_steps", 0), "max_ledger": s.get("max_ledger", ""), "status": s["status"]}
 
 
 def compare_tolerances(scenario, tolerances, out_dir=None, masters=TOLERANCE_MASTERS, progress=None):
@@ -81,7 +81,29 @@ def write(rows, out_dir):
     (out_dir / "tolerances.json").write_text(json.dumps(rows, indent=1))
 
 
+def calls_for(points, target):
+    """The doSteps a fixed series [(doSteps, true error)] needs for a true error of `target`: its
+    cheapest run already that accurate, else along the log-log line through the two runs around the
+    target (past its most accurate run, the line through its last two): (doSteps, extrapolated)."""
+    points = sorted(p for p in points if p[1] > 0 and math.isfinite(p[1]))
+    first = next((p for p in points if p[1] <= target), None)
+    if first is not None and first is points[0]:
+        return float(first[0]), False
+    pairs = [(a, b) for a, b in zip(points, points[1:]) if b[1] < a[1]]
+    if not pairs:
+        return math.nan, True
+    a, b = next(((a, b) for a, b in pairs if b[1] <= target), pairs[-1])
+    slope = math.log(b[0] / a[0]) / math.log(b[1] / a[1])
+    return a[0] * (target / a[1]) ** slope, first is None
+
+
 def best_fixed(rows, target):
-    """The fixed run with the fewest doSteps whose true error is at most `target` (None: none reaches it)."""
-    ok = [r for r in rows if r["mode"] == "fixed" and r["true_error"] <= target]
-    return min(ok, key=lambda r: r["doStep"], default=None)
+    """The fixed (master, K) needing the fewest doSteps for a true error of `target` (calls_for):
+    (doSteps, extrapolated, "master K=k"), or None."""
+    series = {}
+    for r in rows:
+        if r["mode"] == "fixed" and math.isfinite(r["true_error"]):
+            key = r["master"] + (f" K={r['K']}" if r["K"] != "" else "")
+            series.setdefault(key, []).append((r["doStep"], r["true_error"]))
+    found = [(*calls_for(points, target), key) for key, points in series.items()]
+    return min((f for f in found if math.isfinite(f[0])), key=lambda f: f[0], default=None)
