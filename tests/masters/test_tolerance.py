@@ -107,3 +107,27 @@ def test_the_command_line_writes_the_variable_grid_and_true_error(tmp_path):
     bad = subprocess.run([*CLI, "run", str(CONFIGS / "foreign_pair.yaml"), "--T", "0.2", "--tolerance", "-1",
                           "--out", str(tmp_path / "bad")], capture_output=True, text=True)
     assert bad.returncode == 2
+
+
+def test_equal_error_calls_follow_each_fixed_series():
+    from wavecosim.sweeps.tolerances import best_fixed, calls_for
+    series = [(100, 1e-2), (400, 2.5e-3), (1600, 6.25e-4)]          # first order: error ~ 1 / calls
+    assert calls_for(series, 2e-2) == (100.0, False)
+    assert calls_for(series, 5e-3) == (pytest.approx(200.0), False)
+    assert calls_for(series, 6.25e-5) == (pytest.approx(16000.0), True)
+    rows = [{"mode": "fixed", "master": m, "K": "", "doStep": c * f, "true_error": e}
+            for m, f in (("explicit", 1), ("newton", 3)) for c, e in series]
+    assert best_fixed(rows, 5e-3)[0::2] == (pytest.approx(200.0), "explicit")
+
+
+@pytest.mark.slow
+def test_compare_tolerances_writes_the_table_and_the_figure(tmp_path):
+    out = tmp_path / "cmp"
+    done = subprocess.run([*CLI, "compare", str(CONFIGS / "foreign_pair.yaml"), "--T", "0.05", "--tolerances",
+                           "1e-2", "--masters", "gauss-seidel", "--quiet", "--out", str(out)],
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    rows = json.loads((out / "tolerances.json").read_text())
+    assert {r["mode"] for r in rows} == {"tolerance", "doubling", "fixed"}
+    assert all(0 < r["true_error"] < 1 for r in rows)
+    assert (out / "tolerances.png").stat().st_size > 0 and (out / "tolerances.csv").exists()
