@@ -19,7 +19,7 @@ from dataclasses import dataclass, replace
 from ..errors import ConfigError
 
 SAFETY, SHRINK, GROW = 0.9, 0.2, 5.0          # h_new = h clamp(SAFETY (1/err)^(1/p), SHRINK, GROW)
-STARTUP = 0.01                                # the first p steps, which have no estimate yet: dt x STARTUP
+STARTUP = 0.01                                # the first p + 1 steps, which have no estimate yet: dt x STARTUP
 INNER_SHARE = 0.1                             # the inner residual allowed, as a share of the step's allowance
 ATOL_SHARE = 1e-3                             # default atol: this share of tolerance x the largest variable's size
 CALIBRATION = 1.0                             # the estimate's weight (measured against the true error)
@@ -167,14 +167,20 @@ class AdaptiveStep:
         self.dt, self.h_set = h, h
 
     def _save(self):
+        """The step's start: every FMU's state (snapshots; the rollback masters' own freeze serves
+        otherwise), the step size the waves are scaled to and the master's committed values."""
         if self.snapshots and self.can_reject:
             for s in self.subsystems:
                 s.snapshot()
         return self.h_set, {k: getattr(self, k).copy() for k in STATE if getattr(self, k, None) is not None}
 
     def _restore(self, saved):
+        """Everything back at the step's start (_save)."""
         for s in self.subsystems:
-            s.back_to_snapshot() if self.snapshots else s.restore_frozen()
+            if self.snapshots:
+                s.back_to_snapshot()
+            else:
+                s.restore_frozen()
             s.set_step(saved[0])
         self.dt = self.h_set = saved[0]
         for k, v in saved[1].items():
@@ -236,7 +242,7 @@ class AdaptiveStep:
             self._restore(saved)
             h = self._fit(t, self.control.next(h, err))
         self.times.append(self.end if h == self.end - t else t + h)
-        self.points = self.points[-self.p:] + [self._stage()]      # the stage at t0 is no step's: not kept
+        self.points = self.points[-self.p:] + [self._stage()]      # the accepted steps' values, t0 not among them
         self.control.h = self.control.next(h, err) if err == err else self.control.h
         self.last.dt, self.last.estimate, self.last.rejected = h, err, rejected
         self.accepted, self.rejected = self.accepted + 1, self.rejected + rejected
