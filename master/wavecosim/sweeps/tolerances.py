@@ -7,7 +7,7 @@ import json
 import math
 import time
 
-from ..errors import WavecosimError
+from ..errors import Interrupted, WavecosimError
 from ..run.fine import FINE_STEPS, true_error
 from ..run.runner import reference_scenario, run
 
@@ -45,13 +45,15 @@ def plan(scenario, tolerances, masters=TOLERANCE_MASTERS):
 
 
 def measure(mode, sc, reference):
-    """One run and its row."""
+    """One run and its row; Ctrl-C or SIGTERM ends the comparison."""
     started = time.perf_counter()
     row = {"mode": mode, "master": sc.master.algorithm, "K": sc.master.K if sc.master.algorithm == "dr" else "",
            "tolerance": sc.master.tolerance or "", "dt": sc.dt}
     try:
         result = run(sc, None, label=mode, certificates=False, warn=lambda message: None, max_steps=None)
-    except WavecosimError as exc:
+    except Interrupted:
+        raise
+    except WavecosimError as exc:                 # a run that failed is a row saying so
         return {**row, "status": f"{exc.status}: {exc}", "true_error": math.nan}
     s = result.summary
     return {**row, "true_error": true_error(result, reference)["true_error"], **s["fmu_calls"],
