@@ -173,6 +173,8 @@ tolerance_options = options([
     click.option("--atol", type=click.FloatRange(min=0, min_open=True), help="The tolerance mode's absolute tolerance."),
     click.option("--dt-min", type=click.FloatRange(min=0, min_open=True), help="The tolerance mode's smallest step (s)."),
     click.option("--dt-max", type=click.FloatRange(min=0, min_open=True), help="The tolerance mode's largest step (s)."),
+    click.option("--output-step", type=click.FloatRange(min=0, min_open=True),
+                 help="The tolerance mode: steps also end on the times start + k OUTPUT_STEP (s)."),
     click.option("--estimate", type=click.Choice(["predictor", "doubling"]),
                  help="The tolerance mode's error estimate (default: predictor)."),
 ])
@@ -215,7 +217,7 @@ def tolerance_sets(**given):
 @click.option("--force", is_flag=True, help=f"Run even more than {MAX_STEPS:,} macro-steps.")
 def run_cmd(config, K, eps, gamma, dt, T, quiet, start_time, output_interval, formats, ports, parameter_set, input_csv,
             outputs, algorithm, sets, out, no_certificates, no_reference, fine, tolerance, atol, dt_min, dt_max,
-            estimate, plots, threads, step_timeout, overwrite, force):
+            output_step, estimate, plots, threads, step_timeout, overwrite, force):
     """Run one scenario (with the monolithic reference alongside where there are power bonds) and
     write its trajectory, per-step certificates, summary and metadata. CONFIG is a scenario file,
     an SSP system (.ssd, .ssp, folder) or one FMU (.fmu), run as fmpy's simulate runs it.
@@ -223,7 +225,8 @@ def run_cmd(config, K, eps, gamma, dt, T, quiet, start_time, output_interval, fo
     The steps are made in a child process: an FMU that crashes, calls exit() or (with --step-timeout)
     does not return leaves every step before it on disk, a summary.json saying what happened, and
     an exit code of its own (docs/troubleshooting.md). An earlier run's files in OUT are replaced."""
-    sets = sets + tolerance_sets(tolerance=tolerance, atol=atol, dt_min=dt_min, dt_max=dt_max, estimate=estimate)
+    sets = sets + tolerance_sets(tolerance=tolerance, atol=atol, dt_min=dt_min, dt_max=dt_max, output_step=output_step,
+                                 estimate=estimate)
     scenario = _apply_overrides(_read_config(config, ports, parameter_set, dt, T, gamma, start_time, input_csv, sets),
                                 K, eps, gamma, dt, T, algorithm, start_time, outputs)
     if threads is not None:

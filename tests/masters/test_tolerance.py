@@ -64,6 +64,14 @@ def test_steps_follow_the_tolerance_and_end_on_T():
         assert r.summary["accepted_steps"] == len(dt)
 
 
+def test_steps_end_on_the_output_times():
+    sc = scenario("foreign_pair", 0.1, algorithm="gauss-seidel", tolerance=1e-1, dt_max=0.05, output_step=0.02)
+    t = api.simulate(sc, reference=False, certificates=False).t
+    assert all(k * 0.02 in t for k in range(6))
+    free = api.simulate(sc.with_master(output_step=None), reference=False, certificates=False).t
+    assert not all(k * 0.02 in free for k in range(6))
+
+
 def test_true_error_is_near_the_tolerance_and_the_ledger_holds():
     sc = scenario("two_oscillators", 1.0, algorithm="dr", tolerance=1e-3)
     result = api.simulate(sc, reference=False, certificates=False)

@@ -128,7 +128,8 @@ class AdaptiveStep:
         super().__init__(scene, replace(settings, fast="false"))       # the Python route, step by step
         check_tolerance_mode(scene, settings, scene.scenario.source)
         sc = scene.scenario
-        self.end, self.span = sc.T, sc.T - sc.start_time
+        self.end, self.span, self.t0 = sc.T, sc.T - sc.start_time, sc.start_time
+        self.every = settings.output_step
         self.p = order(self)
         self.control = Controller(settings, sc.dt, self.span, self.p)
         self.doubling = settings.estimate == "doubling"
@@ -186,9 +187,16 @@ class AdaptiveStep:
         for k, v in saved[1].items():
             setattr(self, k, v.copy())
 
+    def _target(self, t):
+        """Where the step from t must end at the latest: T, or the next output time (output_step)."""
+        if self.every is None:
+            return self.end
+        k = math.floor((t - self.t0) / self.every * (1.0 + 1e-12)) + 1
+        return min(self.end, self.t0 + k * self.every)
+
     def _fit(self, t, h):
-        """h cut so the run ends on T, without leaving a sliver of a step."""
-        left = self.end - t
+        """h cut so the step ends on T (or the next output time), without leaving a sliver of a step."""
+        left = self._target(t) - t
         if h >= left * (1.0 - 1e-9):
             return left
         return left / 2.0 if h > left / 2.0 else h
@@ -241,7 +249,8 @@ class AdaptiveStep:
             rejected += 1
             self._restore(saved)
             h = self._fit(t, self.control.next(h, err))
-        self.times.append(self.end if h == self.end - t else t + h)
+        target = self._target(t)
+        self.times.append(target if h == target - t else t + h)
         self.points = self.points[-self.p:] + [self._stage()]      # the accepted steps' values, t0 not among them
         self.control.h = self.control.next(h, err) if err == err else self.control.h
         self.last.dt, self.last.estimate, self.last.rejected = h, err, rejected

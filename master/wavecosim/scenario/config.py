@@ -185,6 +185,9 @@ class MasterConfig:
         "number > 0 or null", "dt / 1000"))
     dt_max: float = field(default=None, metadata=key(
         "the tolerance mode's largest macro-step", "s", "number > 0 or null", "(T − start_time) / 10"))
+    output_step: float = field(default=None, metadata=key(
+        "the tolerance mode: steps also end on the times start_time + k output_step (no interpolation: "
+        "trajectory.csv holds those points among the accepted ones)", "s", "number > 0 or null", "none"))
     estimate: str = field(default="predictor", metadata=key(
         "the tolerance mode's error estimate: `predictor` (the committed interface against its extrapolation, "
         "no extra FMU call) or `doubling` (one step of h against two of h/2, as MasterSim and PyFMI)",
@@ -658,7 +661,7 @@ def _master(ck, m, couplings) -> MasterConfig:
 
 def _step_control(ck, m, master):
     """The tolerance mode's keys (masters/adaptive.py)."""
-    for name in ("tolerance", "atol", "dt_min", "dt_max"):
+    for name in ("tolerance", "atol", "dt_min", "dt_max", "output_step"):
         if m.get(name) is not None:
             setattr(master, name, ck.number(m[name], f"master.{name}", positive=True))
     if "estimate" in m:
