@@ -1,7 +1,9 @@
 """The compatibility table (docs/compatibility.md): every system of ../shared/third_party run through
 wavecosim as a user would run it, compared with what its peer prints for it (the README there:
 OMSimulator's test scripts) and, for every run without iteration, with a plain fmpy loop over the
-same FMUs (doStep(t_n, dt), inputs set from the outputs at t_n), which it must equal to the last bit.
+same FMUs (doStep(t_n, dt), inputs set from the outputs at t_n), which it must equal to the last bit;
+and, a column per peer (libcosim, FMPy, Ecos where it imports), with the peers' own runs of the file
+(wavecosim/bench/peers.py, the comparisons tests/peers/test_peers.py makes).
 
     .venv/bin/python scripts/compatibility.py [--third-party DIR] [--out docs/compatibility.md] [--only NAME]
 
@@ -25,6 +27,7 @@ from fmpy.fmi2 import FMU2Slave, fmi2LastSuccessfulTime, fmi2Terminated
 from fmpy.fmi3 import FMU3Slave
 
 import wavecosim as wc
+from wavecosim.bench import peers
 from wavecosim.errors import WavecosimError
 from wavecosim.fmi.builtin import builtin_fmus
 
@@ -60,7 +63,6 @@ class Plain:
             slave.enterInitializationMode(tolerance=tolerance, startTime=start_time)
         else:
             slave.enterInitializationMode()
-        slave.exitInitializationMode()
 
     def kind(self, name):
         """The FMI type of a variable."""
@@ -97,6 +99,9 @@ class Plain:
                 terminate, last = True, self.slave.getRealStatus(fmi2LastSuccessfulTime)
         return ("last" if math.isclose(last, t + dt) else "before") if terminate else None
 
+    def end_initialization(self):
+        self.slave.exitInitializationMode()
+
     def close(self):
         self.slave.terminate()
         self.slave.freeInstance()
@@ -109,8 +114,9 @@ def recorded(scenario, result):
 
 def plain_loop(scenario, columns):
     """{column: values at every grid point} of `columns` ({column: SUBSYSTEM.variable}), from a plain
-    fmpy loop over the scenario's subsystems (signals only): inputs set from the outputs (and tables)
-    at t_n, then one doStep each."""
+    fmpy loop over the scenario's subsystems (signals only): in initialization mode, inputs set from
+    the outputs until no value changes (as libcosim and FMPy settle a system); then per step inputs
+    set from the outputs (and tables) at t_n, and one doStep each."""
     t0 = getattr(scenario, "start_time", 0.0)
     with tempfile.TemporaryDirectory() as tmp:
         fmus = {s.name: Plain(s, Path(tmp), t0) for s in scenario.signal_subsystems}
@@ -128,10 +134,19 @@ def plain_loop(scenario, columns):
             for sig, v in zip(scenario.signals, values):
                 name, var = sig.target.split(".", 1)
                 fmus[name].set(var, v)
+            return values
 
         def record():
             rows.append([fmus[ref.split(".", 1)[0]].get(ref.split(".", 1)[1]) for ref in columns.values()])
 
+        last = None
+        for _ in range(len(fmus) + 4):
+            values = hold(t0)
+            if values == last:
+                break
+            last = values
+        for fmu in fmus.values():
+            fmu.end_initialization()
         hold(t0)
         record()
         for n in range(scenario.n_steps):
@@ -416,12 +431,51 @@ def rows(tp, folder):
     return out
 
 
+# --- the peers as oracles (wavecosim/bench/peers.py, as tests/peers/test_peers.py runs them) --------
+
+def the_file_alone(path):
+    """The row of a corpus system that no row above covers: the explicit master on the file alone."""
+    started = time.perf_counter()
+    scenario = peers.load_system(path)
+    made = len(next(iter(peers.ours(scenario).values()), []))
+    return (True, f"the file alone: explicit, dt = {scenario.dt:g} s, {max(made - 1, 0)} steps"), \
+        time.perf_counter() - started
+
+
+def peer_cell(path, peer):
+    """A peer's cell: its agreement with the explicit master on the file, or why it has none."""
+    try:
+        scenario = peers.load_system(path)
+        errors = peers.compare(scenario, path, peer)
+    except WavecosimError as exc:
+        return True, f"– (wavecosim refuses the file: {str(exc).rsplit(': ', 1)[-1]})"
+    except peers.Refused as exc:
+        return True, str(exc).replace(str(ROOT), ".")
+    return peers.verdict(peer, path, scenario, errors)
+
+
+def peer_cells(path, names):
+    """The peers' cells of a row ('–' for a row that is a variant of a corpus system), and whether
+    every one is an agreement, a known deviation or a refusal."""
+    if path is None:
+        return True, ["–"] * len(names)
+    cells = [peer_cell(path, peer) for peer in names]
+    return all(ok for ok, _ in cells), [text for _, text in cells]
+
+
 def table(tp, only=None, progress=print):
     """The Markdown table and whether every row passed."""
-    lines = ["| system | what it exercises | result (peer's value in parentheses) | run s |", "|---|---|---|---|"]
+    names = [p for p in peers.PEERS if p != "ecos" or peers.installed("ecos")]
+    lines = ["| system | what it exercises | result (peer's value in parentheses) | run s | "
+             + " | ".join(peers.TITLES[p] for p in names) + " |", "|---|---|---|---|" + "---|" * len(names)]
     passed = True
+    corpus = dict(peers.corpus(tp, sorted((ROOT / "configs").glob("*.ssd"))))
     with tempfile.TemporaryDirectory() as tmp:
-        for name, what, runner in rows(tp, Path(tmp)):
+        listed = rows(tp, Path(tmp))
+        covered = {name.split(" (")[0] for name, _, _ in listed}
+        listed += [(name, "the file alone" + (", an in-repo scene" if path.parent == ROOT / "configs" else ""),
+                    lambda p=path: the_file_alone(p)) for name, path in corpus.items() if name not in covered]
+        for name, what, runner in listed:
             if only and only not in name:
                 continue
             progress(f"  {name} ...")
@@ -429,8 +483,10 @@ def table(tp, only=None, progress=print):
                 (ok, text), seconds = runner()
             except Exception as exc:                # a row that cannot run says why; the others go on
                 ok, text, seconds = False, f"FAILS: {type(exc).__name__}: {exc}", math.nan
-            passed &= ok
-            lines.append(f"| {name} | {what} | {text.replace('|', '/')} | {seconds:.1f} |")
+            agree, cells = peer_cells(corpus.get(name.split(" (")[0]), names)
+            passed &= ok and agree
+            lines.append(f"| {name} | {what} | {text.replace('|', '/')} | {seconds:.1f} | "
+                         + " | ".join(c.replace("|", "/") for c in cells) + " |")
     return "\n".join(lines), passed
 
 
@@ -444,6 +500,17 @@ last bit. Regenerate this page with
 
     .venv/bin/python scripts/compatibility.py
 
+The peer columns run each file (the in-repo `configs/*.ssd` scenes too) through a peer in a
+process of its own and through wavecosim's explicit master, at most 200 macro-steps of the file's
+step (0.01 s over 1 s for an FMU whose DefaultExperiment gives none), and compare every Real output column both record:
+`agrees` when max |Δy| / the column's range in the peer's run is at most 10⁻⁹, `differs as
+expected` with the reason (the FMUs' DefaultExperiment tolerance, which wavecosim passes to their
+set-up and libcosim and Ecos do not; a peer's known gap), else `DIFFERS`; a peer that cannot run
+the file says why in its words. libcosim is libcosimpy 0.0.6 (libcosim 0.11, FMI 2 only), FMPy
+its `simulate_fmu` (single FMUs; a system's plain fmpy loop is in the result column), Ecos
+ecospy 0.7.2 (SSP 1.0 only), where it imports (it needs the system's libtbb.so.12).
+`tests/peers/test_peers.py` makes the same comparisons (`make test-slow`).
+
 """
 
 
@@ -456,7 +523,9 @@ def main(argv=None):
     if not args.third_party.exists():
         sys.exit(f"{args.third_party}: the third-party corpus is absent")
     text, passed = table(args.third_party, args.only, progress=lambda m: print(m, file=sys.stderr, flush=True))
-    footer = f"\nwavecosim {version('wavecosim')}, fmpy {fmpy.__version__}, Python {sys.version.split()[0]}.\n"
+    installed = [f"{m} {version(m)}" for p, m in peers.MODULES.items() if p != "fmpy" and peers.installed(p)]
+    footer = (f"\nwavecosim {version('wavecosim')}, fmpy {fmpy.__version__}, {', '.join(installed + [''])}"
+              f"Python {sys.version.split()[0]}.\n")
     if args.only:
         print(text)
     else:

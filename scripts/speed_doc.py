@@ -87,7 +87,7 @@ step and in blocks; the wave adapter per query on its Python and C routes; the d
 - *floor*: the same FMU calls in the same order with the same arguments, recorded from one run and
   made again from C alone on fresh instances (`master/wavecosim/kernel/c/floor.c`);
 - *added*: run minus floor, what the master adds to each macro-step whatever its FMUs cost;
-- *libcosim*: libcosim's fixed-step master on the same SSD (`pip install 'wavecosim[bench]'`), in the
+- *libcosim*: libcosim's fixed-step master on the same SSD (`pip install 'wavecosim[peers]'`), in the
   same process; `-` where libcosimpy is missing or refuses the file (the note says why).
 
 Reading the ratios: what the master adds per macro-step has three parts, whatever the FMUs cost. In

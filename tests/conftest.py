@@ -16,7 +16,7 @@ PASSIVITY_RTOL = 1e-12
 
 @pytest.fixture(scope="session")
 def built_fmus():
-    """{identifier: Path} of every FMU built from models/ and specs/ by fmus/build.py."""
+    """{identifier: Path} of every FMU built from models/ and specs/ by wavecosim/fmi/build.py."""
     return build_all()
 
 
@@ -285,10 +285,12 @@ def input_signals(path):
 
 
 @pytest.fixture(scope="session")
-def faulty_scenario():
+def faulty_scenario(built_fmus):
     """faulty_scenario(fault, step, T, **integers) -> the Table I scenario (a mapping) with B a FaultySide
-    (models/faulty_side) that faults in doStep at macro-step `step`: 1 segfault, 2 exit(0), 3 endless
-    loop, 4 abort(); integers such as log_bytes go to the FMU too."""
+    (models/faulty_side) that faults at macro-step `step` (the faults of its config.h: 1 segfault,
+    2 exit(0), 3 endless loop, 4 abort(), 5..14 signal-blind hangs, stops, thread and fork crashes and
+    faults outside doStep, 15 an error logged as a printf format with its arguments, 16 NaN outputs with
+    status OK, 17 a broken restore from that step on); integers such as log_bytes go to the FMU too."""
     import copy
     import yaml
     from wavecosim.scenario.config import DEFAULT_CONFIG

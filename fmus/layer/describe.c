@@ -128,7 +128,7 @@ static void print_typed(const char *type, const char *name, int vr, int kind, co
 }
 #endif
 
-/* The C files fmus/build.py compiles into the binary; sources/ in the FMU holds them and every
+/* The C files master/wavecosim/fmi/build.py compiles into the binary; sources/ in the FMU holds them and every
  * header they include, so `fmpy compile` can rebuild the binary on another platform. */
 #ifndef FMI_LAYER_SOURCE
 #define FMI_LAYER_SOURCE "fmi2_cosim.c"

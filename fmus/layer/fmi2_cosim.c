@@ -327,6 +327,7 @@ fmi2Component fmi2Instantiate(fmi2String name, fmi2Type type, fmi2String guid, f
     strcpy(c->name, tmp.name);
     set_start_values(&c->d);
     c->phase = ST_INSTANTIATED;
+    MODEL_HOOK(&c->d, "fmi2Instantiate");
     return c;
 }
 
@@ -371,6 +372,7 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component comp) {
                     c->d.r[bad]);
     }
     c->phase = ST_STEP;
+    MODEL_HOOK(&c->d, "fmi2ExitInitializationMode");
     return fmi2OK;
 }
 
@@ -519,6 +521,7 @@ fmi2Status fmi2SetFMUstate(fmi2Component comp, fmi2FMUstate state) {
     if (!s || s->magic != STATE_MAGIC) return fail(c, "fmi2SetFMUstate", "not a state of %s (magic 0x%08x)", MODEL_IDENTIFIER_STR, s ? s->magic : 0u);
     c->phase = s->phase;
     c->d = s->d;
+    MODEL_HOOK(&c->d, "fmi2SetFMUstate");
     return fmi2OK;
 }
 
@@ -598,10 +601,15 @@ fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real t, fmi2Real h, fmi2Boolean no
     d->time = t;
     if (advance(d, h, msg, sizeof msg) != 0) {
         *d = backup;
+#if FAULTY_LAYER
+        c->cb.logger(c->cb.componentEnvironment, c->name, fmi2Error, "logStatusError",
+                     "fmi2DoStep failed: %s at t = %g", msg, t);
+        return fmi2Error;
+#endif
         return fail(c, "fmi2DoStep", "at t = %.17g: %s", t, msg);
     }
     write_energy(d);
-    int bad = first_non_finite(d);
+    int bad = FAULTY_LAYER ? -1 : first_non_finite(d);
     if (bad >= 0) {
         double value = d->r[bad];
         *d = backup;

@@ -40,6 +40,13 @@
  *                        model.c implements model_outputs, which the layer calls on entering
  *                        initialization mode and after every set in initialization or step mode.
  *   MODEL_EXTRA_FIELDS   optional: more state kept in ModelData (arrays of internal DOFs)
+ *   FAULTY_LAYER         optional, for test models that misbehave on purpose: 1 keeps a step that
+ *                        leaves a non-finite real (its outputs are then NaN with status OK), and a
+ *                        failed step is logged as many FMUs log, the format and its printf arguments
+ *                        handed to the master's logger to format
+ *   MODEL_HOOKS          optional: model.c implements model_hook, which the layer calls at the end
+ *                        of fmi2Instantiate, fmi2ExitInitializationMode and fmi2SetFMUstate (the
+ *                        test FMUs misbehave there on purpose)
  *
  * Integer, Boolean and String outputs are written by the model (model_initialize, model_step_io);
  * inputs of every type are held over the step. The layer reads and writes only: every variable by
@@ -62,6 +69,9 @@
 #endif
 #ifndef HAS_FEEDTHROUGH
 #define HAS_FEEDTHROUGH 0
+#endif
+#ifndef FAULTY_LAYER
+#define FAULTY_LAYER 0
 #endif
 
 #if HAS_WAVE_PORT && !defined(PORT_CHANNELS)
@@ -171,6 +181,14 @@ static inline void write_energy(ModelData *m) {
     (void)m;
 #endif
 }
+
+#ifdef MODEL_HOOKS
+/* Called with the instance's data at the end of the FMI call `call` (its name) that succeeded. */
+void model_hook(ModelData *m, const char *call);
+#define MODEL_HOOK(m, call) model_hook(m, call)
+#else
+#define MODEL_HOOK(m, call) ((void)0)
+#endif
 
 #if HAS_WAVE_PORT
 #define COUNT_CHANNEL(ain, bout, eff, flo, phys, kind) +1

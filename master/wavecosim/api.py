@@ -12,7 +12,7 @@ from typing import Any, Callable, Mapping, Optional, Sequence, Union
 
 import numpy as np
 
-from .scenario.config import Scenario, load_scenario, output_patterns
+from .scenario.config import Scenario, _Checker, load_scenario, output_patterns
 from .errors import ConfigError
 from .masters import ALGORITHMS
 from .core.gamma import parse_gamma
@@ -28,7 +28,8 @@ def load(path: Union[str, Path, None] = None, *, master: Optional[str] = None, K
          ports: Union[str, Path, None] = None, parameter_set: Optional[str] = None,
          input: Union[str, Path, None] = None, warn: Optional[Callable[[str], None]] = None,
          changes: Optional[Mapping[str, Any]] = None) -> Scenario:
-    """Read and validate a scenario file (the built-in Table I scene when `path` is None), an SSP
+    """Read and validate a scenario file (the built-in Table I scene when `path` is None; an example
+    by its name, `wavecosim examples`), an SSP
     system (.ssd, .ssp, folder) with the overlay `ports` and the parameter sets named
     `parameter_set`, or one FMU (.fmu) driven by the CSV file `input`, with the given values in
     place of the file's (the CLI's options; `outputs`: glob patterns of the columns to record).
@@ -36,7 +37,8 @@ def load(path: Union[str, Path, None] = None, *, master: Optional[str] = None, K
     scenario's mapping before it is checked, as `--set` does: {"subsystems.A.parameters.k": 2.0}."""
     from .scenario.fmu import is_fmu, load_fmu
     from .scenario.ssp import is_ssp, load_ssp, ssp_only
-    times, changes = {"dt": dt, "T": T, "start_time": start_time}, list((changes or {}).items())
+    from .examples import resolve
+    path, times, changes = resolve(path), {"dt": dt, "T": T, "start_time": start_time}, list((changes or {}).items())
     ssp_only(path, ports, parameter_set)
     if input is not None and not is_fmu(path):
         raise ConfigError("input: only for an FMU (.fmu)")
@@ -62,13 +64,16 @@ def with_overrides(scenario: Scenario, *, master=None, K=None, eps=None, gamma=N
                    start_time=None, outputs=None, where="options") -> Scenario:
     """The scenario with some values replaced, each checked as in a file (one-line ConfigError);
     `outputs` (glob patterns) narrows the recorded columns."""
+    K, eps, dt, T, start_time = (_plain(v) for v in (K, eps, dt, T, start_time))
+    check = _Checker(where)
+    if K is not None:
+        check.integer(K, "K", minimum=0)
+    for name, value in (("eps", eps), ("dt", dt), ("T", T), ("start_time", start_time)):
+        if value is not None:
+            check.number(value, name, positive=name in ("dt", "eps"))
     changes = {k: v for k, v in (("K", K), ("eps", eps), ("algorithm", master)) if v is not None}
     if master is not None and master not in ALGORITHMS:
         raise ConfigError(f"{where}: master: must be one of {', '.join(ALGORITHMS)}, got {master!r}")
-    if K is not None and (isinstance(K, bool) or not isinstance(K, int) or K < 0):
-        raise ConfigError(f"{where}: K: must be >= 0, got {K!r}")
-    if eps is not None and not eps > 0:
-        raise ConfigError(f"{where}: eps: must be > 0, got {eps!r}")
     if changes:
         scenario = scenario.with_master("master" if where == "options" else "--master", **changes)
     top = {k: v for k, v in (("dt", dt), ("T", T), ("start_time", start_time)) if v is not None}
@@ -79,6 +84,17 @@ def with_overrides(scenario: Scenario, *, master=None, K=None, eps=None, gamma=N
     if gamma is not None:
         top["gamma"] = parse_gamma(gamma, f"{where}: gamma" if where != "options" else "gamma")
     return scenario.with_changes(where, **top)
+
+
+def _plain(value):
+    """A numpy scalar (np.int64(5), np.float64(0.1)) as the Python number it holds; anything else as given."""
+    return value.item() if isinstance(value, np.generic) else value
+
+
+def _budgets(Ks):
+    """Budgets K as Python integers >= 0 within a C int (numpy's integers taken), else a one-line ConfigError."""
+    check = _Checker("Ks")
+    return [check.integer(_plain(K), f"[{i}]", minimum=0) for i, K in enumerate(Ks)]
 
 
 def _fail_outputs(where, message):
@@ -163,7 +179,7 @@ def sweep(scenario: ScenarioLike = None, Ks: Sequence[int] = (0, 3, 8, 20, 35, 5
     """The paper's experiment: DR at every budget K against the monolithic reference."""
     from .sweeps.budget import sweep as run_sweep
     sc = _scenario(scenario, **overrides)
-    reference, results, rows = run_sweep(sc, list(Ks), out_dir, progress=_labelled(progress),
+    reference, results, rows = run_sweep(sc, _budgets(Ks), out_dir, progress=_labelled(progress),
                                          certificates=certificates)
     return Table(rows, results, reference)
 
@@ -175,7 +191,8 @@ def compare(scenario: ScenarioLike = None, masters: Optional[Sequence[str]] = No
     and DR with each named option in `options` (wavecosim.sweeps.comparison.DR_OPTIONS)."""
     from .sweeps.comparison import compare as run_compare, parse_options
     sc = _scenario(scenario, **overrides)
-    reference, results, rows = run_compare(sc, out_dir, masters, Ks, progress=_labelled(progress),
+    reference, results, rows = run_compare(sc, out_dir, masters, Ks if Ks is None else _budgets(Ks),
+                                           progress=_labelled(progress),
                                            certificates=certificates, options=parse_options(options))
     return Table(rows, results, reference)
 

@@ -1,6 +1,7 @@
 """The `wavecosim` command line: a thin shell over config, runner and sweep.
 
 Every WavecosimError becomes one line on stderr and its class's exit code (2 for bad input)."""
+import math
 import sys
 import time
 from pathlib import Path
@@ -16,6 +17,29 @@ from .masters import ALGORITHMS, MASTERS
 from .run.outputs import OutputFolder
 from .run.recorder import write_json
 from .run.runner import MAX_STEPS, check_steps
+from .scenario.overrides import MAX_RUNS
+
+
+C_INT_MAX = 2 ** 31 - 1           # the kernel takes budgets, intervals and counts as C ints
+
+
+def whole(minimum, maximum=C_INT_MAX):
+    """An integer option within [minimum, maximum]: by default what a C int holds."""
+    return click.IntRange(min=minimum, max=maximum)
+
+
+class Finite(click.FloatRange):
+    """A number option that must be finite (nan and inf refused) and within the range given."""
+    name = "finite number"
+
+    def convert(self, value, param, ctx):
+        number = super().convert(value, param, ctx)
+        if not math.isfinite(number):
+            self.fail(f"{value!r} is not a finite number", param, ctx)
+        return number
+
+
+POSITIVE = Finite(min=0, min_open=True)
 
 
 def _progress(label, quiet):
@@ -61,8 +85,8 @@ def parse_budgets(ks, option="--Ks"):
         Ks = None
     if not isinstance(Ks, list) or not all(isinstance(k, int) and not isinstance(k, bool) for k in Ks):
         raise ConfigError(f"{option}: must be comma-separated integers or a range a..b, got {ks!r}")
-    if not Ks or min(Ks) < 0:
-        raise ConfigError(f"{option}: budgets must be integers >= 0, got {ks!r}")
+    if not Ks or min(Ks) < 0 or max(Ks) > C_INT_MAX:
+        raise ConfigError(f"{option}: budgets must be integers from 0 to {C_INT_MAX}, got {ks!r}")
     return Ks
 
 
@@ -80,7 +104,7 @@ def print_table(rows, fields):
 
 
 step_timeout_option = click.option(
-    "--step-timeout", type=click.FloatRange(min=0, min_open=True), metavar="SECONDS",
+    "--step-timeout", type=POSITIVE, metavar="SECONDS",
     help="End the run when a macro-step does not finish within SECONDS, as when a call into an FMU does not "
          "return (the scenario's step_timeout otherwise; default: no limit). Steps before it are kept.")
 
@@ -92,12 +116,12 @@ overwrite_option = click.option(
 
 system_argument = click.argument("config", required=False, type=click.Path(path_type=Path))   # also an SSP folder
 common = [
-    click.option("--K", "K", type=click.IntRange(min=0), help="Inner-iteration budget K per macro-step."),
-    click.option("--eps", type=click.FloatRange(min=0, min_open=True), help="Inner tolerance: stop when |u_new - u| <= eps."),
+    click.option("--K", "K", type=whole(0), help="Inner-iteration budget K per macro-step."),
+    click.option("--eps", type=POSITIVE, help="Inner tolerance: stop when |u_new - u| <= eps."),
     click.option("--gamma", help="Scattering impedance (> 0), or auto / auto-retune / fast-unsafe."),
-    click.option("--dt", type=click.FloatRange(min=0, min_open=True),
+    click.option("--dt", type=POSITIVE,
                  help="Macro-step size (s); default: the file's, else the smallest DefaultExperiment stepSize of the FMUs."),
-    click.option("--T", "T", type=float,
+    click.option("--T", "T", type=Finite(),
                  help="Stop time (s); default: the file's, else the largest DefaultExperiment stopTime of the FMUs."),
     click.option("--quiet", is_flag=True, help="No progress output."),
 ]
@@ -125,7 +149,7 @@ def cli():
 
 
 output_options = [
-    click.option("--output-interval", type=click.IntRange(min=1), default=1, show_default=True,
+    click.option("--output-interval", type=whole(1), default=1, show_default=True,
                  help="Record every N-th macro-step (and the last) in the CSV files; figures use every step."),
     click.option("--format", "formats", type=click.Choice(["csv", "mat"]), multiple=True,
                  help="Also write MATLAB files (trajectory.mat, steps.mat) with --format mat; CSV is always written."),
@@ -133,6 +157,17 @@ output_options = [
 
 
 with_output = options(output_options)
+
+
+plot_option = click.option(
+    "--plot", "plot_patterns", multiple=True, metavar="PATTERN",
+    help="Draw these columns in the trajectory figure (a glob over the column names, e.g. 'machine.*'; repeat "
+         "for more; implies --plots); default: the error columns, else the power ports', at most 8.")
+
+
+def _plot_note(message):
+    """One line on stderr for a figure or columns that --plots left out."""
+    click.echo(f"plots: {message}", err=True)
 
 
 ssp_options = options([
@@ -143,7 +178,7 @@ ssp_options = options([
 
 
 experiment_options = options([
-    click.option("--start-time", type=float, help="Start time t0 (s) of the grid t0 + n dt; default: the file's, "
+    click.option("--start-time", type=Finite(), help="Start time t0 (s) of the grid t0 + n dt; default: the file's, "
                  "else the DefaultExperiment startTime of the FMUs, else 0."),
 ])
 
@@ -156,6 +191,8 @@ def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None, star
     from .scenario.fmu import is_fmu
     from .scenario.overrides import parse_value
     from .scenario.ssp.archive import is_ssp           # the archive module alone: a scenario file needs no more
+    from .examples import resolve
+    config = resolve(config)
     times, changes = {"dt": dt, "T": T, "start_time": start_time}, dict(parse_value(s) for s in sets)
     warn = lambda note: click.echo(f"warning: {note}", err=True)        # noqa: E731
     if ports or parameter_set or (config is not None and is_ssp(config)):
@@ -202,7 +239,7 @@ def tolerance_sets(**given):
               help="Master algorithm (default: from CONFIG; else dr where there are power bonds, explicit without).")
 @click.option("--set", "sets", multiple=True, metavar="KEY=VALUE", help="Set a scenario key for this run, "
               "KEY as in sweep --set (master.K=8, subsystems.A.parameters.k=2.5). Repeat for more.")
-@click.option("--out", type=click.Path(path_type=Path), default=Path("out/run"), show_default=True,
+@click.option("--out", type=click.Path(path_type=Path, resolve_path=True), default=Path("out/run"), show_default=True,
               help="Output folder for trajectory.csv, steps.csv, summary.json and metadata.json.")
 @click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and the Condition 1 watch (faster).")
 @click.option("--no-reference", is_flag=True, help="Skip the monolithic reference run (no error figures).")
@@ -210,14 +247,18 @@ def tolerance_sets(**given):
               "at a refined step and report true_error, the error against it (docs/masters.md).")
 @tolerance_options
 @click.option("--plots", is_flag=True, help="Also write PNG figures into the output folder.")
+@plot_option
 @click.option("--threads", help="Threads evaluating the subsystems: auto, or N (up to min(N, CPUs, subsystems)); "
                                 "the numbers are the same for any N.")
 @step_timeout_option
+@click.option("--setup-timeout", type=click.FloatRange(min=0, min_open=True), default=60.0, show_default=True,
+              metavar="SECONDS", help="End the run when its set-up (loading the FMUs, instantiating and initializing "
+              "them, their probes) makes no progress for SECONDS; compiling the kernel or an FMU does not count.")
 @overwrite_option
 @click.option("--force", is_flag=True, help=f"Run even more than {MAX_STEPS:,} macro-steps.")
 def run_cmd(config, K, eps, gamma, dt, T, quiet, start_time, output_interval, formats, ports, parameter_set, input_csv,
             outputs, algorithm, sets, out, no_certificates, no_reference, fine, tolerance, atol, dt_min, dt_max,
-            output_step, estimate, plots, threads, step_timeout, overwrite, force):
+            output_step, estimate, plots, plot_patterns, threads, step_timeout, setup_timeout, overwrite, force):
     """Run one scenario (with the monolithic reference alongside where there are power bonds) and
     write its trajectory, per-step certificates, summary and metadata. CONFIG is a scenario file,
     an SSP system (.ssd, .ssp, folder) or one FMU (.fmu), run as fmpy's simulate runs it.
@@ -240,15 +281,15 @@ def run_cmd(config, K, eps, gamma, dt, T, quiet, start_time, output_interval, fo
                           certificates=not no_certificates, reference=fine or not no_reference,
                           output_interval=output_interval, formats=("csv", *formats), max_steps=max_steps)
         _report_run(scenario, result, out)
-        if plots:
+        if plots or plot_patterns:
             from .plots import run_plots
-            for p in run_plots(result, result.reference, out):
+            for p in run_plots(result, result.reference, out, scenario, plot_patterns, _plot_note):
                 click.echo(f"wrote {p}")
     with OutputFolder(out, overwrite):
-        return _supervised(work, out / "summary.json", step_timeout or scenario.step_timeout)
+        return _supervised(work, out / "summary.json", step_timeout or scenario.step_timeout, setup_timeout)
 
 
-def _supervised(work, summary, step_timeout):
+def _supervised(work, summary, step_timeout, setup_timeout=None):
     """work() in a supervised child process (run/supervisor.py); its exit code, raised as ChildExit
     when it is not 0 (the child has printed its one line). WAVECOSIM_IN_PROCESS=1 runs it here (for a
     debugger or a profiler; a crash then takes everything with it)."""
@@ -257,7 +298,9 @@ def _supervised(work, summary, step_timeout):
         work()
         return 0
     from .run.supervisor import supervise
-    code = supervise(lambda: _exit_status(work), summary=summary, step_timeout=step_timeout)
+    from .run.supervisor import SETUP_TIMEOUT_S
+    code = supervise(lambda: _exit_status(work), summary=summary, step_timeout=step_timeout,
+                     setup_timeout=setup_timeout or SETUP_TIMEOUT_S)
     if code:
         raise ChildExit(code)
     return 0
@@ -290,18 +333,20 @@ sweep_options = options([
     click.option("--K", "--Ks", "--K-list", "ks", help="Budgets K: a list like 0,3,8 or a range 0..63 "
                  "(default for the paper's experiment: 0,3,8,20,35,50)."),
     *[opt for opt in common if opt is not common[0]],
-    click.option("--out", type=click.Path(path_type=Path), default=Path("out/sweep"),
+    click.option("--out", type=click.Path(path_type=Path, resolve_path=True), default=Path("out/sweep"),
                  show_default=True),
     click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and "
                  "the Condition 1 watch."),
     click.option("--plots", is_flag=True, help="Also write PNG figures (the paper's Figs. 4-6; with --set, "
                  "each --plot-y figure against the first swept key)."),
+    plot_option,
     click.option("--set", "sets", multiple=True, metavar="KEY=VALUES", help="Sweep a scenario key: "
                  "KEY=0,3,8 | a..b | linspace(a,b,n) | geomspace(a,b,n) | uniform(lo,hi) | loguniform(lo,hi) | "
                  "normal(mu,sigma) | randint(lo,hi) (see docs/sweeps.md). Repeat for a grid."),
-    click.option("--sample", type=click.IntRange(min=1), help="Monte Carlo: draw N values of each distribution."),
-    click.option("--seed", type=int, default=0, show_default=True, help="Seed of the Monte Carlo draws."),
-    click.option("--workers", type=click.IntRange(min=1), help="Processes (or LocalCluster workers); "
+    click.option("--sample", type=whole(1, MAX_RUNS), help="Monte Carlo: draw N values of each distribution."),
+    click.option("--seed", type=whole(0, 2 ** 63 - 1), default=0, show_default=True,
+                 help="Seed of the Monte Carlo draws."),
+    click.option("--workers", type=whole(1, 1024), help="Processes (or LocalCluster workers); "
                  "default: the number of CPUs; 1 runs in this process."),
     click.option("--scheduler", help="Run on Dask: a scheduler address (tcp://host:8786) or 'local' for an "
                  "embedded LocalCluster of --workers processes."),
@@ -319,14 +364,16 @@ sweep_options = options([
 @system_argument
 @sweep_options
 @ssp_options
-def sweep_cmd(config, ks, eps, gamma, dt, T, quiet, out, no_certificates, plots, sets, sample, seed, workers,
-              scheduler, resume, no_reference, plot_y, step_timeout, overwrite, ports, parameter_set):
+def sweep_cmd(config, ks, eps, gamma, dt, T, quiet, out, no_certificates, plots, plot_patterns, sets, sample, seed,
+              workers, scheduler, resume, no_reference, plot_y, step_timeout, overwrite, ports, parameter_set):
     """Without --set: the paper's experiment, DR for each K against the monolithic reference
     (summary.json). With --set (or --sample, --workers, --scheduler, --resume, --no-reference):
     a general sweep over any scenario keys, one row per run in OUT/runs.csv and OUT/runs.json;
     each run is made in a child process of its own, and one that crashes or times out is a row
     saying so (the sweep then exits with code 8)."""
     if sets or sample or workers or scheduler or resume or no_reference:
+        if plot_patterns:
+            raise ConfigError("--plot: a sweep with --set draws its --plot-y figures, not trajectories")
         options = dict(no_certificates=no_certificates, plots=plots, sample=sample, seed=seed, workers=workers,
                        scheduler=scheduler, resume=resume, no_reference=no_reference, plot_y=plot_y, quiet=quiet,
                        step_timeout=step_timeout, ports=ports, parameter_set=parameter_set)
@@ -341,9 +388,9 @@ def sweep_cmd(config, ks, eps, gamma, dt, T, quiet, out, no_certificates, plots,
         reference, results, runs = table.reference, table.results, table.rows
         click.echo(f"{scenario.name}: sweep over K = {Ks} -> {out / 'summary.json'}")
         print_table(runs, list(SWEEP_FIELDS))
-        if plots:
+        if plots or plot_patterns:
             from .plots import sweep_plots
-            for p in sweep_plots(results, reference, out):
+            for p in sweep_plots(results, reference, out, scenario, plot_patterns, _plot_note):
                 click.echo(f"wrote {p}")
     with OutputFolder(out, overwrite):
         return _supervised(work, None, step_timeout or scenario.step_timeout)
@@ -355,6 +402,9 @@ def _general_sweep(config, ks, sets, changes, out, o):
 
     from .scenario.overrides import parse_set, scalar
     from .sweeps.budget import plan, run_sweep
+    from .sweeps.execute import check_scheduler
+    if o["scheduler"]:
+        check_scheduler(o["scheduler"])
     axes = [parse_set(s) for s in list(sets)]
     if ks:
         axes.insert(0, ("master.K", parse_budgets(ks, "--K")))
@@ -376,7 +426,7 @@ def _general_sweep(config, ks, sets, changes, out, o):
         click.echo(f"run {r['index']} ({r['label']}): {r.get('status')}: {r.get('message')}")
     if o["plots"]:
         from .plots import figure_plots
-        for p in figure_plots(rows, keys, [y.strip() for y in o["plot_y"].split(",") if y.strip()], out):
+        for p in figure_plots(rows, keys, [y.strip() for y in o["plot_y"].split(",") if y.strip()], out, _plot_note):
             click.echo(f"wrote {p}")
     if failed:
         raise SweepFailed(f"{len(failed)} of {len(rows)} runs did not finish (their rows say why: {out / 'runs.csv'})")
@@ -407,7 +457,7 @@ def _sweep_progress(total, skipped):
               help="Comma-separated masters to compare.")
 @click.option("--Ks", "--K-list", "ks", default=None,
               help="Comma-separated budgets K for the iterative masters (default: a grid per master).")
-@click.option("--out", type=click.Path(path_type=Path), default=Path("out/compare"), show_default=True)
+@click.option("--out", type=click.Path(path_type=Path, resolve_path=True), default=Path("out/compare"), show_default=True)
 @click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and the Condition 1 watch.")
 @click.option("--plots", is_flag=True, help="Also write pareto.png and energy_by_master.png.")
 @click.option("--options", "dr_options", default="", metavar="NAMES",
@@ -452,7 +502,7 @@ def compare_cmd(config, K, eps, gamma, dt, T, quiet, start_time, ports, paramete
                 click.echo(f"{r['master']} K={r['K']}: {r['status']} after {r['steps']} steps: {r['message']}")
         if plots:
             from .plots import compare_plots
-            for p in compare_plots(rows, results, reference, out):
+            for p in compare_plots(rows, results, reference, out, _plot_note):
                 click.echo(f"wrote {p}")
     with OutputFolder(out, overwrite):
         return _supervised(work, None, step_timeout or scenario.step_timeout)
@@ -512,7 +562,7 @@ def validate_cmd(config, ports, parameter_set, input_csv, dt, T, start_time):
 @cli.command("import-ssp")
 @click.argument("ssp", type=click.Path(exists=False, path_type=Path))
 @ssp_options
-@click.option("-o", "--out", type=click.Path(dir_okay=False, path_type=Path), required=True,
+@click.option("-o", "--out", type=click.Path(dir_okay=False, path_type=Path, resolve_path=True), required=True,
               help="The YAML draft to write.")
 def import_ssp_cmd(ssp, ports, parameter_set, out):
     """Write an SSP system (.ssd, .ssp or a folder) as a scenario file to edit, each part commented
@@ -537,16 +587,39 @@ def build_cmd(force):
 @cli.command("examples")
 @click.argument("name", required=False)
 def examples_cmd(name):
-    """List the example scenarios shipped with wavecosim, or print the path of one (NAME)."""
+    """List the example scenarios shipped with wavecosim, each with its description, those that cannot
+    run here with what they need; or print the path of one (NAME). Every command and wavecosim.simulate
+    take an example by its name."""
     from . import examples
     if name is None:
-        for each in examples.names():
-            click.echo(each)
+        described = [examples.describe(each) for each in examples.names()]
+        width = max(len(d["name"]) for d in described)
+        for d in (d for d in described if not d["needs"]):
+            click.echo(f"{d['name']:<{width}}  {d['description']}")
+        lacking = [d for d in described if d["needs"]]
+        if lacking:
+            click.echo("\nnot runnable here:")
+        for d in lacking:
+            click.echo(f"{d['name']:<{width}}  {d['description']}\n{'':<{width}}  needs {d['needs']}")
         return
     try:
         click.echo(examples.path(name))
     except FileNotFoundError as exc:
         raise ConfigError(str(exc)) from None
+
+
+@cli.command("info")
+@click.argument("file", type=click.Path(path_type=Path))
+@ssp_options
+@click.option("--json", "as_json", is_flag=True, help="Print the description as JSON.")
+def info_cmd(file, ports, parameter_set, as_json):
+    """What FILE holds: an FMU's variables (causality, type, unit, start), default experiment and
+    co-simulation capabilities; an SSP system's or scenario file's components, connections, power
+    ports and couplings. Nothing is run."""
+    import json
+    from .scenario.info import describe, text
+    info = describe(file, ports, parameter_set)
+    click.echo(json.dumps(info, indent=1) if as_json else "\n".join(text(info)))
 
 
 BENCH_S = {"quick": 40, "full": 160}     # measured wall time of `bench` (2 CPUs, warm build cache)

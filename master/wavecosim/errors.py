@@ -25,6 +25,18 @@ def brief_text(text, limit=400):
     return f"{text[:limit - tail]} ... [{len(text) - limit} characters left out] ... {text[-tail:]}"
 
 
+def optional(module, extra, needed_by):
+    """The optional dependency `module` imported, or a ConfigError in one line naming the extra of
+    wavecosim that installs it (`needed_by`: what asked for it, e.g. "--scheduler")."""
+    import importlib
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        top = module.split(".", 1)[0]
+        raise ConfigError(f"{needed_by} needs {top}, which is not installed here: "
+                          f"pip install 'wavecosim[{extra}]'") from None
+
+
 class WavecosimError(Exception):
     """Root of every error the product reports to users."""
     exit_code = 1

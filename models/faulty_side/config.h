@@ -1,11 +1,23 @@
-/* A damped mass with an effort port (it can take LinearSide's place) that misbehaves on purpose inside
- * doStep at a chosen macro-step, so the tests can check that a run contains a crashing, exiting,
- * hanging or chatty FMU: fault 1 dereferences a null pointer (SIGSEGV), 2 calls exit(0), 3 loops
- * forever, 4 calls abort(). The fault strikes in the first doStep that starts at t = fault_step * h.
- * With log_bytes > 0 every successful step logs a warning of that many characters. */
+/* A damped mass with an effort port (it can take LinearSide's place) that misbehaves on purpose, so the
+ * tests can check that a run contains a crashing, exiting, hanging or chatty FMU. In doStep, in the
+ * first one that starts at t = fault_step * h: fault 1 dereferences a null pointer (SIGSEGV), 2 calls
+ * exit(0), 3 loops forever, 4 calls abort(), 5 loops forever with every signal blocked, 6 stops its
+ * process (SIGSTOP) again and again, 7 loops forever under its own SIGUSR2, SIGTERM and SIGINT
+ * handlers (as a JVM does), 8 segfaults in a thread it started, 9 forks a helper that sleeps and
+ * then segfaults, 10 kills its process (SIGKILL), 11 changes the working directory to / and goes on.
+ * Elsewhere: 12 fmi2SetFMUstate multiplies v by 1 + 1e-4 from t = fault_step * h on (a restore that
+ * drifts), 13 the first fmi2SetFMUstate loops forever, 14 b and e are NaN after the initialization.
+ * In doStep again: 15 fails the step with a message logged as a printf format and its arguments,
+ * 16 returns NaN outputs with status OK, 17 restores its state only in part (from fault_step on,
+ * every step depends on the doSteps the instance made before).
+ * The environment variable FAULTYSIDE_HANG = load or instantiate makes the binary loop forever
+ * when it is loaded or in fmi2Instantiate. With log_bytes > 0 every successful step logs a warning
+ * of that many characters. */
+#define MODEL_HOOKS
+#define FAULTY_LAYER 1
 #define MODEL_IDENTIFIER FaultySide
 #define MODEL_GUID "{3c0f4a52-8e1d-4d2b-9a6e-7f1b2c3d0f17}"
-#define MODEL_DESCRIPTION "Damped mass that segfaults, exits, hangs or aborts in doStep at a chosen step (tests)"
+#define MODEL_DESCRIPTION "Damped mass that crashes, exits, hangs, stops, fails, gives NaN or lies at a chosen step (tests)"
 
 #define REAL_VARIABLES(X) \
     X(mass, PARAMETER, 4.0, "kg", "the mass") \
@@ -22,7 +34,7 @@
 
 #define INTEGER_VARIABLES(X) \
     X(port_mode, 0, "0 = wave port (input a, output b), 1 = physical port (input F)") \
-    X(fault, 0, "0 none, 1 segfault, 2 exit(0), 3 endless loop, 4 abort() in doStep at fault_step") \
+    X(fault, 0, "0 none, 1..17: the fault of config.h's comment, at fault_step") \
     X(fault_step, -1, "the macro-step whose doStep faults (-1: none)") \
     X(log_bytes, 0, "characters of the warning logged after every step (0: none, at most 250)")
 

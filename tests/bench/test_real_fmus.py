@@ -14,7 +14,7 @@ import pytest
 
 from paths import CONFIGS
 from wavecosim.bench.real_fmus import _floor, _recorded, _rows, signal_pair
-from wavecosim.fmi.fmu import set_pointer_hook
+from wavecosim.fmi.fmu import interposed
 from wavecosim.kernel.floor import FloorRecorder
 from wavecosim.run.runner import open_parts, run
 from wavecosim.scenario.config import load_scenario
@@ -30,7 +30,7 @@ def replayed_outputs(sc, recorder):
     try:
         master.close()
         everyone = {s.name: s for s in scene.subsystems + scene.signal_only}
-        recorder.replay({name: s.fmu for name, s in everyone.items()})
+        recorder.replay({name: (s.fmu.component, s.fmu.function_pointer) for name, s in everyone.items()})
         return [float(everyone[ref.split(".")[0]].fmu.get_real([everyone[ref.split(".")[0]].fmu.vr(
             ref.split(".", 1)[1])])[0]) for ref in sc.outputs.values()]
     finally:
@@ -58,12 +58,11 @@ def test_the_floor_makes_the_runs_fmu_calls_again(config, master, calls_per_step
 def test_without_the_hook_nothing_is_recorded(built_fmus):
     recorder = FloorRecorder()
     try:
-        previous = set_pointer_hook(None)
-        recorder.start()
-        run(dataclasses.replace(load_scenario(CONFIGS / "foreign_pair.yaml"), T=0.01).with_master(algorithm="explicit"),
-            certificates=False, warn=quiet)
-        recorder.stop()
-        set_pointer_hook(previous)
+        with interposed(None):
+            recorder.start()
+            run(dataclasses.replace(load_scenario(CONFIGS / "foreign_pair.yaml"), T=0.01).with_master(algorithm="explicit"),
+                certificates=False, warn=quiet)
+            recorder.stop()
         assert recorder.calls == 0
     finally:
         recorder.close()

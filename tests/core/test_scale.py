@@ -127,7 +127,7 @@ def test_kernel_refuses_malformed_sparse_rows(built_fmus):
     scene = build_scene(chain_scenario(8))
     try:
         w = scene.wave_map()
-        kernel = Kernel(scene, w.P_sparse, w.J_L_sparse)
+        kernel = Kernel(scene.kernel_scene(), w.P_sparse, w.J_L_sparse)
         try:
             bad = Sparse(w.P_sparse.n, w.P_sparse.start, w.P_sparse.col + 100, w.P_sparse.val)
             with pytest.raises(FmuError, match="refused the coupling maps"):

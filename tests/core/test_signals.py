@@ -204,3 +204,17 @@ def test_a_non_finite_signal_stops_the_run_naming_the_signal(folder):
         run(scenario(folder, huge), warn=quiet)
     assert "signals[0]: push.force gave inf at step 5 (t = 0.05)" in str(info.value)
     assert info.value.exit_code == 4 and info.value.result.summary["steps"] == 5
+
+
+def test_metadata_names_a_time_table_by_its_file_and_checksum(folder):
+    """metadata.json records each source table by its path, SHA-256, rows and columns, not its values
+    (a large --input file would be copied whole into it)."""
+    import hashlib
+    import json
+    sc = scenario(folder)
+    wc.simulate(sc, out_dir=folder / "out", reference=False, warn=quiet)
+    (table,) = json.loads((folder / "out" / "metadata.json").read_text())["scenario"]["sources"]
+    source = sc.sources[0]
+    assert table == {"name": source.name, "csv": source.csv, "interpolation": source.interpolation,
+                     "sha256": hashlib.sha256(open(source.csv, "rb").read()).hexdigest(),
+                     "rows": len(source.times), "columns": list(source.columns)}

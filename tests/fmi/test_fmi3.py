@@ -1,7 +1,7 @@
 """FMI 3.0 co-simulation FMUs (the Reference FMUs) with every master, the Python path and the C kernel.
 
 Claims: an FMI 3 FMU loads with parameters of every FMI 3 type that maps to YAML, its state
-restores bit for bit through both call routes (wavecosim/fmi3.py, kernel/c/fmi3shim.c); a doStep
+restores bit for bit through both call routes (wavecosim/fmi/fmi3.py, kernel/c/fmi3shim.c); a doStep
 that sets terminateSimulation is an FmuError naming the FMU, step and time; the damper scene
 (configs/fmi3_damper.yaml) runs with explicit and rolling-back masters and gives the same numbers
 as with the FMI 2 build of the same FMU; its DR error falls with K; the C kernel runs an FMI 3
@@ -198,7 +198,7 @@ def wire_run(fast, K, steps):
 
 
 def test_the_c_kernel_runs_an_fmi3_subsystem_to_the_last_bit():
-    """The kernel calls W through kernel/c/fmi3shim.c, the reference through wavecosim/fmi3.py."""
+    """The kernel calls W through kernel/c/fmi3shim.c, the reference through wavecosim/fmi/fmi3.py."""
     ref, fast = wire_run("false", 8, 40), wire_run("true", 8, 40)
     assert bits(ref[1]) == bits(fast[1]) and bits(ref[2]) == bits(fast[2])
     for a, b in zip(ref[0], fast[0]):

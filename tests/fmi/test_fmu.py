@@ -7,7 +7,7 @@ import pytest
 from paths import ROOT
 from wavecosim.errors import FmuError
 from wavecosim.cli import main
-from wavecosim.fmi.fmu import Fmu, extract_fmu
+from wavecosim.fmi.fmu import Fmu, extract_fmu, interposed
 
 
 def test_extraction_refuses_what_is_not_an_fmu(tmp_path):
@@ -33,6 +33,28 @@ def test_status_error_names_subsystem_function_step_and_time(built_fmus):
         err = fmu.status_error("fmi2DoStep", 3, step=5, time=0.05)
         assert str(err).startswith("subsystem B: fmi2DoStep returned Error at step 5 (t = 0.05): ")
         assert (err.subsystem, err.step) == ("B", 5)
+    finally:
+        fmu.close()
+
+
+def test_interposed_gives_the_hooks_pointers_within_the_block_only(built_fmus):
+    """The seam a tool stands between the kernel and an FMU's functions through (the bench's floor)."""
+    fmu = Fmu(built_fmus["LinearSide"], "B")
+    seen = []
+
+    def hook(name, component, fname, lookup):
+        seen.append((name, component, fname))
+        return 7 if fname == "fmi2DoStep" else lookup(fname)
+
+    try:
+        own = fmu.function_pointer("fmi2DoStep")
+        with pytest.raises(KeyError):
+            with interposed(hook):
+                assert fmu.function_pointer("fmi2DoStep") == 7
+                assert fmu.function_pointer("fmi2GetReal") != 7
+                raise KeyError("the block fails")
+        assert fmu.function_pointer("fmi2DoStep") == own
+        assert seen == [("B", fmu.component, "fmi2DoStep"), ("B", fmu.component, "fmi2GetReal")]
     finally:
         fmu.close()
 

@@ -9,7 +9,7 @@ from paths import ROOT
 from wavecosim.core import ports
 from wavecosim.core.adapter_kernel import KernelAdapter
 from wavecosim.core.scene import build_scene
-from wavecosim.kernel.drkernel import adapter_port, fmu_functions
+from wavecosim.core.kernel_scene import kernel_subsystem
 from wavecosim.scenario.config import parse_scenario
 
 
@@ -34,7 +34,7 @@ def adapted(scene, in_c):
     sub.adapter = True
     sub.map = ports.WaveAdapter(sub, [not flow_in for flow_in in sub.port.input_is_flow], sub.port.sign, 0.4)
     if in_c:
-        adapter_port(sub, *fmu_functions(sub))
+        kernel_subsystem(sub, 0)
         assert isinstance(sub.map, KernelAdapter)
     return sub
 

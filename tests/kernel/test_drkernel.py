@@ -1,5 +1,5 @@
 """The DR kernel's own parts (kernel/drkernel.py, kernel/c/drkernel.c): the thread plan and what it
-changes (no number), an FMU error on the worker thread, the floor driver's FMU calls, the deadline.
+changes (no number), an FMU error on the worker thread, the deadline.
 Its numbers against the Python reference: tests/masters/test_routes.py.
 """
 import copy
@@ -10,7 +10,7 @@ import pytest
 from paths import ROOT
 from wavecosim.scenario.config import load_scenario
 from wavecosim.errors import FmuError
-from wavecosim.kernel.drkernel import Kernel, thread_plan
+from wavecosim.kernel.drkernel import thread_plan
 from wavecosim.masters.dr_fast import FastDRMaster
 from wavecosim.run.runner import run
 from wavecosim.core.scene import build_scene
@@ -57,19 +57,6 @@ def test_an_fmu_error_on_the_worker_thread_names_its_subsystem(table_i):
         assert (info.value.subsystem, info.value.step) == ("A", 18)
     finally:
         master.close()
-        scene.close()
-
-
-def test_floor_driver_makes_the_same_calls(table_i):
-    scene = build_scene(table_i)
-    coupling = scene.wave_map()
-    kernel = Kernel(scene, coupling.P.tolist(), coupling.J_L.tolist())
-    kernel.configure(table_i.dt, 8)
-    try:
-        kernel.floor(10, 8)
-        assert kernel.counts() == [(90, 10, 80)] * 2
-    finally:
-        kernel.close()
         scene.close()
 
 

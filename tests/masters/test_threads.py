@@ -107,7 +107,7 @@ def kernel(built_fmus, eight_cpus):
         pytest.skip("the HeavyChain FMU is not available")
     scene = build_scene(load_scenario(CONFIGS / "heavy_chain_8.yaml"))
     coupling = scene.wave_map()
-    k = Kernel(scene, coupling.P_sparse, coupling.J_L_sparse)
+    k = Kernel(scene.kernel_scene(), coupling.P_sparse, coupling.J_L_sparse)
     yield k
     k.close()
     scene.close()

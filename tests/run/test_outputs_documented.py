@@ -45,6 +45,7 @@ def runs(folder):
     yield "anderson", wc.load(K=3, T=T).with_master(anderson=2, anderson_memory=True, warm_start=True), {}
     yield "auto-retune", wc.load(CONFIGS / "two_oscillators_stiff.yaml", gamma="auto-retune", K=3, T=T), {}
     yield "without H", wc.load(CONFIGS / "foreign_pair.yaml", K=3, T=T), {}
+    yield "without error columns", wc.load(K=3, T=T).with_changes(error=[]), {}
     yield "signals", parse_scenario(copy.deepcopy(SIGNALS), "signals.yaml", folder), {}
     yield "signals only", parse_scenario(copy.deepcopy(SIGNAL_ONLY), "pair.yaml", folder), {}
     yield "tolerance", wc.load(T=T).with_master(tolerance=1e-2), {"reference": "fine"}

@@ -1,4 +1,4 @@
-"""master/observers/recorder.py: tables stream to CSV in blocks and read back bit for bit, JSON and
+"""run/recorder.py: tables stream to CSV in blocks and read back bit for bit, JSON and
 MAT files, and Ctrl-C held until a step is booked."""
 import errno
 import json

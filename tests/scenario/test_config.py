@@ -342,3 +342,19 @@ def test_gamma_is_auto_where_there_is_a_power_bond_and_none_without():
     alone = {"dt": 0.01, "T": 0.05, "subsystems": {"B": {"fmu": "LinearSide"}}}
     sc = parse_scenario(alone, "alone")
     assert sc.gamma is None and sc.master.algorithm == "explicit" and sc.subsystems == []
+
+
+def test_a_scenario_is_read_as_utf8_whatever_locale_an_fmu_set(tmp_path):
+    """Dymola and OpenModelica FMUs call setlocale(LC_ALL, "C") in the process that loads them; a
+    scenario file with a non-ASCII character still reads, as UTF-8."""
+    import locale
+    from wavecosim.scenario.config import load_scenario
+    text = (ROOT / "configs" / "two_oscillators.yaml").read_text(encoding="utf-8")
+    path = tmp_path / "s.yaml"
+    path.write_text("# stiffness in N·m, Ω\n" + text, encoding="utf-8")
+    before = locale.setlocale(locale.LC_CTYPE)
+    try:
+        locale.setlocale(locale.LC_CTYPE, "C")
+        assert load_scenario(path).name
+    finally:
+        locale.setlocale(locale.LC_CTYPE, before)

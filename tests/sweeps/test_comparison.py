@@ -101,14 +101,14 @@ def test_cli_compare_rejects_bad_options_in_one_line(tmp_path, capsys, args, wor
 
 
 def test_energy_safe_is_the_interface_ledger_and_H_within_roundoff(tmp_path):
-    """IQN-ILS at K = 2 on the stiff scene ends at 946 H(0): under the old filter (H below 1000 H(0))
-    it passed as not diverged; the interface supplied net energy, so it is not energy-safe and
-    `cheapest` skips it (it is kept in cheapest_any_energy). DR with its ledger is safe."""
+    """IQN-ILS at K = 2 on the stiff scene ends at 2.5 H(0): H below 1000 H(0) passes as not diverged,
+    yet the interface supplied net energy, so it is not energy-safe and `cheapest` skips it (it is kept
+    in cheapest_any_energy). DR with its ledger is safe."""
     from wavecosim.sweeps.comparison import cheapest
     ref, results, rows = compare(scenario(STIFF, 10.0), tmp_path, masters=["iqn-ils", "dr"], Ks=[2],
                                  certificates=False)
     iqn, dr = rows
-    assert iqn["diverged"] == "no" and 100 < iqn["H_growth"] < 1e3
+    assert iqn["diverged"] == "no" and 1.5 < iqn["H_growth"] < 1e3
     assert iqn["energy_safe"] == "no" and iqn["ledger_max"] > 1e3 * iqn["energy_allowance"]
     assert dr["energy_safe"] == "yes" and dr["ledger_max"] <= dr["energy_allowance"] and dr["H_growth"] <= 1.0
     loose = {**iqn, "max_error": 0.5 * dr["max_error"]}                  # were it accurate, still not picked

@@ -9,8 +9,9 @@ macro-steps (master time only: no recording, no certificates) of
               per macro-step (step);
   fast        the same kernel making the macro-steps in blocks of BLOCK_STEPS per call (run_steps),
               as the runner drives it;
-  floor       the C driver dr_floor replaying the fast run's FMU inputs: the same FMU calls with
-              the same numbers, and no master logic at all.
+  floor       the fast_step run's FMU calls, recorded and made again from C alone on fresh
+              instances (kernel/floor.py): the same FMU calls with the same numbers, and no master
+              logic at all.
 Every run starts from a freshly instantiated scene and times macro-steps 1 .. N-1 (step 0 warms
 up: first calls, cold caches); each figure is the best of a few repeats, taken in turn so that
 load on the machine hits all paths alike.
@@ -39,7 +40,9 @@ from .threads import parallel_threads, report_threads
 from .common import TABLE_I, make_steps, master_seconds, slope
 from ..examples import path as example
 from ..scenario.config import load_scenario
-from ..kernel.drkernel import Kernel, available_cpus
+from ..fmi.fmu import interposed
+from ..kernel.drkernel import available_cpus
+from ..kernel.floor import FloorRecorder
 from ..masters.dr import DRMaster
 from ..masters.dr_fast import FastDRMaster
 from ..run.runner import run
@@ -102,7 +105,7 @@ def _settings(scenario, K, **changes):
     return dataclasses.replace(scenario.master, K=K, eps=None, deadline_us=None, **changes)
 
 
-def timed(scenario, path, K, n_steps, inputs=None):
+def timed(scenario, path, K, n_steps):
     """Seconds for macro-steps 1 .. n_steps - 1 of one path from a fresh scene (FMUs instantiated
     anew); step 0 runs untimed."""
     scene = build_scene(scenario)
@@ -116,41 +119,36 @@ def timed(scenario, path, K, n_steps, inputs=None):
         if path in ("fast", "fast_step"):
             master = FastDRMaster(scene, _settings(scenario, K, fast="true", threads="1"))
             return master_seconds(master, n_steps, scenario.dt, blocks=path == "fast")
-        coupling = scene.wave_map()
-        kernel = Kernel(scene, coupling.P.tolist(), coupling.J_L.tolist())
-        kernel.configure(scenario.dt, K)
-        first = (K + 1) * scene.n_channels
-        try:
-            kernel.floor(1, K, inputs[:first])
-            return kernel.floor(n_steps - 1, K, inputs[first:], t0=scenario.dt)
-        finally:
-            kernel.close()
+        return floor_seconds(scenario, K, n_steps, scene)
     finally:
         if master is not None:
             master.close()
         scene.close()
 
 
-def recorded_inputs(scenario, K, n_steps):
-    """The FMU inputs of a fast run (u^k of each query, then the committed a), flat, and its b^N."""
-    scene = build_scene(scenario)
-    master = FastDRMaster(scene, _settings(scenario, K, fast="true", threads="1"))
-    master.enable_trace(True)
-    inputs = []
+def floor_seconds(scenario, K, n_steps, fresh):
+    """Seconds of the FMU calls of a fast_step run of n_steps macro-steps, made again on the scene
+    `fresh` (kernel/floor.py), in proportion to macro-steps 1 .. n_steps - 1 (the replay makes them all)."""
+    recorder = FloorRecorder()
     try:
-        for n in range(n_steps):
-            log = master.step(n, n * scenario.dt)
-            for u, _ in master.trace:
-                inputs.extend(u)
-            inputs.extend(log.a_hat)
-        return inputs, list(master.b)
+        with interposed(recorder.hook):
+            scene = build_scene(scenario)
+            master = FastDRMaster(scene, _settings(scenario, K, fast="true", threads="1"))
+        try:
+            recorder.start()
+            make_steps(master, 0, n_steps, scenario.dt, blocks=False)
+        finally:
+            recorder.stop()
+            master.close()
+            scene.close()
+        return recorder.replay({s.name: (s.fmu.component, s.fmu.function_pointer) for s in fresh.subsystems}) * (n_steps - 1) / n_steps
     finally:
-        master.close()
-        scene.close()
+        recorder.close()
 
 
 def final_b(scenario, K, n_steps, path):
-    """b^N of the Python reference (path "python") or of the kernel in blocks (path "fast")."""
+    """b^N of the Python reference (path "python") or of the kernel, step by step ("fast_step") or in
+    blocks ("fast")."""
     scene = build_scene(scenario)
     master = (DRMaster(scene, _settings(scenario, K)) if path == "python" else
               FastDRMaster(scene, _settings(scenario, K, fast="true", threads="1")))
@@ -165,15 +163,15 @@ def final_b(scenario, K, n_steps, path):
 def table_i(scenario, n_steps, repeats, progress=print):
     """µs per macro-step of every path at every K (best of `repeats`), and a bit-identity check."""
     best = {p: {K: float("inf") for K in KS} for p in PATHS}
-    inputs, identical = {}, True
+    identical = True
     for K in KS:
-        inputs[K], b_fast = recorded_inputs(scenario, K, n_steps)
-        identical &= b_fast == final_b(scenario, K, n_steps, "python") == final_b(scenario, K, n_steps, "fast")
+        identical &= (final_b(scenario, K, n_steps, "fast_step") == final_b(scenario, K, n_steps, "python")
+                      == final_b(scenario, K, n_steps, "fast"))
     for r in range(repeats):
         progress(f"  Table I scene: repeat {r + 1}/{repeats}")
         for K in KS:
             for path in PATHS:
-                seconds = timed(scenario, path, K, n_steps, inputs[K] if path == "floor" else None)
+                seconds = timed(scenario, path, K, n_steps)
                 best[path][K] = min(best[path][K], 1e6 * seconds / (n_steps - 1))
     return best, identical
 
@@ -297,12 +295,12 @@ def with_real_fmus(result, quick, progress):
 
 
 def with_scale_and_classical(result, scenario, quick, progress):
-    """The result with the scale rows (bench_scale.py) and the classical masters' kernel route
-    (bench_classical.py) added, and their targets."""
+    """The result with the scale rows (bench/scale.py) and the classical masters' kernel route
+    (bench/classical.py) added, and their targets."""
     from .classical import classical_rows
     from .newton import add_newton_rows
     from .scale import scale_rows
-    add_newton_rows(result, quick, progress)       # the newton rows (bench_newton.py)
+    add_newton_rows(result, quick, progress)       # the newton rows (bench/newton.py)
     scale, classical = scale_rows(quick, progress), classical_rows(scenario, quick, progress)
     result.update(us_per_subsystem_iter=scale["us_per_subsystem_iter"], scale=scale, classical_kernel=classical)
     with_real_fmus(result, quick, progress)

@@ -23,12 +23,13 @@ import time
 from pathlib import Path
 
 from ..examples import path as example, third_party
-from ..errors import WavecosimError
-from ..fmi.fmu import set_pointer_hook
+from ..errors import ConfigError, WavecosimError
+from ..fmi.fmu import interposed
 from ..kernel.floor import FloorRecorder
 from ..run.runner import open_parts, run
 from ..scenario.config import load_scenario, parse_scenario
 from ..scenario.ssp import load_ssp
+from .peers import Refused, libcosim_execution
 
 MASTERS = (("explicit", {}), ("gauss-seidel", {}), ("dr", {"K": 5, "threads": "1"}))
 TARGET_FLOOR = 1.3        # whole run <= this times the floor on every row
@@ -77,13 +78,12 @@ def _whole_run(scenario):
 def _recorded(scenario):
     """A FloorRecorder holding the FMU calls of one run of the scenario."""
     recorder = FloorRecorder()
-    previous = set_pointer_hook(recorder.hook)
     try:
-        recorder.start()
-        run(scenario, certificates=False, warn=quiet)
+        with interposed(recorder.hook):
+            recorder.start()
+            run(scenario, certificates=False, warn=quiet)
     finally:
         recorder.stop()
-        set_pointer_hook(previous)
     return recorder
 
 
@@ -92,7 +92,7 @@ def _floor(scenario, recorder):
     scene, master, _ = open_parts(scenario, quiet)
     try:
         master.close()
-        fmus = {s.name: s.fmu for s in scene.subsystems + scene.signal_only}
+        fmus = {s.name: (s.fmu.component, s.fmu.function_pointer) for s in scene.subsystems + scene.signal_only}
         return 1e6 * recorder.replay(fmus) / scenario.n_steps
     finally:
         scene.close()
@@ -101,15 +101,9 @@ def _floor(scenario, recorder):
 def libcosim_us_per_step(ssd, dt, steps):
     """µs per macro-step of libcosim's fixed-step master on the SSD (steps of dt), or (None, why)."""
     try:
-        from libcosimpy.CosimExecution import CosimExecution
-        from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
-    except ImportError:
-        return None, "libcosimpy is not installed (pip install 'wavecosim[bench]')"
-    log_output_level(CosimLogLevel.ERROR)
-    try:
-        execution = CosimExecution.from_ssp_file(ssp_path=str(ssd.parent), step_size=int(round(dt * 1e9)))
-    except Exception as exc:          # libcosimpy raises bare exceptions
-        return None, f"libcosim refuses {ssd.parent.name}: {exc}"
+        execution = libcosim_execution(ssd, dt)
+    except (ConfigError, Refused) as exc:         # not installed (the line names the extra), or refused
+        return None, str(exc)
     started = time.perf_counter()
     if not execution.step(steps):
         return None, "libcosim's step failed"

@@ -92,7 +92,7 @@ class KernelAdapter(ports.AdapterPort):
         if st.failure == AD_FMU:
             return self.sub.fmu.status_error(self.functions[st.failed_function], st.failed_status, n, t)
         if st.failure == AD_SINGULAR:
-            return self.error(st.failed_r[:m], ports.singular_why(), n, t)
+            return self.error(st.failed_r[:m], ports.singular_why(st.y[:m]), n, t)
         if st.failure == AD_STALLED:
             return self.error(st.failed_r[:m], ports.stalled_why(st.failed_rel), n, t)
         return None

@@ -3,7 +3,7 @@
 `freeze()` saves x_i^n; `query(a)` is S_i^n(a) (paper eq. 12): restore x_i^n, apply a, one doStep,
 read b, discard the state; `advance(a)` is Phi_i (eq. 21): the same from x_i^n, but the state is
 kept. Calls go straight to the FMU's C functions with pre-converted arguments (in fmi2 form; for an
-FMI 3 FMU, wavecosim/fmi3.py puts its fmi3 functions behind the same signatures). How a becomes b is
+FMI 3 FMU, wavecosim/fmi/fmi3.py puts its fmi3 functions behind the same signatures). How a becomes b is
 the subsystem's port (wavecosim/core/ports.py): the FMU's own wave mode, or the wave adapter for an FMU
 with only a physical port.
 """
@@ -208,7 +208,7 @@ class Subsystem:
         """raw_query of each row of a 2-D array, in order, as rows of outputs: one C call
         (kernel/c/queries.c) making the same FMU calls, or raw_query row by row without it."""
         if self._batch is None:
-            self._batch = queries.batch(self.fmu) or False
+            self._batch = queries.batch(self.fmu.function_pointer) or False
         if not self._batch:
             return np.array([self.raw_query(list(r)) for r in rows], float).reshape(len(rows), self.m)
         out, done, fn, status = self._batch(self._comp, self._state, self._in_vr, self._out_vr, self.m, self._t,

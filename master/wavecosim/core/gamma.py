@@ -317,7 +317,7 @@ def _choice_key(scene, probes, mode, secant, ceiling):
 def _cached_choice(key):
     """A choice stored by an earlier process (the gamma folder of the build cache), or None."""
     try:
-        d = json.loads((cache_dir() / "gamma" / f"{key}.json").read_text())
+        d = json.loads((cache_dir() / "gamma" / f"{key}.json").read_text(encoding="utf-8"))
         return GammaChoice(d["gammas"], d["mode"], d["bounds"], d["rate"], d["guaranteed"])
     except (OSError, ValueError, KeyError):
         return None

@@ -119,7 +119,12 @@ class AdapterPort:
                 "stalled_queries": self.accepted, "worst_stalled_residual": self.worst_accepted}
 
 
-def singular_why():
+def singular_why(y=()):
+    """Why the Newton matrix is singular: a non-finite output y of the FMU (a NaN it gave, not the port's
+    slope), else the port's slope."""
+    bad = next((v for v in y if not math.isfinite(v)), None)
+    if bad is not None:
+        return f"its FMU gave a non-finite output ({bad}) at the held input, so the port's slope is not finite"
     return "the port's slope makes the Newton matrix singular (is the port's sign right?)"
 
 
@@ -177,7 +182,7 @@ class WaveAdapter(AdapterPort):
              for i, (wu, wy, row) in enumerate(zip(self.wu, self.wy, self.D))]
         inverse = linalg.inverse(J)
         if not all(math.isfinite(x) for row in inverse for x in row):
-            raise self.error(self._residual(self.u, self.y, [0.0] * self.m), singular_why())
+            raise self.error(self._residual(self.u, self.y, [0.0] * self.m), singular_why(self.y))
         self.J_inv = inverse
 
     def _estimate_slope(self, target):

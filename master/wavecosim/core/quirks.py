@@ -23,6 +23,9 @@ the same loaded binary; the subsystem's own instance is never stepped by a probe
   does not cannot be coupled, and a master would return a frozen trajectory for it.
 During the run, run/observers/freeze_watch.py watches for a subsystem that stops advancing anyway.
 An FMU that refuses a probe's step (its error is kept in `probe_error`) is left as if unprobed.
+
+A restore found exact is re-checked during a supervised run (`RestoreWatch`): an FMU whose restore
+goes wrong later would otherwise make the iterating masters silently wrong.
 """
 import math
 from dataclasses import asdict, dataclass
@@ -35,6 +38,7 @@ PERTURB = 1e-3           # the probe's input step, relative to 1 + |u|
 MAX_OUTPUTS = 64         # FMU outputs compared, at most (beside the port's)
 NOISE = 10.0             # a difference counts when above this many times the restore's own
 STEPS = 4                # consecutive doSteps each probe makes from the saved state
+RECHECK_EVERY = 1024     # the restore is re-checked after steps 2, 4, 8, ..., then every this many steps
 
 
 @dataclass
@@ -304,3 +308,40 @@ class QuirkTable:
             notes.append(f"{where}: the port outputs of {name} do not move when its inputs do (two steps "
                               f"from the initial state): the coupling cannot move it, so the run would be frozen")
         return notes
+
+
+class RestoreWatch:
+    """The restore re-checked during a run, on each subsystem whose probe found it exact (a master that
+    rolls back relies on it): its state saved, its outputs read, the state set back and the outputs
+    read again, which must be the same. The checks come after fixed steps (`next`: 2, 4, 8, ...,
+    RECHECK_EVERY, then every RECHECK_EVERY steps), the same in every run and route, so a restore
+    that moves an FMU a little moves it alike everywhere; five FMU calls per RECHECK_EVERY steps."""
+
+    def __init__(self, scene, rollback):
+        exact = [s for s in scene.subsystems if rollback and s.fmu is not None
+                 and (scene.decisions.get(s.name) and scene.decisions[s.name].found.get("restore_difference") == 0.0)]
+        self.checks = [(s, _Calls(s.fmu, cvalues.uints([]), _outputs(s)[0])) for s in exact]
+        self.next = 2 if self.checks else math.inf
+        self.handle = cvalues.pointer()
+
+    def after(self, n):
+        """After macro-step n - 1 (n steps made): the check due there; FmuError when a restore drifted."""
+        if n != self.next:
+            return
+        for sub, calls in self.checks:
+            self._check(sub, calls, n)
+        self.next = 2 * n if n < RECHECK_EVERY else n + RECHECK_EVERY
+
+    def _check(self, sub, calls, n):
+        out = cvalues.size(len(calls.out_vr))
+        calls.save(self.handle)
+        calls.call("fmi2GetReal", calls.out_vr, out, calls.y)
+        before = list(calls.y)
+        calls.restore(self.handle)
+        calls.call("fmi2GetReal", calls.out_vr, out, calls.y)
+        after = list(calls.y)
+        calls.free(self.handle)
+        if before != after:
+            raise FmuError(f"subsystem {sub.name}: its restore no longer reproduces its state: fmi2SetFMUstate "
+                           f"after step {n} changed its outputs by {_relative([before], [after]):.3g} (relative); "
+                           f"a master that rolls back would give wrong results", subsystem=sub.name, step=n)

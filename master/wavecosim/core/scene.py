@@ -9,8 +9,10 @@ from ..fmi.builtin import builtin_fmus
 from ..kernel import linalg
 from ..errors import ConfigError, CouplingError, FmuError, SimulationEnded
 from ..fmi.fmu import Fmu
+from ..fmi.fmi3 import BinaryError
 from .frozen_port_map import PortSpec, Subsystem
 from .gamma import choose_relaxation, initial_gammas
+from .kernel_scene import describe, unusable
 from .ports import probe_signs
 from .quirks import QuirkTable
 from .recording import output_columns
@@ -141,6 +143,15 @@ class Scene:
         a master cannot make many of them in one kernel call; the kernel holds Real signals and steps
         the signal-only subsystems itself (kernel_signals)."""
         return (self.signals is not None or bool(self.signal_only)) and self.kernel_signals() is None
+
+    def kernel_scene(self):
+        """The scene as the C kernel's bindings take it (core/kernel_scene.py), made when a master opens
+        its kernel route (a wave adapter moves to C then)."""
+        return describe(self)
+
+    def kernel_unusable(self):
+        """Why the C kernel cannot run this scene, or None (core/kernel_scene.py)."""
+        return unusable(self)
 
     def kernel_signals(self):
         """begin_step as plain data for the kernel's blocks (wavecosim/kernel/signals.py: the FMUs, port
@@ -309,6 +320,8 @@ def _open_fmu(scenario, sub, path, gamma, wave, pool=None):
         return Fmu(path, sub.name, reals, integers, optional=("gamma", "port_mode"), pool=pool,
                    start_time=scenario.start_time, tolerance=sub.tolerance, initialize=table_inputs(scenario, sub.name),
                    hold=True)
+    except BinaryError as exc:
+        raise FmuError(f"subsystem {exc}", subsystem=sub.name) from None
     except FmuError as exc:
         key = next((f"{k}.{exc.variable}" for k in ("parameters", "start", "integers")
                     if exc.variable in getattr(sub, k)), "fmu")

@@ -12,8 +12,8 @@ import tempfile
 import zipfile
 from pathlib import Path
 
-from ..kernel.build import (CFLAGS, BuildError, build_library, fmi_headers, library_names, place, run, stamp,
-                            target)
+from ..kernel.build import (CFLAGS, COMPILER, BuildError, build_library, cached, fmi_headers, library_names, place,
+                            prebuilt, run, stamp, target)
 
 DATA = Path(__file__).resolve().parent.parent / "data"
 LAYER = DATA / "fmus" / "layer"
@@ -51,18 +51,24 @@ def model_identifier(model_dir: Path) -> str:
 
 
 def build_model(model_dir: Path, force=False, log=print) -> Path:
-    """Compile one model into <cache>/fmus/<stamp>/<Id>.fmu; returns its path."""
+    """Compile one model into <cache>/fmus/<stamp>/<Id>.fmu (unless the package or the cache holds it);
+    returns its path."""
     ident = model_identifier(model_dir)
-    path = target("fmus", stamp(_sources(model_dir)), f"{ident}.fmu")
-    if path.exists() and not force:
-        return path
-    log(f"building {path}")
+    key = stamp(_sources(model_dir))
+    if not force and (shipped := prebuilt("fmus", key, f"{ident}.fmu")):
+        return shipped
+    path = target("fmus", key, f"{ident}.fmu")
+    return cached(path, lambda: _compile(model_dir, ident, path), force, log)
+
+
+def _compile(model_dir, ident, path):
+    """The FMU of one model, compiled and zipped into place at `path`."""
     includes = ["-I", fmi_headers(), "-I", LAYER, "-I", model_dir]
     with tempfile.TemporaryDirectory() as tmp:
         describe, so = Path(tmp) / "describe", Path(tmp) / f"{ident}.so"
-        run(["gcc", *CFLAGS, *includes, LAYER / "describe.c", "-o", describe], f"{ident} description")
+        run([COMPILER, *CFLAGS, *includes, LAYER / "describe.c", "-o", describe], f"{ident} description")
         xml = run([describe], f"{ident} description")
-        run(["gcc", *CFLAGS, "-shared", *includes, layer_source(model_dir), model_dir / "model.c", "-o", so, "-lm",
+        run([COMPILER, *CFLAGS, "-shared", *includes, layer_source(model_dir), model_dir / "model.c", "-o", so, "-lm",
              "-lpthread"], ident)
 
         members = [("modelDescription.xml", xml.encode()), (f"binaries/{PLATFORM}/{ident}.so", so.read_bytes())]
@@ -85,8 +91,11 @@ def model_dirs():
 
 def generated(spec: Path) -> Path:
     """<cache>/gen/<stamp>/<spec name>/: the model folder generated from a port-Hamiltonian spec
-    (fmus/codegen/ph.py), made when missing."""
-    out = target("gen", stamp([spec, *CODEGEN.glob("*.py"), *CODEGEN.glob("*.h")]), spec.stem)
+    (fmus/codegen/ph.py), made when neither the package nor the cache holds it."""
+    key = stamp([spec, *CODEGEN.glob("*.py"), *CODEGEN.glob("*.h")])
+    if (shipped := prebuilt("gen", key, spec.stem)) and (shipped / "config.h").exists():
+        return shipped
+    out = target("gen", key, spec.stem)
     if not (out / "config.h").exists():
         out.parent.mkdir(parents=True, exist_ok=True)
         tmp = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{spec.stem}."))
@@ -119,9 +128,8 @@ def spec_files():
 
 
 def build_all(force=False, log=print) -> dict:
-    """Build every model, every spec and the kernel libraries; returns {identifier: fmu path}."""
-    if shutil.which("gcc") is None:
-        raise BuildError("gcc was not found on PATH; it is needed to build the FMUs")
+    """Build every model, every spec and the kernel libraries (those neither the package nor the cache
+    holds); returns {identifier: fmu path}."""
     fmus = {model_identifier(d): build_model(d, force, log) for d in model_dirs()}
     for spec in spec_files():
         fmus[model_identifier(generated(spec))] = build_spec(spec, force, log)

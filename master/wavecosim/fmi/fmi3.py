@@ -9,9 +9,10 @@ becomes an Error status, and `failure` says which.
 """
 import ctypes
 
-from fmpy import platform_tuple
+from fmpy import platform_tuple, sharedLibraryExtension
 from fmpy.fmi3 import FMU3Slave
 
+from ..errors import FmuError
 from ..kernel.abi import mirrors
 from ..kernel.build import kernel_library
 from .values import is_number
@@ -25,6 +26,24 @@ FUNCTIONS = {"fmi2GetFMUstate": ("fmi3GetFMUState", "fmi3shim_getFMUstate"),
              "fmi2DoStep": ("fmi3DoStep", "fmi3shim_doStep"),
              "fmi2GetReal": ("fmi3GetFloat64", "fmi3shim_getReal")}
 _OUT = ("eventHandlingNeeded", "terminateSimulation", "earlyReturn", "lastSuccessfulTime")
+
+
+class BinaryError(FmuError):
+    """An FMU's shared library that does not load: the FMU's fault, not the scenario's."""
+
+
+def load_binary(slave_class, fmu, model_identifier):
+    """fmpy's slave (slave_class) of `fmu`, its binary loaded; a binary that does not load (not a shared
+    library, a missing dependency) is an FmuError naming it and the loader's reason."""
+    try:
+        return slave_class(guid=fmu.description.guid, unzipDirectory=str(fmu.folder),
+                           modelIdentifier=model_identifier, instanceName=fmu.name)
+    except Exception as exc:                    # fmpy raises a bare Exception for a library that does not load
+        if not str(exc).startswith("Failed to load shared library"):
+            raise
+        reason = str(exc).rsplit(": ", 1)[-1].strip()
+        raise BinaryError(f"{fmu.name}: its binary {model_identifier}{sharedLibraryExtension} does not load ({reason})",
+                          subsystem=fmu.name) from None
 
 
 @mirrors("fmi3shim", "Fmi3Shim")
@@ -71,8 +90,7 @@ class Fmi3:
         def log(env, status, category, message):
             fmu.messages.append((status, message.decode("utf-8", "replace") if message else ""))
         self.borrowed = slave is not None
-        self.slave = slave or FMU3Slave(guid=fmu.description.guid, unzipDirectory=str(fmu.folder),
-                                        modelIdentifier=model_identifier, instanceName=fmu.name)
+        self.slave = slave or load_binary(FMU3Slave, fmu, model_identifier)
         fmu.checked(self.slave.instantiate, "fmi3InstantiateCoSimulation", logMessage=log)
         self.shim = Shim(self.slave.component, *[self.address(FUNCTIONS[k][0]) for k in FUNCTIONS])
         self.component = ctypes.addressof(self.shim)

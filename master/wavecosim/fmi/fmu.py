@@ -6,11 +6,14 @@ FMI 3 specifics (instantiation, typed setters, the fmi2-signature shim) live in 
 Only kernel/ and fmi/ import ctypes; the parts above pass C values made by wavecosim.kernel.cvalues.
 """
 import atexit
+import contextlib
 import copy
 import ctypes
+import itertools
 import math
 import shutil
 import tempfile
+import weakref
 import zipfile
 from pathlib import Path
 
@@ -23,10 +26,12 @@ from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE
 from fmpy.fmi2 import fmi2LastSuccessfulTime
 
 from ..errors import FmuError
+from ..kernel.build import helper_library
 from .me import ModelExchange
 from .messages import MessageLog, cut
+from .fmi3 import load_binary
 from .sources import provide_binary
-from .unpack import unpack
+from .unpack import regular_file, unpack
 from .values import BOOLEAN, REAL, as_python, category, integer_range, is_int32, is_number
 
 _STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
@@ -36,11 +41,44 @@ _libc.calloc.argtypes = [ctypes.c_size_t, ctypes.c_size_t]
 _libc.free.argtypes = [ctypes.c_void_p]
 
 
+_message_logs = weakref.WeakValueDictionary()     # componentEnvironment -> the MessageLog of an FMU instance
+_environments = itertools.count(1)
+
+
+def _to_log(env, instance, status, category, message):
+    """One message, formatted by kernel/c/fmilog.c, into the log of the instance its environment names."""
+    log = _message_logs.get(env or 0)
+    if log is not None:
+        log.append((status, message.decode("utf-8", "replace") if message else ""))
+
+
+_SINK = fmi2CallbackLoggerTYPE(_to_log)
+_formatter = []
+
+
+def message_logger(messages):
+    """(logger, componentEnvironment) of a new FMI 2 instance whose messages go to `messages`: the C
+    logger that formats the message with its printf arguments, as the FMI logger's contract says
+    (kernel/c/fmilog.c); without a C compiler, a Python logger that keeps the format as it is."""
+    if not _formatter:
+        lib = helper_library("fmilog")
+        if lib is not None:
+            lib.fmilog_set_sink.argtypes = [fmi2CallbackLoggerTYPE]
+            lib.fmilog_set_sink(_SINK)
+        _formatter.append(lib and ctypes.cast(lib.fmilog_logger, fmi2CallbackLoggerTYPE))
+    if _formatter[0] is None:
+        return fmi2CallbackLoggerTYPE(lambda env, instance, status, category, message: messages.append(
+            (status, message.decode("utf-8", "replace") if message else ""))), None
+    environment = next(_environments)
+    _message_logs[environment] = messages
+    return _formatter[0], environment
+
+
 def extract_fmu(path: Path) -> Path:
     """Extract an FMU into a fresh temporary folder (removed at exit), refusing members that would
     escape it and an archive that unpacks to too much (fmi/unpack.py)."""
     path = Path(path)
-    if not path.exists():
+    if regular_file(path, FmuError) is None:
         raise FmuError(f"FMU file not found: {path}")
     if not zipfile.is_zipfile(path):
         raise FmuError(f"{path} is not an FMU (not a zip archive)")
@@ -65,7 +103,7 @@ def shared_folder(path: Path, pool):
     (a dict the caller owns, e.g. one per scene), so they share one loaded binary and N instances
     of one FMU cost no more code in the caches than one; pool None: a folder of its own."""
     path = Path(path)
-    if pool is None or not path.exists():
+    if pool is None or not path.is_file():
         return None, extract_fmu(path)
     st = path.resolve().stat()
     key = (str(path.resolve()), st.st_mtime_ns, st.st_size)
@@ -170,23 +208,20 @@ class Fmi2:
         (the binary already loaded, its functions looked up: `borrowed`)."""
         self._callbacks = self._make_callbacks(fmu.messages)
         self.borrowed = slave is not None
-        self.slave = slave or FMU2Slave(guid=fmu.description.guid, unzipDirectory=str(fmu.folder),
-                                        modelIdentifier=model_identifier, instanceName=fmu.name)
+        self.slave = slave or load_binary(FMU2Slave, fmu, model_identifier)
         fmu.checked(self.slave.instantiate, "fmi2Instantiate", callbacks=self._callbacks)
         self.component = self.slave.component
 
     def _make_callbacks(self, messages):
-        def logger(env, instance, status, category, message):
-            messages.append((status, message.decode("utf-8", "replace") if message else ""))
         cb = fmi2CallbackFunctions()
-        self._logger_ref = fmi2CallbackLoggerTYPE(logger)
+        self._logger_ref, environment = message_logger(messages)
         cb.logger = self._logger_ref
         self._alloc_ref = fmi2CallbackAllocateMemoryTYPE(_libc.calloc)
         self._free_ref = fmi2CallbackFreeMemoryTYPE(_libc.free)
         cb.allocateMemory = self._alloc_ref
         cb.freeMemory = self._free_ref
         cb.stepFinished = fmi2StepFinishedTYPE()
-        cb.componentEnvironment = None
+        cb.componentEnvironment = environment
         return cb
 
     def setup_experiment(self, fmu, start_time, tolerance):
@@ -240,16 +275,22 @@ class ModelExchange2(ModelExchange, Fmi2):
     """An FMI 2.0 FMU with model exchange only, stepped as co-simulation (wavecosim/fmi/me.py)."""
 
 
-_pointer_hook = None       # hook(fmu, fname, lookup) -> the address function_pointer gives (see set_pointer_hook)
+_pointer_hook = None       # hook(name, component, fname, lookup) -> the address function_pointer gives (see interposed)
 
 
-def set_pointer_hook(hook):
-    """Route every Fmu.function_pointer through hook(fmu, fname, lookup), lookup(fname) being the
-    FMU's own address (the bench's floor records the kernel's FMU calls so); None: no hook. Returns
-    the hook it replaced."""
+@contextlib.contextmanager
+def interposed(hook):
+    """Within the block, Fmu.function_pointer(fname) gives hook(name, component, fname, lookup) (the
+    instance's name and fmi2Component) instead of the FMU's own address lookup(fname): the one seam through which a tool stands between the C kernel and an
+    FMU's functions (the bench's floor records the kernel's FMU calls so, bench/real_fmus.py). The
+    kernel takes its pointers when a master opens its route, so the master must open in the block;
+    None: no hook. Not thread-safe: one block at a time."""
     global _pointer_hook
     previous, _pointer_hook = _pointer_hook, hook
-    return previous
+    try:
+        yield
+    finally:
+        _pointer_hook = previous
 
 
 def _settable_in_initialization(v):
@@ -501,15 +542,15 @@ class Fmu:
 
     def raw_function(self, fname):
         """A callable with the fmi2 signature of `fname` (e.g. "fmi2DoStep") taking `component` first:
-        the FMU's own ctypes function for FMI 2, a wrapper of its fmi3 function for FMI 3 (wavecosim/fmi3.py).
+        the FMU's own ctypes function for FMI 2, a wrapper of its fmi3 function for FMI 3 (wavecosim/fmi/fmi3.py).
         No argtypes: callers pass pre-converted arguments."""
         return self._fmi.raw_function(fname)
 
     def function_pointer(self, fname) -> int:
         """Address of a C function with the fmi2 signature of `fname` taking `component`, for the C fast
-        path: the FMU's own for FMI 2, kernel/c/fmi3shim.c's for FMI 3 (or what a pointer hook gives)."""
+        path: the FMU's own for FMI 2, kernel/c/fmi3shim.c's for FMI 3 (or the hook's within `interposed`)."""
         if _pointer_hook is not None:
-            return _pointer_hook(self, fname, self._fmi.function_pointer)
+            return _pointer_hook(self.name, self.component, fname, self._fmi.function_pointer)
         return self._fmi.function_pointer(fname)
 
     def function_name(self, fname):

@@ -3,12 +3,33 @@ archive may not unpack to more than MAX_BYTES or MAX_RATIO times its own size (a
 in one line before anything is written, and again while writing should its sizes lie)."""
 import os
 import shutil
+import stat
 import zipfile
 from pathlib import Path
 
 MAX_BYTES = 2 << 30            # 2 GB
 MAX_RATIO = 100
 CHUNK = 1 << 20
+
+
+def regular_file(path, error, most_bytes=None):
+    """The resolved path of an existing regular file, else error(message) naming it: a special file
+    (a FIFO, a device) would hang or never end when read, a symbolic link loop never resolves, and a
+    file over most_bytes would not fit in memory. None when nothing is there."""
+    path = Path(path)
+    try:
+        resolved = path.resolve()
+        info = resolved.stat()
+    except FileNotFoundError:
+        return None
+    except (RuntimeError, OSError) as exc:              # RuntimeError: a symbolic link loop (Python < 3.13)
+        raise error(f"{path}: cannot be read ({getattr(exc, 'strerror', None) or 'a symbolic link loop'})") from None
+    if not stat.S_ISREG(info.st_mode):
+        raise error(f"{path}: not a regular file (a folder, FIFO or device): refused")
+    if most_bytes is not None and info.st_size > most_bytes:
+        raise error(f"{path}: {info.st_size / 1e6:.0f} MB, over the limit of {most_bytes / 1e6:.0f} MB for this "
+                    f"file: refused before reading it")
+    return resolved
 
 
 def limit(size):

@@ -5,11 +5,12 @@ that uses it is wavecosim.core.adapter_kernel.KernelAdapter.
 import ctypes
 
 from .abi import mirrors
+from .contract import constant
 from .build import kernel_library
 
 LIBRARY_NAME = "adapter"                   # libadapter.so, from kernel/c/adapter.c
 SHIM = ("getFMUstate", "setFMUstate", "freeFMUstate", "setReal", "doStep", "getReal")   # drkernel.h DRFunctions
-AD_OK, AD_FMU, AD_SINGULAR, AD_STALLED = range(4)
+AD_FMU, AD_SINGULAR, AD_STALLED = (constant("adapter.h", name) for name in ("AD_FMU", "AD_SINGULAR", "AD_STALLED"))
 _D, _L = ctypes.POINTER(ctypes.c_double), ctypes.c_long
 
 
@@ -39,12 +40,7 @@ def load_library():
     struct differs from AdapterC)."""
     global _lib
     if _lib is None:
-        lib = kernel_library(LIBRARY_NAME, "the wave adapter library")
-        lib.adapter_work_size.restype = ctypes.c_size_t
-        lib.adapter_work_size.argtypes = [ctypes.c_int]
-        lib.adapter_solve.argtypes = [ctypes.POINTER(AdapterC), ctypes.c_double, ctypes.c_double]
-        lib.adapter_reinvert.argtypes = [ctypes.POINTER(AdapterC)]
-        _lib = lib
+        _lib = kernel_library(LIBRARY_NAME, "the wave adapter library")
     return _lib
 
 

@@ -55,17 +55,7 @@ def library():
     """libblocks, built on first use; None when it cannot be built."""
     global _lib
     if _lib is None:
-        lib = helper_library("blocks")
-        if lib is None:
-            return None
-        for name in PASSES:
-            getattr(lib, name).argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.c_void_p, ctypes.c_long, ctypes.c_int,
-                                           ctypes.c_int]
-            getattr(lib, name).restype = None
-        lib.sampled_block.argtypes = [ctypes.POINTER(SampledBlock)]
-        lib.watch_block.argtypes = [ctypes.POINTER(WatchBlock)]
-        lib.sampled_block.restype = None
-        _lib = lib
+        _lib = helper_library("blocks")
     return _lib
 
 

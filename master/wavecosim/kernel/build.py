@@ -1,20 +1,26 @@
 """Compiling C into a per-user cache: the kernel's libraries (kernel/c/*.c) here, the models' FMUs
 through wavecosim.fmi.build. Every output sits in a folder named by a hash of its sources and flags,
 so installed copies, clones and versions never overwrite each other's builds, and a finished
-output is only ever moved into place whole (several processes may build at once)."""
+output is only ever moved into place whole (several processes may build at once). An installed
+wheel holds the same folders, built by its build step (setup.py), in the package's _built/: a
+build found there is used before the cache, so no compiler is needed at run time."""
 import ctypes
+import fcntl
 import functools
 import hashlib
 import os
 import subprocess
 import sys
 import tempfile
+from contextlib import contextmanager
 from pathlib import Path
 
-from . import abi
+from . import abi, contract
 from ..errors import ConfigError, FmuError
 
 SOURCES = Path(__file__).resolve().parent / "c"
+PREBUILT = SOURCES.parent.parent / "_built"
+COMPILER = "gcc"
 
 
 def _sanitizer_flags(value):
@@ -34,6 +40,8 @@ CFLAGS = ["-O2", "-std=c99", "-fPIC", "-ffp-contract=off", "-Wall", "-Wextra", "
 PART_OF_LIBRARY = {"classical.c": "drkernel", "newton.c": "drkernel", "certs.c": "drkernel", "portview.c": "drkernel",
                    "signals.c": "drkernel"}
 _loaded = {}
+_verified = {}                   # {path: (size, mtime)} of cached builds whose checksum was checked here
+_failed = {}         # library name -> why it could not be built or loaded
 
 
 class BuildError(RuntimeError):
@@ -84,7 +92,7 @@ def run(cmd, what):
     try:
         proc = subprocess.run([str(c) for c in cmd], capture_output=True, text=True)
     except FileNotFoundError:
-        raise BuildError(f"{cmd[0]} was not found on PATH; it is needed to build {what}") from None
+        raise BuildError(f"{cmd[0]} was not found on PATH; it is needed to build {what}: install {cmd[0]}") from None
     if proc.returncode != 0:
         raise BuildError(f"building {what} failed: {' '.join(map(str, cmd))}\n{proc.stderr.strip()}")
     return proc.stdout
@@ -104,13 +112,71 @@ def target(kind, key, name) -> Path:
     return cache_dir() / kind / key / name
 
 
+def checksum_file(path: Path) -> Path:
+    """Where the SHA-256 of a cached build is written, beside it."""
+    return path.with_name(path.name + ".sha256")
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def reusable(path: Path) -> bool:
+    """Whether the cached build at `path` can be used as it is: present, and its bytes those whose
+    checksum was written beside it when it was built (a truncated, replaced or deleted file, or one
+    without its checksum, is built again). Hashed once per process for a file of unchanged size and time."""
+    try:
+        info = path.stat()
+        expected = checksum_file(path).read_text().strip()
+    except OSError:
+        return False
+    seen = (info.st_size, info.st_mtime_ns)
+    if _verified.get(path) == seen:
+        return True
+    if _sha256(path) != expected:
+        return False
+    _verified[path] = seen
+    return True
+
+
+@contextmanager
+def build_lock(path: Path):
+    """The cache's lock of one build (a file beside it): one process builds, the others wait and reuse it."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        lock = open(path.with_name(f".{path.name}.lock"), "a")
+    except OSError:                    # a cache that cannot be written: the build itself says why
+        yield
+        return
+    with lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        yield
+
+
+def prebuilt(kind, key, name):
+    """The package's own build of `name` whose stamp is `key` (a wheel's _built/, laid out as the
+    cache), else None."""
+    path = PREBUILT / kind / key / name
+    return path if path.exists() else None
+
+
+def is_build(path, kind) -> bool:
+    """Whether `path` is a build of `kind` (<root>/<kind>/<stamp>/<name>) in the package or the cache."""
+    folder = Path(path).parent.parent
+    return folder == PREBUILT / kind or folder == cache_dir() / kind
+
+
 def place(build, path: Path):
-    """Call build(tmp) for a file made in a private temporary path, then move it to `path` whole."""
+    """Call build(tmp) for a file made in a private temporary path, then move it to `path` whole, its
+    checksum beside it (written first: a build without its checksum is never taken as whole)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix)
     os.close(fd)
     try:
         build(Path(tmp))
+        checksum = checksum_file(path)
+        checksum.with_name(f".{checksum.name}.part").write_text(_sha256(Path(tmp)) + "\n")
+        os.replace(checksum.with_name(f".{checksum.name}.part"), checksum)
         os.replace(tmp, path)
     finally:
         if os.path.exists(tmp):
@@ -118,10 +184,27 @@ def place(build, path: Path):
     return path
 
 
+def cached(path: Path, build, force=False, log=print) -> Path:
+    """The build at `path`: reused when reusable(), else made by build() under the build's lock."""
+    if not force and reusable(path):
+        return path
+    with build_lock(path):
+        if force or not reusable(path):
+            log(f"building {path}")
+            build()
+    return path
+
+
 def library_sources(name):
     """kernel/c/<name>.c, the files PART_OF_LIBRARY puts into it and the kernel's headers."""
     parts = sorted(SOURCES / f for f, lib in PART_OF_LIBRARY.items() if lib == name)
     return [SOURCES / f"{name}.c", *parts, *sorted(SOURCES.glob("*.h"))]
+
+
+def library_headers(name):
+    """The headers that declare lib<name>.so's functions (its contract): <file>.h of each of its C files."""
+    files = [f"{name}.c", *sorted(f for f, lib in PART_OF_LIBRARY.items() if lib == name)]
+    return [f"{Path(f).stem}.h" for f in files if (SOURCES / f"{Path(f).stem}.h").exists()]
 
 
 def library_names():
@@ -132,24 +215,25 @@ def library_names():
 def build_library(name, force=False, log=print) -> Path:
     """lib<name>.so from library_sources(name), built into the cache unless it is there."""
     sources = library_sources(name)
-    path = target("lib", stamp(sources), f"lib{name}.so")
-    if path.exists() and not force:
-        return path
-    log(f"building {path}")
-    return place(lambda tmp: run(["gcc", *CFLAGS, "-shared", "-I", fmi_headers(),
-                                  *[s for s in sources if s.suffix == ".c"], "-o", tmp, "-lm", "-ldl"],
-                                 f"the kernel library {name}"), path)
+    key = stamp(sources)
+    if not force and (shipped := prebuilt("lib", key, f"lib{name}.so")):
+        return shipped
+    path = target("lib", key, f"lib{name}.so")
+    return cached(path, lambda: place(lambda tmp: run([COMPILER, *CFLAGS, "-shared", "-I", fmi_headers(),
+                                                       *[s for s in sources if s.suffix == ".c"], "-o", tmp, "-lm",
+                                                       "-ldl"], f"the kernel library {name}"), path), force, log)
 
 
 def helper_library(name):
-    """lib<name>.so loaded with ctypes (built on first use) and its mirrored structs checked (abi.py;
-    FmuError on a mismatch); None when it cannot be built (no C compiler)."""
+    """lib<name>.so loaded with ctypes (built on first use), its functions given the signatures its
+    headers declare (contract.py) and its mirrored structs checked (abi.py; FmuError on a mismatch);
+    None when it cannot be built (no C compiler)."""
     if name not in _loaded:
         try:
             lib = ctypes.CDLL(str(build_library(name, log=lambda msg: None)))
-        except (BuildError, OSError):
-            lib = None
-        _loaded[name] = lib and abi.loaded(name, lib)
+        except (BuildError, OSError) as exc:
+            lib, _failed[name] = None, str(exc).splitlines()[0]
+        _loaded[name] = lib and abi.loaded(name, contract.bind(name, lib, library_headers(name)))
     return _loaded[name]
 
 
@@ -157,6 +241,6 @@ def kernel_library(name, what):
     """helper_library(name), or an FmuError naming `what` when it cannot be built or loaded."""
     lib = helper_library(name)
     if lib is None:
-        raise FmuError(f"{what}: the kernel library lib{name}.so could not be built from {SOURCES} "
-                       f"(is gcc installed?)")
+        raise FmuError(f"{what}: the kernel library lib{name}.so is not in the package and could not be built: "
+                       f"{_failed[name]}")
     return lib

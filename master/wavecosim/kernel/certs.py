@@ -11,8 +11,8 @@ import numpy as np
 
 from ..errors import FmuError
 from .abi import mirrors
-from .drkernel import FUNCTIONS
-from .newton import NOT_CONVERGED, WHY, NewtonKernel, failed, library, not_converged
+from .drkernel import FUNCTIONS, load_library
+from .newton import NON_FINITE, NOT_CONVERGED, WHY, NewtonKernel, failed, nan_source, not_converged
 
 
 @mirrors("drkernel", "DCSettings")
@@ -24,25 +24,9 @@ class DCSettings(ctypes.Structure):
 
 
 def supports(scene):
-    """Whether the kernel can compute the certificates of this scene: every port is its FMU's own
-    wave map (no adapter, no input scaling)."""
-    return all(s.plain_wave_port() for s in scene.subsystems)
-
-
-def _lib():
-    lib = library()
-    if not hasattr(lib, "_certs_ready"):
-        p = ctypes.c_void_p
-        lib.dc_create.restype = p
-        lib.dc_create.argtypes = [p, p, p, ctypes.POINTER(DCSettings), p]
-        lib.dc_width.argtypes = [p]
-        lib.dc_arm.argtypes = [p, ctypes.c_int, p, p, p]
-        lib.dc_arm.restype = None
-        lib.dc_status.argtypes = [p, p, p, ctypes.POINTER(ctypes.c_long)]
-        lib.dc_destroy.argtypes = [p]
-        lib.dc_destroy.restype = None
-        lib._certs_ready = True
-    return lib
+    """Whether the kernel can compute the certificates of this scene (a description.KernelScene): every
+    port is its FMU's own wave map (no adapter, no input scaling)."""
+    return all(s.plain_wave for s in scene.subsystems)
 
 
 class KernelCertificates:
@@ -50,7 +34,7 @@ class KernelCertificates:
     (watch) switch their parts on before the first block, then read `rows` after each block."""
 
     def __init__(self, kernel, newton: NewtonKernel, scene, floor):
-        self.lib, self.kernel, self.newton, self.scene = _lib(), kernel, newton, scene
+        self.lib, self.kernel, self.newton, self.scene = load_library(), kernel, newton, scene
         self.subsystems = scene.subsystems
         self.settings = DCSettings(1, 0, 0, 0, 0, 0.0, floor, 0.0)
         self.stage_vr, self.gammas = None, np.empty(len(self.subsystems))
@@ -71,13 +55,10 @@ class KernelCertificates:
     def probe(self, pace, rel):
         """Instead, the watch's probe at the sampled steps (K < 2), where every port has one channel
         (scalar solve and eigenvalue); False where one has more."""
-        if any(s.m != 1 or s.port.physical for s in self.subsystems):
+        if any(s.probe_vrs is None for s in self.subsystems):
             return False
-        names = [v for s in self.subsystems for v in (*s.port.effort, *s.port.flow)]
-        if len(names) != 2 * len(self.subsystems):
-            return False
-        self.stage_vr = (ctypes.c_uint * len(names))(*[vr for s in self.subsystems
-                                                        for vr in s.fmu.real_vrs([*s.port.effort, *s.port.flow])])
+        vrs = [vr for s in self.subsystems for vr in s.probe_vrs]
+        self.stage_vr = (ctypes.c_uint * len(vrs))(*vrs)
         self.settings.probe, self.settings.every, self.settings.probe_rel = 1, pace.every, rel
         return True
 
@@ -98,7 +79,7 @@ class KernelCertificates:
         need = len(self.sampled) * self.per_step
         self.normals = self.rng.standard_normal(need) if need else np.zeros(1)
         self.rows = np.empty((count, 3 * len(self.subsystems) + 1))
-        self.gammas[:] = [self.scene.gammas[s.name] for s in self.subsystems]
+        self.gammas[:] = self.scene.gammas()
         self.lib.dc_arm(self.handle, n0, self.normals.ctypes.data, self.rows.ctypes.data, self.gammas.ctypes.data)
 
     def disarm(self, done):
@@ -119,10 +100,11 @@ class KernelCertificates:
         t, where = n * self.kernel.io.dt, f" at step {n} (t = {n * self.kernel.io.dt:.6g})"
         if rc < 0:
             sub = self.subsystems[culprit[0]]
-            return sub.fmu.status_error(FUNCTIONS[culprit[1]], culprit[2], n, t)
+            return sub.fmu.error(FUNCTIONS[culprit[1]], culprit[2], n, t)
         if rc == NOT_CONVERGED:
             return not_converged(where, float(out[0]), float(out[1]))
-        return failed(where, WHY[rc])
+        return failed(where, WHY[rc], nan_source(self.subsystems, int(out[1])) if WHY[rc] == NON_FINITE
+                      else None)
 
     def block_rows(self, n0, count):
         """The rows of steps n0 .. n0 + count - 1 made in the kernel calls since the last block (fne per

@@ -18,30 +18,14 @@ from .drkernel import Kernel, load_library
 _double_p = ctypes.POINTER(ctypes.c_double)
 
 
-def _library():
-    lib = load_library()
-    if not hasattr(lib, "_classical_ready"):
-        p, ip = ctypes.c_void_p, ctypes.POINTER(ctypes.c_int)
-        lib.cl_create.restype = p
-        lib.cl_create.argtypes = [p, ip, ip, _double_p, ctypes.c_int, ctypes.c_int]
-        lib.cl_fixed_point_step.argtypes = [p, p, p, p, p, ctypes.c_int]      # arrays by address
-        lib.cl_explicit_step.argtypes = [p, p, p, p, ctypes.c_int]
-        lib.cl_pass.argtypes = [p, p, p, p, p, ctypes.c_int, ctypes.c_int]
-        lib.cl_run_steps.argtypes = [p, p, ctypes.c_int, ctypes.c_int, p, ctypes.c_long, ctypes.c_double]
-        lib.cl_destroy.argtypes = [p]
-        lib.cl_destroy.restype = None
-        lib._classical_ready = True
-    return lib
-
-
 class ClassicalKernel:
     """A DR kernel over the scene's subsystems (physical mode) and the classical step on it."""
 
     def __init__(self, scene, G, explicit, sequential):
-        self.lib = _library()
+        self.lib = load_library()
         self.base = Kernel(scene, None, None)
-        self.base.configure(scene.scenario.dt, 0)
-        self.n = scene.n_channels
+        self.base.configure(scene.dt, 0)
+        self.n = scene.n
         ptr = ctypes.POINTER(ctypes.c_int)
         self.handle = self.lib.cl_create(self.base.handle, G.start.ctypes.data_as(ptr), G.col.ctypes.data_as(ptr),
                                          G.val.ctypes.data_as(_double_p), int(explicit), int(sequential))
@@ -55,7 +39,7 @@ class ClassicalKernel:
 
     def run_steps(self, n0, count, y, H_cap=math.inf, measure=False, passes=False):
         """Macro-steps n0 .. n0 + count - 1 from outputs y in one call (classical.h, cl_run_steps):
-        (steps done, their fast_path.BlockLog, the FmuError of the step after them or None);
+        (steps done, their drkernel.BlockLog, the FmuError of the step after them or None);
         measure: time the evaluations (Kernel.costs); passes: make the kernel's passes (Kernel.run_steps)."""
         self._b[:] = y
         return self.base.run_steps(n0, count, H_cap, measure, passes=passes)

@@ -27,13 +27,7 @@ def _load():
     global _lib
     lib = helper_library("csvfmt")
     if lib is not None:
-        lib.csv_init.restype = None
         lib.csv_init()
-        lib.csv_lines.restype = ctypes.c_long
-        lib.csv_lines.argtypes = [ctypes.c_void_p, ctypes.c_long, ctypes.c_char_p]
-        lib.csv_rows.restype = ctypes.c_long
-        lib.csv_rows.argtypes = [ctypes.c_void_p, ctypes.c_long, ctypes.c_int, ctypes.c_int, ctypes.c_void_p,
-                                 ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p]
         _lib = lib
     return _lib
 

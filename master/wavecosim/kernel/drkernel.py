@@ -4,36 +4,36 @@ The C kernel (kernel/c/drkernel.c, built with the FMUs into the kernel library l
 each FMU through its own fmi2 function pointers with preallocated buffers, and does the DR
 arithmetic in the operation order of wavecosim/kernel/linalg.py, so its numbers are bit-identical to the
 readable reference `DRMaster` (wavecosim/masters/dr.py). This module wires the kernel up through
-ctypes: `Kernel` owns one C kernel for a scene's subsystems and the buffers it shares with
-Python. The master that uses it is wavecosim/masters/dr_fast.py::FastDRMaster.
-An FMI 3 FMU is handed over in fmi2 form: `Fmu.function_pointer` gives the functions of
-kernel/c/fmi3shim.c, which take the FMU's shim (`Fmu.component`) as their fmi2Component.
+ctypes: `Kernel` owns one C kernel for a scene's subsystems, given as plain data
+(kernel/description.py, KernelScene), and the buffers it shares with Python. The master that uses
+it is wavecosim/masters/dr_fast.py::FastDRMaster. An FMI 3 FMU arrives in fmi2 form: its functions
+are kernel/c/fmi3shim.c's, which take the FMU's shim as their fmi2Component.
 """
 import ctypes
 import functools
 import math
 import os
-import time
 
 import numpy as np
 
-from .abi import LayoutError, mirrors
+from .abi import mirrors
 from .build import kernel_library
+from .contract import constant, names
 from ..errors import ConfigError, FmuError
-from .adapter import load_library as load_adapter_library
 from .linalg import Sparse
 from .portview import ObservedPort, PortView, SignedPort
 from .signals import SignalPlan
 
 LOG_PAD = 8               # a log's rows steps + LOG_PAD apart: 8 KiB apart, a step's values would share cache sets
 PARALLEL_MIN_US = 150.0   # a thread pays only when it takes over at least this much work per evaluation round
-DR_MAX_THREADS = 64       # drkernel.h
+DR_MAX_THREADS = constant("drkernel.h", "DR_MAX_THREADS")
 CPUS_ENV = "WAVECOSIM_CPUS"
-REASONS = ("budget", "tolerance", "deadline", "explicit", "converged", "energy-guard")  # as masters/base.py (the
-#                                                  runner asserts it); the kernel never gives "converged"
-LEDGER_LOG = ("supplied", "ledger", "traffic", "scale", "action", "rounds", "step_s", "round_s", "cpu_s")  # drkernel.h
+REASONS = names("drkernel.h", "DRReason", "DR_", dash=True)     # the kernel never gives "converged"
+LEDGER_LOG = names("drkernel.h", "DRLedgerLog", "DR_LOG_")        # the ledger's rows of a log
+LEDGER_ACTIONS = names("drkernel.h", "DRLedgerAction", "DR_LEDGER_")
+STARTS = names("drkernel.h", "DRStart", "DR_START_")              # masters/dr_options.py
 FUNCTIONS = (None, "fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2SetReal", "fmi2DoStep", "fmi2GetReal")
-FAILED_EXTRA = -2        # drkernel.h DR_FAILED_EXTRA: the signals or a subsystem stepped alone failed
+FAILED_EXTRA = constant("drkernel.h", "DR_FAILED_EXTRA")   # the signals or a subsystem stepped alone failed
 FMI_NAMES = ("fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate", "fmi2SetReal", "fmi2DoStep",
               "fmi2GetReal")
 
@@ -90,50 +90,11 @@ _lib = None
 
 
 def load_library():
-    """The kernel library, built (with the FMUs) if missing or stale; raises FmuError if it cannot be."""
+    """The kernel library, built (with the FMUs) if missing or stale, its signatures those drkernel.h
+    and its parts' headers declare (contract.py); raises FmuError if it cannot be built."""
     global _lib
     if _lib is None:
-        lib = kernel_library("drkernel", "the kernel library")
-        p, i, d = ctypes.c_void_p, ctypes.c_int, ctypes.POINTER(ctypes.c_double)
-        lib.dr_create.restype = p
-        lib.dr_create.argtypes = [i, i, d, d, d, d, d, d]
-        lib.dr_set_subsystem.argtypes = [p, i, ctypes.POINTER(DRFunctions), p, p, ctypes.POINTER(ctypes.c_uint),
-                                         ctypes.POINTER(ctypes.c_uint), i, i]
-        lib.dr_set_no_prior.argtypes = [p, i, i]
-        lib.dr_set_threads.argtypes = [p, i, ctypes.POINTER(ctypes.c_int)]
-        lib.dr_thread_plan.argtypes = [p, ctypes.POINTER(ctypes.c_int)]
-        lib.dr_costs.argtypes = [p, d]
-        lib.dr_costs.restype = None
-        lib.dr_counts.argtypes = [p, ctypes.POINTER(ctypes.c_long)]
-        lib.dr_counts.restype = None
-        lib.dr_destroy.argtypes = [p]
-        lib.dr_destroy.restype = None
-        lib.dr_floor.argtypes = [p, ctypes.POINTER(DRStep), d, i]
-        ip = ctypes.POINTER(ctypes.c_int)
-        lib.dr_set_maps.argtypes = [p, ip, ip, d, ip, ip, d]
-        lib.dr_set_trace.argtypes = [p, d, i]
-        lib.dr_set_trace.restype = None
-        lib.dr_set_observed.argtypes = [p, i, ctypes.POINTER(ctypes.c_uint), i]
-        lib.dr_set_bound.argtypes = [p, ctypes.c_double, ctypes.POINTER(ctypes.c_int), i]
-        lib.dr_set_observed_view.argtypes = [p, i, p, p, i]
-        lib.dr_set_adapter.argtypes = [p, i, p, p]
-        lib.dr_redo_do_steps.argtypes = [p]
-        lib.dr_redo_do_steps.restype = ctypes.c_long
-        lib.dr_log_width.argtypes = [p]
-        lib.dr_log_width.restype = ctypes.c_size_t
-        lib.dr_run_steps.argtypes = [p, ctypes.POINTER(DRStep), i, i, p, ctypes.c_long, ctypes.c_double]
-        lib.dr_prepare_log.argtypes = [p, ctypes.POINTER(DRStep), p, ctypes.c_long, i]
-        lib.dr_prepare_log.restype = None
-        lib.dr_set_passes.argtypes = [p, i, ctypes.POINTER(p), ctypes.POINTER(p)]
-        lib.dr_set_options.argtypes = [p, ctypes.c_double, i, i]
-        lib.dr_set_anderson_modes.argtypes = [p, i, i]
-        lib.dr_set_anchors.argtypes = [p, i]
-        lib.dr_set_anchors.restype = None
-        lib.dr_set_previous.argtypes = [p, d]
-        lib.dr_set_previous.restype = None
-        lib.dr_ledger_redo.argtypes = [p, ctypes.POINTER(DRStep), ctypes.c_double, ctypes.c_double, ctypes.c_double,
-                                       ctypes.c_double, d]
-        _lib = lib
+        _lib = kernel_library("drkernel", "the kernel library")
     return _lib
 
 
@@ -184,50 +145,6 @@ class BlockLog:
         return BlockLog(self.columns[:, :k], self.n, address=self.address, ld=self.ld, passed=min(self.passed, k))
 
 
-def unusable(scene):
-    """Why the kernel cannot run this scene, or None if it can (subsystems stepped alone need only
-    getReal, setReal and doStep); a library whose structs differ from their mirrors is no reason to
-    fall back but an error (abi.LayoutError)."""
-    for s in scene.signal_only:
-        for name in ("fmi2GetReal", "fmi2SetReal", "fmi2DoStep"):
-            try:
-                s.fmu.function_pointer(name)
-            except (AttributeError, FmuError):
-                return f"subsystem {s.name}: the FMU does not export {s.fmu.function_name(name)}"
-    for s in scene.subsystems:
-        if not s.fmu.can_save_state:
-            return f"subsystem {s.name} cannot get and set its FMU state"
-        for name in FMI_NAMES:
-            try:
-                s.fmu.function_pointer(name)      # FMI 3: kernel/c/fmi3shim.c's, in fmi2 form
-            except AttributeError:
-                return f"subsystem {s.name}: the FMU does not export {s.fmu.function_name(name)}"
-            except LayoutError:
-                raise
-            except FmuError as exc:
-                return str(exc)
-    try:
-        load_library()
-        if any(s.adapter for s in scene.subsystems):
-            load_adapter_library()
-    except LayoutError:
-        raise
-    except FmuError as exc:
-        return str(exc)
-    return None
-
-
-def kernel_refusal(scene, mode):
-    """Why a master's Python reference runs instead of its kernel route (None: the kernel can run),
-    for master.fast `mode`; `true` insists (a config error when the kernel cannot run)."""
-    if mode == "false":
-        return "master.fast is false"
-    why = unusable(scene)
-    if why is not None and mode == "true":
-        raise ConfigError(f"{scene.scenario.source}: master.fast: true, but {why}")
-    return why
-
-
 def available_cpus():
     """The cores this process may run on, or $WAVECOSIM_CPUS when set (e.g. a container's CPU quota,
     which the affinity mask does not show)."""
@@ -252,30 +169,16 @@ def thread_plan(costs_us, n_threads):
     return plan, load
 
 
-def fmu_functions(s):
-    """The FMU functions and component the kernel calls for subsystem s: its own fmi2 ones."""
-    return DRFunctions(*[s.fmu.function_pointer(name) for name in FMI_NAMES]), s.fmu.component
-
-
-def adapter_port(s, fns, comp):
-    """A subsystem with a physical port: its wave adapter goes to C over the FMU's table (fns, comp)
-    (Subsystem.adapter_in_kernel), and the kernel calls the adapter's fmi2 shim as a wave port with
-    value references 0 .. m - 1. Returns (functions, component, vr_in, vr_out)."""
-    table, adapter = s.adapter_in_kernel(fns, comp, FUNCTIONS)
-    vrs = (ctypes.c_uint * s.m)(*range(s.m))
-    return DRFunctions(*table), adapter, vrs, vrs
-
-
 class Kernel:
     """One C kernel over a scene's subsystems (wave mode), with its buffers b, a_hat, u^0, u^K."""
 
     def __init__(self, scene, P, J_L):
-        """P, J_L: linalg.Sparse or dense rows; None for a route without them (classical_path.py),
-        which then runs the subsystems in the port mode the scene opened them in."""
+        """scene: a description.KernelScene. P, J_L: linalg.Sparse or dense rows; None for a route without
+        them (kernel/classical.py, newton.py), which then runs the subsystems in the port mode the scene
+        opened them in."""
         lib = self.lib = load_library()
-        n = scene.n_channels
-        self.subsystems = scene.subsystems
-        self.signals, self.alone = scene.kernel_signals(), scene.signal_only     # plain data, or None
+        n = scene.n
+        self.scene, self.subsystems = scene, scene.subsystems
         self.plan, self.views, self.shims = None, [], []    # signals.c's plan, portview.c's views and shims
         array = ctypes.c_double * n
         self.n = n
@@ -292,24 +195,9 @@ class Kernel:
         except FmuError:
             self.close()
             raise
-        for i, (s, off) in enumerate(zip(self.subsystems, scene.offsets)):
-            fns, comp = fmu_functions(s)
-            if s.adapter:
-                fns, comp, vr_in, vr_out = adapter_port(s, fns, comp)
-                lib.dr_set_adapter(self.handle, i, *s.map.counters())
-            else:
-                if s.port_scales() is not None:                # a signed physical port: portview.c's shim
-                    self.shims.append(SignedPort(lib, fns, comp, s.m, *s.port_scales()))
-                    fns, comp = self.shims[-1].functions, self.shims[-1].handle
-                vr_in, vr_out = s.port_vrs()
-            # x_i^n goes into the Subsystem's own handle, so that after a fast macro-step the
-            # Subsystem holds x_i^n exactly as after the reference one (restore_frozen, thaw work)
-            state = s.state_handle_address()
-            if lib.dr_set_subsystem(self.handle, i, ctypes.byref(fns), comp, state, vr_in, vr_out, s.m,
-                                    int(off)) or lib.dr_set_no_prior(self.handle, i, s.no_prior):
-                self.close()
-                raise FmuError(f"subsystem {s.name}: the DR kernel refused its port")
-        self.io = DRStep(measure=0, eps=-1.0, deadline_s=0.0, t0=scene.scenario.start_time)
+        for i, s in enumerate(self.subsystems):
+            self._set_subsystem(i, s)
+        self.io = DRStep(measure=0, eps=-1.0, deadline_s=0.0, t0=scene.t0)
         self.at = (None, None)                     # (n, t) of the last macro_step
         self._io = ctypes.byref(self.io)
         self._macro_step = lib.dr_macro_step       # called with pre-converted arguments
@@ -318,6 +206,21 @@ class Kernel:
         self.width, self.log, self._log_at = lib.dr_log_width(self._handle), np.empty((0, 0)), None
         self._run_steps = functools.partial(lib.dr_run_steps, self._handle)     # (io, n0, count, log, ld, H_cap)
 
+    def _set_subsystem(self, i, s):
+        """Subsystem i (a description.KernelSubsystem): its functions, or portview.c's signed shim over
+        them, or its wave adapter in C. x_i^n goes into the scene's own handle (s.state), so that after
+        a fast macro-step the scene holds x_i^n exactly as after the reference one."""
+        lib, fns, comp = self.lib, DRFunctions(*s.functions), s.component
+        if s.counters is not None:
+            lib.dr_set_adapter(self.handle, i, *s.counters)
+        if s.scales is not None:
+            self.shims.append(SignedPort(lib, fns, comp, s.m, *s.scales))
+            fns, comp = self.shims[-1].functions, self.shims[-1].handle
+        if lib.dr_set_subsystem(self.handle, i, ctypes.byref(fns), comp, s.state, s.vr_in, s.vr_out, s.m,
+                                s.offset) or lib.dr_set_no_prior(self.handle, i, s.no_prior):
+            self.close()
+            raise FmuError(f"subsystem {s.name}: the DR kernel refused its port")
+
     def observe(self, names, steps=0, bound=None):
         """Read these variables of each subsystem (names[i], H_i first) after every commit of run_steps,
         with a log of room for `steps` steps made now; returns an empty BlockLog of the blocks' layout
@@ -325,12 +228,12 @@ class Kernel:
         over all subsystems): run_steps also stops after a step where one is above the limit."""
         for i, (s, vars_i) in enumerate(zip(self.subsystems, names)):
             port = vars_i if isinstance(vars_i, ObservedPort) else None
-            vrs = (ctypes.c_uint * len(vars_i))(*(range(len(vars_i)) if port else s.fmu.real_vrs(vars_i)))
+            vrs = (ctypes.c_uint * len(vars_i))(*(range(len(vars_i)) if port else s.fmu.vrs(vars_i)))
             if self.lib.dr_set_observed(self._handle, i, vrs, len(vars_i)):
                 raise FmuError(f"subsystem {s.name}: the DR kernel could not keep {len(vars_i)} observed values")
             if port is not None:
                 self._view(i, s, port)
-        if self.signals is not None:
+        if self.scene.signals is not None:
             self._take_signals(names[len(self.subsystems):])
         limit, rows = bound or (math.inf, [])
         if self.lib.dr_set_bound(self._handle, limit, (ctypes.c_int * len(rows))(*rows), len(rows)):
@@ -341,8 +244,8 @@ class Kernel:
 
     def _view(self, i, s, port):
         """Subsystem i's observed values through portview.c's view of its physical port."""
-        view = PortView(self.lib, s.fmu.function_pointer("fmi2GetReal"), s.fmu.component, s.fmu.real_vrs(port.names),
-                        port, s.map.impedance() if port.adapter else None)
+        view = PortView(self.lib, s.fmu.pointer("fmi2GetReal"), s.fmu.component, s.fmu.vrs(port.names),
+                        port, s.impedance if port.adapter else None)
         self.views.append(view)
         self.lib.dr_set_observed_view(self._handle, i, view.get, view.handle, int(not port.has_H))
 
@@ -351,8 +254,9 @@ class Kernel:
         alone_names[j] of the j-th subsystem stepped alone after each step."""
         if self.plan is not None:
             self.plan.close()
-        vrs = [s.fmu.real_vrs(names) for s, names in zip(self.alone, alone_names)]
-        self.plan = SignalPlan(self.lib, self._handle, self.signals, vrs, FUNCTIONS)
+        scene = self.scene
+        vrs = [fmu.vrs(names) for fmu, names in zip(scene.alone, alone_names)]
+        self.plan = SignalPlan(self.lib, self._handle, scene.signals, vrs, FUNCTIONS, scene.book_alone)
 
     def _log_room(self, keep, steps):
         """A log of room for `steps` steps per call (written through once, so no page of it is first
@@ -479,36 +383,13 @@ class Kernel:
             raise self.failure(*self.at)
         return out[0], out[1], out[2], int(out[3]), int(out[4])
 
-    def floor(self, n_steps, K, inputs=None, t0=0.0):
-        """The FMU calls of n_steps macro-steps with budget K and no DR logic (the floor); returns
-        the seconds spent in the C driver.
-
-        inputs: None, or per step K + 1 stacked input vectors (the u^k of the queries, then the
-        a of the commit), flat, as recorded from a run; replaying them repeats its FMU work."""
-        buf = None
-        if inputs is not None:
-            if len(inputs) != n_steps * (K + 1) * self.n:
-                raise ValueError(f"floor: need {n_steps * (K + 1) * self.n} inputs, got {len(inputs)}")
-            buf = (ctypes.c_double * len(inputs))(*inputs)
-        io = self.io
-        K_run, io.t, io.K = io.K, t0, K
-        try:
-            started = time.perf_counter()
-            failed = self.lib.dr_floor(self._handle, self._io, buf, n_steps)
-            elapsed = time.perf_counter() - started
-        finally:
-            io.K = K_run
-        if failed:
-            raise self.failure(None, None)
-        return elapsed
-
     def failure(self, n, t):
         io = self.io
         if io.failed_subsystem == FAILED_EXTRA:
             return self.plan.error(n, t)
         sub = self.subsystems[io.failed_subsystem]
-        inner = sub.map.kernel_error(n, t) if sub.adapter else None      # the wave adapter's own failure
-        return inner or sub.fmu.status_error(FUNCTIONS[io.failed_function], io.failed_status, n, t)
+        inner = sub.adapter_error(n, t) if sub.adapter_error else None      # the wave adapter's own failure
+        return inner or sub.fmu.error(FUNCTIONS[io.failed_function], io.failed_status, n, t)
 
     def costs(self):
         """Median µs per evaluation of each subsystem since the last call (steps run with measure)."""

@@ -1,7 +1,8 @@
-"""The floor of a run (kernel/c/floor.c, the kernel library libfloor.so): every FMU call the C kernel
-makes is recorded in order through shims (`FloorRecorder.hook`, installed as the FMU layer's pointer
-hook for one run), then made again from C alone, with the same arguments, on freshly instantiated
-FMUs (`replay`). Its time is what those FMU calls cost with nothing around them.
+"""The bench's floor of a run (kernel/c/floor.c, the kernel library libfloor.so; used by bench/ only,
+kept here because only kernel/ and fmi/ bind C): every FMU call the C kernel makes is recorded in
+order through shims (`FloorRecorder.hook`, put between the kernel and the FMUs for one run with
+fmi/fmu.py's `interposed`), then made again from C alone, with the same arguments, on freshly
+instantiated FMUs (`replay`). Its time is what those FMU calls cost with nothing around them.
 """
 import ctypes
 
@@ -16,21 +17,7 @@ _lib = None
 def library():
     global _lib
     if _lib is None:
-        lib = kernel_library("floor", "the floor's recorder")
-        p = ctypes.c_void_p
-        lib.fl_create.restype = p
-        lib.fl_register.argtypes = [p, p, ctypes.POINTER(FLFunctions)]
-        lib.fl_shims.argtypes = [ctypes.POINTER(FLFunctions)]
-        lib.fl_shims.restype = None
-        lib.fl_start.argtypes = [p]
-        lib.fl_start.restype = lib.fl_stop.restype = None
-        lib.fl_calls.argtypes = [p]
-        lib.fl_calls.restype = ctypes.c_size_t
-        lib.fl_replay.argtypes = [p, p, p, ctypes.POINTER(ctypes.c_int)]
-        lib.fl_replay.restype = ctypes.c_double
-        lib.fl_destroy.argtypes = [p]
-        lib.fl_destroy.restype = None
-        _lib = lib
+        _lib = kernel_library("floor", "the floor's recorder")
     return _lib
 
 
@@ -48,17 +35,18 @@ class FloorRecorder:
         self.lib.fl_shims(ctypes.byref(self.shims))
         self.names, self._seen = [], set()
 
-    def hook(self, fmu, fname, lookup):
-        """The pointer hook: the recording shim of fname for this FMU, registered on first sight (the
-        FMU's own function for a name it does not record)."""
+    def hook(self, name, component, fname, lookup):
+        """The pointer hook (fmi/fmu.py, interposed): the recording shim of fname for the FMU instance
+        `name` (its fmi2Component), registered on first sight (the FMU's own function for a name it
+        does not record)."""
         if fname not in NAMES:
             return lookup(fname)
-        if fmu.component not in self._seen:
-            table = FLFunctions(*[lookup(name) for name in NAMES])
-            if self.lib.fl_register(self.handle, fmu.component, ctypes.byref(table)) < 0:
+        if component not in self._seen:
+            table = FLFunctions(*[lookup(n) for n in NAMES])
+            if self.lib.fl_register(self.handle, component, ctypes.byref(table)) < 0:
                 raise FmuError("the floor's recorder takes at most 64 FMU instances")
-            self._seen.add(fmu.component)
-            self.names.append(fmu.name)
+            self._seen.add(component)
+            self.names.append(name)
         return getattr(self.shims, FLFunctions._fields_[NAMES.index(fname)][0])
 
     def start(self):
@@ -71,11 +59,12 @@ class FloorRecorder:
     def calls(self):
         return self.lib.fl_calls(self.handle)
 
-    def replay(self, fmus):
-        """Seconds the recorded calls take made again on `fmus` ({name: Fmu}, fresh instances)."""
-        order = [fmus[name] for name in self.names]
-        comps = (ctypes.c_void_p * len(order))(*[f.component for f in order])
-        tables = (FLFunctions * len(order))(*[FLFunctions(*[f.function_pointer(n) for n in NAMES]) for f in order])
+    def replay(self, instances):
+        """Seconds the recorded calls take made again on fresh instances ({name: (fmi2Component,
+        pointer(fmi2 name) -> address)})."""
+        order = [instances[name] for name in self.names]
+        comps = (ctypes.c_void_p * len(order))(*[comp for comp, _ in order])
+        tables = (FLFunctions * len(order))(*[FLFunctions(*[pointer(n) for n in NAMES]) for _, pointer in order])
         failed = ctypes.c_int(-1)
         seconds = self.lib.fl_replay(self.handle, comps, tables, ctypes.byref(failed))
         if seconds < 0 or failed.value >= 0:

@@ -58,6 +58,12 @@ def _library():
     return lib
 
 
+def require():
+    """Load the guard library now: a supervised run calls this before it forks, so a library that is
+    neither in the package nor buildable is the parent's one-line FmuError."""
+    _library()
+
+
 def arm(fault, notify_fd):
     """Hold the process's faults from now on (call from the main thread): `fault` is a GuardFault the
     handlers fill, `notify_fd` the write end of the rescue pipe. Raises OSError if it cannot."""
@@ -79,8 +85,15 @@ def freeze_signal():
     return _library().guard_freeze_signal()
 
 
+def claim_frozen():
+    """Record a freeze the main thread did not take (its signal blocked, ignored or handled by an FMU)
+    and wake the rescue; False when a fault was recorded before."""
+    return _library().guard_claim_frozen() == 1
+
+
 def die_with_parent(signum):
-    """This process gets `signum` when its parent dies (Linux; elsewhere nothing happens)."""
+    """This process gets `signum` when its parent dies (Linux prctl PR_SET_PDEATHSIG; elsewhere nothing
+    happens)."""
     try:
         ctypes.CDLL(None).prctl(_PR_SET_PDEATHSIG, signum)
     except (AttributeError, OSError):

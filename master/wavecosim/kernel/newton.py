@@ -5,11 +5,13 @@ reference's operation order, so the numbers are bit-identical. `NewtonKernel` wi
 ctypes; the master picks it with `master.fast` like DR.
 """
 import ctypes
+import math
 
 import numpy as np
 
 from ..errors import FmuError, NumericalError
 from .abi import mirrors
+from .contract import constant
 from .drkernel import Kernel, load_library
 
 _int_p, _double_p = ctypes.POINTER(ctypes.c_int), ctypes.POINTER(ctypes.c_double)
@@ -20,8 +22,9 @@ ACCEPT_REL = 1e-5       # relative to the port-wave scale |a| + |b|
 MAX_ITER = 30
 STALL = 3
 NON_FINITE, SINGULAR = "non-finite residual", "singular Jacobian"
-WHY = {1: NON_FINITE, 2: SINGULAR, 4: "out of memory"}       # newton.h: NT_NONFINITE, NT_SINGULAR, NT_NO_MEMORY
-NOT_CONVERGED = 3                                                 # newton.h: NT_NOT_CONVERGED
+WHY = {constant("newton.h", code): why for code, why in (("NT_NONFINITE", NON_FINITE), ("NT_SINGULAR", SINGULAR),
+                                                        ("NT_NO_MEMORY", "out of memory"))}
+NOT_CONVERGED = constant("newton.h", "NT_NOT_CONVERGED")
 
 
 @mirrors("drkernel", "NTSettings")
@@ -29,21 +32,6 @@ class NTSettings(ctypes.Structure):
     """newton.h: Newton's constants, monolithic.py's."""
     _fields_ = [("tol", ctypes.c_double), ("accept", ctypes.c_double), ("accept_rel", ctypes.c_double),
                 ("max_iter", ctypes.c_int), ("stall", ctypes.c_int)]
-
-
-def library():
-    lib = load_library()
-    if not hasattr(lib, "_newton_ready"):
-        p = ctypes.c_void_p
-        lib.nt_create.restype = p
-        lib.nt_create.argtypes = [p, _int_p, _int_p, _double_p, ctypes.POINTER(NTSettings)]
-        lib.nt_set_map.argtypes = [p, _int_p, _int_p, _double_p]
-        lib.nt_step.argtypes = [p, p, p, p, p, p]                   # arrays by address
-        lib.nt_solve.argtypes = [p, p, p, p, p]
-        lib.nt_destroy.argtypes = [p]
-        lib.nt_destroy.restype = None
-        lib._newton_ready = True
-    return lib
 
 
 def _csr(P):
@@ -54,10 +42,10 @@ class NewtonKernel:
     """A DR kernel over the scene's subsystems (wave mode) and the Newton macro-step on it."""
 
     def __init__(self, scene, P):
-        self.lib = library()
+        self.lib = load_library()
         self.base = Kernel(scene, None, None)
-        self.base.configure(scene.scenario.dt, 0)
-        self.n = scene.n_channels
+        self.base.configure(scene.dt, 0)
+        self.n = scene.n
         self.settings = NTSettings(TOL, ACCEPT, ACCEPT_REL, MAX_ITER, STALL)
         self.handle = self.lib.nt_create(self.base.handle, *_csr(P), ctypes.byref(self.settings))
         if not self.handle:
@@ -98,7 +86,8 @@ class NewtonKernel:
                 raise self.base.failure(n, t)
             if rc == NOT_CONVERGED:
                 raise not_converged(where, self.base.io.residual, float(self.out[1]))
-            raise failed(where, WHY[rc])
+            source = nan_source(self.base.subsystems, int(self.out[1])) if WHY[rc] == NON_FINITE else None
+            raise failed(where, WHY[rc], source)
 
     def close(self):
         if self.handle:
@@ -107,23 +96,29 @@ class NewtonKernel:
         self.base.close()
 
 
-def book_kernel_step(subsystems, n, t, queries):
-    """Book a kernel macro-step on the Subsystems (frozen at x^n, `queries` S-evaluations and the
-    commit); a wave adapter's FMU calls are its own count."""
-    for s in subsystems:
-        if s.adapter:
-            s.note_kernel_step(n, t, 0, 0)
-            s.map.book()
-        else:
-            s.note_kernel_step(n, t, queries)
-
-
 def not_converged(where, res, scale):
     """The error of a Newton solve whose best residual is past both acceptance levels."""
     return NumericalError(f"interface Newton{where} did not converge: |b - S(Pb)| = {res:.3g} "
                           f"(> {ACCEPT_REL:g} of the port-wave scale {scale:.3g})")
 
 
-def failed(where, why):
-    """The error of a Newton solve that cannot go on (why: "non-finite residual", "singular Jacobian")."""
-    return NumericalError(f"interface Newton{where}: {why}")
+def failed(where, why, source=None):
+    """The error of a Newton solve that cannot go on (why: "non-finite residual", "singular Jacobian");
+    source: the subsystem whose outgoing wave was not finite (nan_source), named as the NaN's maker."""
+    cause = (f": subsystem {source} gave a non-finite outgoing wave for a finite incident one (a NaN or an "
+             f"infinity from its FMU)" if source else "")
+    return NumericalError(f"interface Newton{where}: {why}{cause}")
+
+
+def nan_channel(a, s):
+    """The first channel whose outgoing wave s is not finite for a finite incident wave a, else -1."""
+    return next((j for j, (x, y) in enumerate(zip(a, s)) if math.isfinite(x) and not math.isfinite(y)), -1)
+
+
+def nan_source(subsystems, channel):
+    """The name of the subsystem (channels in their order) that holds `channel`, None for -1."""
+    for sub in subsystems if channel >= 0 else ():
+        if channel < sub.m:
+            return sub.name
+        channel -= sub.m
+    return None

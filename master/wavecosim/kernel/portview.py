@@ -8,27 +8,6 @@ from dataclasses import dataclass
 
 from ..errors import FmuError
 
-_d = ctypes.POINTER(ctypes.c_double)
-
-
-def _library(lib):
-    if not hasattr(lib, "_portview_ready"):
-        p = ctypes.c_void_p
-        lib.sp_create.restype = p
-        lib.sp_create.argtypes = [p, p, ctypes.c_int, _d, _d]
-        lib.sp_functions.argtypes = [p]
-        lib.sp_functions.restype = None
-        lib.sp_destroy.argtypes = [p]
-        lib.sp_destroy.restype = None
-        lib.pv_create.restype = p
-        lib.pv_create.argtypes = [p, p, ctypes.POINTER(ctypes.c_uint), ctypes.c_int, ctypes.c_int, ctypes.c_int, _d,
-                                  p, p]
-        lib.pv_size.argtypes = [p]
-        lib.pv_size.restype = ctypes.c_size_t
-        lib.pv_destroy.argtypes = [p]
-        lib.pv_destroy.restype = None
-        lib._portview_ready = True
-    return lib
 
 
 @dataclass
@@ -51,7 +30,7 @@ class SignedPort:
     """An FMU with port signs behind portview.c's shim: (functions, component) for the kernel."""
 
     def __init__(self, lib, fns, comp, m, in_scale, out_scale):
-        self.lib = _library(lib)
+        self.lib = lib
         scales = [(ctypes.c_double * m)(*map(float, v)) for v in (in_scale, out_scale)]
         self.handle = self.lib.sp_create(ctypes.byref(fns), comp, m, *scales)
         if not self.handle:
@@ -70,7 +49,7 @@ class PortView:
     the addresses of the wave adapter's gamma and k, or None."""
 
     def __init__(self, lib, get, comp, vrs, port: ObservedPort, impedance=None):
-        self.lib = _library(lib)
+        self.lib = lib
         gamma, k = impedance or (None, None)
         self.handle = self.lib.pv_create(get, comp, (ctypes.c_uint * len(vrs))(*vrs), int(port.has_H), port.m,
                                          port.n_out, (ctypes.c_double * port.m)(*map(float, port.sign)), gamma, k)

@@ -12,8 +12,8 @@ from .drkernel import FMI_NAMES, DRFunctions
 class Queries:
     """fq_queries over one FMU's function table."""
 
-    def __init__(self, lib, fmu):
-        self.lib, self.fns = lib, DRFunctions(*[fmu.function_pointer(name) for name in FMI_NAMES])
+    def __init__(self, lib, pointer):
+        self.lib, self.fns = lib, DRFunctions(*[pointer(name) for name in FMI_NAMES])
         self.failed = (ctypes.c_int * 2)()
 
     def __call__(self, comp, state, in_vr, out_vr, m, t, h, rows, dirty, no_prior=0):
@@ -29,7 +29,8 @@ class Queries:
         return out, done, self.failed[0] if done < len(inputs) else 0, self.failed[1]
 
 
-def batch(fmu):
-    """Queries over this FMU's function table, or None without the library (no C compiler)."""
+def batch(pointer):
+    """Queries over an FMU's function table (pointer(fmi2 name) -> the function's address), or None
+    without the library (no C compiler)."""
     lib = helper_library("queries")
-    return lib and Queries(lib, fmu)
+    return lib and Queries(lib, pointer)

@@ -9,12 +9,13 @@ import ctypes
 import numpy as np
 
 from .abi import mirrors
+from .contract import constant, names
 from ..errors import FmuError, NumericalError
 
-_ip, _up, _dp = ctypes.POINTER(ctypes.c_int), ctypes.POINTER(ctypes.c_uint), ctypes.POINTER(ctypes.c_double)
-SG_OK, SG_FMU, SG_NONFINITE, SG_NO_TABLE = range(4)          # signals.h
-TYPES = ("real", "integer", "boolean")                       # signals.h SG_REAL, SG_INTEGER, SG_BOOLEAN
-OTHER_FUNCTIONS = {16: "fmi2GetInteger", 17: "fmi2GetBoolean", 18: "fmi2SetInteger", 19: "fmi2SetBoolean"}
+SG_FMU, SG_NONFINITE = (constant("signals.h", name) for name in ("SG_FMU", "SG_NONFINITE"))   # SGFailure.kind
+TYPES = names("signals.h", "SGType", "SG_")                  # the types of the values a signal carries
+OTHER_FUNCTIONS = {constant("signals.h", f"SG_FN_{verb}_{kind.upper()}"): f"fmi2{verb.title()}{kind.title()}"
+                   for verb in ("GET", "SET") for kind in TYPES[1:]}        # SGFailure.function past DR_FN_*
 FMU_FUNCTIONS = ("fmi2GetReal", "fmi2SetReal", "fmi2DoStep", "fmi2GetInteger", "fmi2SetInteger", "fmi2GetBoolean",
                  "fmi2SetBoolean")
 
@@ -40,24 +41,6 @@ class SGFailure(ctypes.Structure):
                [("value", ctypes.c_double)]
 
 
-def _library(lib):
-    if not hasattr(lib, "_signals_ready"):
-        p, i = ctypes.c_void_p, ctypes.c_int
-        lib.sg_create.restype = p
-        lib.sg_create.argtypes = [p, i, ctypes.POINTER(SGFmu), i, ctypes.POINTER(SGSignal), i, _ip, _ip, _ip, _up, _ip,
-                                  i, _ip, _ip, _ip, _up, _ip, i, _ip, _ip, _up]
-        lib.sg_set_table.argtypes = [p, p, ctypes.c_long, i, i]
-        lib.sg_set_table.restype = None
-        lib.sg_attach.argtypes = [p]
-        lib.sg_attach.restype = None
-        lib.sg_failure.argtypes = [p]
-        lib.sg_failure.restype = ctypes.POINTER(SGFailure)
-        lib.sg_destroy.argtypes = [p]
-        lib.sg_destroy.restype = None
-        lib._signals_ready = True
-    return lib
-
-
 def _array(kind, values):
     return (kind * max(1, len(values)))(*values)
 
@@ -74,28 +57,29 @@ def _calls(calls):
 
 
 def _functions(fmu, wanted):
-    """SGFmu of an FMU: the functions in `wanted` (the others NULL)."""
+    """SGFmu of an FMU (a description.KernelFmu): the functions in `wanted` (the others NULL)."""
     table = SGFmu(comp=fmu.component)
     for name, field in zip(FMU_FUNCTIONS, SGFmu._fields_):
         if name in wanted:
-            setattr(table, field[0], fmu.function_pointer(name))
+            setattr(table, field[0], fmu.pointer(name))
     return table
 
 
 class SignalPlan:
-    """signals.c's plan over a kernel (`handle`) from `plan` (core.scene.Scene.kernel_signals(): the
-    FMUs (port subsystems first, then those stepped alone), the signals, the getReal and setReal calls,
-    the tables) and the outputs read of each subsystem stepped alone (`alone_vrs`, one list each);
-    `functions` names the FMU functions by the kernel's DR_FN_* index (for errors)."""
+    """signals.c's plan over a kernel (`handle`) from `plan` (description.KernelScene.signals: the
+    FMUs as KernelFmu (port subsystems first, then those stepped alone), the signals, the getReal and
+    setReal calls, the tables) and the outputs read of each subsystem stepped alone (`alone_vrs`, one
+    list each); `functions` names the FMU functions by the kernel's DR_FN_* index (for errors);
+    book_alone(j, doSteps, n, t) books the calls of the j-th stepped alone (n None: no step ended)."""
 
-    def __init__(self, lib, handle, plan, alone_vrs, functions):
-        self.lib, self.plan, self.functions = _library(lib), plan, functions
+    def __init__(self, lib, handle, plan, alone_vrs, functions, book_alone):
+        self.lib, self.plan, self.functions, self.book_alone = lib, plan, functions, book_alone
         self.subsystems, self.alone = plan["subsystems"], plan["alone"]
         wanted = [set(FMU_FUNCTIONS[:3]) for _ in self.subsystems]
         for fmu, kind, _, _ in plan["reads"] + plan["writes"]:
             if kind != "real":
                 wanted[fmu] |= {f"fmi2Get{kind.title()}", f"fmi2Set{kind.title()}"}
-        fmus = (SGFmu * max(1, len(self.subsystems)))(*[_functions(s.fmu, w) for s, w in zip(self.subsystems, wanted)])
+        fmus = (SGFmu * max(1, len(self.subsystems)))(*[_functions(f, w) for f, w in zip(self.subsystems, wanted)])
         sigs, alone_starts = plan["signals"], [0]
         for vrs in alone_vrs:
             alone_starts.append(alone_starts[-1] + len(vrs))
@@ -122,23 +106,25 @@ class SignalPlan:
     def book(self, n0, done, failed):
         """Book the doSteps of the subsystems stepped alone in steps n0 .. n0 + done - 1 (and those
         made in step n0 + done before a failure there)."""
-        extra = self.lib.sg_failure(self.handle).contents.alone_done if failed else 0
+        extra = self._failure().alone_done if failed else 0
         last = n0 + done - (0 if failed else 1)
-        for a, j in enumerate(self.alone):
-            s = self.subsystems[j]
-            s.calls["doStep"] += done + (a < extra)
-            if done or failed:
-                s.begin(last, self.plan["t0"] + last * self.plan["dt"])
+        at = (last, self.plan["t0"] + last * self.plan["dt"]) if done or failed else (None, None)
+        for a in range(len(self.alone)):
+            self.book_alone(a, done + (a < extra), *at)
 
     def error(self, n, t):
         """The error of the step whose signals failed, as the Python route raises it."""
-        f = self.lib.sg_failure(self.handle).contents
+        f = self._failure()
         if f.kind == SG_NONFINITE:
             return NumericalError(self.plan["nonfinite"](f.index, f.value, f.step))
         if f.kind == SG_FMU:
             name = OTHER_FUNCTIONS.get(f.function) or self.functions[f.function]
-            return self.subsystems[f.index].fmu.status_error(name, f.status, n, t)
+            return self.subsystems[f.index].error(name, f.status, n, t)
         return FmuError(f"the kernel's signals had no source table values for step {f.step}")
+
+    def _failure(self):
+        """signals.h: the SGFailure of the last step."""
+        return SGFailure.from_address(self.lib.sg_failure(self.handle))
 
     def close(self):
         if self.handle:

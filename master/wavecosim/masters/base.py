@@ -24,12 +24,24 @@ from dataclasses import dataclass
 from typing import Optional, Protocol, runtime_checkable
 
 from ..errors import ConfigError
+from ..kernel.drkernel import REASONS as KERNEL_REASONS
 from ..kernel.linalg import dot, matvec
 from .monolithic import solve_interface
 
 
 MIN_INNER_S = 1e-9        # an inner deadline this short stops the loop after its first iteration
-REASONS = ("budget", "tolerance", "deadline", "explicit", "converged", "energy-guard", "none")
+REASONS = (*KERNEL_REASONS, "none")          # drkernel.h DRReason, and a step no loop ran for
+
+
+def kernel_refusal(scene, mode):
+    """Why a master's Python reference runs instead of its kernel route (None: the kernel can run),
+    for master.fast `mode`; `true` insists (a config error when the kernel cannot run)."""
+    if mode == "false":
+        return "master.fast is false"
+    why = scene.kernel_unusable()
+    if why is not None and mode == "true":
+        raise ConfigError(f"{scene.scenario.source}: master.fast: true, but {why}")
+    return why
 
 
 @dataclass
@@ -141,7 +153,7 @@ class Master:
         return 0
 
     def kernel_certificates(self, floor):
-        """The sampled certificates computed inside this master's blocks of steps (certs_path), or
+        """The sampled certificates computed inside this master's blocks of steps (kernel/certs.py), or
         None: the observers then compute them step by step."""
         return None
 

@@ -15,10 +15,10 @@ caller does all the arithmetic, so the thread plan never changes a number.
 import math
 import time
 
-from ..kernel.drkernel import REASONS, Kernel, kernel_refusal
+from ..kernel.drkernel import REASONS, Kernel
 from ..kernel.certs import KernelCertificates, supports
 from ..kernel.newton import NewtonKernel
-from .base import StepLog
+from .base import StepLog, kernel_refusal
 from .dr import DRMaster
 from .threads import ThreadPlanner
 from .dr_options import STARTS
@@ -38,14 +38,15 @@ class FastDRMaster(DRMaster):
         self.kernel, self.fast, self.planner = None, False, None
         self.guarded = None       # the kernel's BlockLog of the last step when step() made the ledger's guard too
         self._guarding = False    # keep_ledger was called: step() makes iteration, commit and redo in one call
-        self._newton = None       # the certificates' interface Newton in C (newton_path.NewtonKernel), when asked
-        self._certs = None        # the certificates inside the blocks (certs_path.KernelCertificates), when asked
+        self._newton = None       # the certificates' interface Newton in C (kernel/newton.py NewtonKernel), when asked
+        self._certs = None        # the certificates inside the blocks (kernel/certs.py KernelCertificates), when asked
         # the certificates' C passes need every port to be the FMU's own wave map (no wave adapter)
         self._exact = not any(s.adapter for s in scene.subsystems)
         self.fast_note = self._kernel_refusal(scene, str(settings.fast).lower())
         if self.fast_note is not None:
             return
-        self.kernel = Kernel(scene, self.P, self.J_L)
+        self._kernel_scene = scene.kernel_scene()        # what the kernel's bindings know of the scene
+        self.kernel = Kernel(self._kernel_scene, self.P, self.J_L)
         self.kernel.configure(self.dt, self.K, self.eps, self.deadline_s)
         self.kernel.set_anchors((settings.energy_guard or self.default_guard) == "ledger")
         self._send_options()
@@ -99,14 +100,14 @@ class FastDRMaster(DRMaster):
 
     def _newton_kernel(self):
         if self._newton is None:
-            self._newton = NewtonKernel(self.scene, self.P)
+            self._newton = NewtonKernel(self._kernel_scene, self.P)
         return self._newton
 
     def kernel_certificates(self, floor):
-        """The certificates inside this master's blocks (certs_path.KernelCertificates; the watch keeps
+        """The certificates inside this master's blocks (kernel/certs.py KernelCertificates; the watch keeps
         pairs above `floor`), made on the first ask; None where the blocks cannot compute them."""
-        if self._certs is None and self.kernel is not None and self._exact and supports(self.scene):
-            self._certs = KernelCertificates(self.kernel, self._newton_kernel(), self.scene, floor)
+        if self._certs is None and self.kernel is not None and self._exact and supports(self._kernel_scene):
+            self._certs = KernelCertificates(self.kernel, self._newton_kernel(), self._kernel_scene, floor)
         return self._certs
 
     def retune(self, b):
@@ -159,7 +160,7 @@ class FastDRMaster(DRMaster):
         return self.kernel.io, int(self.guarded.ledger["rounds"][0])
 
     def redo_in_kernel(self, supplied, budget, left_s, round_s):
-        """The energy ledger's redo of the step just made, by the kernel (fast_path.Kernel.redo); its
+        """The energy ledger's redo of the step just made, by the kernel (kernel/drkernel.py Kernel.redo); its
         rounds are booked on the Subsystems and b^{n+1} becomes the redo's. Returns (s, supply,
         traffic, action, rounds, inputs committed)."""
         if self.kernel is None:
@@ -197,13 +198,13 @@ class FastDRMaster(DRMaster):
 
     def keep_ledger(self, ledger, traffic, rtol):
         """The energy ledger's state for the kernel's next steps and blocks, which it keeps within
-        master.deadline_us (see fast_path.Kernel.keep_ledger)."""
+        master.deadline_us (see kernel/drkernel.py Kernel.keep_ledger)."""
         self.kernel.keep_ledger(ledger, traffic, rtol, self.deadline_s)
         self._guarding = True
 
     def run_steps(self, n0, count, H_cap=math.inf, passes=False):
         """Macro-steps n0 .. n0 + count - 1 in one kernel call, stopping early after a step whose H
-        may exceed H_cap or whose observed values are not finite (fast_path.Kernel.run_steps), and
+        may exceed H_cap or whose observed values are not finite (kernel/drkernel.py Kernel.run_steps), and
         making no more than about BLOCK_SECONDS of work: (steps done, their BlockLog, the FmuError
         of the step after them or None); passes: the kernel makes its passes (set_passes) as it goes.
         b^n and b^{n+1} of the last step done become the master's, so undo_step works as after step()."""
@@ -222,7 +223,7 @@ class FastDRMaster(DRMaster):
 
     def _kernel_steps(self, n0, count, H_cap, passes, at=0):
         """One call of the kernel, of at most about BLOCK_SECONDS at the last call's pace, booked; it
-        logs after the last call's first `at` steps (fast_path.Kernel.run_steps). The thread planner
+        logs after the last call's first `at` steps (kernel/drkernel.py Kernel.run_steps). The thread planner
         may have it time the evaluations."""
         if self._step_s > 0.0:
             count = max(1, min(count, int(BLOCK_SECONDS / self._step_s)))

@@ -31,6 +31,7 @@ reference and the C kernel stay bit-identical.
 """
 from dataclasses import replace
 
+from ..kernel.drkernel import STARTS as DR_STARTS
 from ..kernel.linalg import dot, matvec
 
 ANDERSON_SAFEGUARD = 0.9     # an accelerated iterate must cut the fixed-point residual at least this much
@@ -45,7 +46,7 @@ def relaxed_update(u, w, b_hat, lam):
     return [ui + lam * (wi - bh) for ui, wi, bh in zip(u, w, b_hat)]
 
 
-STARTS = ("paper", "extrapolated", "previous")     # master.start (index: the C kernel's code), and "auto"
+STARTS = DR_STARTS                # master.start (index: the C kernel's code), and "auto"
 OPTION_MODES = ("manual", "auto")                  # master.options
 
 

@@ -6,8 +6,8 @@ import math
 import time
 
 from ..kernel.classical import ClassicalKernel
-from ..kernel.drkernel import REASONS, kernel_refusal
-from .base import KernelOwner, StepLog
+from ..kernel.drkernel import REASONS
+from .base import KernelOwner, StepLog, kernel_refusal
 from .dr_fast import BLOCK_SECONDS
 from .threads import ThreadPlanner
 
@@ -27,7 +27,7 @@ class KernelRoute(KernelOwner):
         self.fast_note = kernel_refusal(scene, str(settings.fast).lower())
         if self.fast_note is None:
             explicit = not self.needs_rollback
-            self.kernel = ClassicalKernel(scene, self.G, explicit, self.sequential)
+            self.kernel = ClassicalKernel(scene.kernel_scene(), self.G, explicit, self.sequential)
             self.fast_note = "C kernel" if blocks else "C kernel passes, the update in Python"
             self.planner = ThreadPlanner(self.kernel.base, settings.threads, len(self.subsystems),
                                          independent=not self.sequential)

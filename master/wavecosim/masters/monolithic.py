@@ -22,8 +22,8 @@ same bits.
 import numpy as np
 
 from ..kernel.linalg import distance, matvec, norm2, solve_sparse
-from ..kernel.newton import (ACCEPT, ACCEPT_REL, MAX_ITER, NON_FINITE, SINGULAR, STALL, TOL, failed,
-                             not_converged)
+from ..kernel.newton import (ACCEPT, ACCEPT_REL, MAX_ITER, NON_FINITE, SINGULAR, STALL, TOL, failed, nan_channel,
+                             nan_source, not_converged)
 
 
 def _jacobian(scene, a, s, h):
@@ -69,7 +69,7 @@ def solve_interface(scene, P, b0, tol=TOL, max_iter=MAX_ITER, where=""):
         evals += 1
         res = distance(b, s)
         if not np.isfinite(res):
-            raise failed(where, NON_FINITE)
+            raise failed(where, NON_FINITE, nan_source(scene.subsystems, nan_channel(a, s)))
         stalled = stalled + 1 if best is not None and res > 0.5 * best[1] else 0
         if best is None or res < best[1]:
             best = (b, res, _wave_scale(a, b))

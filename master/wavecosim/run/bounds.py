@@ -6,8 +6,11 @@ rows up to that step are kept. The C kernel's blocks stop after such a step too 
 bound), so both routes make the same steps and FMU calls."""
 import math
 
-from ..errors import NumericalError
+from ..errors import FmuError, NumericalError, WavecosimError
 from ..fmi.values import REAL, category
+
+MAX_OUTPUTS = 64               # Real outputs of an FMU read when a step failed (to find a NaN it gave)
+BROKEN_RESTORE = 1e-6          # a relative difference after fmi2SetFMUstate past this is a broken restore
 
 
 class Bounds:
@@ -51,3 +54,58 @@ class Bounds:
                 raise NumericalError(f"subsystem {sub}: {var} = {x:.6g} {self._where(n)} has grown past "
                                      f"{self.limit:.3g} (growth_bound {self.growth:g} times the outputs' initial "
                                      f"scale {self.scale:.3g})")
+
+
+def non_finite_outputs(scene):
+    """[(subsystem, variable, value)] of the FMUs' Real outputs that are not finite at this point, read from
+    every FMU still in its step phase (at most MAX_OUTPUTS outputs each)."""
+    found = []
+    for sub in scene.subsystems + scene.signal_only:
+        fmu = sub.fmu
+        names = [v.name for v in fmu.description.modelVariables if v.causality == "output"
+                 and v.type == fmu.real_type and not getattr(v, "dimensions", None)][:MAX_OUTPUTS]
+        if getattr(fmu, "phase", None) != "step" or not names:
+            continue
+        try:
+            values = fmu.get_real(fmu.real_vrs(names))
+        except WavecosimError:
+            continue
+        found += [(sub.name, name, float(x)) for name, x in zip(names, values) if not math.isfinite(x)]
+    return found
+
+
+def named_for_nan(scene, error):
+    """The error of a failed step named for its cause when an FMU's outputs hold a NaN or an infinity:
+    it reaches the master and the coupled subsystems first (as a non-finite residual, a singular
+    Newton matrix, an input the other FMU refuses), so the error names a subsystem that only received
+    it. A NumericalError naming the FMU that gave it, else `error` as it is."""
+    if type(error) not in (FmuError, NumericalError):
+        return error
+    found, text = non_finite_outputs(scene), str(error)
+    if not found or (f"subsystem {found[0][0]}" in text and "finite" in text):       # named already
+        return error
+    sub, var, value = found[0]
+    return NumericalError(f"subsystem {sub}: its FMU gave a non-finite output, {var} = {value}, which stopped "
+                          f"the run where it arrived: {error}")
+
+
+def named_for_restore(scene, error):
+    """An interface solve that did not converge, named for its cause when the set-up probe found an
+    FMU that does not restore its state (core/quirks.py: restore_difference past BROKEN_RESTORE): its
+    iterations then chase a moving target. The same NumericalError class, the FMU named; else `error`."""
+    text = str(error)
+    if not isinstance(error, NumericalError) or not ("no convergence" in text or "did not converge" in text):
+        return error
+    broken = sorted(((d.found.get("restore_difference") or 0.0, name) for name, d in scene.decisions.items()
+                     if (d.found.get("restore_difference") or 0.0) > BROKEN_RESTORE), reverse=True)
+    if not broken:
+        return error
+    difference, name = broken[0]
+    return NumericalError(f"subsystem {name}: its FMU does not restore its state (fmi2SetFMUstate off by "
+                          f"{difference:.3g}, relative, at the set-up probe), so the iterations cannot converge: "
+                          f"{text}")
+
+
+def named_for_cause(scene, error):
+    """The error of a failed step named for what caused it: a NaN an FMU gave, or a broken restore."""
+    return named_for_restore(scene, named_for_nan(scene, error))

@@ -116,18 +116,25 @@ def _owner(path, subsystems):
     return f"an FMU ({Path(path).name})"
 
 
-def describe(fault, request, where, step, t, step_timeout):
+def describe(fault, request, where, step, t, step_timeout, setup_timeout=None):
     """The FmuCrashed, StepTimeout or Interrupted for a fault record: what happened, in which
-    subsystem and call (`where`, from locate), at which step (starting at time t)."""
+    subsystem and call (`where`, from locate), at which step (starting at time t); setup_timeout:
+    the fault came during the set-up, which that timeout ended."""
     who, call = where
     at = "" if step is None else f" at step {step} (t = {t:.6g})"
     kind, call_text = fault.get("kind"), f" in {call}" if call else ""
+    if kind == "signal" and who and fault.get("main_thread") is False:
+        call_text = " in a thread it started"
     if request in (STOP, TERM) and kind in ("frozen", None, "none"):
         cls, verb = (Terminated, "stopped by SIGTERM") if request == TERM else (Interrupted, "interrupted by the user")
         return cls(f"{verb}{at}, inside {who}{call_text}" if who else f"{verb}{at}")
+    held = "; the FMU holds the signal that would stop it" if kind == "frozen" and fault.get("code") == -1 else ""
+    if request == TIMEOUT and kind in ("frozen", None, "none") and setup_timeout:
+        inside = f"; stopped inside {who}{call_text}" if who else held
+        return StepTimeout(f"the set-up did not finish within {setup_timeout:g} s (set-up timeout){inside}")
     if request == TIMEOUT and kind in ("frozen", None, "none"):
         late = f"did not finish within {step_timeout:g} s (step timeout)" if step_timeout else "did not finish"
-        inside = f"; stopped inside {who}{call_text}" if who else ""
+        inside = f"; stopped inside {who}{call_text}" if who else held
         return StepTimeout(f"step {step} (t = {t:.6g}) {late}{inside}" if step is not None
                            else f"a step {late}{inside}")
     if kind == "exit":

@@ -1,12 +1,15 @@
 """The child's side of a supervised run (run/supervisor.py starts it): a fault of an FMU (a crash, an
 exit() call, a call that does not return) must not lose what was computed.
 
-    Containment(channel, step_timeout)     arms kernel/c/guard.c, starts the rescue thread (and the
-                                           watchdog when a step timeout is set)
+    Containment(channel, step_timeout, setup_timeout)
+                                           arms kernel/c/guard.c, starts the rescue thread and the
+                                           watchdog (its heartbeat tells the parent the child is alive)
     containment.watch(live, ref)           the runner's runs, finished by the rescue
     containment.active(part) / .leave()    which run is stepping now (the one an FMU fault is in)
 
-A fault parks the faulting thread (an FMU call runs without the GIL); the rescue thread then books
+A fault parks the faulting thread (an FMU call runs without the GIL); a call that outlives its timeout
+is asked to park by the freeze signal, and when the FMU blocks, ignores or handles that signal itself
+the watchdog records the freeze in its place. The rescue thread then books
 the steps of a kernel block in progress, writes every run's rows, summary.json and metadata.json
 with status `crashed`, `timed out` or `interrupted`, prints one line and ends the process with the
 error class's exit code. The shared status page tells the parent what happened when even that
@@ -16,14 +19,16 @@ import os
 import sys
 import threading
 import time
+from pathlib import Path
 
 from ..errors import Interrupted, StepTimeout
 from ..kernel import guard
-from .channel import Channel, DONE, RESCUING, RUNNING, TIMEOUT, describe, locate
+from .channel import Channel, DONE, RESCUING, RUNNING, SETUP, TIMEOUT, describe, locate
 
 _current = None
-POLLS_PER_TIMEOUT = 20            # the watchdog looks this often per step timeout (at most 4 times a second)
+POLLS_PER_TIMEOUT = 20            # the watchdog looks this often per timeout (at most 4 times a second)
 DECLINED_TRIES = 5                # freeze requests the main thread declines (running Python) before it is interrupted
+UNANSWERED_TRIES = 3              # freeze requests nobody takes (the FMU holds the signal) before the watchdog takes it
 
 
 def current():
@@ -34,17 +39,17 @@ def current():
 class Containment:
     """Fault handling of the one supervised run in this process."""
 
-    def __init__(self, channel: Channel, step_timeout=None, announce=True):
-        """announce: the rescue prints the error line (a sweep's runs leave that to the sweep)."""
+    def __init__(self, channel: Channel, step_timeout=None, announce=True, setup_timeout=None):
+        """announce: the rescue prints the error line (a sweep's runs leave that to the sweep);
+        setup_timeout: seconds the set-up (loading the FMUs, their probes) may take, compilers aside."""
         global _current
         self.channel, self.status = channel, channel.status
-        self.step_timeout, self.announce = step_timeout, announce
-        self.parts, self.current, self.labels = [], None, {}
+        self.step_timeout, self.setup_timeout, self.announce = step_timeout, setup_timeout, announce
+        self.parts, self.current, self.labels, self.in_setup = [], None, {}, False
         self._rescue_r, self._rescue_w = os.pipe()
         guard.arm(self.status.fault, self._rescue_w)
         threading.Thread(target=self._rescue, name="wavecosim-rescue", daemon=True).start()
-        if step_timeout:
-            threading.Thread(target=self._watchdog, name="wavecosim-watchdog", daemon=True).start()
+        threading.Thread(target=self._watchdog, name="wavecosim-watchdog", daemon=True).start()
         _current = self
 
     def close(self):
@@ -89,34 +94,54 @@ class Containment:
             return None
         return id(part), part.steps_done, part.step_in_progress()
 
+    def _limit(self):
+        """The seconds the run may go without progress now (None: no limit)."""
+        return self.setup_timeout if self.status.state == SETUP else self.step_timeout
+
     def _watchdog(self):
-        """Ask for a rescue when the run makes no progress for step_timeout seconds."""
-        poll = min(0.25, self.step_timeout / POLLS_PER_TIMEOUT)
-        last, since, declined = None, time.monotonic(), 0
+        """Beat for the parent; ask for a rescue when the run makes no progress within its timeout (the
+        set-up timeout, compilers aside, then the step timeout)."""
+        limits = [t for t in (self.step_timeout, self.setup_timeout) if t]
+        poll = min([0.25] + [t / POLLS_PER_TIMEOUT for t in limits])
+        last, since, tries = None, time.monotonic(), [0, 0]
         while True:
             time.sleep(poll)
             now = time.monotonic()
             self.status.heartbeat = now
             key = self._progress()
-            if key != last or key is None:
-                last, since, declined = key, now, 0
+            limit = self._limit()
+            if key != last or (self.status.state == SETUP and _compiling()):
+                last, since, tries = key, now, [0, 0]
                 continue
-            if now - since < self.step_timeout or self.status.state == RESCUING:
+            if limit is None or now - since < limit or self.status.state == RESCUING:
                 continue
-            self.status.request = TIMEOUT
-            if not guard.freeze_main():
-                continue
-            time.sleep(poll)
-            if self.status.fault.kind:
+            if self._ask_freeze(poll, tries):
                 return
-            declined += 1
-            if declined >= DECLINED_TRIES:       # the main thread runs Python: stop it there
+
+    def _ask_freeze(self, poll, tries):
+        """One request to the main thread to park for the rescue; True once a fault is recorded. tries
+        counts the requests it declined (it runs Python: interrupted there) and those nobody took."""
+        self.in_setup = self.status.state == SETUP
+        self.status.request = TIMEOUT
+        declined = self.status.fault.declined
+        if not guard.freeze_main():
+            return False
+        time.sleep(poll)
+        if self.status.fault.kind:
+            return True
+        if self.status.fault.declined > declined:
+            tries[0] += 1
+            if tries[0] >= DECLINED_TRIES:
                 guard.raise_in_main(PythonTimeout)
+            return False
+        tries[1] += 1
+        return tries[1] >= UNANSWERED_TRIES and guard.claim_frozen()
 
     # ---- the rescue ----
     def _rescue(self):
         """Wait for a fault; then finish every run, print one line and end the process."""
         os.read(self._rescue_r, 1)
+        self.in_setup = self.in_setup or self.status.state == SETUP
         self.status.state = RESCUING
         fault = self.status.fault.summary() or {}
         code = 1
@@ -163,10 +188,19 @@ class Containment:
                        {k: v for p in order for k, v in self._subsystems(p).items()})
         step = part.steps_done if part is not None else None
         t = part.t0 + step * part.dt if part is not None else None
-        return describe(fault, self.status.request, where, step, t, self.step_timeout)
+        return describe(fault, self.status.request, where, step, t, self.step_timeout,
+                        self.setup_timeout if self.in_setup else None)
 
     def _subsystems(self, part):
         return {str(s.fmu.folder): f"{s.name}{self.labels.get(id(part), '')}" for s in _fmus(part)}
+
+
+def _compiling():
+    """Whether this process has a child of its own now (a compiler building the kernel or an FMU)."""
+    try:
+        return any(p.read_text().strip() for p in Path("/proc/self/task").glob("*/children"))
+    except OSError:
+        return False
 
 
 def flush_streams():

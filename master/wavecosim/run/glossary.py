@@ -111,9 +111,15 @@ SUMMARY = {
     "energy_drift": ("the energy the interface supplied over the run, Σₙ interface_supply", "J"),
     "certificates_unavailable": ("the figures this run could not compute, and why (an FMU without H)", "text"),
     # errors against the monolithic reference (observers/errors.py)
-    "max_error": ("the largest `error` over the grid", "the error columns' units"),
-    "rms_error": ("the root mean square of `error` over the grid", "the error columns' units"),
-    "final_error": ("`error` at the last grid point", "the error columns' units"),
+    "max_error": ("the largest `error` over the grid; without `error` columns, the largest of `errors`",
+                  "the error columns' units; 1 without them"),
+    "rms_error": ("the root mean square of `error` over the grid; without `error` columns, the largest "
+                  "column's root mean square |Δy| over the grid divided by its scale", "the error columns' units; 1 without them"),
+    "final_error": ("`error` at the last grid point; without `error` columns, the largest column's |Δy| "
+                    "there divided by its scale", "the error columns' units; 1 without them"),
+    "errors": ("per recorded Real output, the largest |Δy| against the monolithic reference over the grid "
+               "divided by the column's range in the reference (max − min); a column constant to 10⁻⁹ of its "
+               "size by its largest |value|, one zero throughout by 1", "1"),
     # the tolerance mode (masters/adaptive.py, observers/step_control.py) and the fine reference (run/fine.py)
     "tolerance": ("the tolerance mode's relative tolerance", "1"),
     "estimate": ("the tolerance mode's error estimate (`predictor` or `doubling`)", "text"),
@@ -152,7 +158,8 @@ SUMMARY = {
 
 METADATA = {
     "scenario": ("the scenario as resolved: every key of the scenario file after defaults, the FMUs' "
-                 "DefaultExperiment and the command line's options", "–"),
+                 "DefaultExperiment and the command line's options; each time table (`sources`) by its `csv` file, "
+                 "`sha256`, `rows` and `columns`, its values left in the file", "–"),
     "units": ("the unit of every column: `trajectory` (from the FMUs' modelDescriptions: a variable's unit, "
               "else its declared type's; \"\" where none is given) and `steps` (as this page gives them, "
               "γ and the error resolved from the FMUs)", "–"),

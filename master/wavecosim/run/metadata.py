@@ -32,11 +32,20 @@ def _sha256(path):
     return h.hexdigest()
 
 
+def _scenario_record(scenario) -> dict:
+    """The scenario as plain data, each time table named by its file, checksum and row count (its
+    values can be hundreds of MB: they stay in the file)."""
+    record = dataclasses.asdict(scenario)
+    record["sources"] = [{"name": s.name, "csv": s.csv, "sha256": _sha256(s.csv), "interpolation": s.interpolation,
+                          "rows": len(s.times), "columns": list(s.columns)} for s in scenario.sources]
+    return record
+
+
 def run_metadata(scenario, scene, units=None) -> dict:
     """Everything needed to tell two runs' set-ups apart (the scenario, software, FMU files, machine),
     and the unit of every recorded column."""
     return {
-        "scenario": dataclasses.asdict(scenario),
+        "scenario": _scenario_record(scenario),
         "units": units or {},
         "gammas": dict(scene.gammas),
         "quirks": {name: dataclasses.asdict(d) for name, d in scene.decisions.items()},

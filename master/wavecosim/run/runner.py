@@ -31,7 +31,7 @@ from ..core.gamma import GammaTuner
 from ..masters import MASTERS
 from ..masters.adaptive import adaptive
 from ..masters.base import REASONS, WaveMaster, require_wave_tuning
-from .bounds import Bounds
+from .bounds import Bounds, named_for_cause
 from . import containment
 from ..masters.dr_options import auto_gamma
 from .metadata import run_metadata
@@ -40,7 +40,7 @@ from ..core.certificates import sampling
 from .observers.certificates import CertificatePace, CertificateSampler
 from .observers.energy_guard import EnergyGuard
 from .observers.energy_ledger import EnergyLedger
-from .observers.errors import ErrorTracker, stored_reference, stored_rows
+from .observers.errors import ErrorTracker, ScaledErrors, error_observers, stored_reference, stored_rows
 from .observers.fne_watch import FneWatch
 from .observers.freeze_watch import FreezeWatch
 from .observers.gamma import GammaLog, TunedGammaLog
@@ -49,6 +49,7 @@ from .observers.step_control import StepControl
 from .outputs import cannot
 from .recorder import BLOCK, Interrupts, Labels, Table, Texts, ints, write_json, write_mat
 from ..core.readings import Sampler
+from ..core.quirks import RestoreWatch
 from ..core.scene import build_scene
 from ..fmi.messages import LogFile
 
@@ -65,9 +66,10 @@ STEP_DESCRIBED = {
 }
 STEP_COLUMNS = tuple(STEP_DESCRIBED)
 OBSERVERS = (EnergyLedger, EnergyGuard, GammaLog, TunedGammaLog, FneWatch, CertificateSampler, CertificatePace,
-             Passivity, FreezeWatch, StepControl, ErrorTracker)    # every observer, in the order they act (their columns too)
+             Passivity, FreezeWatch, StepControl, ErrorTracker, ScaledErrors)    # every observer, in the order they act (their columns too)
 BLOCK_STEPS = BLOCK                    # macro-steps per call of the master, at most a table block
 HAND_OVER_S = 1.0                      # rows booked are handed to the writer at least this often
+DURABLE_S = 0.05                       # in a supervised run: the most time of steps a process killed outright loses
 MAX_STEPS = 10 ** 8                    # more macro-steps than this only when asked (--force, max_steps=None)
 assert REASONS[:len(KERNEL_REASONS)] == KERNEL_REASONS     # the kernel's reason codes are the runner's
 
@@ -280,7 +282,10 @@ class LiveRun:
         self.block_steps = 0                                # macro-steps made in blocks
         self.rows_pass, self.kernel_passes = None, False    # the blocks' C passes (_prepare_blocks)
         self.in_block = None                                # n0 of the kernel call in progress
+        self.block_cap = BLOCK_STEPS                        # macro-steps per kernel call at most (see durable)
+        self.durable = False
         self.write_error = None                             # an OutputError met while finishing
+        self.calls_at_start = self.excluded = None          # set by start(): a run that failed before has none
 
     def more(self, n):
         """Whether steps are left after n: the fixed grid's count, or the varying step's end time."""
@@ -343,6 +348,7 @@ class LiveRun:
         self.after = [(o, row) for o, row in zip(self.observers, self.slices) if o is not self.guard]
         self.recent = {0: first.outputs}
         self._plan_blocks()
+        self.restores = RestoreWatch(self.scene, self.master.needs_rollback and self.durable)
         self.calls_at_start = self._counts()
         self.loop_started = time.perf_counter()
 
@@ -427,9 +433,21 @@ class LiveRun:
         """How many macro-steps advance(n, ...) may make in one call of the master."""
         if not (self.blocks and self.master.can_run_steps(n)):
             return 1
+        end = min(self.n_steps, self.restores.next)              # a block ends where the restore is checked
         if not self.paced:
-            return min(BLOCK_STEPS, self.n_steps - n)
-        return max(1, min([BLOCK_STEPS, self.n_steps - n] + [o.next_before(n) - n for o in self.paced]))
+            return min(self.block_cap, end - n)
+        return max(1, min([self.block_cap, end - n] + [o.next_before(n) - n for o in self.paced]))
+
+    def make_durable(self):
+        """A supervised run (before start): its rows are in the files after every kernel call, and its
+        kernel calls last about DURABLE_S at most (they start short and grow): the rows of a call still
+        in progress are lost when the process is killed outright. Its restores are re-checked."""
+        self.durable, self.block_cap = True, min(BLOCK_STEPS, 32)
+
+    def _resize_blocks(self, done, seconds):
+        if self.durable and done > 0:
+            fit = int(DURABLE_S * done / seconds) if seconds > 0 else BLOCK_STEPS
+            self.block_cap = max(1, min(BLOCK_STEPS, fit, 2 * self.block_cap))
 
     def advance(self, n, count):
         """Macro-steps from n on: up to `count` in one call of the master when count > 1, else step(n);
@@ -454,6 +472,7 @@ class LiveRun:
         done, log, error = self.master.run_steps(n0, count, self.cap, self.kernel_passes)
         self.in_block = None
         self.master_time += time.perf_counter() - t0
+        self._resize_blocks(done, time.perf_counter() - t0)
         self.block_steps += done
         whole = done - 1 if log.stopped and not self.ledger else done      # the ledger's kernel books every step
         if whole:
@@ -498,8 +517,7 @@ class LiveRun:
             keep = (ks % self.every == 0) | (ks == self.n_steps)
             self.steps.append_block(rows[keep])
             self.trajectory.append_block(trajectory[keep])
-        self.steps.hand_over()
-        self.trajectory.hand_over()
+        self.hand_over()
 
     def _aim(self, steps_at, trajectory_at):
         """The C passes of a block at its first row of the steps and of the trajectory (addresses; the
@@ -546,16 +564,19 @@ class LiveRun:
     def fmu_calls_by_subsystem(self):
         """{subsystem: its doStep, save and restore calls from the first step on}, observers' probes excluded."""
         now = self._counts()
-        start = getattr(self, "calls_at_start", now)                      # before the first step: none yet
-        excluded = getattr(self, "excluded", [(0,) * len(CALLS)] * len(now))
+        start = now if self.calls_at_start is None else self.calls_at_start     # before the first step: none yet
+        excluded = [(0,) * len(CALLS)] * len(now) if self.excluded is None else self.excluded
         return {s.name: {k: a - b - x for k, a, b, x in zip(CALLS, c, b0, x0)}
                 for s, c, b0, x0 in zip(self.scene.subsystems + self.scene.signal_only, now, start, excluded)}
 
     def hand_over(self):
-        """The rows booked so far to the writer threads now (the loop does every second)."""
-        for table in (getattr(self, "trajectory", None), getattr(self, "steps", None)):
-            if table is not None:
-                table.hand_over()
+        """The rows booked so far to the writer threads now (the loop does every second); a durable run's
+        are in the files when it returns (a process killed outright keeps them)."""
+        tables = [t for t in (getattr(self, "steps", None), getattr(self, "trajectory", None)) if t is not None]
+        for table in tables:
+            table.hand_over()
+        for table in tables if self.durable else ():
+            table.wait()
 
     def step_in_progress(self):
         """The macro-step being made now (inside a kernel call: the one the kernel is at)."""
@@ -733,8 +754,9 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
             reference = lambda k: ref.recent.get(k)          # noqa: E731  (ref steps first)
         elif reference is not None:
             reference, rows = stored_reference(reference), stored_rows(reference)
-        if reference is not None and scenario.error:
-            live.add_observer(ErrorTracker(live.columns, scenario.error, reference, rows))
+        if reference is not None:
+            for observer in error_observers(live.columns, live.sampler.types, scenario.error, reference, rows):
+                live.add_observer(observer)
     except BaseException:
         live.close()
         raise
@@ -742,6 +764,7 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
     if contain is not None:
         contain.watch(live, ref)
     status, error = _loop(live, ref, progress, contain)
+    _raise_before_first_row(status, error, live, ref)
     message = str(error) if error else ""
     if isinstance(error, Interrupted):
         message = f"{error} after {live.steps_done} steps"
@@ -757,6 +780,17 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
     return result
 
 
+def _raise_before_first_row(status, error, live, ref):
+    """A run that failed before one of its parts had its first row (an FMU's NaN at t = 0 in the
+    reference, which starts first) has nothing to write: its FMUs are released and its error raised."""
+    parts = [p for p in (ref, live) if p is not None]
+    if status in ("finished", "interrupted") or all(p.calls_at_start is not None for p in parts):
+        return
+    for part in parts:
+        part.close()
+    raise error
+
+
 def check_steps(scenario, max_steps=MAX_STEPS):
     """A ConfigError when the scenario has more than max_steps macro-steps (None: no limit)."""
     if max_steps is not None and scenario.n_steps > max_steps:
@@ -766,10 +800,14 @@ def check_steps(scenario, max_steps=MAX_STEPS):
 
 def _loop(live, ref, progress, contain=None):
     """Every macro-step of the run (and of its lockstep reference); returns (status, exception).
-    Rows go to the writer at least every HAND_OVER_S seconds; a supervised run (contain) is told
-    which run makes the next steps."""
+    Rows go to the writer at least every HAND_OVER_S seconds (DURABLE_S in a supervised run); a
+    supervised run (contain) is told which run makes the next steps."""
     every = max(1, live.n_steps // 200)
     active = contain.active if contain is not None else (lambda part: None)
+    hand_over_s = HAND_OVER_S if contain is None else DURABLE_S
+    for part in (live, ref) if contain is not None else ():
+        if part is not None:
+            part.make_durable()
     with Interrupts() as stop:
         try:
             for part in (ref, live):
@@ -786,11 +824,12 @@ def _loop(live, ref, progress, contain=None):
                         raise ref.failure
                 active(live)
                 done = live.advance(n, count)
+                live.restores.after(n + done)
                 stop.check()
                 if progress and ((n + done) // every > n // every or not live.more(n + done)):
                     progress(live.progress_of(n + done), live.n_steps)
                 n += done
-                if time.perf_counter() - handed > HAND_OVER_S:
+                if time.perf_counter() - handed > hand_over_s:
                     for part in (ref, live):
                         if part is not None:
                             part.hand_over()
@@ -802,6 +841,7 @@ def _loop(live, ref, progress, contain=None):
         except SimulationEnded as exc:              # an FMU ended it: finished, with the steps before
             return "finished", exc
         except WavecosimError as exc:
+            exc = named_for_cause(live.scene, exc)
             return exc.status, exc
     return "finished", None
 

@@ -5,14 +5,14 @@ import os
 import signal
 from pathlib import Path
 
-from ..errors import FmuCrashed, Interrupted, StepTimeout
 from ..kernel.guard import signal_name
 from .channel import describe, locate
 from .recorder import write_json
 
 
-def salvage(channel, wait_status, summary_path, step_timeout, killed):
-    """The error that ended the child; the runs' files made whole and their summary.json written."""
+def salvage(channel, wait_status, summary_path, step_timeout, cause=None):
+    """The error that ended the child; the runs' files made whole and their summary.json written.
+    cause: (error class, message) when the parent ended the child itself (it did not answer)."""
     status, layout = channel.status, channel.layout()
     fault = status.fault.summary() or _death(wait_status)
     parts = (layout or {}).get("parts", [])
@@ -21,8 +21,10 @@ def salvage(channel, wait_status, summary_path, step_timeout, killed):
     where = locate(fault.get("pc", []), (layout or {}).get("libraries", []), subsystems)
     kept = {part["label"]: whole_rows(part["files"].get("trajectory")) for part in parts}
     error = describe(fault, status.request, where, None, None, step_timeout)
-    if killed and not isinstance(error, (StepTimeout, Interrupted)):
-        error = FmuCrashed(f"{error} ({killed}; the child was ended)")
+    if cause is not None:
+        cls, message = cause
+        who, call = where
+        error = cls(f"{message}; inside {who} in {call}" if who and call else message)
     for part in parts:
         whole_rows(part["files"].get("steps"))
         steps = max(kept[part["label"]] - 2, 0)        # the header and the row at t = 0

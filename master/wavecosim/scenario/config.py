@@ -4,6 +4,7 @@ Every problem becomes a ConfigError whose one line names the file and the key pa
 """
 import csv
 import math
+import os
 import re
 from dataclasses import MISSING, dataclass, field, fields, replace
 from pathlib import Path
@@ -11,7 +12,8 @@ from pathlib import Path
 import yaml
 
 from ..errors import ConfigError, brief_text
-from ..examples import DEFAULT
+from ..examples import DEFAULT, resolve
+from ..fmi.unpack import regular_file
 from ..core.gamma import MODES as GAMMA_MODES
 from ..core.interconnection import COUPLINGS, TAKES_RATIO
 from ..core.quirks import KEYS as QUIRK_KEYS
@@ -238,7 +240,8 @@ class Scenario:
     error: list = field(metadata=key(
         "the output columns of the error norm against the monolithic reference (the `error` column, max_error, "
         "...)", type="list of columns", default="none: no error figures"))
-    description: str = field(default="", metadata=key("free text", type="text"))
+    description: str = field(default="", metadata=key(
+        "free text: one line saying what the scene is (`wavecosim examples` shows it)", type="text"))
     fne_watch: bool = field(default=True, metadata=key(
         "the Condition 1 watch: estimates each frozen map's FNE margin from the inner iterates and warns once "
         "when it goes negative", type="boolean"))
@@ -355,12 +358,13 @@ class _Checker:
             self.fail(path, f"must be >= {minimum}, got {value!r}")
         return value
 
-    def integer(self, value, path, minimum=None, maximum=None):
+    def integer(self, value, path, minimum=INT32[0], maximum=INT32[1]):
+        """An integer within [minimum, maximum]: by default a C int's range, as the kernel takes it."""
         if isinstance(value, bool) or not isinstance(value, int):
             self.fail(path, f"must be an integer, got {value!r}")
-        if minimum is not None and value < minimum:
+        if value < minimum:
             self.fail(path, f"must be >= {minimum}, got {value!r}")
-        if maximum is not None and value > maximum:
+        if value > maximum:
             self.fail(path, f"must be <= {maximum}, got {value!r}")
         return value
 
@@ -493,7 +497,9 @@ def _subsystem(ck, name, raw, base_dir):
                 for k, v in integers.items()}
     fmu_path = None
     if fmu.endswith(".fmu") or "/" in fmu:
-        fmu_path = (base_dir / fmu).resolve()
+        given = base_dir / fmu
+        fmu_path = regular_file(given, lambda message: ConfigError(f"{ck.source}: {path}.fmu: {message}")) or \
+            Path(os.path.abspath(given))
     quirks = ck.mapping(raw.get("quirks") or {}, f"{path}.quirks", QUIRK_KEYS)
     return SubsystemConfig(name=name, fmu=fmu, parameters=ck.values(raw.get("parameters"), f"{path}.parameters"),
                            start=ck.values(raw.get("start"), f"{path}.start"), integers=integers, port=spec,
@@ -557,8 +563,24 @@ def _coupling(ck, k, raw, subsystem_names):
     return c
 
 
+MAX_FILE_BYTES = 16 << 20      # bytes of a scenario file
+MAX_DEPTH = 64                 # levels of nesting a scenario file may have (mappings and lists within each other)
+
+
 class _SafeLoader(yaml.SafeLoader):
-    """PyYAML's safe loader (no Python tags such as !!python/object), refusing a key given twice."""
+    """PyYAML's safe loader (no Python tags such as !!python/object), refusing a key given twice and
+    nesting deeper than MAX_DEPTH (refused while reading, before it can exhaust the stack)."""
+    depth = 0
+
+    def compose_node(self, parent, index):
+        if self.depth >= MAX_DEPTH:
+            raise yaml.composer.ComposerError(None, None, f"nested deeper than {MAX_DEPTH} levels",
+                                              self.peek_event().start_mark)
+        self.depth += 1
+        try:
+            return super().compose_node(parent, index)
+        finally:
+            self.depth -= 1
 
 
 def _mapping_without_duplicates(loader, node):
@@ -581,20 +603,20 @@ _SafeLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _map
 
 
 def load_scenario(path=None, settings=None, changes=()) -> Scenario:
-    """Read and validate a scenario file (the built-in default when path is None); `settings` (the
-    command line's dt, T, start_time) stand for the values the file leaves out; `changes` are
-    (key path, value) set in the file's mapping first (`--set`)."""
-    path = Path(path) if path else DEFAULT_CONFIG
+    """Read and validate a scenario file (the built-in default when path is None, an example by its
+    name); `settings` (the command line's dt, T, start_time) stand for the values the file leaves
+    out; `changes` are (key path, value) set in the file's mapping first (`--set`)."""
+    path = Path(resolve(path)) if path else DEFAULT_CONFIG
     return parse_scenario(apply_overrides(load_raw(path), changes), str(path), path.parent, settings)
 
 
 def load_raw(path) -> dict:
     """The YAML mapping of a scenario file, read safely, its repeats expanded, not yet checked."""
     path = Path(path)
-    if not path.exists():
+    if regular_file(path, ConfigError, MAX_FILE_BYTES) is None:
         raise ConfigError(f"{path}: scenario file not found")
     try:
-        raw = yaml.load(path.read_text(), Loader=_SafeLoader)
+        raw = yaml.load(path.read_text(encoding="utf-8"), Loader=_SafeLoader)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f"line {mark.line + 1}" if mark else "?"
@@ -609,29 +631,37 @@ MAX_VALUES = 1_000_000         # values a scenario may hold once its anchors and
 
 
 def check_expansion(raw, source):
-    """Refuse a YAML whose aliases expand to more than MAX_VALUES values (a "billion laughs" file), or
-    that refers to itself, counting each shared node once per use without expanding anything."""
+    """Refuse a YAML whose aliases expand to more than MAX_VALUES values (a "billion laughs" file), nest
+    values deeper than MAX_DEPTH, or refer to themselves, counting each shared node once per use
+    without expanding anything."""
     sizes, open_ = {}, set()
 
-    def size(node):
+    def size(node, level=0):
+        """(values, levels) of a node `level` levels down, each shared node measured once."""
         if not isinstance(node, (dict, list)):
-            return 1
+            return 1, 0
+        if level > MAX_DEPTH:
+            return 1, MAX_DEPTH + 1
         key = id(node)
         if key in sizes:
             return sizes[key]
         if key in open_:
             raise ConfigError(f"{source}: an anchor refers to itself (a value that contains itself)")
         open_.add(key)
-        total = 1
+        total, height = 1, 0
         for child in (node.values() if isinstance(node, dict) else node):
-            total += size(child)
-            if total > MAX_VALUES:
+            values, levels = size(child, level + 1)
+            total, height = total + values, max(height, levels + 1)
+            if total > MAX_VALUES or height > MAX_DEPTH:
                 break
         open_.discard(key)
-        sizes[key] = total
-        return total
+        sizes[key] = total, height
+        return total, height
 
-    if size(raw) > MAX_VALUES:
+    total, height = size(raw)
+    if height > MAX_DEPTH:
+        raise ConfigError(f"{source}: its anchors and aliases nest values deeper than {MAX_DEPTH} levels")
+    if total > MAX_VALUES:
         raise ConfigError(f"{source}: its anchors and aliases expand to more than {MAX_VALUES:,} values "
                           f"(refused before expanding it)")
 
@@ -715,7 +745,7 @@ def _certificates(ck, c) -> CertificateConfig:
     if "fne_pairs" in c:
         certs.fne_pairs = ck.integer(c["fne_pairs"], "certificates.fne_pairs", minimum=0)
     if "fne_seed" in c:
-        certs.fne_seed = ck.integer(c["fne_seed"], "certificates.fne_seed")
+        certs.fne_seed = ck.integer(c["fne_seed"], "certificates.fne_seed", minimum=0)
     if "fne_scale" in c:
         certs.fne_scale = ck.number(c["fne_scale"], "certificates.fne_scale", positive=True)
     if "every" in c and c["every"] != "auto":
@@ -977,6 +1007,18 @@ def _read_table(ck, path, csv_path):
     return tuple(row[0] for row in data), columns
 
 
+MAX_TABLE_BYTES = 100_000_000        # bytes of a CSV time table (an --input file, a source): read whole into memory
+
+
+def input_file(csv_path, where):
+    """The resolved path of a CSV time table (`where` names it: the option or the key), a regular file
+    of at most MAX_TABLE_BYTES, else a one-line ConfigError."""
+    found = regular_file(csv_path, lambda message: ConfigError(f"{where}: {message}"), MAX_TABLE_BYTES)
+    if found is None:
+        raise ConfigError(f"{where}: cannot read {csv_path}: file not found")
+    return found
+
+
 def _sources(ck, raw, subsystem_names, base_dir):
     """sources: {NAME: {csv: FILE, interpolation: hold | linear}}, FILE relative to the scenario."""
     raw = raw or {}
@@ -987,7 +1029,7 @@ def _sources(ck, raw, subsystem_names, base_dir):
         if name in subsystem_names:
             ck.fail(path, "is also the name of a subsystem")
         ck.mapping(spec, path, keys_of(SourceConfig), required=("csv",))
-        csv_path = (base_dir / ck.string(spec["csv"], f"{path}.csv")).resolve()
+        csv_path = input_file(base_dir / ck.string(spec["csv"], f"{path}.csv"), f"{ck.source}: {path}.csv")
         how = ck.string(spec.get("interpolation", "hold"), f"{path}.interpolation", INTERPOLATIONS)
         times, columns = _read_table(ck, path, csv_path)
         sources.append(SourceConfig(str(name), str(csv_path), how, times, columns))

@@ -6,12 +6,15 @@ import csv
 import difflib
 import re
 import zipfile
+from dataclasses import replace
 from pathlib import Path
 
 from fmpy import read_model_description
 from fmpy.simulation import _get_output_variables
 
 from ..errors import ConfigError, FmuError
+from ..fmi.unpack import regular_file
+from .config import input_file
 from .experiment import default_experiment, default_step
 
 
@@ -65,9 +68,10 @@ def fmu_raw(path, input_csv=None, warn=None):
     """The scenario mapping of one FMU (and its input file): the subsystem, what fmpy records, and a
     source table with one signal per column; a column that names no input is a ConfigError naming
     the closest input; inputs no column names (they keep their start values) are reported to `warn`."""
-    path = Path(path).resolve()
-    if not path.is_file():
-        raise FmuError(f"FMU file not found: {path}")
+    found = regular_file(path, ConfigError)
+    if found is None:
+        raise FmuError(f"FMU file not found: {Path(path).resolve()}")
+    path = found
     description = model_description(path)
     name = component_name(path)
     raw = {"name": path.stem, "subsystems": {name: {"fmu": str(path)}}}
@@ -76,7 +80,7 @@ def fmu_raw(path, input_csv=None, warn=None):
         raw["outputs"] = outputs
     if input_csv is None:
         return raw
-    input_csv = Path(input_csv).resolve()
+    input_csv = input_file(input_csv, "--input")
     inputs = [v.name for v in description.modelVariables if v.causality == "input"]
     columns = _header(input_csv, "--input")[1:]
     for column in columns:
@@ -123,4 +127,5 @@ def load_fmu(path, input_csv=None, settings=None, warn=None, changes=()):
     for note in [f"{Path(path).name}: {note}" for note in notes] + later:
         (warn or (lambda text: None))(note)
     raw = apply_overrides({**raw, **times}, changes)
-    return parse_scenario(raw, str(Path(path)), Path(path).resolve().parent, settings)
+    scenario = parse_scenario(raw, str(Path(path)), Path(path).resolve().parent, settings)
+    return replace(scenario, times_from={**scenario.times_from, **{k: "fmpy's default" for k in times}})

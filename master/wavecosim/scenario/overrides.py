@@ -16,6 +16,7 @@ options) and the grid is crossed with these N points, so each grid point sees th
 """
 import copy
 import itertools
+import math
 import re
 
 import numpy as np
@@ -27,6 +28,7 @@ RANGE = re.compile(r"^\s*(-?\d+)\s*\.\.\s*(-?\d+)\s*$")
 PATH_PART = re.compile(r"^([^.\[\]]+)((?:\[\d+\])*)$")
 SPACES = {"linspace": np.linspace, "geomspace": np.geomspace}
 DISTRIBUTIONS = {"uniform": 2, "loguniform": 2, "normal": 2, "randint": 2}
+MAX_RUNS = 10_000         # runs a sweep may plan (values of an axis, points of the grid, --sample draws)
 
 
 def scalar(text):
@@ -69,6 +71,7 @@ def _axis_values(key, item):
         a, b, n = _numbers(key, m.group(1), m.group(2), 3)
         if not isinstance(n, int) or n < 1 or (m.group(1) == "geomspace" and a * b <= 0):
             raise ConfigError(f"--set {key}: {m.group(1)}({m.group(2)}) needs n >= 1 (and a, b of one sign)")
+        _check_count(key, n)
         return [float(v) for v in SPACES[m.group(1)](a, b, n)]
     if m and m.group(1) in DISTRIBUTIONS:
         return (m.group(1), *_numbers(key, m.group(1), m.group(2), DISTRIBUTIONS[m.group(1)]))
@@ -79,8 +82,16 @@ def _axis_values(key, item):
         a, b = int(r.group(1)), int(r.group(2))
         if b < a:
             raise ConfigError(f"--set {key}: empty range {item.strip()}")
+        _check_count(key, b - a + 1)
         return list(range(a, b + 1))
     return [scalar(item)]
+
+
+def _check_count(key, count, what="values"):
+    """Refuse more than MAX_RUNS runs before any is made (a list, a range, a grid)."""
+    if count > MAX_RUNS:
+        raise ConfigError(f"--set {key}: {count:,} {what}, over the limit of {MAX_RUNS:,} runs in one sweep "
+                          f"(split it into several sweeps)")
 
 
 def parse_set(option):
@@ -90,7 +101,11 @@ def parse_set(option):
     if not eq or not key or not values.strip():
         raise ConfigError(f"--set {option}: must be KEY=VALUES, e.g. master.K=0,3,8")
     parse_path(key)
-    items = [_axis_values(key, item) for item in split_top(values)]
+    items, count = [], 0
+    for item in split_top(values):
+        items.append(_axis_values(key, item))
+        count += len(items[-1]) if isinstance(items[-1], list) else 1
+        _check_count(key, count)
     dists = [i for i in items if isinstance(i, tuple)]
     if dists and len(items) > 1:
         raise ConfigError(f"--set {key}: a distribution stands alone, not in a list")
@@ -154,6 +169,7 @@ def expand(axes, sample=None, seed=0):
         raise ConfigError(f"--set {dists[0][0]}: {dists[0][1][0]}() is a distribution; give --sample N")
     if sample and not dists:
         raise ConfigError("--sample: needs at least one --set KEY=distribution(...), e.g. uniform(0.1,0.5)")
+    _check_count(keys[0] if keys else "", math.prod(len(v) for _, v in grid) * (sample or 1), "runs in the grid")
     rng = np.random.default_rng(seed)
     drawn = {k: _draw(rng, k, d, sample) for k, d in dists}
     samples = [dict((k, drawn[k][i]) for k, _ in dists) for i in range(sample or 1)]

@@ -8,7 +8,9 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from ..scenario.config import DEFAULT_CONFIG
-from ..errors import Interrupted
+from ..errors import ConfigError, Interrupted
+from ..examples import resolve
+from ..fmi.unpack import regular_file
 from .execute import Task, executor, resumed, task_scenario
 from ..run.recorder import write_json
 from ..scenario.overrides import expand, short_label
@@ -52,7 +54,11 @@ def plan(config, axes, out_dir, fixed=(), sample=None, seed=0, reference=True, c
     ConfigError before anything runs). axes: [(key, values or distribution)] from --set;
     fixed: (key, value) applied to every run (e.g. T from --T); ports, parameter_set: an SSP system's."""
     ssp_only(config, ports, parameter_set)
-    config = str(Path(config).resolve()) if config else str(DEFAULT_CONFIG)
+    config = resolve(config)
+    found = regular_file(config, ConfigError) if config and not Path(config).is_dir() else config or DEFAULT_CONFIG
+    if found is None:
+        raise ConfigError(f"{config}: scenario file not found")
+    config = str(Path(found).resolve())
     ssp = {"ports": str(Path(ports).resolve()) if ports else None, "parameter_set": parameter_set}
     points = expand(axes, sample, seed)
     keys = tuple(k for k, _ in axes)
@@ -83,7 +89,7 @@ def write_rows(out_dir, rows, meta):
     write_json(out_dir / "runs.json", {**meta, "runs": rows})
     columns = list(dict.fromkeys(k for row in rows for k in row))
     tmp = out_dir / "runs.csv.part"
-    with open(tmp, "w", newline="") as fh:
+    with open(tmp, "w", newline="", encoding="utf-8") as fh:
         writer = csv.DictWriter(fh, columns)
         writer.writeheader()
         writer.writerows([{k: repr(v) if isinstance(v, float) else v for k, v in row.items()} for row in rows])

@@ -8,6 +8,7 @@ A local task runs in a child of its own (run/supervisor.py): one that crashes, c
 times out is a row with that status and message, and the others go on.
 """
 import json
+import re
 import selectors
 import signal
 import time
@@ -18,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from ..scenario.config import load_raw, parse_scenario
-from ..errors import ConfigError, Interrupted, RunFailed, Terminated, WavecosimError
+from ..errors import ConfigError, Interrupted, RunFailed, Terminated, WavecosimError, optional
 from ..run.outputs import remove_run_files
 from ..run.recorder import clean_json, write_json
 from ..scenario.overrides import apply_overrides
@@ -140,7 +141,7 @@ def _outcome(future, task):
 def stored_row(task):
     """The row a task's folder holds from an earlier sweep with the same overrides, else None."""
     try:
-        row = json.loads((Path(task.out_dir) / ROW_FILE).read_text())
+        row = json.loads((Path(task.out_dir) / ROW_FILE).read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
     return row if all(row.get(k) == v for k, v in task.overrides if k in task.columns) else None
@@ -149,7 +150,7 @@ def stored_row(task):
 def finished_row(task):
     """The stored row of a task whose folder holds a finished run with the same overrides, else None."""
     try:
-        summary = json.loads((Path(task.out_dir) / "summary.json").read_text())
+        summary = json.loads((Path(task.out_dir) / "summary.json").read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
     row = stored_row(task)
@@ -237,7 +238,7 @@ def _child_row(task, child, started):
     if row is not None and row.get("attempts", 1) == task.attempt:
         return row
     try:
-        summary = json.loads((Path(task.out_dir) / "summary.json").read_text())
+        summary = json.loads((Path(task.out_dir) / "summary.json").read_text(encoding="utf-8"))
     except (OSError, ValueError):
         stopped = code in (Interrupted.exit_code, Terminated.exit_code)
         summary = {"status": "interrupted" if stopped else "crashed",
@@ -249,25 +250,41 @@ def _child_row(task, child, started):
     return _book_row(task, row, started)
 
 
+SCHEDULER = re.compile(r"^(tcp|tls)://(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):(\d{1,5})$")
+CONNECT_TIMEOUT_S = 10          # seconds to reach a Dask scheduler before the sweep is refused
+
+
+def check_scheduler(scheduler):
+    """--scheduler: 'local' or an address tcp://HOST:PORT (tls:// too), checked before anything is planned."""
+    found = SCHEDULER.match(scheduler or "")
+    if scheduler != "local" and not (found and 0 < int(found.group(3)) < 65536):
+        raise ConfigError(f"--scheduler {scheduler!r}: must be 'local' or a Dask scheduler's address "
+                          f"tcp://HOST:PORT (or tls://HOST:PORT)")
+    return scheduler
+
+
 def dask_cluster(scheduler, workers):
-    """(client, cluster): a Dask client of the scheduler at an address, or of an embedded
-    LocalCluster of `workers` one-thread worker processes for scheduler "local"."""
+    """(client, cluster): a Dask client of the scheduler at an address (reached within
+    CONNECT_TIMEOUT_S), or of an embedded LocalCluster of `workers` one-thread worker processes for
+    scheduler "local"."""
     import logging
-    try:
-        from distributed import Client, LocalCluster
-    except ImportError:
-        raise ConfigError("--executor dask needs Dask's distributed package: pip install 'wavecosim[dask]'") from None
-    if scheduler != "local":
-        return Client(scheduler), None
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
-                           silence_logs=logging.ERROR)
+    distributed = optional("distributed", "dask", "--scheduler (a sweep on Dask)")
+    Client = distributed.Client
+    if check_scheduler(scheduler) != "local":
+        try:
+            return Client(scheduler, timeout=CONNECT_TIMEOUT_S), None
+        except (OSError, TimeoutError) as exc:
+            raise ConfigError(f"--scheduler {scheduler}: no Dask scheduler answered within {CONNECT_TIMEOUT_S} s "
+                              f"({type(exc).__name__})") from None
+    cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                       dashboard_address=None, silence_logs=logging.ERROR)
     return Client(cluster), cluster
 
 
 def dask(tasks, scheduler, workers):
     """The tasks on a Dask distributed cluster; rows in completion order."""
-    from distributed import as_completed as completed
     client, cluster = dask_cluster(scheduler, workers)
+    from distributed import as_completed as completed
     futures = {}
     try:
         futures = dict(zip(client.map(run_task, tasks, pure=False), tasks))

@@ -16,9 +16,7 @@
 #include <stddef.h>
 
 #include "abi.h"
-#include "drkernel.h"
-
-DRPassFn block_rows_steps, passivity_steps;      /* the kernel calls them as DRPassFns (dr_set_passes) */
+#include "blocks.h"
 
 /* Python's grow_max_pos: the running max(0, x), NaN ignored (NaN until a number arrives). Over the
  * steps of one pass it is applied once, to their largest number: max(0, x) is never -0, so the
@@ -237,7 +235,7 @@ static int sampled(int s, int first, int every) { return s >= first && (s - firs
  * kernel's log rows: a_hat (n: a), B (nb: b), H_i (k: h). min_fne[k] and max_aug[1] are folded as
  * builtin min and grow_max_pos fold, step after step; H_prev[1]: the summed H before, left at the
  * last step's. */
-typedef struct {
+typedef struct SampledBlock {
     int count, k, n, nb, first, every, fne, augmented, rounds;
     const double *log;
     long ld;
@@ -290,7 +288,7 @@ void sampled_block(const SampledBlock *p) {
  * the smallest estimated margin of each such step, NaN at the others; min_margin[k] folded with each
  * column's smallest; *probed += the steps with an estimate. Returns 1, writing nothing, when a margin
  * falls below -tol or one estimated is NaN or zero (the caller books those steps one by one). */
-typedef struct {
+typedef struct WatchBlock {
     int count, k, first, every;
     double tol;
     const double *certs;

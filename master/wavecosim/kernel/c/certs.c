@@ -105,7 +105,7 @@ static int fne_margin(DCCerts *c, int i, double t, double dt, double *worst_out)
     return 0;
 }
 
-/* The watch's probe of subsystem i (one channel) around centre: gamma_tuning.probe_port's dE, dF by
+/* The watch's probe of subsystem i (one channel) around centre: core/gamma.py probe_port's dE, dF by
  * a forward difference of the stage effort and flow, then PortProbe.fne_margin at its gamma:
  * J = (dE - g dF) / (dE + g dF) and 0.5 (J + J) - J J. */
 static int probe_margin(DCCerts *c, int i, double t, double dt, double *margin) {

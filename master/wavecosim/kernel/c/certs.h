@@ -16,7 +16,7 @@ typedef struct DCCerts DCCerts;
 /* Settings: sample every `every` steps; `pairs` FNE pairs per subsystem (0: none) at `scale`;
  * `augmented`: u* and the Fejer term; `watch`: the secant margins (pairs kept above `floor`);
  * `probe`: instead, at the sampled steps, the watch's finite-difference probe of every frozen map
- * (gamma_tuning.probe_port, one channel each) with the relative step `probe_rel`. */
+ * (core/gamma.py probe_port, one channel each) with the relative step `probe_rel`. */
 typedef struct {
     int every, pairs, augmented, watch, probe;
     double scale, floor, probe_rel;

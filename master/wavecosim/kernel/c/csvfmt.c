@@ -8,6 +8,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "csvfmt.h"
+
 typedef unsigned __int128 u128;
 
 /* floor(x log10 2) for |x| < 1700. */

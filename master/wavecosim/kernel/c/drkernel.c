@@ -1062,22 +1062,6 @@ int dr_run_steps_of(DRKernel *k, DRStep *io, int n0, int count, double *rows, lo
     return count;
 }
 
-int dr_floor(DRKernel *k, DRStep *io, const double *inputs, int n_steps) {
-    size_t n = k->n;
-    for (int step = 0; step < n_steps; step++) {
-        double t = io->t + step * io->dt;
-        begin_macro_step(k, io);
-        for (int it = 0; it <= io->K; it++) {
-            int commit = it == io->K;
-            const double *in = inputs ? inputs + ((size_t)step * (size_t)(io->K + 1) + (size_t)it) * n : k->b;
-            double *out = inputs && !commit ? k->b_hat : k->b;
-            for (int i = 0; i < k->n_sub; i++)
-                if (evaluate(&k->sub[i], in, out, t, io->dt, commit, 0)) return report_failure(k, io, i);
-        }
-    }
-    return 0;
-}
-
 DRKernel *dr_create(int n_sub, int n, const double *P, const double *J_L, double *b, double *a_hat,
                     double *u0, double *uK) {
     if (n_sub < 0 || n < 0 || (n_sub == 0) != (n == 0)) return NULL;   /* none: signals only (signals.c) */

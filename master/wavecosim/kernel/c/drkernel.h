@@ -21,21 +21,25 @@
 
 #define DR_MAX_THREADS 64
 
-/* Termination reasons (StepLog.reason in Python). */
-enum { DR_BUDGET = 0, DR_TOLERANCE = 1, DR_DEADLINE = 2, DR_EXPLICIT = 3, DR_ENERGY_GUARD = 5 };
+/* Termination reasons (StepLog.reason in Python, kernel/drkernel.py REASONS); the kernel never gives
+ * DR_CONVERGED (the iterating classical masters' reason in Python). */
+enum DRReason { DR_BUDGET = 0, DR_TOLERANCE = 1, DR_DEADLINE = 2, DR_EXPLICIT = 3, DR_CONVERGED = 4,
+                DR_ENERGY_GUARD = 5 };
 
 /* The energy ledger's columns at the end of each dr_run_steps log row: I^n, L^n, the cumulative
  * traffic, s, action (DR_LEDGER_*), redo rounds (evaluation rounds of every subsystem the redo made:
  * continued inner iterations, probes and commits), the step's wall time (s), the
  * running time of one evaluation round (s) and, under a step deadline, the step's CPU time on the
- * calling thread (s; else NaN). Without the ledger: NaN, NaN, NaN, 1, 0, 0, wall time, round, NaN. */
-#define DR_LEDGER_COLUMNS 9
+ * calling thread (s; else NaN). Without the ledger: NaN, NaN, NaN, 1, 0, 0, wall time, round, NaN
+ * (kernel/drkernel.py LEDGER_LOG); DR_LEDGER_COLUMNS of them. */
+enum DRLedgerLog { DR_LOG_SUPPLIED, DR_LOG_LEDGER, DR_LOG_TRAFFIC, DR_LOG_SCALE, DR_LOG_ACTION, DR_LOG_ROUNDS,
+                   DR_LOG_STEP_S, DR_LOG_ROUND_S, DR_LOG_CPU_S, DR_LEDGER_COLUMNS };
 
 /* DRStep.failed_subsystem when the held signals or a subsystem stepped alone failed (signals.c). */
 #define DR_FAILED_EXTRA (-2)
 
-/* The energy ledger's actions (wavecosim/run/observers/energy_ledger.py ACTIONS). */
-enum { DR_LEDGER_KEPT = 0, DR_LEDGER_SCALED = 1, DR_LEDGER_ZERO = 2, DR_LEDGER_ITERATED = 3, DR_LEDGER_PROJECTED = 4,
+/* The energy ledger's actions (kernel/drkernel.py LEDGER_ACTIONS). */
+enum DRLedgerAction { DR_LEDGER_KEPT = 0, DR_LEDGER_SCALED = 1, DR_LEDGER_ZERO = 2, DR_LEDGER_ITERATED = 3, DR_LEDGER_PROJECTED = 4,
        DR_LEDGER_BLENDED = 5, DR_LEDGER_ANCHORED = 6 };
 
 /* FMU functions, as reported in DRStep.failed_function. */
@@ -123,10 +127,10 @@ int dr_set_threads(DRKernel *k, int n_threads, const int *thread_of);
 /* The plan in force: thread_of[i] for each subsystem (n_sub values); returns the number of threads. */
 int dr_thread_plan(const DRKernel *k, int *thread_of);
 
-/* Starts of the inner iteration, u^{n,0} (dr_options.STARTS): the paper's P b^n, P (2 b^n - b^{n-1}),
+/* Starts of the inner iteration, u^{n,0} (masters/dr_options.py STARTS): the paper's P b^n, P (2 b^n - b^{n-1}),
  * or a^{n-1}, the incident wave committed at the previous macro-step (a_hat as the caller's buffer
  * holds it when the step begins). */
-enum { DR_START_PAPER = 0, DR_START_EXTRAPOLATED = 1, DR_START_PREVIOUS = 2 };
+enum DRStart { DR_START_PAPER = 0, DR_START_EXTRAPOLATED = 1, DR_START_PREVIOUS = 2 };
 
 /* The DR master's named options (wavecosim/masters/dr_options.py): relaxation lambda in (0, 2) of
  * line 12, Anderson window (0: off, at most 16), the start (DR_START_*). Each call forgets b^{n-1}
@@ -215,13 +219,6 @@ int dr_set_passes(DRKernel *k, int n, DRPassFn *const *fns, void *const *args);
  * failed (see io->failed_*). */
 int dr_ledger_redo(DRKernel *k, DRStep *io, double supplied, double budget, double left_s, double round_s,
                    double *out);
-
-/* The floor: n_steps macro-steps making the same FMU calls as dr_macro_step with K = io->K
- * (serial), with no DR arithmetic; t = io->t + s dt at step s. The inputs of step s are
- * inputs[((K + 1) s + k) n ..] for query k < K and the commit k = K (e.g. u^k and a recorded from
- * a run, which then replays that run's FMU work exactly); inputs = NULL feeds every subsystem its
- * own last outgoing wave. Returns like dr_macro_step. */
-int dr_floor(DRKernel *k, DRStep *io, const double *inputs, int n_steps);
 
 /* Median wall time (microseconds) of one evaluation of each subsystem over the macro-steps run
  * with io->measure set (the first 16 evaluations; a dr_run_steps call with it set starts afresh),

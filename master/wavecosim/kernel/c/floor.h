@@ -1,4 +1,5 @@
-/* The floor of a run (floor.c, the kernel library libfloor.so; wavecosim/kernel/floor.py drives it):
+/* The bench's floor of a run (floor.c, the kernel library libfloor.so; wavecosim/kernel/floor.py
+ * drives it for bench/):
  * record every FMU call the kernel makes, in order, through shims with the fmi2 signatures, then
  * make the same calls with the same arguments from C alone on freshly instantiated FMUs and time
  * them. What a run costs beyond that replay is the master's, the observers' and the recorder's.

@@ -2,13 +2,13 @@
  *
  * The fmi2Component each function takes is a Fmi3Shim: the fmi3 instance, the FMU's own fmi3
  * function pointers and the out-arguments of its last fmi3DoStep. The Python side
- * (wavecosim/fmi3.py, Shim) fills the struct and mirrors its layout. Statuses pass through
+ * (wavecosim/fmi/fmi3.py, Shim) fills the struct and mirrors its layout. Statuses pass through
  * unchanged (fmi3 OK..Fatal have fmi2's values); a doStep that returns OK or Warning but asks to
  * terminate the simulation or returned early becomes fmi2Error, with the flags kept in the
  * struct for the error message. Any code written against the fmi2 contract (the DR kernel, a
  * wrapper of fmi2-signature calls) runs an FMI 3 FMU through these functions unchanged.
  */
-#include "fmi2FunctionTypes.h"
+#include "fmi3shim.h"
 #include "fmi3FunctionTypes.h"
 #include "abi.h"
 

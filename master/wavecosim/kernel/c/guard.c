@@ -21,16 +21,17 @@
 #include <unistd.h>
 
 #include "abi.h"
+#include "guard.h"
 
 #define GUARD_FRAMES 48
 #define FREEZE_SIGNAL SIGUSR2
 
 enum { FAULT_NONE, FAULT_SIGNAL, FAULT_EXIT, FAULT_FROZEN };
 
-typedef struct {
+typedef struct GuardFault {
     int kind;                  /* FAULT_* */
     int signal;                /* the signal (FAULT_SIGNAL, FAULT_FROZEN) */
-    int code;                  /* si_code, or the status given to exit() */
+    int code;                  /* si_code, or the status given to exit(); -1: a freeze the watchdog took */
     int thread;                /* the faulting thread's id */
     int main_thread;           /* 1 if that is the thread that armed the guard */
     int rescuable;             /* 1 if the thread parked (the GIL is free for the rescue) */
@@ -204,5 +205,17 @@ int guard_freeze_main(void) {
 }
 
 int guard_freeze_signal(void) { return FREEZE_SIGNAL; }
+
+/* Records a freeze the main thread never took (the FMU blocks, ignores or handles the freeze signal
+ * itself) and wakes the rescue, which then runs while the main thread stays inside its call.
+ * Returns 1 if this filled the record. */
+int guard_claim_frozen(void) {
+    if (!armed || !claim(FAULT_FROZEN, FREEZE_SIGNAL, -1, NULL, NULL)) return 0;
+    record->frames = 0;                  /* the stack recorded is the caller's, not the main thread's */
+    record->main_thread = 1;
+    record->rescuable = 1;
+    wake_rescue();
+    return 1;
+}
 
 int guard_frames(void) { return GUARD_FRAMES; }

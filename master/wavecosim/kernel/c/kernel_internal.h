@@ -1,9 +1,12 @@
 /* What drkernel.c shares with the other routes built on its subsystem evaluation (classical.c);
- * not part of the ctypes interface. */
+ * not part of the ctypes interface: hidden, so libdrkernel.so exports only what its headers declare
+ * for Python (wavecosim/kernel/contract.py). */
 #ifndef WAVECOSIM_KERNEL_INTERNAL_H
 #define WAVECOSIM_KERNEL_INTERNAL_H
 
 #include "drkernel.h"
+
+#pragma GCC visibility push(hidden)
 
 /* A square matrix (P, J_L, the classical masters' input map G) in compressed rows, one block:
  * row i holds col[start[i] .. start[i+1]) (ascending) and val. */
@@ -99,5 +102,7 @@ void dr_set_extra(DRKernel *k, const DRExtra *extra);
 /* The caller's buffers the log reads: b (outputs) and a_hat (inputs), n each. */
 double *dr_outputs(DRKernel *k);
 double *dr_inputs(DRKernel *k);
+
+#pragma GCC visibility pop
 
 #endif

@@ -276,8 +276,17 @@ static int lu_sparse(NTKernel *c) {
     return 0;
 }
 
+/* newton.py's nan_channel: the first channel whose outgoing wave is not finite for a finite incident
+ * one (the subsystem that made a NaN), else -1. */
+static double nan_channel(const double *a, const double *s, size_t n) {
+    for (size_t j = 0; j < n; j++)
+        if (isfinite(a[j]) && !isfinite(s[j])) return (double)j;
+    return -1.0;
+}
+
 /* The Newton loop of solve_interface from c->b; leaves b* in c->b and io->iterations, io->residual,
- * out[0] (S-evaluations) and out[1] (the wave scale of b*). Returns like nt_step. */
+ * out[0] (S-evaluations) and out[1] (the wave scale of b*; after NT_NONFINITE, nan_channel). Returns
+ * like nt_step. */
 static int newton(NTKernel *c, DRStep *io, double *out) {
     size_t n = c->n;
     const NTSettings *set = &c->set;
@@ -289,7 +298,10 @@ static int newton(NTKernel *c, DRStep *io, double *out) {
         if (f >= 0) return dr_fail(c->k, io, f);
         evals++;
         double res = dr_distance(c->b, c->s, n);
-        if (!isfinite(res)) return NT_NONFINITE;
+        if (!isfinite(res)) {
+            out[1] = nan_channel(c->a, c->s, n);
+            return NT_NONFINITE;
+        }
         stalled = have_best && res > 0.5 * best ? stalled + 1 : 0;
         if (!have_best || res < best) {
             memcpy(c->best_b, c->b, n * sizeof(double));

@@ -1,13 +1,9 @@
 /* Many queries of one frozen port map S_i^n in one call (wavecosim/core/frozen_port_map.py,
  * Subsystem.raw_queries): each restores x_i^n, sets the inputs, makes one doStep and reads the
  * outputs, the same FMU calls in the same order as that many Subsystem.raw_query calls. */
-#include "drkernel.h"
+#include "queries.h"
 #include "abi.h"
 
-/* Queries q = 0 .. count-1 with inputs[q m ..] into outputs[q m ..]; the first restores x_i^n (from
- * *state) only when dirty. Returns how many were made; on a failed FMU call (status worse than
- * Warning) failed[0] is its DR_FN_* and failed[1] its status, and that query is not counted. The doSteps
- * get noSetFMUStatePriorToCurrentPoint = no_prior (Subsystem.no_prior). */
 int fq_queries(const DRFunctions *fn, fmi2Component comp, fmi2FMUstate *state, const fmi2ValueReference *in_vr,
                const fmi2ValueReference *out_vr, int m, double t, double dt, const double *inputs, int count,
                double *outputs, int dirty, int no_prior, int *failed)

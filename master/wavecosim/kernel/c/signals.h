@@ -28,7 +28,7 @@ typedef struct {
 } SGFmu;
 
 /* The categories of values a signal carries (wavecosim/fmi/values.py): a call's type, an input's. */
-enum { SG_REAL = 0, SG_INTEGER = 1, SG_BOOLEAN = 2 };
+enum SGType { SG_REAL = 0, SG_INTEGER = 1, SG_BOOLEAN = 2 };
 
 /* One signal: its source table column (or -1: read by a get call), its input's category, the
  * scaling of a Real input (factor * value + offset) and the range of an integer one (lo .. hi). */

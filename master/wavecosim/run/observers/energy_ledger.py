@@ -32,6 +32,7 @@ import time
 
 import numpy as np
 
+from ...kernel.drkernel import LEDGER_ACTIONS
 from ...kernel.linalg import distance, dot
 from ...masters.base import StepLog
 from ..recorder import Labels
@@ -39,7 +40,7 @@ from . import Observer
 
 RTOL = 1e-12            # roundoff allowance per unit of energy through the interface
 TARGET = 0.9            # a fitted correction spends this fraction of the remaining budget (docs/energy.md)
-ACTIONS = ("kept", "scaled", "zero", "iterated", "projected", "blended", "anchored")   # codes (drkernel.h)
+ACTIONS = LEDGER_ACTIONS                     # codes: drkernel.h DRLedgerAction
 KEPT, SCALED, ZERO, ITERATED, PROJECTED, BLENDED, ANCHORED = range(len(ACTIONS))
 SMOOTH = 0.1            # weight of the newest measurement in the running evaluation-round times
 STEP_TIME = ("wall time of the step and its guard: inner iterations, commit, ledger check and redo (C kernel: "

@@ -71,5 +71,5 @@ def draft_text(imported, folder) -> str:
 def write_draft(imported, out) -> Path:
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(draft_text(imported, out.parent.resolve()))
+    out.write_text(draft_text(imported, out.parent.resolve()), encoding="utf-8")
     return out

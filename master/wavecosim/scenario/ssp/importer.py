@@ -5,7 +5,7 @@ the time grid from the files (experiment.py). Reads files only; no FMU is instan
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from ...fmi.builtin import builtin_fmus
+from ...fmi.builtin import builtin_name
 from ...errors import ConfigError
 from . import experiment, structure
 from .archive import locate_ssd
@@ -71,7 +71,7 @@ def _descriptions(flat):
     mds, fmus = {}, {}
     for key, comp in flat.components.items():
         fmus[key] = str(comp.fmu)
-        if builtin_fmus().get(comp.fmu.stem) == comp.fmu:
+        if builtin_name(comp.fmu):
             fmus[key] = comp.fmu.stem
         mds[key] = comp.md
         _check_connectors(flat, comp, mds[key])

@@ -6,6 +6,7 @@ enclosing system are sources. A connection to the system itself names no element
 "" (as OMSimulator writes it). Each connection converts between the units of its two connectors
 (units.py), then applies its LinearTransformation."""
 import csv
+import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -13,9 +14,11 @@ from urllib.parse import unquote, urlparse
 
 from fmpy import read_model_description
 
+from ...errors import ConfigError
 from ...fmi.builtin import builtin_path
+from ...fmi.unpack import regular_file
 from .units import conversion, read_units
-from .xmlfile import SSC, SSD, fail, number, q, start_line
+from .xmlfile import SSC, SSD, fail, number, q, start_line, where
 
 FMU_TYPE = "application/x-fmu-sharedlibrary"
 TABLE_TYPE = "application/table"          # a CSV time table as a component (OMSimulator's lookup table)
@@ -158,7 +161,9 @@ def _source_path(flat, el) -> Path:
     uri = urlparse(el.get("source", ""))
     if uri.scheme not in ("", "file"):
         fail(flat.path, el, f"source {el.get('source')!r}: only relative paths and file: URIs are supported")
-    return (flat.path.parent / unquote(uri.path)).resolve()
+    given = flat.path.parent / unquote(uri.path)
+    return regular_file(given, lambda message: ConfigError(f"{where(flat.path, el)}: {message}")) or \
+        Path(os.path.abspath(given))
 
 
 def _unique_name(flat, name, system_key):
