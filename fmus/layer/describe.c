@@ -136,6 +136,9 @@ static void print_typed(const char *type, const char *name, int vr, int kind, co
 #ifndef CAN_SERIALIZE_FMU_STATE
 #define CAN_SERIALIZE_FMU_STATE "true"
 #endif
+#ifndef CAN_VARIABLE_STEP
+#define CAN_VARIABLE_STEP "true"
+#endif
 static const char *source_files[] = {FMI_LAYER_SOURCE, "model.c"};
 
 static void print_source_files(void) {
@@ -163,9 +166,9 @@ int main(void) {
     printf("<fmiModelDescription fmiVersion=\"2.0\" modelName=\"%s\" guid=\"%s\" description=\"%s\" "
            "generationTool=\"wavecosim fmus/layer\" variableNamingConvention=\"flat\" numberOfEventIndicators=\"0\">\n",
            MODEL_IDENTIFIER_STR, MODEL_GUID, MODEL_DESCRIPTION);
-    printf("  <CoSimulation modelIdentifier=\"%s\" canHandleVariableCommunicationStepSize=\"true\" "
+    printf("  <CoSimulation modelIdentifier=\"%s\" canHandleVariableCommunicationStepSize=\"%s\" "
            "canGetAndSetFMUstate=\"true\" canSerializeFMUstate=\"%s\" canNotUseMemoryManagementFunctions=\"true\">\n",
-           MODEL_IDENTIFIER_STR, CAN_SERIALIZE_FMU_STATE);
+           MODEL_IDENTIFIER_STR, CAN_VARIABLE_STEP, CAN_SERIALIZE_FMU_STATE);
     print_source_files();
     printf("  </CoSimulation>\n");
     REAL_VARIABLES(UNIT_DEF)

@@ -122,7 +122,7 @@ def _progress_printer(enabled):
 def simulate(scenario: ScenarioLike = None, *, master: Optional[str] = None, K: Optional[int] = None,
              eps: Optional[float] = None, gamma=None, dt: Optional[float] = None, T: Optional[float] = None,
              start_time: Optional[float] = None, outputs: Optional[Sequence[str]] = None,
-             out_dir: Union[str, Path, None] = None, reference: bool = True, certificates: bool = True,
+             out_dir: Union[str, Path, None] = None, reference: Union[bool, str] = True, certificates: bool = True,
              progress: Union[bool, Callable[[int, int], None]] = False, output_interval: int = 1,
              formats: Sequence[str] = ("csv",), warn: Optional[Callable[[str], None]] = None,
              overwrite: bool = False, max_steps: Optional[int] = MAX_STEPS) -> RunResult:
@@ -131,16 +131,29 @@ def simulate(scenario: ScenarioLike = None, *, master: Optional[str] = None, K: 
     `result.trajectory` is a structured array whose first field is `time` (the grid t0 + n dt), so
     `fmpy.util.plot_result(result.trajectory)` draws it; `result.steps` holds the per-step figures,
     `result.summary` the figures of summary.json, `result.reference` the monolithic reference run
-    alongside (reference=True) or None. Files are written only into `out_dir`, which is locked while
+    alongside (reference=True) or None; reference="fine" also runs it at a refined step after the run
+    and adds `true_error` to the summary (run/fine.py). Files are written only into `out_dir`, which is locked while
     the run writes; an earlier run's files there are replaced, and other files refused unless
     `overwrite` (run/outputs.py). More than max_steps macro-steps are refused (None: no limit)."""
     sc = _scenario(scenario, master=master, K=K, eps=eps, gamma=gamma, dt=dt, T=T, start_time=start_time,
                    outputs=outputs)
     check_steps(sc, max_steps)
     with OutputFolder(out_dir, overwrite) if out_dir is not None else nullcontext():
-        return run(sc, out_dir, label=sc.master.algorithm, reference="lockstep" if reference else None,
-                   certificates=certificates, progress=_progress_printer(progress), warn=warn,
-                   file_suffix=False, output_interval=output_interval, formats=tuple(formats), max_steps=max_steps)
+        result = run(sc, out_dir, label=sc.master.algorithm, reference="lockstep" if reference else None,
+                     certificates=certificates, progress=_progress_printer(progress), warn=warn,
+                     file_suffix=False, output_interval=output_interval, formats=tuple(formats), max_steps=max_steps)
+        if reference == "fine":
+            _true_error(sc, result, out_dir)
+        return result
+
+
+def _true_error(scenario, result, out_dir):
+    """The run's error against the fine reference into its summary (and summary.json)."""
+    from .run.fine import fine_reference, true_error
+    from .run.recorder import write_json
+    result.summary.update(true_error(result, fine_reference(scenario, result)))
+    if out_dir is not None:
+        write_json(Path(out_dir) / "summary.json", result.summary)
 
 
 @dataclass

@@ -203,6 +203,26 @@ def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None, star
     return load_scenario(config, times, list(changes.items()))
 
 
+tolerance_options = options([
+    click.option("--tolerance", type=click.FloatRange(min=0, min_open=True),
+                 help="The tolerance mode: the macro-step varies to keep the error near this relative tolerance "
+                      "(--dt is the first step; master.tolerance)."),
+    click.option("--atol", type=click.FloatRange(min=0, min_open=True), help="The tolerance mode's absolute tolerance."),
+    click.option("--dt-min", type=click.FloatRange(min=0, min_open=True), help="The tolerance mode's smallest step (s)."),
+    click.option("--dt-max", type=click.FloatRange(min=0, min_open=True), help="The tolerance mode's largest step (s)."),
+    click.option("--output-step", type=click.FloatRange(min=0, min_open=True),
+                 help="The tolerance mode: steps also end on the times start + k OUTPUT_STEP (s)."),
+    click.option("--estimate", type=click.Choice(["predictor", "doubling"]),
+                 help="The tolerance mode's error estimate (default: predictor)."),
+])
+
+
+def tolerance_sets(**given):
+    """The tolerance options as --set entries (master.KEY=VALUE) for those given."""
+    return tuple(f"master.{k}={v!r}" if not isinstance(v, str) else f"master.{k}={v}" for k, v in given.items()
+                 if v is not None)
+
+
 @cli.command("run")
 @click.argument("config", required=False, type=click.Path(path_type=Path))
 @with_common
@@ -223,6 +243,9 @@ def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None, star
               help="Output folder for trajectory.csv, steps.csv, summary.json and metadata.json.")
 @click.option("--no-certificates", is_flag=True, help="Skip FNE sampling, the augmented-storage check and the Condition 1 watch (faster).")
 @click.option("--no-reference", is_flag=True, help="Skip the monolithic reference run (no error figures).")
+@click.option("--reference", "fine", type=click.Choice(["fine"]), help="fine: also run the monolithic reference "
+              "at a refined step and report true_error, the error against it (docs/masters.md).")
+@tolerance_options
 @click.option("--plots", is_flag=True, help="Also write PNG figures into the output folder.")
 @plot_option
 @click.option("--threads", help="Threads evaluating the subsystems: auto, or N (up to min(N, CPUs, subsystems)); "
@@ -234,8 +257,8 @@ def _read_config(config, ports, parameter_set, dt=None, T=None, gamma=None, star
 @overwrite_option
 @click.option("--force", is_flag=True, help=f"Run even more than {MAX_STEPS:,} macro-steps.")
 def run_cmd(config, K, eps, gamma, dt, T, quiet, start_time, output_interval, formats, ports, parameter_set, input_csv,
-            outputs, algorithm, sets, out, no_certificates, no_reference, plots, plot_patterns, threads, step_timeout,
-            setup_timeout, overwrite, force):
+            outputs, algorithm, sets, out, no_certificates, no_reference, fine, tolerance, atol, dt_min, dt_max,
+            output_step, estimate, plots, plot_patterns, threads, step_timeout, setup_timeout, overwrite, force):
     """Run one scenario (with the monolithic reference alongside where there are power bonds) and
     write its trajectory, per-step certificates, summary and metadata. CONFIG is a scenario file,
     an SSP system (.ssd, .ssp, folder) or one FMU (.fmu), run as fmpy's simulate runs it.
@@ -243,6 +266,8 @@ def run_cmd(config, K, eps, gamma, dt, T, quiet, start_time, output_interval, fo
     The steps are made in a child process: an FMU that crashes, calls exit() or (with --step-timeout)
     does not return leaves every step before it on disk, a summary.json saying what happened, and
     an exit code of its own (docs/troubleshooting.md). An earlier run's files in OUT are replaced."""
+    sets = sets + tolerance_sets(tolerance=tolerance, atol=atol, dt_min=dt_min, dt_max=dt_max, output_step=output_step,
+                                 estimate=estimate)
     scenario = _apply_overrides(_read_config(config, ports, parameter_set, dt, T, gamma, start_time, input_csv, sets),
                                 K, eps, gamma, dt, T, algorithm, start_time, outputs)
     if threads is not None:
@@ -253,7 +278,7 @@ def run_cmd(config, K, eps, gamma, dt, T, quiet, start_time, output_interval, fo
 
     def work():
         result = simulate(scenario, out_dir=out, progress=_progress("run", quiet) or False,
-                          certificates=not no_certificates, reference=not no_reference,
+                          certificates=not no_certificates, reference=fine or not no_reference,
                           output_interval=output_interval, formats=("csv", *formats), max_steps=max_steps)
         _report_run(scenario, result, out)
         if plots or plot_patterns:
@@ -292,7 +317,7 @@ def _report_run(scenario, result, out):
                    f"{s['gamma_changes']} changes; "
                    f"{'inside the FNE bounds' if s['gamma_guaranteed'] else 'OUTSIDE an FNE bound: Theorem 1 not guaranteed'}"
                    f"{'' if s.get('fne_watch_ok', True) else '; the Condition 1 watch found a violation'})")
-    print_table([s], [f for f in ("steps", "max_error", "rms_error", "final_error", "max_passivity_pos",
+    print_table([s], [f for f in ("steps", "rejected_steps", "max_error", "true_error", "rms_error", "final_error", "max_passivity_pos",
                                   "max_augmented_pos", "min_fne_margin", "iterations_mean", "wall_time_s",
                                   "total_time_s", "energy_guard_steps") if f in s])
     if "signal_note" in s:
@@ -440,10 +465,13 @@ def _sweep_progress(total, skipped):
                    "warm, gamma-auto, gamma-fastest, fastest-relaxed, fastest-relaxed-anderson, "
                    "fastest-relaxed-extrapolated, fastest-relaxed-memory, fastest-memory, "
                    "fastest-memory-eps3, fastest-memory-eps5.")
+@click.option("--tolerances", metavar="LIST", help="Instead: the tolerance mode at each of these tolerances (e.g. "
+              "1e-2,1e-4,1e-6; with each of --masters, default dr,gauss-seidel) and step doubling, beside a grid of "
+              "fixed (dt, K), all against one fine reference: tolerances.csv, tolerances.json, tolerances.png.")
 @step_timeout_option
 @overwrite_option
 def compare_cmd(config, K, eps, gamma, dt, T, quiet, start_time, ports, parameter_set, masters, ks, out,
-                no_certificates, plots, dr_options, step_timeout, overwrite):
+                no_certificates, plots, dr_options, tolerances, step_timeout, overwrite):
     """Every master over a grid of budgets against the monolithic reference: error, energy, cost."""
     from .sweeps.comparison import COMPARE_FIELDS, parse_options
     options = parse_options(dr_options)
@@ -458,6 +486,9 @@ def compare_cmd(config, K, eps, gamma, dt, T, quiet, start_time, ports, paramete
         Ks = parse_budgets(ks)
     scenario = _apply_overrides(_read_config(config, ports, parameter_set, dt, T, gamma, start_time), None, eps,
                                 gamma, dt, T, start_time=start_time)
+    if tolerances is not None:
+        chosen = names if click.get_current_context().get_parameter_source("masters").name != "DEFAULT" else None
+        return _compare_tolerances(scenario, _tolerance_list(tolerances), chosen, out, quiet, overwrite)
 
     def work():
         table = api.compare(scenario, names, Ks, out_dir=out, progress=(lambda label: _progress(label, quiet)),
@@ -475,6 +506,34 @@ def compare_cmd(config, K, eps, gamma, dt, T, quiet, start_time, ports, paramete
                 click.echo(f"wrote {p}")
     with OutputFolder(out, overwrite):
         return _supervised(work, None, step_timeout or scenario.step_timeout)
+
+
+def _tolerance_list(text):
+    """--tolerances "1e-2,1e-4" -> [0.01, 0.0001], each a number > 0."""
+    try:
+        values = [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        values = []
+    if not values or not all(v > 0 for v in values):
+        raise ConfigError(f"--tolerances: must be comma-separated numbers > 0, got {text!r}")
+    return values
+
+
+def _compare_tolerances(scenario, tolerances, masters, out, quiet, overwrite):
+    """compare --tolerances: the rows, the table on stdout, tolerances.png."""
+    from .plots import tolerance_plots
+    from .sweeps.tolerances import FIELDS, TOLERANCE_MASTERS, compare_tolerances
+
+    def work():
+        shown = None if quiet else (lambda row: click.echo(f"  {row['mode']} {row['master']}: true error "
+                                                           f"{row['true_error']:.3g}", err=True))
+        rows = compare_tolerances(scenario, tolerances, out, tuple(masters or TOLERANCE_MASTERS), shown)
+        click.echo(f"{scenario.name}: {len(rows)} runs -> {out / 'tolerances.csv'}")
+        print_table(rows, list(FIELDS))
+        for p in tolerance_plots(rows, scenario.name, out):
+            click.echo(f"wrote {p}")
+    with OutputFolder(out, overwrite):
+        return _supervised(work, None, scenario.step_timeout)
 
 
 @cli.command("validate")

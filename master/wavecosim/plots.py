@@ -481,3 +481,31 @@ def _figure_vs_key(groups, x_key, others, y, categories, out):
         ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     name = "".join(c if c.isalnum() or c in "._-" else "_" for c in f"{y}_vs_{x_key}")
     return _save(fig, out / f"{name}.png")
+
+
+def tolerance_plots(rows, scenario, out):
+    """tolerances.png: true error against FMU doSteps and against wall time, one line per mode and
+    master (the tolerance mode, step doubling, each fixed (master, K) over its grid of dt)."""
+    groups = {}
+    for r in rows:
+        if np.isfinite(r.get("true_error", np.nan)):
+            name = f"{r['mode']} {r['master']}" + (f" K={r['K']}" if r["mode"] == "fixed" and r["K"] != "" else "")
+            groups.setdefault(name, []).append(r)
+    fig, axes = plt.subplots(1, 2, figsize=(13, 5.2))
+    for name, members in groups.items():
+        color, marker = _style(name.split()[1])
+        ls = {"tolerance": "-", "doubling": "--", "fixed": ":"}[name.split()[0]]
+        for ax, key in zip(axes, ("doStep", "wall_time_s")):
+            pts = sorted((float(r[key]), float(r["true_error"])) for r in members)
+            ax.loglog([p[0] for p in pts], _floored([p[1] for p in pts]), marker=marker, color=color, ls=ls, ms=4,
+                      lw=1, label=name)
+    axes[0].set(xlabel="FMU doSteps, log", ylabel="true error (max over time / range), log",
+                title="True error against FMU calls")
+    axes[1].set(xlabel="wall time (s), log", title="True error against wall time")
+    for ax in axes:
+        ax.grid(alpha=0.3, which="both")
+    fig.suptitle(f"{scenario}: what should I run? (solid: tolerance mode, dashed: step doubling, dotted: fixed dt)")
+    axes[0].legend(fontsize=7, loc="upper center", bbox_to_anchor=(1.1, -0.12), ncol=4)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    return [_save(fig, out / "tolerances.png")]

@@ -48,6 +48,7 @@ def runs(folder):
     yield "without error columns", wc.load(K=3, T=T).with_changes(error=[]), {}
     yield "signals", parse_scenario(copy.deepcopy(SIGNALS), "signals.yaml", folder), {}
     yield "signals only", parse_scenario(copy.deepcopy(SIGNAL_ONLY), "pair.yaml", folder), {}
+    yield "tolerance", wc.load(T=T).with_master(tolerance=1e-2), {"reference": "fine"}
     for master in ("explicit", "gauss-seidel", "jacobi-iter", "gauss-seidel-iter", "aitken", "iqn-ils", "newton"):
         yield master, wc.load(master=master, K=2, T=T), {"reference": master != "explicit"}
 

@@ -243,6 +243,26 @@ class Subsystem:
         self._restore()
         self._dirty = False
 
+    def set_step(self, h):
+        """A new communication step size h from the next doStep on (the tolerance mode); the wave
+        adapter's weights follow, as its waves are scaled by sqrt(h)."""
+        self.dt, self._h.value = h, h
+        if self.adapter:
+            self.map.set_gamma(self.map.gamma)
+
+    def snapshot(self):
+        """Save the instance's state into a handle of its own, apart from x_i^n (a step redone whole)."""
+        if not hasattr(self, "_snap"):
+            self._snap = cvalues.pointer()
+        self._call(self._get_state, "fmi2GetFMUstate", self._comp, cvalues.ref(self._snap))
+        self.calls["save"] += 1
+
+    def back_to_snapshot(self):
+        """Put the instance back where snapshot() saved it."""
+        self._call(self._set_state, "fmi2SetFMUstate", self._comp, self._snap)
+        self.calls["restore"] += 1
+        self._dirty = False
+
     def read(self, names):
         return self.fmu.get_real(self.fmu.vrs(names))
 
@@ -280,9 +300,11 @@ class Subsystem:
     def release(self):
         """Free the saved x_i^n (not after the FMU reported fatal). The handle object stays the same
         (the C kernels hold its address); it is NULL afterwards."""
-        if self._state.value and self.fmu.free_state_allowed():
-            self.fmu.free_state_handle(self._state)
-        self._state.value = None
+        for handle in (self._state, getattr(self, "_snap", None)):
+            if handle is not None and handle.value and self.fmu.free_state_allowed():
+                self.fmu.free_state_handle(handle)
+            if handle is not None:
+                handle.value = None
 
     def close(self):
         try:

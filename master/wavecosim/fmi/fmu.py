@@ -339,6 +339,7 @@ class Fmu:
             release_folder(pool, self._key, self.folder)
             self._key, self.folder = None, extract_fmu(self.path)
         self.can_save_state = bool(cs.canGetAndSetFMUstate)
+        self.variable_steps = bool(getattr(cs, "canHandleVariableCommunicationStepSize", True))
         self.variables = like.variables if like is not None else {v.name: v for v in self.description.modelVariables}
         self.messages = MessageLog(name)        # bounded: the last few, and the run's log file
         self.phase = "instantiated"        # of the FMI state machine: instantiated, initialization, step, error, fatal

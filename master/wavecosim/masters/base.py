@@ -14,6 +14,8 @@ say what it needs and how it is shown:
                   classical masters: off, as other tools run them)
   evaluations     FMU evaluations per subsystem of one macro-step when fixed (DR: K + 1), else None;
                   it paces the sampled certificates (certificates.sampling)
+  variable        its macro-step varies (the tolerance mode, masters/adaptive.py): time_at(k) and
+                  more(n) give the grid, and nothing runs in blocks
   guardable       its commit can supply energy, and it can undo the commit and redo it with other
                   inputs (_undo_step, _recommit, _probe, _supply): the energy guards apply
 Wave masters (WaveMaster) own the compiled wave map P, J_L and the committed wave b^n: nothing
@@ -94,6 +96,7 @@ class Master:
     guardable = False         # an energy guard applies (_undo_step, _recommit, _probe, _supply)
     default_guard = "off"     # master.energy_guard when the scenario does not say
     evaluations = None        # FMU evaluations per subsystem of a macro-step, when fixed
+    variable = False          # the macro-step varies (masters/adaptive.py)
 
     def __init__(self, scene, settings):
         self.scene, self.settings = scene, settings

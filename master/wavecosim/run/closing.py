@@ -25,7 +25,7 @@ class RunFiles:
                "iterations_mean": iters[0] / n if n else 0.0, "iterations_max": iters[1],
                "wall_time_s": self.master_time, "total_time_s": time.perf_counter() - self.started,
                "loop_time_s": self.loop_time,
-               "real_time_factor": (n * sc.dt) / self.master_time if self.master_time > 0 else float("nan"),
+               "real_time_factor": self._simulated(n) / self.master_time if self.master_time > 0 else float("nan"),
                "fmu_calls": self.fmu_calls(), "fmu_calls_by_subsystem": self.fmu_calls_by_subsystem(),
                "output_interval": self.every,
                "energy_guard": self.guard_mode, "block_steps": self.block_steps,

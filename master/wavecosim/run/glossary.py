@@ -120,6 +120,18 @@ SUMMARY = {
     "errors": ("per recorded Real output, the largest |Δy| against the monolithic reference over the grid "
                "divided by the column's range in the reference (max − min); a column constant to 10⁻⁹ of its "
                "size by its largest |value|, one zero throughout by 1", "1"),
+    # the tolerance mode (masters/adaptive.py, observers/step_control.py) and the fine reference (run/fine.py)
+    "tolerance": ("the tolerance mode's relative tolerance", "1"),
+    "estimate": ("the tolerance mode's error estimate (`predictor` or `doubling`)", "text"),
+    "accepted_steps": ("macro-steps accepted by the step control (the rows after t₀)", "1"),
+    "rejected_steps": ("macro-steps rejected and redone smaller", "1"),
+    "dt_smallest": ("the smallest accepted macro-step", "s"),
+    "dt_largest": ("the largest accepted macro-step", "s"),
+    "true_error": ("with `--reference fine`: the largest over the error columns of max over time |x − x_ref| / "
+                   "range(x_ref), x_ref the monolithic reference at a refined step interpolated onto the run's times",
+                   "1"),
+    "true_error_by_column": ("the same per column", "1"),
+    "true_reference_dt": ("the refined step the reference of `true_error` ran at", "s"),
     # the master (masters/)
     "fast_path": ("whether the master ran on the C kernel route", "boolean"),
     "fast_note": ("why it ran on the route it did", "text"),

@@ -73,6 +73,16 @@ class LiveRun(BlockSteps, RunFiles):
         self.write_error = None                             # an OutputError met while finishing
         self.calls_at_start = self.excluded = None          # set by start(): a run that failed before has none
 
+    def more(self, n):
+        """Whether steps are left after n: the fixed grid's count, or the varying step's end time."""
+        return self.master.more(n) if self.master.variable else n < self.n_steps
+
+    def progress_of(self, n):
+        """Steps done as the progress shows them: n, or the share of the time made, in fixed steps."""
+        if not self.master.variable:
+            return n
+        return min(self.n_steps, round((self.time_of(n) - self.t0) / self.dt))
+
     def add_observer(self, observer: Observer):
         """Before start(): one more observer (e.g. the error tracker), acting last."""
         self.observers.append(observer)
@@ -95,6 +105,8 @@ class LiveRun(BlockSteps, RunFiles):
             at += len(o.columns)
         clock, t0 = grid_clock(self.dt), self.t0
         self.time_of = lambda k: t0 + clock(k)          # t_k = t0 + k dt
+        if self.master.variable:                        # the accepted steps' times
+            self.time_of, self.every = self.master.time_at, 1
 
     def _output_formats(self):
         """Integer and Boolean outputs written as integers, String (Binary) outputs as quoted text."""
@@ -127,7 +139,7 @@ class LiveRun(BlockSteps, RunFiles):
     def step(self, n):
         """Macro-step n: observers before, the master (its guard may redo the step), observers after,
         one row; returns the Reading of the FMUs after it."""
-        t = self.t0 + n * self.dt
+        t = self.time_of(n) if self.master.variable else self.t0 + n * self.dt
         self.scene.begin_step(n, t)                  # signals held, signal-only subsystems stepped
         before = self._counts() if self.bracket else None
         for o in self.observers:
@@ -257,6 +269,10 @@ class LiveRun(BlockSteps, RunFiles):
         row = self.trajectory.next_row()
         row[0], row[1:] = self.time_of(n + 1), reading.outputs
         self.trajectory.commit_row()
+
+    def _simulated(self, n):
+        """The simulated time of n steps."""
+        return self.time_of(n) - self.t0 if self.master is not None and self.master.variable else n * self.dt
 
     def fmu_calls(self):
         """doStep, save and restore calls the run made, over every FMU (observers' probes excluded)."""

@@ -5,6 +5,7 @@ import sys
 
 from ..core.gamma import GammaTuner
 from ..masters import MASTERS
+from ..masters.adaptive import adaptive
 from ..masters.base import REASONS, WaveMaster, require_wave_tuning
 from ..masters.dr_options import auto_gamma
 from ..core.certificates import sampling
@@ -16,6 +17,7 @@ from .observers.fne_watch import FneWatch
 from .observers.freeze_watch import FreezeWatch
 from .observers.gamma import GammaLog, TunedGammaLog
 from .observers.passivity import Passivity
+from .observers.step_control import StepControl
 from ..core.scene import build_scene
 
 # The columns of steps.csv every run has, then the observers' (their `described`); docs/outputs.md
@@ -29,7 +31,7 @@ STEP_DESCRIBED = {
 }
 STEP_COLUMNS = tuple(STEP_DESCRIBED)
 OBSERVERS = (LedgerColumns, GammaLog, TunedGammaLog, FneWatch, CertificateSampler, CertificatePace,
-             Passivity, FreezeWatch, ErrorTracker, ScaledErrors)    # every observer, in the order they act (their columns too)
+             Passivity, FreezeWatch, StepControl, ErrorTracker, ScaledErrors)    # every observer, in the order they act (their columns too)
 
 
 def _warn_stderr(message):
@@ -50,7 +52,7 @@ def _once(warn):
 def open_parts(scenario, warn, share=None):
     """Scene, master and gamma tuner of a run; whatever was opened is closed if set-up fails. A run
     alongside another (the lockstep reference) shares the other scene's FMU binaries and quirks."""
-    cls = MASTERS[scenario.master.algorithm]
+    cls = adaptive(MASTERS[scenario.master.algorithm], scenario.master)
     scene = build_scene(scenario, wave=cls.wave, needs_rollback=cls.needs_rollback,
                         pool=share.pool if share else None, quirks=share.quirks if share else None)
     for note in scene.notes:
@@ -99,6 +101,8 @@ def make_observers(scenario, scene, master, tuner, certificates, warn):
         obs.append(CertificatePace(pace))
     obs.append(Passivity(scene, unavailable))
     obs.append(FreezeWatch(scene, warn))
+    if master.variable:
+        obs.append(StepControl(master))
     return obs
 
 

@@ -34,8 +34,8 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
     max_steps macro-steps is refused before anything is opened or allocated."""
     check_steps(scenario, max_steps)
     warn = _once(warn or _warn_stderr)                 # the lockstep reference repeats set-up notes
-    if reference == "lockstep" and not scenario.couplings:
-        reference = None
+    if reference == "lockstep" and (not scenario.couplings or scenario.master.tolerance is not None):
+        reference = None                   # no same-grid reference for a varying step: true_error instead
     live = LiveRun(scenario, out_dir, label, certificates, warn, file_suffix, output_interval, formats)
     ref = None
     try:
@@ -112,7 +112,7 @@ def _loop(live, ref, progress, contain=None):
                     active(part)
                     part.start()
             n, handed = 0, time.perf_counter()
-            while n < live.n_steps:
+            while live.more(n):
                 count = live.block_size(n)
                 if ref is not None:
                     active(ref)
@@ -123,8 +123,8 @@ def _loop(live, ref, progress, contain=None):
                 done = live.advance(n, count)
                 live.restores.after(n + done)
                 stop.check()
-                if progress and ((n + done) // every > n // every or n + done == live.n_steps):
-                    progress(n + done, live.n_steps)
+                if progress and ((n + done) // every > n // every or not live.more(n + done)):
+                    progress(live.progress_of(n + done), live.n_steps)
                 n += done
                 if time.perf_counter() - handed > hand_over_s:
                     for part in (ref, live):

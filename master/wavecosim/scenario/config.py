@@ -175,6 +175,25 @@ class MasterConfig:
     options: str = field(default="manual", metadata=key(
         "DR: `auto` chooses γ, the relaxation and the Anderson window from the scene (Masters and DR); "
         "`manual` keeps what the file gives", type="manual | auto"))
+    tolerance: float = field(default=None, metadata=key(
+        "the tolerance mode: the macro-step varies (`dt` is the first step), chosen per step from a local error "
+        "estimate against this relative tolerance (Masters and DR, choosing a tolerance); runs step by step on "
+        "the Python route", "1", "number > 0 or null", "none (fixed dt)"))
+    atol: float = field(default=None, metadata=key(
+        "the tolerance mode's absolute tolerance, added to tolerance × the size of each interface variable",
+        "the port variables' units", "number > 0 or null", "tolerance × 1e-3 of each variable's largest size"))
+    dt_min: float = field(default=None, metadata=key(
+        "the tolerance mode's smallest macro-step (a step at dt_min is accepted whatever its estimate)", "s",
+        "number > 0 or null", "dt / 1000"))
+    dt_max: float = field(default=None, metadata=key(
+        "the tolerance mode's largest macro-step", "s", "number > 0 or null", "(T − start_time) / 10"))
+    output_step: float = field(default=None, metadata=key(
+        "the tolerance mode: steps also end on the times start_time + k output_step (no interpolation: "
+        "trajectory.csv holds those points among the accepted ones)", "s", "number > 0 or null", "none"))
+    estimate: str = field(default="predictor", metadata=key(
+        "the tolerance mode's error estimate: `predictor` (the committed interface against its extrapolation, "
+        "no extra FMU call) or `doubling` (one step of h against two of h/2, as MasterSim and PyFMI)",
+        type="predictor | doubling"))
 
 
 @dataclass
@@ -666,7 +685,17 @@ def _master(ck, m, couplings) -> MasterConfig:
     if "threads" in m:
         master.threads = _threads(ck, m["threads"])
     _dr_options(ck, m, master)
+    _step_control(ck, m, master)
     return master
+
+
+def _step_control(ck, m, master):
+    """The tolerance mode's keys (masters/adaptive.py)."""
+    for name in ("tolerance", "atol", "dt_min", "dt_max", "output_step"):
+        if m.get(name) is not None:
+            setattr(master, name, ck.number(m[name], f"master.{name}", positive=True))
+    if "estimate" in m:
+        master.estimate = ck.string(m["estimate"], "master.estimate", ("predictor", "doubling"))
 
 
 def _threads(ck, value, path="master.threads"):

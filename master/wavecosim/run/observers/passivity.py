@@ -65,8 +65,8 @@ class Passivity(Observer):
         if self.wave:
             parts = zip(self.scene.split(log.a_hat), self.scene.split(reading.B))
             return [port_energy(a, b) for a, b in parts], port_energy(log.a_hat, reading.B)
-        supplied = [physical_port_energy(e, f, self.dt) for e, f in
-                    zip(self.scene.split(reading.E), self.scene.split(reading.F))]
+        supplied = [physical_port_energy(e, f, s.dt) for s, e, f in
+                    zip(self.scene.subsystems, self.scene.split(reading.E), self.scene.split(reading.F))]
         return supplied, total(supplied)
 
     def after_step(self, n, t, log, reading, row):

@@ -1,0 +1,271 @@
+"""The tolerance mode (`master.tolerance`): the macro-step varies, chosen per step from a local error
+estimate against the tolerance; a step whose estimate is too large is undone and made again smaller.
+
+`adaptive(cls)` gives a subclass of any master whose step(n, t) is the controlled step: it sets the
+step size h on every subsystem, makes the master's own step once (or three times, `doubling`), and
+accepts or rejects it. Estimates (docs/masters.md, choosing a tolerance):
+  predictor  the watched outputs z^{n+1} (the error columns) against their extrapolation by the
+             polynomial of degree p through the last p + 1 accepted points (Milne's device), scaled
+             to the step's h^(p+1); p is the master's order (`order`). No FMU call of its own.
+  doubling   two steps of h/2 against one step of h from the same state (Richardson, as MasterSim
+             and PyFMI); the step of h is the one committed, so the energy ledger books it as any step.
+Both are scaled per unit step (times (T - t0) / h), so the error over the run, not of one step,
+stays near the tolerance. Iterating masters stop their inner loop once its residual is below
+INNER_SHARE of the step's allowance (their `eps`), within the budget K.
+"""
+import math
+from dataclasses import dataclass, replace
+
+from ..errors import ConfigError
+
+SAFETY, SHRINK, GROW = 0.9, 0.2, 5.0          # h_new = h clamp(SAFETY (1/err)^(1/p), SHRINK, GROW)
+STARTUP = 0.01                                # the first p + 1 steps, which have no estimate yet: dt x STARTUP
+INNER_SHARE = 0.1                             # the inner residual allowed, as a share of the step's allowance
+ATOL_SHARE = 1e-3                             # default atol: this share of tolerance x the largest variable's size
+CALIBRATION = 1.0                             # the estimate's weight (measured against the true error)
+STATE = ("y", "y_step_start", "u", "_b", "_b_step_start", "_b_before", "_a_before", "_a_step_start")
+
+
+@dataclass
+class StepRecord:
+    """What the controller did in the step just made (the steps.csv columns of run/observers/step_control.py)."""
+    dt: float = math.nan
+    estimate: float = math.nan
+    rejected: int = 0
+    inner_eps: float = math.nan
+
+
+def extrapolate(times, values, t):
+    """The polynomial through the points (times[j], values[j]) (lists of floats) at t (Lagrange form)."""
+    out = [0.0] * len(values[0])
+    for j, (tj, zj) in enumerate(zip(times, values)):
+        w = 1.0
+        for k, tk in enumerate(times):
+            if k != j:
+                w *= (t - tk) / (tj - tk)
+        out = [o + w * z for o, z in zip(out, zj)]
+    return out
+
+
+class Controller:
+    """Tolerances, step bounds and the next step size from an estimate (err <= 1: accepted)."""
+
+    def __init__(self, settings, dt, span, order):
+        self.rtol, self.atol, self.order, self.span = settings.tolerance, settings.atol, order, span
+        self.h_min = settings.dt_min or dt / 1000.0
+        self.h_max = settings.dt_max or span / 10.0
+        self.h = min(max(dt, self.h_min), self.h_max)
+        self.size = None                      # each interface variable's largest size so far
+
+    def observe(self, z):
+        """Take the accepted values z into each variable's size."""
+        self.size = [abs(v) for v in z] if self.size is None else [max(s, abs(v)) for s, v in zip(self.size, z)]
+
+    def error(self, diff, h):
+        """The scaled estimate of a step of h whose local error is `diff` per variable, per unit step."""
+        floor = self.atol if self.atol is not None else ATOL_SHARE * self.rtol * max(self.size, default=0.0)
+        worst = max((abs(d) / (floor + self.rtol * s) if floor + self.rtol * s > 0 else 0.0
+                     for d, s in zip(diff, self.size)), default=0.0)
+        return CALIBRATION * worst * self.span / h
+
+    def next(self, h, err):
+        """The step after one of h with estimate err (NaN: no estimate, h kept)."""
+        if err != err:
+            return h
+        factor = GROW if err <= 0.0 else min(GROW, max(SHRINK, SAFETY * err ** (-1.0 / self.order)))
+        return min(self.h_max, max(self.h_min, h * factor))
+
+    def inner_eps(self, size, h):
+        """The inner loop's stop: INNER_SHARE of the step's allowance on a variable of this size."""
+        return INNER_SHARE * self.rtol * size * math.sqrt(h / self.span) if size > 0 else None
+
+
+def check_tolerance_mode(scene, settings, source):
+    """Refuse what the tolerance mode cannot drive, in one line."""
+    fixed = [s.name for s in scene.subsystems + scene.signal_only if not getattr(s.fmu, "variable_steps", True)]
+    if fixed:
+        raise ConfigError(f"{source}: master.tolerance: subsystem {fixed[0]}'s FMU cannot change its communication "
+                          f"step size (canHandleVariableCommunicationStepSize=\"false\"); run it with a fixed dt")
+    if scene.signals is not None or scene.signal_only:
+        raise ConfigError(f"{source}: master.tolerance: signals and subsystems without a port are held per "
+                          f"fixed macro-step; run this system with a fixed dt")
+    if settings.estimate == "doubling" and not all(s.fmu.can_save_state for s in scene.subsystems):
+        raise ConfigError(f"{source}: master.estimate: doubling needs every FMU to get and set its state")
+
+
+def watched(scene):
+    """[(subsystem, variable names)] the estimate watches: the scenario's error columns (those the
+    true error is measured on), else every recorded output; Real variables of subsystems with a
+    port, not a wave port's outgoing wave (it scales with sqrt(h)). An FMU's port stage values are
+    not watched: several FMUs give them at the middle of the step, not at its end."""
+    sc = scene.scenario
+    refs = [scene.outputs[c] for c in (sc.error or list(scene.outputs)) if c in scene.outputs]
+    out = []
+    for s in scene.subsystems:
+        names = [ref.split(".", 1)[1] for ref in refs if ref.split(".", 1)[0] == s.name]
+        names = [v for v in names if s.fmu.kind(v) == s.fmu.real_type and v not in s.port.wave_out]
+        if names:
+            out.append((s, names))
+    if not out:
+        raise ConfigError(f"{sc.source}: master.tolerance: no Real output of a subsystem with a port to estimate the "
+                          f"error on (error: or outputs:)")
+    return out
+
+
+def order(master):
+    """The order in h of the master's error over the run: 2 for an iterating wave master over FMUs'
+    own wave ports (each step is the FMUs' implicit step with the solved interface), else 1 (the
+    inputs are held over the step, or the wave adapter holds them)."""
+    own_waves = master.wave and not any(s.adapter for s in master.subsystems)
+    return 2 if master.needs_rollback and own_waves else 1
+
+
+class AdaptiveStep:
+    """Mixin over a master: its step(n, t) is the controlled step (module docstring)."""
+    variable = True
+
+    def __init__(self, scene, settings):
+        super().__init__(scene, replace(settings, fast="false"))       # the Python route, step by step
+        check_tolerance_mode(scene, settings, scene.scenario.source)
+        sc = scene.scenario
+        self.end, self.span, self.t0 = sc.T, sc.T - sc.start_time, sc.start_time
+        self.every = settings.output_step
+        self.p = order(self)
+        self.control = Controller(settings, sc.dt, self.span, self.p)
+        self.doubling = settings.estimate == "doubling"
+        self.can_reject = all(s.fmu.can_save_state for s in scene.subsystems)
+        self.snapshots = self.doubling or not self.needs_rollback
+        self.times, self.points = [sc.start_time], []
+        self.h_set, self.wave_size = sc.dt, 0.0
+        self.watched = watched(scene)
+        self.last = StepRecord()
+        self.accepted = self.rejected = 0
+
+    def time_at(self, k):
+        """The time after k accepted steps."""
+        return self.times[k]
+
+    def more(self, n):
+        """Whether the run has steps left after n accepted ones."""
+        return self.times[n] < self.end
+
+    def _stage(self):
+        """The values the estimate watches, at the end of the step just made."""
+        return [float(v) for s, names in self.watched for v in s.read(names)]
+
+    def _set_h(self, h):
+        """Every subsystem steps by h; committed waves are rescaled to it (waves carry sqrt(h))."""
+        if h == self.h_set:
+            return
+        ratio = math.sqrt(h / self.h_set)
+        if self.wave:
+            for name in STATE[3:]:
+                value = getattr(self, name, None)
+                if value is not None:
+                    setattr(self, name, [v * ratio for v in value])
+        for s in self.subsystems:
+            s.set_step(h)
+        self.dt, self.h_set = h, h
+
+    def _save(self):
+        """The step's start: every FMU's state (snapshots; the rollback masters' own freeze serves
+        otherwise), the step size the waves are scaled to and the master's committed values."""
+        if self.snapshots and self.can_reject:
+            for s in self.subsystems:
+                s.snapshot()
+        return self.h_set, {k: getattr(self, k).copy() for k in STATE if getattr(self, k, None) is not None}
+
+    def _restore(self, saved):
+        """Everything back at the step's start (_save)."""
+        for s in self.subsystems:
+            if self.snapshots:
+                s.back_to_snapshot()
+            else:
+                s.restore_frozen()
+            s.set_step(saved[0])
+        self.dt = self.h_set = saved[0]
+        for k, v in saved[1].items():
+            setattr(self, k, v.copy())
+
+    def _target(self, t):
+        """Where the step from t must end at the latest: T, or the next output time (output_step)."""
+        if self.every is None:
+            return self.end
+        k = math.floor((t - self.t0) / self.every * (1.0 + 1e-12)) + 1
+        return min(self.end, self.t0 + k * self.every)
+
+    def _fit(self, t, h):
+        """h cut so the step ends on T (or the next output time), without leaving a sliver of a step."""
+        left = self._target(t) - t
+        if h >= left * (1.0 - 1e-9):
+            return left
+        return left / 2.0 if h > left / 2.0 else h
+
+    def _inner_eps(self, h):
+        """The iterating masters' inner stop for a step of h."""
+        if not self.needs_rollback:
+            return None
+        if self.wave:
+            self.wave_size = max(self.wave_size, max((abs(b) for b in self._b), default=0.0) / math.sqrt(self.h_set))
+            return self.control.inner_eps(self.wave_size * math.sqrt(h), h)
+        return self.control.inner_eps(max(self.control.size or [0.0]), h)
+
+    def _attempt(self, n, t, h, saved):
+        """One try of a step of h from the saved state: (its StepLog, the scaled estimate)."""
+        eps = self._inner_eps(h)
+        if eps is not None and hasattr(self, "eps"):
+            self.eps = eps
+        self.last.inner_eps = math.nan if eps is None else eps
+        if self.doubling:
+            self._set_h(h / 2.0)
+            super().step(n, t)
+            super().step(n, t + h / 2.0)
+            half = self._stage()
+            self._restore(saved)
+            self._set_h(h)
+            log = super().step(n, t)
+            gain = 2.0 ** self.p / (2.0 ** self.p - 1.0)
+            return log, self.control.error([gain * (a - b) for a, b in zip(half, self._stage())], h)
+        self._set_h(h)
+        log = super().step(n, t)
+        if len(self.points) <= self.p:
+            return log, math.nan
+        nodes = self.times[-1 - self.p:]
+        guess = extrapolate(nodes, self.points[-1 - self.p:], t + h)
+        weight = h ** (self.p + 1) / math.prod(t + h - tj for tj in nodes)      # z^(p+1) h^(p+1) / (p+1)!
+        return log, self.control.error([weight * (a - b) for a, b in zip(self._stage(), guess)], h)
+
+    def step(self, n, t):
+        if self.points:                     # the last accepted step as committed (an energy guard may redo it)
+            self.points[-1] = self._stage()
+        self.control.observe(self.points[-1] if self.points else self._stage())
+        saved, rejected = self._save(), 0
+        h = self._fit(t, self.control.h if len(self.points) > self.p else max(self.control.h_min,
+                                                                               self.control.h * STARTUP))
+        while True:
+            log, err = self._attempt(n, t, h, saved)
+            if not err > 1.0 or h <= self.control.h_min or not self.can_reject:
+                break
+            rejected += 1
+            self._restore(saved)
+            h = self._fit(t, self.control.next(h, err))
+        target = self._target(t)
+        self.times.append(target if h == target - t else t + h)
+        self.points = self.points[-self.p:] + [self._stage()]      # the accepted steps' values, t0 not among them
+        self.control.h = self.control.next(h, err) if err == err else self.control.h
+        self.last.dt, self.last.estimate, self.last.rejected = h, err, rejected
+        self.accepted, self.rejected = self.accepted + 1, self.rejected + rejected
+        return log
+
+    def run_info(self):
+        return {**super().run_info(), "tolerance": self.control.rtol, "estimate": "doubling" if self.doubling
+                else "predictor",
+                "dt_smallest": min(b - a for a, b in zip(self.times, self.times[1:])) if self.accepted else math.nan,
+                "dt_largest": max(b - a for a, b in zip(self.times, self.times[1:])) if self.accepted else math.nan}
+
+
+def adaptive(cls, settings):
+    """The master class a run uses: cls itself without a tolerance, else cls under step control."""
+    if settings.tolerance is None:
+        return cls
+    return type(f"Adaptive{cls.__name__}", (AdaptiveStep, cls), {})

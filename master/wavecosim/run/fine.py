@@ -1,0 +1,43 @@
+"""The error against the true solution: the monolithic reference (the `newton` master) run at a
+refined step, FINE times finer than the run's typical step (the smaller of dt and the median of the
+accepted steps; at most FINE_STEPS steps), each output column interpolated onto the run's accepted
+times and its error scaled by the column's range."""
+import math
+
+import numpy as np
+
+from .runner import reference_scenario, run
+
+FINE = 16                   # the reference's step: the run's typical step / FINE
+FINE_STEPS = 200_000        # at most this many reference steps (the step is then the span / FINE_STEPS)
+
+
+def fine_dt(scenario, result):
+    """The reference's step: a whole fraction of the span, FINE times below the run's typical step."""
+    t = result.t
+    typical = min(float(np.median(np.diff(t))), scenario.dt) if len(t) > 1 else scenario.dt
+    span = scenario.T - scenario.start_time
+    steps = min(FINE_STEPS, math.ceil(FINE * span / typical - 1e-9))
+    return span / steps
+
+
+def fine_reference(scenario, result, dt=None):
+    """The monolithic reference of `result`'s scenario at a refined step (fine_dt), as a RunResult."""
+    fine = reference_scenario(scenario).with_master(tolerance=None)
+    fine = fine.with_changes("the fine reference", dt=dt or fine_dt(scenario, result))
+    return run(fine, None, label="fine", reference=None, certificates=False, warn=lambda message: None, max_steps=None)
+
+
+def true_error(result, reference, columns=None):
+    """{"true_error": the largest over `columns` (default: the scenario's error columns, else every
+    numeric one) of max over time |x - x_ref| / range(x_ref), "true_error_by_column": each}."""
+    columns = [c for c in (columns or result.error_columns or result.columns) if c in reference.columns]
+    t, t_ref = result.t, reference.t
+    by = {}
+    for c in columns:
+        ref = reference.column(c)
+        span = float(np.max(ref) - np.min(ref))
+        diff = np.abs(result.column(c) - np.interp(t, t_ref, ref))
+        by[c] = float(np.max(diff) / span) if span > 0 else float(np.max(diff))
+    return {"true_error": max(by.values(), default=math.nan), "true_error_by_column": by,
+            "true_reference_dt": float(t_ref[1] - t_ref[0]) if len(t_ref) > 1 else math.nan}

@@ -1,0 +1,141 @@
+"""The tolerance mode (master.tolerance, masters/adaptive.py): a varying macro-step chosen from an
+error estimate, rejected steps redone from the saved states, the fine reference's true error."""
+import json
+import subprocess
+
+import numpy as np
+import pytest
+
+from paths import CLI, CONFIGS
+from wavecosim import api
+from wavecosim.errors import ConfigError
+from wavecosim.run.fine import fine_reference, true_error
+from wavecosim.run.runner import LiveRun
+from wavecosim.scenario.config import load_scenario
+
+
+def scenario(name, T, **master):
+    return load_scenario(CONFIGS / f"{name}.yaml").with_changes("test", T=T).with_master(**master)
+
+
+def drive(sc, forced=None):
+    """Run sc step by step: (accepted step sizes, trajectory rows, rejected steps). forced: the step
+    sizes to make, one by one, with no rejection."""
+    live = LiveRun(sc, None, certificates=False)
+    try:
+        live.start()
+        n, steps = 0, []
+        while live.more(n):
+            if forced is not None:
+                c = live.master.control
+                c.h = c.h_min = c.h_max = forced[n]
+                live.master.can_reject = False
+            live.step(n)
+            steps.append(live.master.last.dt)
+            n += 1
+        return np.array(steps), live.trajectory.array().copy(), live.master.rejected
+    finally:
+        live.finish("finished", "")
+
+
+@pytest.mark.parametrize("name, master", [("foreign_pair", "gauss-seidel"), ("two_oscillators", "dr"),
+                                          ("foreign_pair", "explicit")])
+def test_a_rejected_step_leaves_every_fmu_where_it_was(name, master):
+    """The same accepted steps made again without a rejection give the same numbers to the last bit."""
+    sc = scenario(name, 0.1, algorithm=master, tolerance=1e-2)
+    steps, rows, rejected = drive(sc)
+    assert rejected > 0
+    again, rows_again, none = drive(sc, forced=list(steps))
+    assert none == 0 and np.array_equal(again, steps)
+    assert np.array_equal(rows, rows_again)
+
+
+def test_steps_follow_the_tolerance_and_end_on_T():
+    loose = api.simulate(scenario("foreign_pair", 0.2, algorithm="gauss-seidel", tolerance=1e-1), reference=False,
+                         certificates=False)
+    tight = api.simulate(scenario("foreign_pair", 0.2, algorithm="gauss-seidel", tolerance=1e-3), reference=False,
+                         certificates=False)
+    assert tight.summary["accepted_steps"] > 3 * loose.summary["accepted_steps"]
+    for r in (loose, tight):
+        assert r.t[-1] == 0.2 and np.all(np.diff(r.t) > 0)
+        dt = r.steps["dt"]
+        assert np.allclose(np.diff(r.t), dt, rtol=1e-12, atol=0)
+        assert len(np.unique(dt)) > 3
+        assert r.summary["accepted_steps"] == len(dt)
+
+
+def test_steps_end_on_the_output_times():
+    sc = scenario("foreign_pair", 0.1, algorithm="gauss-seidel", tolerance=1e-1, dt_max=0.05, output_step=0.02)
+    t = api.simulate(sc, reference=False, certificates=False).t
+    assert all(k * 0.02 in t for k in range(6))
+    free = api.simulate(sc.with_master(output_step=None), reference=False, certificates=False).t
+    assert not all(k * 0.02 in free for k in range(6))
+
+
+def test_true_error_is_near_the_tolerance_and_the_ledger_holds():
+    sc = scenario("two_oscillators", 1.0, algorithm="dr", tolerance=1e-3)
+    result = api.simulate(sc, reference=False, certificates=False)
+    reference = fine_reference(sc, result, dt=1e-4)
+    err = true_error(result, reference)["true_error"]
+    assert 1e-4 <= err <= 1e-2
+    assert result.summary["max_ledger"] <= 1e-9
+    fixed = true_error(api.simulate(sc.with_master(tolerance=None), reference=False, certificates=False),
+                       reference)["true_error"]
+    assert fixed > 10 * err                     # dt = 0.01 alone is far from the tolerance
+
+
+def test_doubling_estimates_by_two_half_steps():
+    sc = scenario("foreign_pair", 0.3, algorithm="gauss-seidel", tolerance=1e-3)
+    one = api.simulate(sc, reference=False, certificates=False).summary
+    two = api.simulate(sc.with_master(estimate="doubling"), reference=False, certificates=False).summary
+    per_step = two["fmu_calls"]["doStep"] / (two["accepted_steps"] + two["rejected_steps"])
+    assert per_step == pytest.approx(3 * 2, rel=0.01)           # one step of h and two of h/2, two FMUs
+    assert one["fmu_calls"]["doStep"] / (one["accepted_steps"] + one["rejected_steps"]) == 2
+
+
+def test_an_fmu_that_keeps_its_step_is_refused(tmp_path):
+    raw = (CONFIGS / "foreign_pair.yaml").read_text().replace("fmu: ForeignMass", "fmu: FixedStepMass")
+    (tmp_path / "s.yaml").write_text(raw)
+    sc = load_scenario(tmp_path / "s.yaml").with_master(algorithm="explicit", tolerance=1e-3)
+    with pytest.raises(ConfigError, match="subsystem A's FMU cannot change its communication step size"):
+        api.simulate(sc, reference=False, certificates=False)
+    api.simulate(sc.with_master(tolerance=None).with_changes("test", T=0.01), reference=False, certificates=False)
+
+
+def test_the_command_line_writes_the_variable_grid_and_true_error(tmp_path):
+    out = tmp_path / "out"
+    done = subprocess.run([*CLI, "run", str(CONFIGS / "foreign_pair.yaml"), "--T", "0.1", "--master", "gauss-seidel",
+                           "--tolerance", "1e-2", "--reference", "fine", "--no-certificates", "--quiet",
+                           "--out", str(out)], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    s = json.loads((out / "summary.json").read_text())
+    assert s["accepted_steps"] > 0 and s["rejected_steps"] >= 0 and 0 < s["true_error"] < 1e-1
+    header = (out / "steps.csv").read_text().splitlines()[0].split(",")
+    assert {"dt", "error_estimate", "rejected", "inner_eps"} <= set(header)
+    bad = subprocess.run([*CLI, "run", str(CONFIGS / "foreign_pair.yaml"), "--T", "0.2", "--tolerance", "-1",
+                          "--out", str(tmp_path / "bad")], capture_output=True, text=True)
+    assert bad.returncode == 2
+
+
+def test_equal_error_calls_follow_each_fixed_series():
+    from wavecosim.sweeps.tolerances import best_fixed, calls_for
+    series = [(100, 1e-2), (400, 2.5e-3), (1600, 6.25e-4)]          # first order: error ~ 1 / calls
+    assert calls_for(series, 2e-2) == (100.0, False)
+    assert calls_for(series, 5e-3) == (pytest.approx(200.0), False)
+    assert calls_for(series, 6.25e-5) == (pytest.approx(16000.0), True)
+    rows = [{"mode": "fixed", "master": m, "K": "", "doStep": c * f, "true_error": e}
+            for m, f in (("explicit", 1), ("newton", 3)) for c, e in series]
+    assert best_fixed(rows, 5e-3)[0::2] == (pytest.approx(200.0), "explicit")
+
+
+@pytest.mark.slow
+def test_compare_tolerances_writes_the_table_and_the_figure(tmp_path):
+    out = tmp_path / "cmp"
+    done = subprocess.run([*CLI, "compare", str(CONFIGS / "foreign_pair.yaml"), "--T", "0.05", "--tolerances",
+                           "1e-2", "--masters", "gauss-seidel", "--quiet", "--out", str(out)],
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    rows = json.loads((out / "tolerances.json").read_text())
+    assert {r["mode"] for r in rows} == {"tolerance", "doubling", "fixed"}
+    assert all(0 < r["true_error"] < 1 for r in rows)
+    assert (out / "tolerances.png").stat().st_size > 0 and (out / "tolerances.csv").exists()
