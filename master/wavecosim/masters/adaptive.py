@@ -173,7 +173,15 @@ class AdaptiveStep:
         if self.snapshots and self.can_reject:
             for s in self.subsystems:
                 s.snapshot()
-        return self.h_set, {k: getattr(self, k).copy() for k in STATE if getattr(self, k, None) is not None}
+        return self.h_set, {k: getattr(self, k).copy() for k in STATE if getattr(self, k, None) is not None}, \
+            self._ledger_state()
+
+    def _ledger_state(self):
+        """The energy ledger's running figures (L and its traffic), in Python and in the kernel, so a
+        rejected try books nothing: [(holder, attribute, value)]."""
+        kernel = getattr(self, "kernel", None)
+        holders = [(self.guard, ("L", "traffic"))] + ([(kernel.io, ("ledger", "traffic"))] if kernel else [])
+        return [(h, a, getattr(h, a)) for h, names in holders for a in names if hasattr(h, a)]
 
     def _restore(self, saved):
         """Everything back at the step's start (_save)."""
@@ -186,6 +194,8 @@ class AdaptiveStep:
         self.dt = self.h_set = saved[0]
         for k, v in saved[1].items():
             setattr(self, k, v.copy())
+        for holder, name, value in saved[2]:
+            setattr(holder, name, value)
 
     def _target(self, t):
         """Where the step from t must end at the latest: T, or the next output time (output_step)."""

@@ -77,12 +77,6 @@ class LiveRun(BlockSteps, RunFiles):
         """Whether steps are left after n: the fixed grid's count, or the varying step's end time."""
         return self.master.more(n) if self.master.variable else n < self.n_steps
 
-    def progress_of(self, n):
-        """Steps done as the progress shows them: n, or the share of the time made, in fixed steps."""
-        if not self.master.variable:
-            return n
-        return min(self.n_steps, round((self.time_of(n) - self.t0) / self.dt))
-
     def add_observer(self, observer: Observer):
         """Before start(): one more observer (e.g. the error tracker), acting last."""
         self.observers.append(observer)

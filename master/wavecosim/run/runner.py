@@ -95,6 +95,13 @@ def check_steps(scenario, max_steps=MAX_STEPS):
                           f"{max_steps:,} (pass --force, or max_steps=None in Python, to run it anyway)")
 
 
+def _progress_of(live, n):
+    """Steps done as the progress shows them: n, or the share of the time made, in fixed steps."""
+    if not live.master.variable:
+        return n
+    return min(live.n_steps, round((live.time_of(n) - live.t0) / live.dt))
+
+
 def _loop(live, ref, progress, contain=None):
     """Every macro-step of the run (and of its lockstep reference); returns (status, exception).
     Rows go to the writer at least every HAND_OVER_S seconds (DURABLE_S in a supervised run); a
@@ -124,7 +131,7 @@ def _loop(live, ref, progress, contain=None):
                 live.restores.after(n + done)
                 stop.check()
                 if progress and ((n + done) // every > n // every or not live.more(n + done)):
-                    progress(live.progress_of(n + done), live.n_steps)
+                    progress(_progress_of(live, n + done), live.n_steps)
                 n += done
                 if time.perf_counter() - handed > hand_over_s:
                     for part in (ref, live):
