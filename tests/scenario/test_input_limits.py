@@ -73,7 +73,7 @@ def test_bad_or_huge_runs_from_the_command_line(tmp_path, options, message):
 
 
 def test_the_step_limit_is_checked_before_anything_is_opened(monkeypatch):
-    import wavecosim.run.runner as runner
-    monkeypatch.setattr(runner, "build_scene", lambda *a, **k: pytest.fail("a scene was built"))
+    import wavecosim.run.parts as parts
+    monkeypatch.setattr(parts, "build_scene", lambda *a, **k: pytest.fail("a scene was built"))
     with pytest.raises(ConfigError, match="1,000,000,000 macro-steps, over the limit of 100,000,000"):
         simulate(T=1e7)
