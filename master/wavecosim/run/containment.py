@@ -49,7 +49,8 @@ class Containment:
         self._rescue_r, self._rescue_w = os.pipe()
         guard.arm(self.status.fault, self._rescue_w)
         threading.Thread(target=self._rescue, name="wavecosim-rescue", daemon=True).start()
-        threading.Thread(target=self._watchdog, name="wavecosim-watchdog", daemon=True).start()
+        self.status.heartbeat = time.monotonic()        # the first beat: a call that holds the interpreter
+        threading.Thread(target=self._watchdog, name="wavecosim-watchdog", daemon=True).start()   # from the start
         _current = self
 
     def close(self):

@@ -299,7 +299,7 @@ def _janitor(folder, pid):
     """A shell that waits for this process to end (its stdin closes), then for the child `pid` (which
     gets SIGTERM when this process dies) at most 5 s, kills what is left of the child's group and
     removes the channel folder: nothing outlives a parent killed outright."""
-    return subprocess.Popen(["sh", "-c", JANITOR, "janitor", str(folder), str(pid)], stdin=subprocess.PIPE,
+    return subprocess.Popen(["/bin/sh", "-c", JANITOR, "janitor", str(folder), str(pid)], stdin=subprocess.PIPE,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
 
 
