@@ -15,16 +15,16 @@ from paths import CLI
 FAULTS = "0,1,3,5"          # none, segfault, endless loop, endless loop with every signal blocked
 
 
-def sweep(tmp_path, faulty_scenario, *extra):
-    """(process, seconds, out, temp): the sweep of FAULTS at step 20 on a LocalCluster of 2 workers,
-    its temporary files in a folder of its own."""
+def sweep(tmp_path, faulty_scenario, scheduler="local"):
+    """(process, seconds, out, temp): the sweep of FAULTS at step 20 with --step-timeout 2 on the
+    scheduler (2 workers of a LocalCluster by default), its temporary files in tmp_path/tmp."""
     path, out, temp = tmp_path / "faulty.yaml", tmp_path / "out", tmp_path / "tmp"
     path.write_text(yaml.safe_dump(faulty_scenario(0, 20, T=0.5), sort_keys=False))
-    temp.mkdir()
+    temp.mkdir(exist_ok=True)
     started = time.monotonic()
     proc = subprocess.run([*CLI, "sweep", str(path), "--set", f"subsystems.B.integers.fault={FAULTS}",
-                           "--scheduler", "local", "--workers", "2", "--out", str(out), "--quiet",
-                           "--no-certificates", *extra], capture_output=True, text=True, timeout=120,
+                           "--scheduler", scheduler, "--workers", "2", "--out", str(out), "--quiet",
+                           "--no-certificates", "--step-timeout", "2"], capture_output=True, text=True, timeout=120,
                           env={**os.environ, "TMPDIR": str(temp)})
     return proc, time.monotonic() - started, out, temp
 
@@ -42,9 +42,8 @@ def survivors(temp):
     return found
 
 
-@pytest.mark.slow  # starts a Dask LocalCluster; two runs hang until their step timeout
-def test_faulty_runs_on_dask_are_rows_and_nothing_is_left(tmp_path, faulty_scenario):
-    proc, seconds, out, temp = sweep(tmp_path, faulty_scenario, "--step-timeout", "2")
+def check_rows(proc, seconds, out):
+    """Exit 8 in time; one row per run with its status, summary.json and every row made before the fault."""
     assert proc.returncode == 8, proc.stderr
     assert proc.stderr.strip() == f"error: 3 of 4 runs did not finish (their rows say why: {out / 'runs.csv'})"
     assert seconds < 60, seconds                     # the hangs ended by the timeout, not by the test's
@@ -55,12 +54,34 @@ def test_faulty_runs_on_dask_are_rows_and_nothing_is_left(tmp_path, faulty_scena
     assert runs[1]["message"].startswith("subsystem B (monolithic reference): the FMU crashed (SIGSEGV")
     assert runs[2]["message"].startswith("step 20 (t = 0.2) did not finish within 2 s (step timeout)")
     assert "did not finish within 2 s (step timeout)" in runs[3]["message"]
-    for run in runs:                                 # every run's files: its summary and its rows
+    for run in runs:
         folder = next((out / "runs").glob(f"{run['index']}_*"))
         summary = json.loads((folder / "summary.json").read_text())
         assert summary["status"] == run["status"]
         lines = (folder / "trajectory.csv").read_text().splitlines()
         assert len(lines) - 1 == (51 if run["status"] == "finished" else 21), (run["status"], len(lines))
+
+
+@pytest.mark.slow  # starts a Dask LocalCluster; two runs hang until their step timeout
+def test_faulty_runs_on_a_local_cluster_are_rows_and_nothing_is_left(tmp_path, faulty_scenario):
+    proc, seconds, out, temp = sweep(tmp_path, faulty_scenario)
+    check_rows(proc, seconds, out)
     time.sleep(1.0)                                  # janitors finish within a second of their run
     assert survivors(temp) == []
     assert list(temp.iterdir()) == []
+
+
+@pytest.mark.slow  # starts a Dask LocalCluster; two runs hang until their step timeout
+def test_the_workers_of_a_scheduler_survive_faulty_runs(tmp_path, faulty_scenario):
+    from distributed import Client, LocalCluster
+    temp = tmp_path / "tmp"
+    temp.mkdir()
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+                      local_directory=str(tmp_path / "dask"), env={"TMPDIR": str(temp)}) as cluster, \
+            Client(cluster) as client:
+        workers = set(client.scheduler_info()["workers"])
+        proc, seconds, out, _ = sweep(tmp_path, faulty_scenario, cluster.scheduler_address)
+        check_rows(proc, seconds, out)
+        assert set(client.scheduler_info()["workers"]) == workers          # none died, none replaced
+        time.sleep(1.0)
+        assert sorted(p.name for p in temp.iterdir()) == []                # no run's folder left
