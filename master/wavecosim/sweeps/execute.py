@@ -4,13 +4,16 @@ child processes, Dask.
 A Task names a scenario file, the (key, value) overrides and the run options; the process that
 runs it reads the file, applies the overrides and opens its own FMUs (FMU handles cannot be
 pickled). Every executor yields one row per task as tasks complete; callers order rows by index.
-A local task runs in a child of its own (run/supervisor.py): one that crashes, calls exit() or
-times out is a row with that status and message, and the others go on.
+A task runs in a supervised child of its own (run/supervisor.py), on the process pool and on a Dask
+worker alike: one that crashes, calls exit() or times out is a row with that status and message,
+the worker lives on, and the others go on.
 """
 import json
 import re
 import selectors
+import shutil
 import signal
+import tempfile
 import time
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
@@ -201,6 +204,20 @@ def process_pool(tasks, workers):
         raise (Terminated if stops.signal == signal.SIGTERM else Interrupted)("stopped")
 
 
+def supervised_task(task):
+    """One task in a supervised child of this process, waited for; its row (what a Dask worker runs:
+    a crash, an exit() or a hang in the run ends the child, never the worker)."""
+    started = time.perf_counter()
+    child = _start_child(task)
+    try:
+        while not child.poll(0.2):
+            pass
+    except BaseException:
+        child.kill()
+        raise
+    return _child_row(task, child, started)
+
+
 def _start_child(task):
     from ..run.supervisor import Child
 
@@ -263,10 +280,10 @@ def check_scheduler(scheduler):
     return scheduler
 
 
-def dask_cluster(scheduler, workers):
+def dask_cluster(scheduler, workers, scratch):
     """(client, cluster): a Dask client of the scheduler at an address (reached within
     CONNECT_TIMEOUT_S), or of an embedded LocalCluster of `workers` one-thread worker processes for
-    scheduler "local"."""
+    scheduler "local", its scratch space and temporary files in the folder `scratch`."""
     import logging
     distributed = optional("distributed", "dask", "--scheduler (a sweep on Dask)")
     Client = distributed.Client
@@ -276,25 +293,35 @@ def dask_cluster(scheduler, workers):
         except (OSError, TimeoutError) as exc:
             raise ConfigError(f"--scheduler {scheduler}: no Dask scheduler answered within {CONNECT_TIMEOUT_S} s "
                               f"({type(exc).__name__})") from None
-    cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                       dashboard_address=None, silence_logs=logging.ERROR)
+    import dask.config
+    settings = {"distributed.scheduler.allowed-failures": 0,     # a dead worker's task is not run again
+                "temporary-directory": scratch}                  # the scheduler's scratch space
+    with dask.config.set(settings):
+        cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                           dashboard_address=None, silence_logs=logging.ERROR,
+                                           local_directory=scratch, env={"TMPDIR": scratch})
     return Client(cluster), cluster
 
 
 def dask(tasks, scheduler, workers):
-    """The tasks on a Dask distributed cluster; rows in completion order."""
-    client, cluster = dask_cluster(scheduler, workers)
-    from distributed import as_completed as completed
+    """The tasks on a Dask distributed cluster, each in a supervised child of its worker; rows in
+    completion order. A LocalCluster's scratch space is a temporary folder removed at the end."""
+    scratch = tempfile.mkdtemp(prefix="wavecosim-dask-")
     futures = {}
     try:
-        futures = dict(zip(client.map(run_task, tasks, pure=False), tasks))
-        for future in completed(list(futures)):
-            yield _outcome(future, futures[future])
+        client, cluster = dask_cluster(scheduler, workers, scratch)
+        from distributed import as_completed as completed
+        try:
+            futures = dict(zip(client.map(supervised_task, tasks, pure=False, retries=0), tasks))
+            for future in completed(list(futures)):
+                yield _outcome(future, futures[future])
+        finally:
+            client.cancel(list(futures))
+            client.close()
+            if cluster is not None:
+                cluster.close()
     finally:
-        client.cancel(list(futures))
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        shutil.rmtree(scratch, ignore_errors=True)
 
 
 def executor(tasks, workers=1, scheduler=None):

@@ -1,0 +1,87 @@
+"""A sweep on a Dask LocalCluster whose runs crash or hang: each Dask task runs its run in a supervised
+child of the worker, so a segfault, an endless loop or a signal-blind hang is one row with its status
+(no KilledWorker, no retry), --step-timeout ends a hung run, the good runs are complete, and neither a
+process nor a temporary folder of the sweep is left."""
+import json
+import os
+import subprocess
+import time
+
+import pytest
+import yaml
+
+from paths import CLI
+
+FAULTS = "0,1,3,5"          # none, segfault, endless loop, endless loop with every signal blocked
+
+
+def sweep(tmp_path, faulty_scenario, scheduler="local"):
+    """(process, seconds, out, temp): the sweep of FAULTS at step 20 with --step-timeout 2 on the
+    scheduler (2 workers of a LocalCluster by default), its temporary files in tmp_path/tmp."""
+    path, out, temp = tmp_path / "faulty.yaml", tmp_path / "out", tmp_path / "tmp"
+    path.write_text(yaml.safe_dump(faulty_scenario(0, 20, T=0.5), sort_keys=False))
+    temp.mkdir(exist_ok=True)
+    started = time.monotonic()
+    proc = subprocess.run([*CLI, "sweep", str(path), "--set", f"subsystems.B.integers.fault={FAULTS}",
+                           "--scheduler", scheduler, "--workers", "2", "--out", str(out), "--quiet",
+                           "--no-certificates", "--step-timeout", "2"], capture_output=True, text=True, timeout=120,
+                          env={**os.environ, "TMPDIR": str(temp)})
+    return proc, time.monotonic() - started, out, temp
+
+
+def survivors(temp):
+    """The processes whose environment names the sweep's temporary folder (all it started inherit it)."""
+    found = []
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            environ = open(f"/proc/{pid}/environ", "rb").read()
+        except OSError:
+            continue
+        if f"TMPDIR={temp}".encode() in environ.split(b"\0"):
+            found.append(pid)
+    return found
+
+
+def check_rows(proc, seconds, out):
+    """Exit 8 in time; one row per run with its status, summary.json and every row made before the fault."""
+    assert proc.returncode == 8, proc.stderr
+    assert proc.stderr.strip() == f"error: 3 of 4 runs did not finish (their rows say why: {out / 'runs.csv'})"
+    assert seconds < 60, seconds                     # the hangs ended by the timeout, not by the test's
+    runs = json.loads((out / "runs.json").read_text())["runs"]
+    assert [r["status"] for r in runs] == ["finished", "crashed", "timed out", "timed out"]
+    assert all(r.get("attempts") == 1 for r in runs)
+    assert runs[0]["steps"] == 50
+    assert runs[1]["message"].startswith("subsystem B (monolithic reference): the FMU crashed (SIGSEGV")
+    assert runs[2]["message"].startswith("step 20 (t = 0.2) did not finish within 2 s (step timeout)")
+    assert "did not finish within 2 s (step timeout)" in runs[3]["message"]
+    for run in runs:
+        folder = next((out / "runs").glob(f"{run['index']}_*"))
+        summary = json.loads((folder / "summary.json").read_text())
+        assert summary["status"] == run["status"]
+        lines = (folder / "trajectory.csv").read_text().splitlines()
+        assert len(lines) - 1 == (51 if run["status"] == "finished" else 21), (run["status"], len(lines))
+
+
+@pytest.mark.slow  # starts a Dask LocalCluster; two runs hang until their step timeout
+def test_faulty_runs_on_a_local_cluster_are_rows_and_nothing_is_left(tmp_path, faulty_scenario):
+    proc, seconds, out, temp = sweep(tmp_path, faulty_scenario)
+    check_rows(proc, seconds, out)
+    time.sleep(1.0)                                  # janitors finish within a second of their run
+    assert survivors(temp) == []
+    assert list(temp.iterdir()) == []
+
+
+@pytest.mark.slow  # starts a Dask LocalCluster; two runs hang until their step timeout
+def test_the_workers_of_a_scheduler_survive_faulty_runs(tmp_path, faulty_scenario):
+    from distributed import Client, LocalCluster
+    temp = tmp_path / "tmp"
+    temp.mkdir()
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+                      local_directory=str(tmp_path / "dask"), env={"TMPDIR": str(temp)}) as cluster, \
+            Client(cluster) as client:
+        workers = set(client.scheduler_info()["workers"])
+        proc, seconds, out, _ = sweep(tmp_path, faulty_scenario, cluster.scheduler_address)
+        check_rows(proc, seconds, out)
+        assert set(client.scheduler_info()["workers"]) == workers          # none died, none replaced
+        time.sleep(1.0)
+        assert sorted(p.name for p in temp.iterdir()) == []                # no run's folder left
