@@ -14,7 +14,7 @@ from ..errors import FmuError, NumericalError
 
 SG_FMU, SG_NONFINITE = (constant("signals.h", name) for name in ("SG_FMU", "SG_NONFINITE"))   # SGFailure.kind
 TYPES = names("signals.h", "SGType", "SG_")                  # the types of the values a signal carries
-OTHER_FUNCTIONS = {constant("signals.h", f"SG_FN_{verb}_{kind.upper()}"): f"fmi2{verb.title()}{kind.title()}"
+OTHER_FUNCTIONS = {constant("fmicall.h", f"SG_FN_{verb}_{kind.upper()}"): f"fmi2{verb.title()}{kind.title()}"
                    for verb in ("GET", "SET") for kind in TYPES[1:]}        # SGFailure.function past DR_FN_*
 FMU_FUNCTIONS = ("fmi2GetReal", "fmi2SetReal", "fmi2DoStep", "fmi2GetInteger", "fmi2SetInteger", "fmi2GetBoolean",
                  "fmi2SetBoolean")
