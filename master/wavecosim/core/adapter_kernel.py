@@ -91,7 +91,7 @@ class KernelAdapter(ports.AdapterPort):
         """The error of the adapter's last failed call, as the Python reference raises it at step n, or None."""
         st, m = self.struct, self.m
         if st.failure == AD_FMU:
-            return self.sub.fmu.status_error(self.functions[st.failed_function], st.failed_status, n, t)
+            return self.sub.fmu.status_error(self.functions[st.failed.function], st.failed.status, n, t)
         if st.failure == AD_SINGULAR:
             return self.error(st.failed_r[:m], ports.singular_why(st.y[:m]), n, t)
         if st.failure == AD_STALLED:

@@ -292,3 +292,5 @@ fmi2Status adapter_getReal(fmi2Component c, const fmi2ValueReference vr[], size_
     }
     return fmi2OK;
 }
+
+MIRRORED(FmiFailure)

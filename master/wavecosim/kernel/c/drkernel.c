@@ -1284,3 +1284,4 @@ double *dr_inputs(DRKernel *k) { return k->a_hat; }
 
 MIRRORED(DRFunctions)
 MIRRORED(DRStep)
+MIRRORED(FmiFailure)

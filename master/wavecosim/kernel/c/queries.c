@@ -19,3 +19,4 @@ int fq_queries(const DRFunctions *fn, fmi2Component comp, fmi2FMUstate *state, c
 }
 
 MIRRORED(DRFunctions)
+MIRRORED(FmiFailure)
