@@ -14,6 +14,7 @@ typedef struct {
 } Scratch;
 
 MIRRORED(WaveAdapterC)
+MIRRORED(FmiFailure)
 
 size_t adapter_work_size(int m) {
     return 10 * (size_t)m + 2 * (size_t)m * (size_t)m;
@@ -292,5 +293,3 @@ fmi2Status adapter_getReal(fmi2Component c, const fmi2ValueReference vr[], size_
     }
     return fmi2OK;
 }
-
-MIRRORED(FmiFailure)
