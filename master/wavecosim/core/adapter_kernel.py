@@ -7,6 +7,7 @@ function table the DR kernel calls as a wave port (set a, doStep solves, get b),
 FMU function table it was given. Queries made from Python (gamma probes, certificates, a redone
 commit) run the same C solve on the same memory, so both routes see one adapter.
 """
+from ..fmi.fmu import fails
 from ..kernel.adapter import AD_FMU, AD_SINGULAR, AD_STALLED, field_address, new_adapter, shim
 from . import ports
 
@@ -75,7 +76,7 @@ class KernelAdapter(ports.AdapterPort):
         status = self.lib.adapter_solve(self._ref, sub.t, sub.dt)
         sub._dirty = bool(st.dirty)
         self.book()
-        if status > 1:
+        if fails(status):
             raise self.kernel_error(sub.step_index, sub.t)
         return st.e[:self.m], st.f[:self.m]
 
@@ -90,7 +91,7 @@ class KernelAdapter(ports.AdapterPort):
         """The error of the adapter's last failed call, as the Python reference raises it at step n, or None."""
         st, m = self.struct, self.m
         if st.failure == AD_FMU:
-            return self.sub.fmu.status_error(self.functions[st.failed_function], st.failed_status, n, t)
+            return self.sub.fmu.status_error(self.functions[st.failed.function], st.failed.status, n, t)
         if st.failure == AD_SINGULAR:
             return self.error(st.failed_r[:m], ports.singular_why(st.y[:m]), n, t)
         if st.failure == AD_STALLED:

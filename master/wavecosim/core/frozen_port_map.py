@@ -14,6 +14,7 @@ import numpy as np
 
 from ..kernel import cvalues, queries
 from ..errors import FmuError, SimulationEnded
+from ..fmi.fmu import fails
 from ..kernel.drkernel import FUNCTIONS
 from .adapter_kernel import KernelAdapter
 from .ports import DirectPort, WaveAdapter
@@ -118,9 +119,7 @@ class Subsystem:
         return list(v)
 
     def _call(self, fn, name, *args):
-        status = fn(*args)
-        if status > 1:
-            raise self.fmu.status_error(name, status, self.step_index, self.t)
+        self.fmu.check(name, fn(*args), self.step_index, self.t)
 
     def begin(self, step_index, t):
         """Start macro-step n at time t without saving the state (masters that never roll back)."""
@@ -132,7 +131,7 @@ class Subsystem:
         (signals only), stepped once per macro-step and never frozen or rolled back."""
         self.begin(step_index, t)
         status = self._do_step(self._comp, self._t, self._h, 1)                     # never rolled back
-        reached = self.fmu.asked_to_end(status) if status > 1 else None
+        reached = self.fmu.asked_to_end(status) if fails(status) else None
         if reached is not None:
             done = math.isclose(reached, t + self.dt, rel_tol=1e-12, abs_tol=1e-12 * self.dt)
             where = "after the step to" if done else "in the step from"
@@ -140,8 +139,7 @@ class Subsystem:
                                     f"{t + self.dt if done else t:.6g}", subsystem=self.name, step=step_index, time=t)
             error.step_done = done
             raise error
-        if status > 1:
-            raise self.fmu.status_error("fmi2DoStep", status, step_index, t)
+        self.fmu.check("fmi2DoStep", status, step_index, t)
         self.calls["doStep"] += 1
 
     def freeze(self, step_index, t):

@@ -89,9 +89,7 @@ class _Calls:
         self.t = 0.0                       # where a fresh instance's next step starts (_interferes)
 
     def call(self, name, *args):
-        status = self.fn[name](self.comp, *args)
-        if status > 1:
-            raise self.fmu.status_error(name, status)
+        self.fmu.check(name, self.fn[name](self.comp, *args))
 
     def run(self, u, t0, h, flags):
         """One row of outputs per doStep, the inputs u held, from t0 on."""

@@ -35,6 +35,12 @@ from .unpack import regular_file, unpack
 from .values import BOOLEAN, REAL, as_python, category, integer_range, is_int32, is_number
 
 _STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
+WARNING = 1
+
+
+def fails(status):
+    """Whether an fmi2 status fails the call: worse than fmi2Warning (as the kernel's fmi_fails, kernel/c/fmicall.h)."""
+    return status > WARNING
 _libc = ctypes.CDLL(None)
 _libc.calloc.restype = ctypes.c_void_p
 _libc.calloc.argtypes = [ctypes.c_size_t, ctypes.c_size_t]
@@ -560,6 +566,11 @@ class Fmu:
         """None, or the time the FMU reached when a doStep that returned `status` is the FMU asking to
         end the simulation (its last successful time; NaN when it cannot say)."""
         return self._fmi.asked_to_end(self, status)
+
+    def check(self, fname, status, step=None, time=None):
+        """The one status check of a call in fmi2 form (`fname`): status_error raised when it fails."""
+        if fails(status):
+            raise self.status_error(fname, status, step, time)
 
     def status_error(self, fname, status, step=None, time=None):
         """The FmuError for a call in fmi2 form (`fname`) that returned `status`."""

@@ -7,6 +7,7 @@ import ctypes
 from .abi import mirrors
 from .contract import constant
 from .build import kernel_library
+from .fmicall import FmiFailure
 
 LIBRARY_NAME = "adapter"                   # libadapter.so, from kernel/c/adapter.c
 SHIM = ("getFMUstate", "setFMUstate", "freeFMUstate", "setReal", "doStep", "getReal")   # drkernel.h DRFunctions
@@ -28,7 +29,7 @@ class AdapterC(ctypes.Structure):
                 ("h2", ctypes.c_double), ("u_scale", ctypes.c_double), ("evaluations", _L), ("do_steps", _L),
                 ("accepted", _L), ("worst_accepted", ctypes.c_double), ("calls", _L * 3),
                 ("a", _D), ("e", _D), ("f", _D), ("b", _D), ("failure", ctypes.c_int),
-                ("failed_function", ctypes.c_int), ("failed_status", ctypes.c_int), ("failed_rel", ctypes.c_double),
+                ("failed", FmiFailure), ("failed_rel", ctypes.c_double),
                 ("failed_r", _D), ("work", _D)]
 
 

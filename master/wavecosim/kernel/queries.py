@@ -7,6 +7,7 @@ import numpy as np
 
 from .build import helper_library
 from .drkernel import FMI_NAMES, DRFunctions
+from .fmicall import FmiFailure
 
 
 class Queries:
@@ -14,7 +15,7 @@ class Queries:
 
     def __init__(self, lib, pointer):
         self.lib, self.fns = lib, DRFunctions(*[pointer(name) for name in FMI_NAMES])
-        self.failed = (ctypes.c_int * 2)()
+        self.failed = FmiFailure()
 
     def __call__(self, comp, state, in_vr, out_vr, m, t, h, rows, dirty, no_prior=0):
         """Each row of `rows` as a query from x_i^n (held in the handle `state`; restored first only
@@ -25,8 +26,8 @@ class Queries:
         out, p = np.empty_like(inputs), ctypes.c_void_p
         done = self.lib.fq_queries(ctypes.byref(self.fns), comp, ctypes.byref(state), in_vr, out_vr, m, t, h,
                                    p(inputs.ctypes.data), len(inputs), p(out.ctypes.data), int(dirty), int(no_prior),
-                                   self.failed)
-        return out, done, self.failed[0] if done < len(inputs) else 0, self.failed[1]
+                                   ctypes.byref(self.failed))
+        return out, done, self.failed.function if done < len(inputs) else 0, self.failed.status
 
 
 def batch(pointer):

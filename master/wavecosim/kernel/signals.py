@@ -10,12 +10,13 @@ import numpy as np
 
 from .abi import mirrors
 from .contract import constant, names
+from .fmicall import FmiFailure
 from ..errors import FmuError, NumericalError
 
 SG_FMU, SG_NONFINITE = (constant("signals.h", name) for name in ("SG_FMU", "SG_NONFINITE"))   # SGFailure.kind
 TYPES = names("signals.h", "SGType", "SG_")                  # the types of the values a signal carries
-OTHER_FUNCTIONS = {constant("signals.h", f"SG_FN_{verb}_{kind.upper()}"): f"fmi2{verb.title()}{kind.title()}"
-                   for verb in ("GET", "SET") for kind in TYPES[1:]}        # SGFailure.function past DR_FN_*
+OTHER_FUNCTIONS = {constant("fmicall.h", f"SG_FN_{verb}_{kind.upper()}"): f"fmi2{verb.title()}{kind.title()}"
+                   for verb in ("GET", "SET") for kind in TYPES[1:]}        # SGFailure.call.function past DR_FN_*
 FMU_FUNCTIONS = ("fmi2GetReal", "fmi2SetReal", "fmi2DoStep", "fmi2GetInteger", "fmi2SetInteger", "fmi2GetBoolean",
                  "fmi2SetBoolean")
 
@@ -37,8 +38,8 @@ class SGSignal(ctypes.Structure):
 @mirrors("drkernel", "SGFailure")
 class SGFailure(ctypes.Structure):
     """signals.h: why the last step's signals failed."""
-    _fields_ = [(name, ctypes.c_int) for name in ("kind", "index", "function", "status", "step", "alone_done")] + \
-               [("value", ctypes.c_double)]
+    _fields_ = [("kind", ctypes.c_int), ("index", ctypes.c_int), ("call", FmiFailure), ("step", ctypes.c_int),
+                ("alone_done", ctypes.c_int), ("value", ctypes.c_double)]
 
 
 def _array(kind, values):
@@ -118,8 +119,8 @@ class SignalPlan:
         if f.kind == SG_NONFINITE:
             return NumericalError(self.plan["nonfinite"](f.index, f.value, f.step))
         if f.kind == SG_FMU:
-            name = OTHER_FUNCTIONS.get(f.function) or self.functions[f.function]
-            return self.subsystems[f.index].error(name, f.status, n, t)
+            name = OTHER_FUNCTIONS.get(f.call.function) or self.functions[f.call.function]
+            return self.subsystems[f.index].error(name, f.call.status, n, t)
         return FmuError(f"the kernel's signals had no source table values for step {f.step}")
 
     def _failure(self):

@@ -4,6 +4,7 @@
 #include <string.h>
 
 #include "adapter.h"
+#include "fmicall.h"
 #include "linalg.h"
 #include "abi.h"
 
@@ -13,6 +14,7 @@ typedef struct {
 } Scratch;
 
 MIRRORED(WaveAdapterC)
+MIRRORED(FmiFailure)
 
 size_t adapter_work_size(int m) {
     return 10 * (size_t)m + 2 * (size_t)m * (size_t)m;
@@ -55,11 +57,9 @@ static int gauss_jordan(double *A, size_t n) {
 
 /* ---- WaveAdapter ---- */
 
-static int fmu_failed(WaveAdapterC *w, int function, fmi2Status status) {
-    if (status <= fmi2Warning) return 0;
+/* A failed FMU call (fmicall.h recorded it in w->failed) is the query's failure. */
+static int fmu_failed(WaveAdapterC *w) {
     w->failure = AD_FMU;
-    w->failed_function = function;
-    w->failed_status = (int)status;
     return 1;
 }
 
@@ -67,14 +67,14 @@ static int fmu_failed(WaveAdapterC *w, int function, fmi2Status status) {
 WC_INLINE int eval(WaveAdapterC *w, size_t m, const double *u, double *y, double t, double h) {
     w->do_steps++;
     if (w->dirty) {
-        if (fmu_failed(w, DR_FN_SET_STATE, w->fn.setFMUstate(w->comp, *w->state))) return 1;
+        if (fmi_set_state(w->fn.setFMUstate, w->comp, *w->state, &w->failed)) return fmu_failed(w);
         w->calls[2]++;
     }
     w->dirty = 1;
-    if (fmu_failed(w, DR_FN_SET_REAL, w->fn.setReal(w->comp, w->in_vr, m, u))) return 1;
-    if (fmu_failed(w, DR_FN_DO_STEP, w->fn.doStep(w->comp, t, h, w->no_prior ? fmi2True : fmi2False))) return 1;
+    if (fmi_set_real(w->fn.setReal, w->comp, w->in_vr, m, u, &w->failed)) return fmu_failed(w);
+    if (fmi_do_step(w->fn.doStep, w->comp, t, h, w->no_prior, &w->failed)) return fmu_failed(w);
     w->calls[0]++;
-    return fmu_failed(w, DR_FN_GET_REAL, w->fn.getReal(w->comp, w->out_vr, m, y));
+    return fmi_get_real(w->fn.getReal, w->comp, w->out_vr, m, y, &w->failed) ? fmu_failed(w) : 0;
 }
 
 /* _residual: wu u + wy y - target. */
@@ -125,7 +125,7 @@ fmi2Status adapter_reinvert(WaveAdapterC *w) {
 
 /* _estimate_slope: dy/du at the warm start by forward differences (m + 1 doSteps). */
 static fmi2Status estimate_slope(WaveAdapterC *w, size_t m, Scratch *s, double t, double h) {
-    if (eval(w, m, w->u, w->y, t, h)) return (fmi2Status)w->failed_status;
+    if (eval(w, m, w->u, w->y, t, h)) return (fmi2Status)w->failed.status;
     for (size_t j = 0; j < m * m; j++) w->D[j] = 0.0;
     w->have_slope = 1;
     w->h2 = w->u_scale = 0.0;
@@ -137,7 +137,7 @@ static fmi2Status estimate_slope(WaveAdapterC *w, size_t m, Scratch *s, double t
         w->h2 += step * step;
         copy_doubles(s->du, w->u, m);
         s->du[j] += step;
-        if (eval(w, m, s->du, s->y_new, t, h)) return (fmi2Status)w->failed_status;
+        if (eval(w, m, s->du, s->y_new, t, h)) return (fmi2Status)w->failed.status;
         for (size_t i = 0; i < m; i++) w->D[i * m + j] = (s->y_new[i] - w->y[i]) / step;
     }
     return invert(w, m, s);
@@ -184,7 +184,7 @@ static fmi2Status accept(WaveAdapterC *w, size_t m, Scratch *s, double best_rel,
     w->accepted++;
     w->worst_accepted = best_rel > w->worst_accepted ? best_rel : w->worst_accepted;
     if (!best_is_last) {
-        if (eval(w, m, s->best_u, s->best_y, t, h)) return (fmi2Status)w->failed_status;
+        if (eval(w, m, s->best_u, s->best_y, t, h)) return (fmi2Status)w->failed.status;
         copy_doubles(w->u, s->best_u, m);
         copy_doubles(w->y, s->best_y, m);
     }
@@ -214,7 +214,7 @@ WC_INLINE fmi2Status solve(WaveAdapterC *w, size_t m, double t, double h) {
     int have_best = 0, stalled = 0, best_at = -1, last = -1;
     for (int it = 0; it < w->max_iter; it++) {
         double rel;
-        if (newton_step(w, m, &s, &rel, t, h)) return (fmi2Status)w->failed_status;
+        if (newton_step(w, m, &s, &rel, t, h)) return (fmi2Status)w->failed.status;
         if (rel > w->tol) {
             for (size_t j = 0; j < m; j++) {
                 s.du[j] = s.u_new[j] - w->u[j];
@@ -250,7 +250,8 @@ fmi2Status adapter_solve(WaveAdapterC *w, double t, double h) {
 fmi2Status adapter_getFMUstate(fmi2Component c, fmi2FMUstate *state) {
     WaveAdapterC *w = c;
     w->failure = AD_OK;
-    if (fmu_failed(w, DR_FN_GET_STATE, w->fn.getFMUstate(w->comp, state))) return (fmi2Status)w->failed_status;
+    if (fmi_get_state(w->fn.getFMUstate, w->comp, state, &w->failed) && fmu_failed(w))
+        return (fmi2Status)w->failed.status;
     w->state = state;
     w->calls[1]++;
     w->dirty = 0;            /* Subsystem.freeze */

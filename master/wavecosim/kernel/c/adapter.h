@@ -17,7 +17,7 @@
 #ifndef WAVECOSIM_ADAPTER_H
 #define WAVECOSIM_ADAPTER_H
 
-#include "drkernel.h"
+#include "fmicall.h"
 
 /* WaveAdapterC.failure */
 enum { AD_OK = 0, AD_FMU = 1, AD_SINGULAR = 2, AD_STALLED = 3 };
@@ -48,8 +48,9 @@ typedef struct {
     long calls[3];                   /* FMU calls made (doStep, getFMUstate, setFMUstate), for the caller to book */
     /* one query */
     double *a, *e, *f, *b;           /* incident wave, stage effort and flow, outgoing wave */
-    /* the failure of the last query: AD_*, the FMU function (DR_FN_*) and status, residual */
-    int failure, failed_function, failed_status;
+    /* the failure of the last query: AD_*, the FMU call (fmicall.h: its DR_FN_* and status), residual */
+    int failure;
+    FmiFailure failed;
     double failed_rel;
     double *failed_r;
     double *work;                    /* scratch: adapter_work_size(m) doubles */

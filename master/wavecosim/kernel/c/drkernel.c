@@ -12,6 +12,7 @@
 #include <time.h>
 
 #include "drkernel.h"
+#include "fmicall.h"
 #include "kernel_internal.h"
 #include "linalg.h"
 #include "dr_options.h"
@@ -42,7 +43,7 @@ typedef struct {
     int thread;
     int frozen, dirty;             /* x_i^n saved this macro-step / instance moved away from it */
     int no_prior;                  /* noSetFMUStatePriorToCurrentPoint of its doSteps (dr_set_no_prior) */
-    int failed_function, failed_status;
+    FmiFailure failed;             /* the FMU call that failed this macro-step (fmicall.h) */
     long n_do_step, n_save, n_restore;
     double sample_ns[MAX_SAMPLES];
     int n_samples;
@@ -179,13 +180,6 @@ Csr *dr_csr_copy(const int *start, const int *col, const double *val, size_t n) 
 
 /* ---- one subsystem: the frozen port map (frozen_port_map.Subsystem) ---- */
 
-static int failed(Sub *s, int function, fmi2Status status) {
-    if (status <= fmi2Warning) return 0;
-    s->failed_function = function;
-    s->failed_status = (int)status;
-    return 1;
-}
-
 /* S_i^n(a) (commit = 0, eq. 12) or Phi_i(x_i^n, a) (commit = 1, eq. 21) on the channels of s:
  * save x_i^n on the first call of the macro-step (line 3), restore it if an earlier query moved
  * the instance, set the incident waves, one doStep, read the outgoing waves. */
@@ -193,22 +187,22 @@ WC_INLINE int evaluate(Sub *s, const double *in, double *out, double t, double h
     measure = measure && s->n_samples < MAX_SAMPLES;       /* a clock read costs tens of ns: only those kept */
     double t0 = measure ? now_ns() : 0.0;
     if (!s->frozen) {
-        if (failed(s, DR_FN_GET_STATE, s->fn.getFMUstate(s->comp, s->state))) return 1;
+        if (fmi_get_state(s->fn.getFMUstate, s->comp, s->state, &s->failed)) return 1;
         s->n_save++;
         s->frozen = 1;
         s->dirty = 0;
     }
     if (s->dirty) {
-        if (failed(s, DR_FN_SET_STATE, s->fn.setFMUstate(s->comp, *s->state))) return 1;
+        if (fmi_set_state(s->fn.setFMUstate, s->comp, *s->state, &s->failed)) return 1;
         s->n_restore++;
     }
     s->dirty = !commit;
-    if (failed(s, DR_FN_SET_REAL, s->fn.setReal(s->comp, s->in_vr, s->m, in + s->offset))) return 1;
+    if (fmi_set_real(s->fn.setReal, s->comp, s->in_vr, s->m, in + s->offset, &s->failed)) return 1;
     /* noSetFMUStatePriorToCurrentPoint as in the reference (Subsystem.no_prior): x_i^n is restored
      * only at t, this doStep's own communication point. */
-    if (failed(s, DR_FN_DO_STEP, s->fn.doStep(s->comp, t, h, s->no_prior ? fmi2True : fmi2False))) return 1;
+    if (fmi_do_step(s->fn.doStep, s->comp, t, h, s->no_prior, &s->failed)) return 1;
     s->n_do_step++;
-    if (failed(s, DR_FN_GET_REAL, s->fn.getReal(s->comp, s->out_vr, s->m, out + s->offset))) return 1;
+    if (fmi_get_real(s->fn.getReal, s->comp, s->out_vr, s->m, out + s->offset, &s->failed)) return 1;
     if (measure) s->sample_ns[s->n_samples++] = now_ns() - t0;
     return 0;
 }
@@ -326,16 +320,16 @@ static int evaluate_all(DRKernel *k, const double *in, double *out, double t, do
 
 static int report_failure(DRKernel *k, DRStep *io, int i) {
     io->failed_subsystem = i;
-    io->failed_function = k->sub[i].failed_function;
-    io->failed_status = k->sub[i].failed_status;
+    io->failed_function = k->sub[i].failed.function;
+    io->failed_status = k->sub[i].failed.status;
     return -1;
 }
 
 static void begin_macro_step(DRKernel *k, DRStep *io) {
     for (int i = 0; i < k->n_sub; i++) {
         k->sub[i].frozen = 0;
-        k->sub[i].failed_function = DR_FN_NONE;
-        k->sub[i].failed_status = 0;
+        k->sub[i].failed.function = DR_FN_NONE;
+        k->sub[i].failed.status = 0;
     }
     io->failed_subsystem = -1;
     io->failed_function = DR_FN_NONE;
@@ -579,7 +573,7 @@ static int log_step(DRKernel *k, const DRStep *io, double *rows, size_t ld, size
         Sub *s_i = &k->sub[i];
         size_t n_obs = s_i->n_obs, j = 0;
         if (!n_obs) continue;
-        if (failed(s_i, DR_FN_GET_REAL, s_i->obs_get(s_i->obs_comp, s_i->obs_vr, n_obs, k->obs))) return i;
+        if (fmi_get_real(s_i->obs_get, s_i->obs_comp, s_i->obs_vr, n_obs, k->obs, &s_i->failed)) return i;
         double *to = row + c * ld;
         if (s_i->obs_no_H) to[0] = obs[j++];                         /* no stored energy: NaN, not checked */
         for (; j < n_obs; j++) {
@@ -668,7 +662,7 @@ static double largest_root(double q0, double qh, double q1, double target) {
 static int restore_all(DRKernel *k) {
     for (int i = 0; i < k->n_sub; i++) {
         Sub *s = &k->sub[i];
-        if (failed(s, DR_FN_SET_STATE, s->fn.setFMUstate(s->comp, *s->state))) return i;
+        if (fmi_set_state(s->fn.setFMUstate, s->comp, *s->state, &s->failed)) return i;
         s->n_restore++;
         s->dirty = 0;
     }
@@ -1102,7 +1096,7 @@ int dr_set_subsystem(DRKernel *k, int i, const DRFunctions *fn, fmi2Component co
     if (!fn->getFMUstate || !fn->setFMUstate || !fn->freeFMUstate || !fn->setReal || !fn->doStep || !fn->getReal)
         return -1;
     Sub *s = &k->sub[i];
-    if (s->own_state) s->fn.freeFMUstate(s->comp, &s->own_state);
+    if (s->own_state) fmi_free_state(s->fn.freeFMUstate, s->comp, &s->own_state);
     free(s->in_vr);
     s->in_vr = malloc(2 * (size_t)m * sizeof *s->in_vr);
     if (!s->in_vr) return -1;
@@ -1213,7 +1207,7 @@ void dr_destroy(DRKernel *k) {
     if (k->sub) {
         for (int i = 0; i < k->n_sub; i++) {
             Sub *s = &k->sub[i];
-            if (s->own_state) s->fn.freeFMUstate(s->comp, &s->own_state);
+            if (s->own_state) fmi_free_state(s->fn.freeFMUstate, s->comp, &s->own_state);
             free(s->in_vr);
             free(s->obs_vr);
         }
@@ -1260,13 +1254,13 @@ void dr_iterates(DRKernel *k, double **u0, double **uK, double **trace, int *cap
 
 int dr_read(DRKernel *k, int i, const fmi2ValueReference *vr, int count, double *out) {
     Sub *s = &k->sub[i];
-    return failed(s, DR_FN_GET_REAL, s->fn.getReal(s->comp, vr, (size_t)count, out));
+    return fmi_get_real(s->fn.getReal, s->comp, vr, (size_t)count, out, &s->failed);
 }
 
 int dr_thaw(DRKernel *k, int i) {
     Sub *s = &k->sub[i];
     if (!s->frozen || !s->dirty) return 0;
-    if (failed(s, DR_FN_SET_STATE, s->fn.setFMUstate(s->comp, *s->state))) return 1;
+    if (fmi_set_state(s->fn.setFMUstate, s->comp, *s->state, &s->failed)) return 1;
     s->n_restore++;
     s->dirty = 0;
     return 0;
@@ -1290,3 +1284,4 @@ double *dr_inputs(DRKernel *k) { return k->a_hat; }
 
 MIRRORED(DRFunctions)
 MIRRORED(DRStep)
+MIRRORED(FmiFailure)

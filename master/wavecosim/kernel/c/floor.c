@@ -8,6 +8,7 @@
 
 #include "abi.h"
 #include "floor.h"
+#include "fmicall.h"
 
 enum { OP_GET_STATE, OP_SET_STATE, OP_FREE_STATE, OP_SET_REAL, OP_DO_STEP, OP_GET_REAL };
 
@@ -213,7 +214,7 @@ double fl_replay(const FLRecorder *r, const fmi2Component *comps, const FLFuncti
         case OP_DO_STEP: status = fn->doStep(comp, c->t, c->h, c->flag); break;
         case OP_GET_REAL: status = fn->getReal(comp, vr, n, values); break;
         }
-        if (status > fmi2Warning) {
+        if (fmi_fails(status)) {
             *failed = (int)k;
             break;
         }

@@ -6,7 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "linalg.h"
+#include "fmicall.h"
 #include "portview.h"
 
 /* ---- the signed port: ports.DirectPort with in_scale and out_scale ---- */
@@ -78,7 +78,7 @@ static fmi2Status sp_getReal(fmi2Component c, const fmi2ValueReference vr[], siz
     SignedPort *p = c;
     if (nvr > p->m) return fmi2Error;
     fmi2Status status = p->fn.getReal(p->comp, vr, nvr, value);
-    if (status <= fmi2Warning)
+    if (!fmi_fails(status))
         for (size_t j = 0; j < nvr; j++) value[j] = p->out_scale[j] * value[j];
     return status;
 }
@@ -141,7 +141,7 @@ fmi2Status pv_getReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr
     size_t m = v->m, h = v->has_H ? 1 : 0;
     if (nvr != v->size) return fmi2Error;
     fmi2Status status = v->get(v->comp, v->vr, v->n_raw, v->raw);
-    if (status > fmi2Warning) return status;
+    if (fmi_fails(status)) return status;
     const double *e = v->raw + h, *f = e + m;
     double *out = value;
     *out++ = h ? v->raw[0] : NAN;

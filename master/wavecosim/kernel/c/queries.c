@@ -6,29 +6,17 @@
 
 int fq_queries(const DRFunctions *fn, fmi2Component comp, fmi2FMUstate *state, const fmi2ValueReference *in_vr,
                const fmi2ValueReference *out_vr, int m, double t, double dt, const double *inputs, int count,
-               double *outputs, int dirty, int no_prior, int *failed)
+               double *outputs, int dirty, int no_prior, FmiFailure *failed)
 {
     size_t n = (size_t)m;
     for (int q = 0; q < count; q++) {
-        int status;
-        if ((dirty || q > 0) && (status = fn->setFMUstate(comp, *state)) > fmi2Warning) {
-            failed[0] = DR_FN_SET_STATE, failed[1] = status;
-            return q;
-        }
-        if ((status = fn->setReal(comp, in_vr, n, inputs + (size_t)q * n)) > fmi2Warning) {
-            failed[0] = DR_FN_SET_REAL, failed[1] = status;
-            return q;
-        }
-        if ((status = fn->doStep(comp, t, dt, no_prior ? fmi2True : fmi2False)) > fmi2Warning) {
-            failed[0] = DR_FN_DO_STEP, failed[1] = status;
-            return q;
-        }
-        if ((status = fn->getReal(comp, out_vr, n, outputs + (size_t)q * n)) > fmi2Warning) {
-            failed[0] = DR_FN_GET_REAL, failed[1] = status;
-            return q;
-        }
+        if ((dirty || q > 0) && fmi_set_state(fn->setFMUstate, comp, *state, failed)) return q;
+        if (fmi_set_real(fn->setReal, comp, in_vr, n, inputs + (size_t)q * n, failed)) return q;
+        if (fmi_do_step(fn->doStep, comp, t, dt, no_prior, failed)) return q;
+        if (fmi_get_real(fn->getReal, comp, out_vr, n, outputs + (size_t)q * n, failed)) return q;
     }
     return count;
 }
 
 MIRRORED(DRFunctions)
+MIRRORED(FmiFailure)

@@ -111,10 +111,9 @@ void sg_set_table(SGPlan *p, const double *table, long ld, int n0, int count) {
     p->table = table, p->table_ld = ld, p->table_n0 = n0, p->table_count = count;
 }
 
-static int fmu_failed(SGPlan *p, int fmu, int function, fmi2Status status) {
-    if (status <= fmi2Warning) return 0;
+/* A failed call of FMU fmu (fmicall.h recorded it in p->failure.call) is the step's failure. */
+static int fmu_failed(SGPlan *p, int fmu) {
     p->failure.kind = SG_FMU, p->failure.index = fmu;
-    p->failure.function = function, p->failure.status = (int)status;
     return 1;
 }
 
@@ -123,12 +122,11 @@ static int read_group(SGPlan *p, const Groups *g, int r) {
     SGFmu *f = &p->fmu[g->fmu[r]];
     int a = g->start[r], b = g->start[r + 1];
     size_t n = (size_t)(b - a);
-    fmi2Status status;
-    if (g->type[r] == SG_REAL) status = f->getReal(f->comp, g->vr + a, n, p->scratch);
-    else if (g->type[r] == SG_INTEGER) status = f->getInteger(f->comp, g->vr + a, n, p->ints);
-    else status = f->getBoolean(f->comp, g->vr + a, n, p->ints);
-    int fn = g->type[r] == SG_REAL ? DR_FN_GET_REAL : g->type[r] == SG_INTEGER ? SG_FN_GET_INTEGER : SG_FN_GET_BOOLEAN;
-    if (fmu_failed(p, g->fmu[r], fn, status)) return 1;
+    FmiFailure *fail = &p->failure.call;
+    int failed = g->type[r] == SG_REAL ? fmi_get_real(f->getReal, f->comp, g->vr + a, n, p->scratch, fail)
+               : g->type[r] == SG_INTEGER ? fmi_get_integer(f->getInteger, f->comp, g->vr + a, n, p->ints, fail)
+               : fmi_get_boolean(f->getBoolean, f->comp, g->vr + a, n, p->ints, fail);
+    if (failed) return fmu_failed(p, g->fmu[r]);
     for (int j = a; j < b; j++)
         p->value[g->signal[j]] = g->type[r] == SG_REAL ? p->scratch[j - a]
                                : g->type[r] == SG_INTEGER ? (double)p->ints[j - a] : (p->ints[j - a] ? 1.0 : 0.0);
@@ -140,17 +138,16 @@ static int write_group(SGPlan *p, const Groups *g, int w) {
     SGFmu *f = &p->fmu[g->fmu[w]];
     int a = g->start[w], b = g->start[w + 1];
     size_t n = (size_t)(b - a);
-    fmi2Status status;
+    FmiFailure *fail = &p->failure.call;
     for (int j = a; j < b; j++) {
         double v = p->value[g->signal[j]];
         p->scratch[j - a] = v;
         p->ints[j - a] = g->type[w] == SG_BOOLEAN ? (v != 0.0) : (int)v;
     }
-    if (g->type[w] == SG_REAL) status = f->setReal(f->comp, g->vr + a, n, p->scratch);
-    else if (g->type[w] == SG_INTEGER) status = f->setInteger(f->comp, g->vr + a, n, p->ints);
-    else status = f->setBoolean(f->comp, g->vr + a, n, p->ints);
-    int fn = g->type[w] == SG_REAL ? DR_FN_SET_REAL : g->type[w] == SG_INTEGER ? SG_FN_SET_INTEGER : SG_FN_SET_BOOLEAN;
-    return fmu_failed(p, g->fmu[w], fn, status);
+    int failed = g->type[w] == SG_REAL ? fmi_set_real(f->setReal, f->comp, g->vr + a, n, p->scratch, fail)
+               : g->type[w] == SG_INTEGER ? fmi_set_integer(f->setInteger, f->comp, g->vr + a, n, p->ints, fail)
+               : fmi_set_boolean(f->setBoolean, f->comp, g->vr + a, n, p->ints, fail);
+    return failed ? fmu_failed(p, g->fmu[w]) : 0;
 }
 
 /* Signals.hold(n) and the steps of the subsystems stepped alone (Scene.begin_step). */
@@ -184,7 +181,7 @@ static int before(void *ctx, DRStep *io, int n) {
         if (write_group(p, g, w)) return 1;
     for (int a = 0; a < p->n_alone; a++) {                       /* Subsystem.step_alone: never rolled back */
         SGFmu *f = &p->fmu[p->alone_fmu[a]];
-        if (fmu_failed(p, p->alone_fmu[a], DR_FN_DO_STEP, f->doStep(f->comp, io->t, io->dt, fmi2True))) return 1;
+        if (fmi_do_step(f->doStep, f->comp, io->t, io->dt, 1, &p->failure.call)) return fmu_failed(p, p->alone_fmu[a]);
         p->failure.alone_done = a + 1;
     }
     return 0;
@@ -197,9 +194,8 @@ static int observe(void *ctx, double *out, size_t ld) {
         SGFmu *f = &p->fmu[p->alone_fmu[a]];
         int first = p->alone_start[a], count = p->alone_start[a + 1] - first;
         if (!count) continue;
-        if (fmu_failed(p, p->alone_fmu[a], DR_FN_GET_REAL,
-                       f->getReal(f->comp, p->alone_vr + first, (size_t)count, p->scratch)))
-            return 1;
+        if (fmi_get_real(f->getReal, f->comp, p->alone_vr + first, (size_t)count, p->scratch, &p->failure.call))
+            return fmu_failed(p, p->alone_fmu[a]);
         for (int j = 0; j < count; j++) out[(size_t)(first + j) * ld] = p->scratch[j];
     }
     return 0;

@@ -12,6 +12,7 @@
 #ifndef WAVECOSIM_SIGNALS_H
 #define WAVECOSIM_SIGNALS_H
 
+#include "fmicall.h"
 #include "kernel_internal.h"
 
 /* One FMU's functions (its own fmi2 ones, or fmi3shim.c's) and instance; the Integer and Boolean
@@ -37,15 +38,16 @@ typedef struct {
     double factor, offset, lo, hi;
 } SGSignal;
 
-/* SGFailure.kind; SGFailure.function besides DR_FN_*: the Integer and Boolean calls */
+/* SGFailure.kind */
 enum { SG_OK = 0, SG_FMU = 1, SG_NONFINITE = 2, SG_NO_TABLE = 3 };
-enum { SG_FN_GET_INTEGER = 16, SG_FN_GET_BOOLEAN = 17, SG_FN_SET_INTEGER = 18, SG_FN_SET_BOOLEAN = 19 };
 
-/* Why the last step's signals failed: an FMU call (index: the FMU, function DR_FN_* or SG_FN_*,
- * status), a value its input cannot take (non-finite, an integer out of range; index: the signal,
- * value), or a table not given for the step. */
+/* Why the last step's signals failed: an FMU call (index: the FMU; call: its DR_FN_* or SG_FN_* and
+ * status, fmicall.h), a value its input cannot take (non-finite, an integer out of range; index: the
+ * signal, value), or a table not given for the step. */
 typedef struct {
-    int kind, index, function, status, step, alone_done;
+    int kind, index;
+    FmiFailure call;
+    int step, alone_done;
     double value;
 } SGFailure;
 
