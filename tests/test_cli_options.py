@@ -43,6 +43,7 @@ def test_run_set_refuses_a_list_and_an_unknown_key(tmp_path):
     assert code == 2 and len(err.splitlines()) == 1 and "master.Kx: unknown key" in err, err
 
 
+@pytest.mark.slow
 def test_sweep_takes_an_ssp_system_with_its_ports_overlay(tmp_path, built_fmus):
     """The overlay's dt and T reach every run, of a general sweep and of the sweep over K."""
     (tmp_path / "ports.yaml").write_text("dt: 0.005\nT: 0.05\n")

@@ -49,6 +49,7 @@ def test_dr_converges_to_the_monolithic_reference_as_K_grows():
     assert errors[20] < errors[10] < errors[0] and errors[20] <= FLOOR_ANY_CPU and errors[0] > 1e-2, errors
 
 
+@pytest.mark.slow
 def test_the_floor_at_K_20_is_the_fmus_libm_not_ours():
     """With glibc's plain exp, log and pow (whatever the CPU), the floor is the tighter one."""
     code = ("import sys; sys.path.insert(0, {tests!r}); import test_dcmotor as t; print(t.errors_by_K((20,))[20])"

@@ -32,6 +32,7 @@ def plots(args, out, command="run"):
     return proc.stdout + proc.stderr, fate
 
 
+@pytest.mark.slow
 def test_a_scene_with_energy_and_a_reference_draws_all_three_and_names_the_columns_left_out(tmp_path, built_fmus):
     _, fate = plots(["--T", "0.2", "--master", "explicit"], tmp_path)
     assert fate["energy.png"] == fate["error.png"] == "drawn"
@@ -69,6 +70,7 @@ def test_the_legend_names_the_master_and_its_budget_only_where_it_iterates(built
     assert labels == ["explicit", "gauss-seidel", "jacobi-iter, K = 7", "dr, K = 7"]
 
 
+@pytest.mark.slow
 def test_plot_patterns_pick_the_columns_and_a_pattern_matching_none_is_refused(tmp_path, built_fmus):
     _, fate = plots(["--T", "0.05", "--plot", "v*", "--plot", "d"], tmp_path / "a")
     assert fate["trajectories.png"].startswith("drawn; 3 of 7 columns drawn; left out: q1, q2, bA, bB (")
@@ -83,12 +85,14 @@ def test_plot_patterns_pick_the_columns_and_a_pattern_matching_none_is_refused(t
         "error: --plot: a sweep with --set draws its --plot-y figures, not trajectories")
 
 
+@pytest.mark.slow
 def test_a_sweep_of_fmus_without_energy_draws_the_figures_it_has(tmp_path, built_fmus):
     _, fate = plots([CONFIGS / "foreign_pair.yaml", "--T", "0.05", "--Ks", "0,3"], tmp_path, "sweep")
     assert fate["fig4_trajectories.png"].startswith("drawn") and fate["fig6_error.png"] == "drawn"
     assert "not drawn" in fate["fig5_certificates.png"] and "not drawn" in fate["energy_by_K.png"]
 
 
+@pytest.mark.slow
 def test_a_comparison_of_fmus_without_energy_draws_the_error_against_cost(tmp_path, built_fmus):
     _, fate = plots([CONFIGS / "foreign_pair.yaml", "--T", "0.05", "--masters", "explicit,dr", "--Ks", "1,3"],
                     tmp_path, "compare")

@@ -71,6 +71,7 @@ def _kept(out, steps=None):
     return summary
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("fault", [5, pytest.param(7, marks=pytest.mark.slow)], ids=["signals-blocked", "own-handlers"])
 def test_a_hang_that_holds_the_freeze_signal_is_rescued(fault, hostile):
     """The watchdog takes the freeze the FMU never takes; the rescue writes every step before it."""
@@ -91,6 +92,7 @@ def test_a_process_that_stops_itself_is_ended(hostile):
     assert summary["status"] == "timed out" and 0 < summary["steps"] < STEP and list(temp.iterdir()) == []
 
 
+@pytest.mark.slow
 def test_a_helper_the_fmu_forked_neither_holds_the_run_nor_outlives_it(hostile):
     started = time.monotonic()
     proc, out, temp = hostile(9, "--no-reference")
@@ -107,6 +109,7 @@ def test_a_crash_in_a_thread_the_fmu_started(hostile):
     assert _kept(out, STEP)["status"] == "crashed" and list(temp.iterdir()) == []
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("where,fault,env,call", [
     ("instantiate", 0, {"FAULTYSIDE_HANG": "instantiate"}, "fmi2Instantiate"),
     ("restore", 13, {}, "fmi2SetFMUstate")])
@@ -148,6 +151,7 @@ def test_a_binary_that_does_not_load_is_an_fmu_error(hostile, tmp_path):
     assert list(temp.iterdir()) == []
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("master", ["dr", pytest.param("jacobi-iter", marks=pytest.mark.slow)])
 def test_a_restore_that_drifts_during_the_run_stops_it(master, hostile):
     """The probes at set-up find the restore exact; from step 50 on it multiplies v by 1 + 1e-4. The
@@ -168,6 +172,7 @@ def test_a_chdir_mid_run_writes_every_file_into_the_folder_named(hostile, tmp_pa
     assert _kept(out, 100)["status"] == "finished"
 
 
+@pytest.mark.slow
 def test_a_parent_killed_outright_leaves_nothing_behind(tmp_path, faulty_scenario):
     """SIGKILL of the parent while its child hangs in doStep (no step timeout): the child gets SIGTERM,
     the janitor ends it and removes the channel folder."""

@@ -88,6 +88,7 @@ def test_dr_on_an_ssd_with_power_bonds_writes_its_errors(tmp_path):
     assert 0 < s["max_error"] == max(s["errors"].values()) < 1e-3
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not DCMOTOR.exists(), reason="the third-party dcmotor is not here")
 def test_sweep_and_compare_report_the_same_errors_on_an_ssd(tmp_path):
     ports = tmp_path / "ports.yaml"

@@ -93,6 +93,7 @@ def test_the_dual_mass_oscillator_runs_explicit_and_a_rollback_master_refuses_it
     assert "DualMassOscillator.System" in err and "cannot get and set its state" in err
 
 
+@pytest.mark.slow
 def test_the_compatibility_script_writes_its_rows(tmp_path):
     """The script's quick rows pass (the whole table: tests marked slow)."""
     text, passed = compatibility().table(THIRD_PARTY, only="LinearTransformation", progress=lambda m: None)
