@@ -24,9 +24,10 @@
  *     library the copies share would hold);
  *   QUIRK_RESTORE (a real VR_): fmi2SetFMUstate leaves every STATE variable off by this relative
  *     error (an FMU that restores its state only approximately).
- * COUNT_CALLS (an integer VRI_ of INTEGER_IO, optional): that integer and the next two read the
- * fmi2DoStep, fmi2GetFMUstate and fmi2SetFMUstate calls the instance took, which no restore undoes
- * (a count for a master's bookkeeping to be checked against).
+ * COUNT_CALLS (an integer VRI_ of INTEGER_IO, optional): that integer and the next four read the
+ * fmi2DoStep, fmi2GetFMUstate and fmi2SetFMUstate calls the instance took, and its value gets and
+ * sets (fmi2Get/Set Real, Integer, Boolean, String; one each per call, the call reading them
+ * included), which no restore undoes (a count for a master's bookkeeping to be checked against).
  */
 #define _POSIX_C_SOURCE 200809L
 #include <math.h>
@@ -64,7 +65,8 @@ typedef struct Instance {
     double restore_floor;                /* no state before this time may be set again (the flag's promise) */
     ModelData own, *d;                   /* d: &own, or the process-wide block (QUIRK_SHARED) */
     double start[N_REALS];               /* the variables at the end of initialization (QUIRK_FREEZE 2) */
-    long calls[3];                       /* doSteps, state gets and sets taken (COUNT_CALLS), never restored */
+    long calls[5];                       /* doSteps, state gets and sets, value gets and sets taken
+                                          * (COUNT_CALLS), never restored */
     SavedState *live[MAX_LIVE];
     int n_live;
     struct Instance *next;
@@ -243,9 +245,18 @@ static int quirk(const Instance *c, int which) {
 #define COUNT_CALLS (-1)
 #endif
 
+/* Instance.calls: what each counts. */
+enum { CALL_DO_STEP = 0, CALL_GET_STATE = 1, CALL_SET_STATE = 2, CALL_GET = 3, CALL_SET = 4 };
+
+/* The instance, with one more call of `kind` counted. */
+static Instance *counted(Instance *c, int kind) {
+    c->calls[kind]++;
+    return c;
+}
+
 /* Integer k of the instance: its own count of calls for the COUNT_CALLS variables, else the block's. */
 static fmi2Integer integer(const Instance *c, int k) {
-    if (COUNT_CALLS >= 0 && k >= COUNT_CALLS && k < COUNT_CALLS + 3) return (fmi2Integer)c->calls[k - COUNT_CALLS];
+    if (COUNT_CALLS >= 0 && k >= COUNT_CALLS && k < COUNT_CALLS + 5) return (fmi2Integer)c->calls[k - COUNT_CALLS];
     return c->d->i[k];
 }
 
@@ -349,21 +360,21 @@ static void check_refs(const Instance *c, const char *fn, const fmi2ValueReferen
 }
 
 fmi2Status fmi2GetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t n, fmi2Real value[]) {
-    Instance *c = instance(comp, "fmi2GetReal", READABLE);
+    Instance *c = counted(instance(comp, "fmi2GetReal", READABLE), CALL_GET);
     check_refs(c, "fmi2GetReal", vr, n, value, 0, N_REALS);
     for (size_t k = 0; k < n; k++) value[k] = c->d->r[vr[k]];
     return fmi2OK;
 }
 
 fmi2Status fmi2GetInteger(fmi2Component comp, const fmi2ValueReference vr[], size_t n, fmi2Integer value[]) {
-    Instance *c = instance(comp, "fmi2GetInteger", READABLE);
+    Instance *c = counted(instance(comp, "fmi2GetInteger", READABLE), CALL_GET);
     check_refs(c, "fmi2GetInteger", vr, n, value, INTEGER_VR_BASE, N_INTEGERS);
     for (size_t k = 0; k < n; k++) value[k] = integer(c, (int)(vr[k] - INTEGER_VR_BASE));
     return fmi2OK;
 }
 
 fmi2Status fmi2SetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t n, const fmi2Real value[]) {
-    Instance *c = instance(comp, "fmi2SetReal", SETTABLE);
+    Instance *c = counted(instance(comp, "fmi2SetReal", SETTABLE), CALL_SET);
     check_refs(c, "fmi2SetReal", vr, n, value, 0, N_REALS);
     for (size_t k = 0; k < n; k++) {
         int kind = real_kind[vr[k]];
@@ -375,36 +386,36 @@ fmi2Status fmi2SetReal(fmi2Component comp, const fmi2ValueReference vr[], size_t
 }
 
 fmi2Status fmi2SetInteger(fmi2Component comp, const fmi2ValueReference vr[], size_t n, const fmi2Integer value[]) {
-    Instance *c = instance(comp, "fmi2SetInteger", BEFORE_STEP);
+    Instance *c = counted(instance(comp, "fmi2SetInteger", BEFORE_STEP), CALL_SET);
     check_refs(c, "fmi2SetInteger", vr, n, value, INTEGER_VR_BASE, N_INTEGERS);
     for (size_t k = 0; k < n; k++) c->d->i[vr[k] - INTEGER_VR_BASE] = value[k];
     return fmi2OK;
 }
 
 fmi2Status fmi2GetBoolean(fmi2Component comp, const fmi2ValueReference vr[], size_t n, fmi2Boolean value[]) {
-    check_refs(instance(comp, "fmi2GetBoolean", READABLE), "fmi2GetBoolean", vr, n, value, 0, 0);
+    check_refs(counted(instance(comp, "fmi2GetBoolean", READABLE), CALL_GET), "fmi2GetBoolean", vr, n, value, 0, 0);
     return fmi2OK;
 }
 
 fmi2Status fmi2GetString(fmi2Component comp, const fmi2ValueReference vr[], size_t n, fmi2String value[]) {
-    check_refs(instance(comp, "fmi2GetString", READABLE), "fmi2GetString", vr, n, value, 0, 0);
+    check_refs(counted(instance(comp, "fmi2GetString", READABLE), CALL_GET), "fmi2GetString", vr, n, value, 0, 0);
     return fmi2OK;
 }
 
 fmi2Status fmi2SetBoolean(fmi2Component comp, const fmi2ValueReference vr[], size_t n, const fmi2Boolean value[]) {
-    check_refs(instance(comp, "fmi2SetBoolean", SETTABLE), "fmi2SetBoolean", vr, n, value, 0, 0);
+    check_refs(counted(instance(comp, "fmi2SetBoolean", SETTABLE), CALL_SET), "fmi2SetBoolean", vr, n, value, 0, 0);
     return fmi2OK;
 }
 
 fmi2Status fmi2SetString(fmi2Component comp, const fmi2ValueReference vr[], size_t n, const fmi2String value[]) {
-    check_refs(instance(comp, "fmi2SetString", SETTABLE), "fmi2SetString", vr, n, value, 0, 0);
+    check_refs(counted(instance(comp, "fmi2SetString", SETTABLE), CALL_SET), "fmi2SetString", vr, n, value, 0, 0);
     return fmi2OK;
 }
 
 fmi2Status fmi2GetFMUstate(fmi2Component comp, fmi2FMUstate *state) {
     Instance *c = instance(comp, "fmi2GetFMUstate", ANY);
     if (!state) die("fmi2GetFMUstate", c->name, "NULL pointer to the state handle");
-    c->calls[1]++;
+    c->calls[CALL_GET_STATE]++;
     if (*state) {                            /* by the book: a state of ours; it is replaced */
         check_state(c, *state, "fmi2GetFMUstate");
         release(c, *state);
@@ -416,7 +427,7 @@ fmi2Status fmi2GetFMUstate(fmi2Component comp, fmi2FMUstate *state) {
 fmi2Status fmi2SetFMUstate(fmi2Component comp, fmi2FMUstate state) {
     Instance *c = instance(comp, "fmi2SetFMUstate", ANY);
     check_state(c, state, "fmi2SetFMUstate");
-    c->calls[2]++;
+    c->calls[CALL_SET_STATE]++;
     const SavedState *s = state;
     if (s->time < c->restore_floor - 1e-9 * (1.0 + fabs(c->restore_floor)))
         die("fmi2SetFMUstate", c->name, "the state at t = %.17g is before %.17g, where a doStep was given "
@@ -488,7 +499,7 @@ fmi2Status fmi2DoStep(fmi2Component comp, fmi2Real t, fmi2Real h, fmi2Boolean no
     if (!(fabs(t - c->time) <= 1e-6 * h))
         die("fmi2DoStep", c->name, "currentCommunicationPoint %.17g is not where the instance is (%.17g)", t, c->time);
     if (no_prior && t > c->restore_floor) c->restore_floor = t;
-    c->calls[0]++;
+    c->calls[CALL_DO_STEP]++;
     if (quirk(c, QUIRK_FREEZE) && !no_prior && c->steps > 0) {
         for (int k = 0; d->i[QUIRK_FREEZE] == 2 && k < N_REALS; k++)     /* back to the start point */
             if (real_kind[k] == STATE || real_kind[k] == OUTPUT) d->r[k] = c->start[k];

@@ -12,8 +12,9 @@
  *                        block (an FMU that is not reentrant); 2: one block for the whole process,
  *                        whichever copy of the binary an instance is in;
  *   restore_error        fmi2SetFMUstate leaves x and v off by this relative error.
- * Its integer outputs nDoStep, nGetFMUstate and nSetFMUstate are the calls the instance took, counted
- * by the FMU itself (the layer's COUNT_CALLS), to check a master's own count against. */
+ * Its integer outputs nDoStep, nGetFMUstate, nSetFMUstate, nGet and nSet are the calls the instance
+ * took (value gets and sets of every type), counted by the FMU itself (the layer's COUNT_CALLS), to
+ * check a master's own count against. */
 #define MODEL_IDENTIFIER StrictMass
 #define MODEL_GUID "{37ea3a43-9766-407f-813e-02e867337245}"
 #define MODEL_DESCRIPTION "Mass with viscous damping behind a strict FMI layer; input: force on the mass, output: its velocity (power in)"
@@ -40,7 +41,9 @@
 #define INTEGER_IO(X) \
     X(nDoStep, OUTPUT, 0, "fmi2DoStep calls this instance took, its own count (no restore undoes it)") \
     X(nGetFMUstate, OUTPUT, 0, "fmi2GetFMUstate calls this instance took, its own count") \
-    X(nSetFMUstate, OUTPUT, 0, "fmi2SetFMUstate calls this instance took, its own count")
+    X(nSetFMUstate, OUTPUT, 0, "fmi2SetFMUstate calls this instance took, its own count") \
+    X(nGet, OUTPUT, 0, "fmi2Get Real, Integer, Boolean and String calls this instance took (the one reading it included)") \
+    X(nSet, OUTPUT, 0, "fmi2Set Real, Integer, Boolean and String calls this instance took, its own count")
 
 #define QUIRK_FREEZE VRI_freeze_without_flag
 #define QUIRK_SHARED VRI_shared_state

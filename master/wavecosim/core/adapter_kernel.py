@@ -42,10 +42,9 @@ class KernelAdapter(ports.AdapterPort):
         """Addresses of the C struct's gamma and k (the kernel's port view reads them at each commit)."""
         return self._address("gamma"), self._address("k")
 
-    def counters(self):
-        """Addresses of the C struct's worst_accepted (the kernel's energy ledger reads it: Scene.map_noise)
-        and do_steps (its count of the FMU's doSteps)."""
-        return self._address("worst_accepted"), self._address("do_steps")
+    def noise(self):
+        """The address of the C struct's worst_accepted (the kernel's energy ledger reads it: Scene.map_noise)."""
+        return self._address("worst_accepted")
 
     def _address(self, name):
         return field_address(self.struct, name)
@@ -68,24 +67,16 @@ class KernelAdapter(ports.AdapterPort):
         self.struct.have_slope = 0
 
     def _solve(self, a):
-        """One query from Python: the C solve from the Subsystem's x_i^n, its calls booked."""
+        """One query from Python: the C solve from the Subsystem's x_i^n (its FMU calls count in the FMU's counters)."""
         st, sub = self.struct, self.sub
         for j in range(self.m):
             st.a[j] = a[j]
         st.dirty = sub._dirty                                  # the Subsystem's own record of it
         status = self.lib.adapter_solve(self._ref, sub.t, sub.dt)
         sub._dirty = bool(st.dirty)
-        self.book()
         if fails(status):
             raise self.kernel_error(sub.step_index, sub.t)
         return st.e[:self.m], st.f[:self.m]
-
-    def book(self):
-        """Add the FMU calls the C adapter made since the last booking to the Subsystem's counts."""
-        calls = self.struct.calls
-        for i, key in enumerate(("doStep", "save", "restore")):
-            self.sub.calls[key] += calls[i]
-            calls[i] = 0
 
     def kernel_error(self, n, t):
         """The error of the adapter's last failed call, as the Python reference raises it at step n, or None."""

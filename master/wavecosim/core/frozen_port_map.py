@@ -14,7 +14,7 @@ import numpy as np
 
 from ..kernel import cvalues, queries
 from ..errors import FmuError, SimulationEnded
-from ..fmi.fmu import fails
+from ..fmi.fmu import CALLS, fails
 from ..kernel.drkernel import FUNCTIONS
 from .adapter_kernel import KernelAdapter
 from .ports import DirectPort, WaveAdapter
@@ -78,7 +78,6 @@ class Subsystem:
         self._batch = None                   # kernel.queries.Queries (False without it), on first raw_queries
         self.t = 0.0
         self._t = cvalues.double(0.0)
-        self.calls = {"doStep": 0, "save": 0, "restore": 0}
         self.map = self._port_map(gamma)
 
     def _port_map(self, gamma):
@@ -118,6 +117,12 @@ class Subsystem:
             v[self.m:] = [s * f for s, f in zip(self.port.sign, v[self.m:])]
         return list(v)
 
+    @property
+    def calls(self):
+        """Its FMU's calls so far, {CALLS name: count}: the FMU's own counters (fmi/fmu.py Fmu.calls),
+        which Python and the C kernel count in where each call is made."""
+        return dict(zip(CALLS, self.fmu.calls))
+
     def _call(self, fn, name, *args):
         self.fmu.check(name, fn(*args), self.step_index, self.t)
 
@@ -140,13 +145,11 @@ class Subsystem:
             error.step_done = done
             raise error
         self.fmu.check("fmi2DoStep", status, step_index, t)
-        self.calls["doStep"] += 1
 
     def freeze(self, step_index, t):
         """Save x_i^n, the state every query of this macro-step starts from."""
         self.begin(step_index, t)
         self._call(self._get_state, "fmi2GetFMUstate", self._comp, cvalues.ref(self._state))
-        self.calls["save"] += 1
         self._dirty = False
         self.map.new_step()
 
@@ -155,13 +158,11 @@ class Subsystem:
             self._in_val[j] = a[j]
         self._call(self._set_real, "fmi2SetReal", self._comp, self._in_vr, self._m, self._in_val)
         self._call(self._do_step, "fmi2DoStep", self._comp, self._t, self._h, self.no_prior)
-        self.calls["doStep"] += 1
         self._call(self._get_real, "fmi2GetReal", self._comp, self._out_vr, self._m, self._out_val)
         return self._out_val[:]
 
     def _restore(self):
         self._call(self._set_state, "fmi2SetFMUstate", self._comp, self._state)
-        self.calls["restore"] += 1
 
     def query(self, a):
         """S_i^n(a): restore x_i^n, apply a, read the output; the state is discarded."""
@@ -206,15 +207,12 @@ class Subsystem:
         """raw_query of each row of a 2-D array, in order, as rows of outputs: one C call
         (kernel/c/queries.c) making the same FMU calls, or raw_query row by row without it."""
         if self._batch is None:
-            self._batch = queries.batch(self.fmu.function_pointer) or False
+            self._batch = queries.batch(self.fmu.function_pointer, self.fmu.calls) or False
         if not self._batch:
             return np.array([self.raw_query(list(r)) for r in rows], float).reshape(len(rows), self.m)
         out, done, fn, status = self._batch(self._comp, self._state, self._in_vr, self._out_vr, self.m, self._t,
                                             self._h, rows, self._dirty, self.no_prior)
-        restore_fn = FUNCTIONS.index("fmi2SetFMUstate")
-        self.calls["restore"] += max(0, done + (fn > 0) - (not self._dirty)) - (fn == restore_fn)
-        self.calls["doStep"] += done + (fn == FUNCTIONS.index("fmi2GetReal"))
-        self._dirty = self._dirty or done > 0 or fn > restore_fn
+        self._dirty = self._dirty or done > 0 or fn > FUNCTIONS.index("fmi2SetFMUstate")
         if fn:
             raise self.fmu.status_error(FUNCTIONS[fn], status, self.step_index, self.t)
         return out
@@ -253,12 +251,10 @@ class Subsystem:
         if not hasattr(self, "_snap"):
             self._snap = cvalues.pointer()
         self._call(self._get_state, "fmi2GetFMUstate", self._comp, cvalues.ref(self._snap))
-        self.calls["save"] += 1
 
     def back_to_snapshot(self):
         """Put the instance back where snapshot() saved it."""
         self._call(self._set_state, "fmi2SetFMUstate", self._comp, self._snap)
-        self.calls["restore"] += 1
         self._dirty = False
 
     def read(self, names):
@@ -285,14 +281,10 @@ class Subsystem:
         kernel macro-step this Subsystem holds x_i^n exactly as after a Python one."""
         return cvalues.address(self._state)
 
-    def note_kernel_step(self, step_index, t, iterations, steps=1, redone=0):
-        """Book `steps` macro-steps the C kernel made, the last one step n at t (frozen at x^n):
-        each a save, its queries and one commit; `iterations` counts the queries of them all and
-        `redone` the energy ledger's redo rounds (a restore and a doStep each)."""
+    def note_kernel_step(self, step_index, t):
+        """After macro-steps the C kernel made, the last one step n at t: frozen at x^n and at the
+        commit (the kernel counted its FMU calls in the FMU's counters)."""
         self.begin(step_index, t)
-        self.calls["save"] += steps
-        self.calls["doStep"] += iterations + steps + redone
-        self.calls["restore"] += iterations + redone
         self._dirty = False
 
     def release(self):

@@ -48,7 +48,7 @@ def unusable(scene):
 def kernel_fmu(s):
     """A subsystem's FMU instance as the kernel calls it."""
     fmu = s.fmu
-    return KernelFmu(s.name, fmu.component, fmu.function_pointer, fmu.real_vrs, fmu.status_error)
+    return KernelFmu(s.name, fmu.component, fmu.function_pointer, fmu.real_vrs, fmu.status_error, fmu.calls_address())
 
 
 def _probe_vrs(s):
@@ -61,15 +61,15 @@ def kernel_subsystem(s, offset):
     """Subsystem s as the DR kernel takes it; a wave adapter moves to C here (Subsystem.adapter_in_kernel)."""
     fmu = kernel_fmu(s)
     functions, component = tuple(fmu.pointer(name) for name in FMI_NAMES), fmu.component
-    counters = impedance = adapter_error = None
+    noise = impedance = adapter_error = None
     if s.adapter:
-        table, component = s.adapter_in_kernel(DRFunctions(*functions), component, FUNCTIONS)
+        table, component = s.adapter_in_kernel(DRFunctions(*functions, fmu.calls), component, FUNCTIONS)
         functions, vr_in = tuple(table), uints(range(s.m))
-        vr_out, counters, impedance, adapter_error = vr_in, s.map.counters(), s.map.impedance(), s.map.kernel_error
+        vr_out, noise, impedance, adapter_error = vr_in, s.map.noise(), s.map.impedance(), s.map.kernel_error
     else:
         vr_in, vr_out = s.port_vrs()
     return KernelSubsystem(fmu, s.m, int(offset), functions, component, s.state_handle_address(), vr_in, vr_out,
-                           int(s.no_prior), s.port_scales(), counters, impedance, adapter_error,
+                           int(s.no_prior), s.port_scales(), noise, impedance, adapter_error,
                            s.plain_wave_port(), _probe_vrs(s))
 
 
@@ -79,10 +79,8 @@ def describe(scene):
     if plan is not None:
         plan = {**plan, "subsystems": [kernel_fmu(s) for s in plan["subsystems"]]}
 
-    def book_alone(j, do_steps, n, t):
-        alone[j].calls["doStep"] += do_steps
-        if n is not None:
-            alone[j].begin(n, t)
+    def book_alone(j, n, t):
+        alone[j].begin(n, t)
 
     return KernelScene([kernel_subsystem(s, off) for s, off in zip(scene.subsystems, scene.offsets)],
                        [kernel_fmu(s) for s in alone], scene.n_channels, scene.scenario.start_time,

@@ -243,8 +243,8 @@ class Scene:
         return max([s.map.worst_accepted for s in self.subsystems if s.adapter], default=0.0)
 
     def fmu_calls(self):
-        """{subsystem: its FMU calls so far}, every FMU of the scene (those stepped alone too): each
-        Subsystem books the calls made on its FMU, where they are made (Python or the C kernel)."""
+        """{subsystem: its FMU calls so far}, every FMU of the scene (those stepped alone too): its FMU's
+        own counters, counted where each call is made (fmi/fmu.py in Python, kernel/c/fmicall.h in C)."""
         return {s.name: dict(s.calls) for s in self.subsystems + self.signal_only}
 
     def do_step_calls(self):

@@ -27,6 +27,7 @@ from fmpy.fmi2 import fmi2LastSuccessfulTime
 
 from ..errors import FmuError
 from ..kernel.build import helper_library
+from ..kernel.contract import names
 from .me import ModelExchange
 from .messages import MessageLog, cut
 from .fmi3 import load_binary
@@ -36,6 +37,14 @@ from .values import BOOLEAN, REAL, as_python, category, integer_range, is_int32,
 
 _STATUS = {0: "OK", 1: "Warning", 2: "Discard", 3: "Error", 4: "Fatal", 5: "Pending"}
 WARNING = 1
+# An FMU's call counters (Fmu.calls), in the order of kernel/c/fmicall.h's enum FmiCall, which the
+# kernel's calls count in: doSteps, states saved and restored, value gets and sets (one each per call).
+CALLS = tuple("doStep" if kind == "do_step" else kind for kind in names("fmicall.h", "FmiCall", "FMI_CALL_"))
+_VALUE_TYPES = ("Real", "Integer", "Boolean", "String", "Float32", "Float64", "Int8", "UInt8", "Int16", "UInt16",
+                "Int32", "UInt32", "Int64", "UInt64", "Binary")
+COUNTED = {**{f"fmi{v}DoStep": 0 for v in "23"}, "fmi2GetFMUstate": 1, "fmi3GetFMUState": 1, "fmi2SetFMUstate": 2,
+           "fmi3SetFMUState": 2, **{f"fmi{v}{verb}{kind}": CALLS.index(verb.lower()) for v in "23"
+                                    for verb in ("Get", "Set") for kind in _VALUE_TYPES}}
 
 
 def fails(status):
@@ -324,6 +333,7 @@ class Fmu:
         folder (see twin). `hold`: the instance stays in initialization mode until
         end_initialization() (a scene settles its connected inputs first, core/signals.py)."""
         self.path, self.name = Path(path), name
+        self.calls = (ctypes.c_long * len(CALLS))()     # its calls that went through (CALLS), the one count of them
         self._pool = pool
         self._key, self.folder = shared_folder(self.path, pool)
         if like is not None:
@@ -416,10 +426,22 @@ class Fmu:
     def checked(self, call, fname, *args, **kwargs):
         """call(*args, **kwargs), an fmpy method; its exception becomes an FmuError with the FMU's message."""
         try:
-            return call(*args, **kwargs)
+            result = call(*args, **kwargs)
         except Exception as exc:
             self.note_status(getattr(exc, "status", 3))
             raise FmuError(f"{self.name}: {fname} failed: {self.last_message()}", subsystem=self.name) from exc
+        self.count(fname)
+        return result
+
+    def count(self, fname):
+        """Count a call of `fname` (fmi2 or fmi3 name) that went through in `calls`, if it is one counted."""
+        kind = COUNTED.get(fname)
+        if kind is not None:
+            self.calls[kind] += 1
+
+    def calls_address(self):
+        """The address of `calls`, where the C kernel counts the calls it makes (kernel/c/fmicall.h)."""
+        return ctypes.addressof(self.calls)
 
     def note_status(self, status):
         """An error status moves the instance out of the state machine's step phase: after fmi2Error
@@ -568,9 +590,11 @@ class Fmu:
         return self._fmi.asked_to_end(self, status)
 
     def check(self, fname, status, step=None, time=None):
-        """The one status check of a call in fmi2 form (`fname`): status_error raised when it fails."""
+        """The one status check of a call in fmi2 form (`fname`): status_error raised when it fails,
+        else the call counted."""
         if fails(status):
             raise self.status_error(fname, status, step, time)
+        self.count(fname)
 
     def status_error(self, fname, status, step=None, time=None):
         """The FmuError for a call in fmi2 form (`fname`) that returned `status`."""

@@ -10,7 +10,7 @@ from .build import kernel_library
 from .fmicall import FmiFailure
 
 LIBRARY_NAME = "adapter"                   # libadapter.so, from kernel/c/adapter.c
-SHIM = ("getFMUstate", "setFMUstate", "freeFMUstate", "setReal", "doStep", "getReal")   # drkernel.h DRFunctions
+SHIM = ("getFMUstate", "setFMUstate", "freeFMUstate", "setReal", "doStep", "getReal")   # drkernel.h DRFunctions, less calls
 AD_FMU, AD_SINGULAR, AD_STALLED = (constant("adapter.h", name) for name in ("AD_FMU", "AD_SINGULAR", "AD_STALLED"))
 _D, _L = ctypes.POINTER(ctypes.c_double), ctypes.c_long
 
@@ -18,7 +18,7 @@ _D, _L = ctypes.POINTER(ctypes.c_double), ctypes.c_long
 @mirrors("adapter", "WaveAdapterC")
 class AdapterC(ctypes.Structure):
     """adapter.h: WaveAdapterC, field for field."""
-    _fields_ = [("fn", ctypes.c_void_p * len(SHIM)), ("comp", ctypes.c_void_p), ("state", ctypes.c_void_p),
+    _fields_ = [("fn", ctypes.c_void_p * (len(SHIM) + 1)), ("comp", ctypes.c_void_p), ("state", ctypes.c_void_p),
                 ("in_vr", ctypes.POINTER(ctypes.c_uint)), ("out_vr", ctypes.POINTER(ctypes.c_uint)),
                 ("m", ctypes.c_int), ("no_prior", ctypes.c_int), ("effort_in", ctypes.POINTER(ctypes.c_int)),
                 ("sign", _D),
@@ -27,7 +27,7 @@ class AdapterC(ctypes.Structure):
                 ("max_iter", ctypes.c_int), ("stall", ctypes.c_int), ("dirty", ctypes.c_int),
                 ("have_slope", ctypes.c_int), ("u", _D), ("y", _D), ("D", _D), ("J_inv", _D),
                 ("h2", ctypes.c_double), ("u_scale", ctypes.c_double), ("evaluations", _L), ("do_steps", _L),
-                ("accepted", _L), ("worst_accepted", ctypes.c_double), ("calls", _L * 3),
+                ("accepted", _L), ("worst_accepted", ctypes.c_double),
                 ("a", _D), ("e", _D), ("f", _D), ("b", _D), ("failure", ctypes.c_int),
                 ("failed", FmiFailure), ("failed_rel", ctypes.c_double),
                 ("failed_r", _D), ("work", _D)]

@@ -1,8 +1,8 @@
 """What the kernel's bindings know of a scene: plain values, addresses and a few callbacks, built once
 by the scene (core/kernel_scene.py) when a master opens its kernel route and handed in, so that no
 binding reads a Scene, Subsystem or Fmu. Callbacks stay on the scene's side: the error of a failed
-FMU call (the FMU names it), value references by name, the bookkeeping of FMU calls and the current
-gammas.
+FMU call (the FMU names it), value references by name, where a subsystem stepped alone is and the
+current gammas. The kernel counts its FMU calls in each FMU's own counters (KernelFmu.calls).
 """
 from dataclasses import dataclass
 from typing import Callable, Optional
@@ -16,6 +16,7 @@ class KernelFmu:
     pointer: Callable          # fmi2 name -> the address of the function (FMI 3: fmi3shim.c's)
     vrs: Callable              # variable names -> their value references
     error: Callable            # (fmi2 name, status, n, t) -> the FmuError of a failed call
+    calls: int                 # the address of its call counters (fmi/fmu.py CALLS), where the kernel counts its calls
 
 
 @dataclass
@@ -31,7 +32,7 @@ class KernelSubsystem:
     vr_out: object
     no_prior: int              # noSetFMUStatePriorToCurrentPoint of its doSteps
     scales: Optional[tuple]    # (in_scale, out_scale) of a signed physical port (portview.c's shim), or None
-    counters: Optional[tuple]  # a wave adapter in C: addresses of its worst_accepted and do_steps, else None
+    noise: Optional[int]       # a wave adapter in C: the address of its worst_accepted, else None
     impedance: Optional[tuple]  # a wave adapter in C: addresses of its gamma and k, else None
     adapter_error: Optional[Callable]    # (n, t) -> the wave adapter's own failure, or None
     plain_wave: bool           # the port is the FMU's own wave map (no adapter, no input scaling)
@@ -51,5 +52,5 @@ class KernelScene:
     t0: float                  # the start time
     dt: float                  # the macro-step
     signals: Optional[dict]    # signals.c's plan (core/scene.py, Scene.kernel_signals), its FMUs as KernelFmu
-    book_alone: Callable       # (index into alone, doSteps, last step n, its t): book the calls of one stepped alone
+    book_alone: Callable       # (index into alone, last step n, its t): where one stepped alone is
     gammas: Callable           # () -> the gamma of each subsystem now

@@ -68,9 +68,9 @@ class Trace:
 
 @mirrors("drkernel", "queries", "floor", "DRFunctions")
 class DRFunctions(ctypes.Structure):
-    """drkernel.h: the FMU functions the kernel calls."""
+    """drkernel.h: the FMU functions the kernel calls, and the FMU's call counters they count in."""
     _fields_ = [(name, ctypes.c_void_p) for name in
-                ("getFMUstate", "setFMUstate", "freeFMUstate", "setReal", "doStep", "getReal")]
+                ("getFMUstate", "setFMUstate", "freeFMUstate", "setReal", "doStep", "getReal", "calls")]
 
 
 @mirrors("drkernel", "DRStep")
@@ -175,10 +175,12 @@ def thread_plan(costs_us, n_threads):
 class Kernel:
     """One C kernel over a scene's subsystems (wave mode), with its buffers b, a_hat, u^0, u^K."""
 
-    def __init__(self, scene, P, J_L):
+    def __init__(self, scene, P, J_L, counted=True):
         """scene: a description.KernelScene. P, J_L: linalg.Sparse or dense rows; None for a route without
         them (kernel/classical.py, newton.py), which then runs the subsystems in the port mode the scene
-        opened them in."""
+        opened them in. counted: its FMU calls count in the FMUs' call counters (KernelFmu.calls); not
+        those of a kernel the certificates probe with."""
+        self.counted = counted
         lib = self.lib = load_library()
         n = scene.n
         self.scene, self.subsystems = scene, scene.subsystems
@@ -213,14 +215,15 @@ class Kernel:
         """Subsystem i (a description.KernelSubsystem): its functions, or portview.c's signed shim over
         them, or its wave adapter in C. x_i^n goes into the scene's own handle (s.state), so that after
         a fast macro-step the scene holds x_i^n exactly as after the reference one."""
-        lib, fns, comp = self.lib, DRFunctions(*s.functions), s.component
-        if s.counters is not None:
-            lib.dr_set_adapter(self.handle, i, *s.counters)
+        calls = s.fmu.calls if self.counted else None
+        lib, comp = self.lib, s.component
+        fns = DRFunctions(*s.functions, None if s.noise is not None else calls)     # an adapter counts its own
         if s.scales is not None:
             self.shims.append(SignedPort(lib, fns, comp, s.m, *s.scales))
             fns, comp = self.shims[-1].functions, self.shims[-1].handle
         if lib.dr_set_subsystem(self.handle, i, ctypes.byref(fns), comp, s.state, s.vr_in, s.vr_out, s.m,
-                                s.offset) or lib.dr_set_no_prior(self.handle, i, s.no_prior):
+                                s.offset) or lib.dr_set_no_prior(self.handle, i, s.no_prior) \
+                or (s.noise is not None and lib.dr_set_adapter(self.handle, i, s.noise, calls)):
             self.close()
             raise FmuError(f"subsystem {s.name}: the DR kernel refused its port")
 
@@ -399,12 +402,6 @@ class Kernel:
         out = (ctypes.c_double * len(self.subsystems))()
         self.lib.dr_costs(self.handle, out)
         return list(out)
-
-    def counts(self):
-        """[(doStep, save, restore)] made by the kernel per subsystem."""
-        out = (ctypes.c_long * (3 * len(self.subsystems)))()
-        self.lib.dr_counts(self.handle, out)
-        return [tuple(out[3 * i:3 * i + 3]) for i in range(len(self.subsystems))]
 
     def set_threads(self, plan):
         """Evaluate subsystem i on thread plan[i] (0 = the caller); False if threads cannot start."""

@@ -41,9 +41,10 @@ def _csr(P):
 class NewtonKernel:
     """A DR kernel over the scene's subsystems (wave mode) and the Newton macro-step on it."""
 
-    def __init__(self, scene, P):
+    def __init__(self, scene, P, counted=True):
+        """counted: its FMU calls count in the FMUs' counters (not the certificates', drkernel.Kernel)."""
         self.lib = load_library()
-        self.base = Kernel(scene, None, None)
+        self.base = Kernel(scene, None, None, counted)
         self.base.configure(scene.dt, 0)
         self.n = scene.n
         self.settings = NTSettings(TOL, ACCEPT, ACCEPT_REL, MAX_ITER, STALL)

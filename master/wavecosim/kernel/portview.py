@@ -37,6 +37,7 @@ class SignedPort:
             raise FmuError("the kernel could not wrap a signed physical port (out of memory)")
         self.functions = type(fns)()
         self.lib.sp_functions(ctypes.byref(self.functions))
+        self.functions.calls = fns.calls                  # one shim call is one call of the FMU
 
     def close(self):
         if self.handle:

@@ -13,8 +13,8 @@ from .fmicall import FmiFailure
 class Queries:
     """fq_queries over one FMU's function table."""
 
-    def __init__(self, lib, pointer):
-        self.lib, self.fns = lib, DRFunctions(*[pointer(name) for name in FMI_NAMES])
+    def __init__(self, lib, pointer, calls):
+        self.lib, self.fns = lib, DRFunctions(*[pointer(name) for name in FMI_NAMES], ctypes.addressof(calls))
         self.failed = FmiFailure()
 
     def __call__(self, comp, state, in_vr, out_vr, m, t, h, rows, dirty, no_prior=0):
@@ -30,8 +30,8 @@ class Queries:
         return out, done, self.failed.function if done < len(inputs) else 0, self.failed.status
 
 
-def batch(pointer):
-    """Queries over an FMU's function table (pointer(fmi2 name) -> the function's address), or None
-    without the library (no C compiler)."""
+def batch(pointer, calls):
+    """Queries over an FMU's function table (pointer(fmi2 name) -> the function's address), counting
+    in its call counters `calls` (a ctypes array, fmicall.h), or None without the library (no C compiler)."""
     lib = helper_library("queries")
-    return lib and Queries(lib, pointer)
+    return lib and Queries(lib, pointer, calls)

@@ -25,7 +25,7 @@ FMU_FUNCTIONS = ("fmi2GetReal", "fmi2SetReal", "fmi2DoStep", "fmi2GetInteger", "
 class SGFmu(ctypes.Structure):
     """signals.h: one FMU's functions and instance."""
     _fields_ = [(name, ctypes.c_void_p) for name in ("getReal", "setReal", "doStep", "getInteger", "setInteger",
-                                                      "getBoolean", "setBoolean", "comp")]
+                                                      "getBoolean", "setBoolean", "comp", "calls")]
 
 
 @mirrors("drkernel", "SGSignal")
@@ -59,7 +59,7 @@ def _calls(calls):
 
 def _functions(fmu, wanted):
     """SGFmu of an FMU (a description.KernelFmu): the functions in `wanted` (the others NULL)."""
-    table = SGFmu(comp=fmu.component)
+    table = SGFmu(comp=fmu.component, calls=fmu.calls)
     for name, field in zip(FMU_FUNCTIONS, SGFmu._fields_):
         if name in wanted:
             setattr(table, field[0], fmu.pointer(name))
@@ -71,7 +71,7 @@ class SignalPlan:
     FMUs as KernelFmu (port subsystems first, then those stepped alone), the signals, the getReal and
     setReal calls, the tables) and the outputs read of each subsystem stepped alone (`alone_vrs`, one
     list each); `functions` names the FMU functions by the kernel's DR_FN_* index (for errors);
-    book_alone(j, doSteps, n, t) books the calls of the j-th stepped alone (n None: no step ended)."""
+    book_alone(j, n, t) says the j-th stepped alone is at step n (its calls count in its FMU's counters)."""
 
     def __init__(self, lib, handle, plan, alone_vrs, functions, book_alone):
         self.lib, self.plan, self.functions, self.book_alone = lib, plan, functions, book_alone
@@ -105,13 +105,13 @@ class SignalPlan:
         self.lib.sg_set_table(self.handle, self.table.ctypes.data, max(count, 1), n0, count)
 
     def book(self, n0, done, failed):
-        """Book the doSteps of the subsystems stepped alone in steps n0 .. n0 + done - 1 (and those
-        made in step n0 + done before a failure there)."""
-        extra = self._failure().alone_done if failed else 0
+        """After steps n0 .. n0 + done - 1 (and a failure in step n0 + done): the step each subsystem
+        stepped alone is at."""
+        if not (done or failed):
+            return
         last = n0 + done - (0 if failed else 1)
-        at = (last, self.plan["t0"] + last * self.plan["dt"]) if done or failed else (None, None)
         for a in range(len(self.alone)):
-            self.book_alone(a, done + (a < extra), *at)
+            self.book_alone(a, last, self.plan["t0"] + last * self.plan["dt"])
 
     def error(self, n, t):
         """The error of the step whose signals failed, as the Python route raises it."""

@@ -108,7 +108,7 @@ class FastDRMaster(DRMaster):
 
     def _newton_kernel(self):
         if self._newton is None:
-            self._newton = NewtonKernel(self._kernel_scene, self.P)
+            self._newton = NewtonKernel(self._kernel_scene, self.P, counted=False)     # the certificates' own
         return self._newton
 
     def kernel_certificates(self, floor):
@@ -167,7 +167,7 @@ class FastDRMaster(DRMaster):
         k = io.iterations
         if timed:   # K queries, the commit, the redo
             self.planner.end(measure, (time.perf_counter() - self.step_started) / (k + 1 + redone))
-        self._note_kernel_steps(n, t, k, 1, redone)   # frozen at x^n (saved by the kernel), calls counted
+        self._note_kernel_steps(n, t)            # frozen at x^n (saved by the kernel)
         n_ch = kernel.n
         out = kernel.results[:]                  # b^{n+1}, a, u^0, u^K
         self._b_step_start = b_n
@@ -179,14 +179,14 @@ class FastDRMaster(DRMaster):
                        u0=u0, uK=uK)
 
     def _redo_in_kernel(self, supplied, budget, left_s, round_s):
-        """The energy ledger's redo of the step just made, by the kernel (kernel/drkernel.py Kernel.redo); its
-        rounds are booked on the Subsystems and b^{n+1} becomes the redo's. Returns (s, supply,
+        """The energy ledger's redo of the step just made, by the kernel (kernel/drkernel.py Kernel.redo); b^{n+1}
+        becomes the redo's. Returns (s, supply,
         traffic, action, rounds, inputs committed)."""
         if self.kernel is None:
             return None
         done = self.kernel.redo(supplied, budget, left_s, round_s)
         self._a_before = self.kernel.a_hat[:]
-        self._note_kernel_steps(self.subsystems[0].step_index, self.subsystems[0].t, 0, 0, done[4])
+        self._note_kernel_steps(self.subsystems[0].step_index, self.subsystems[0].t)
         return (*done, self.kernel.a_hat[:])
 
     def route(self):
@@ -200,29 +200,23 @@ class FastDRMaster(DRMaster):
         return self._redo_seen - made
 
     def _book(self, n0, done, log, b_n):
-        """Book macro-steps n0 .. n0 + done - 1 of the kernel, b_n the b^n of the first: calls and step on
-        the Subsystems, the b^n of the last step (for an undo) and a^{n-1}."""
+        """Book macro-steps n0 .. n0 + done - 1 of the kernel, b_n the b^n of the first: the step on the
+        Subsystems, the b^n of the last step (for an undo) and a^{n-1}."""
         if not done:
             return
         last = n0 + done - 1
-        iterations, redone = int(log.iterations.sum()), int(log.ledger["rounds"].sum())
-        self._note_kernel_steps(last, self.t0 + last * self.dt, iterations, done, redone)
+        self._note_kernel_steps(last, self.t0 + last * self.dt)
         self._b_step_start = log.b[done - 2].tolist() if done > 1 else b_n
         self._a_step_start = log.a_hat[done - 2].tolist() if done > 1 else self._a_before
         self._a_before = self.kernel.a_hat[:]
         if self._trace is not None:
             self._trace = self.kernel.recorded(int(log.iterations[-1]))
 
-    def _note_kernel_steps(self, n, t, iterations, steps=1, redone=0):
-        """Book `steps` kernel macro-steps (the last one step n at t) and `redone` ledger redo rounds
-        on the Subsystems; a wave adapter's FMU calls are its own count (its queries take a varying
-        number of doSteps)."""
+    def _note_kernel_steps(self, n, t):
+        """After kernel macro-steps (the last one step n at t) or a ledger redo: where the Subsystems
+        are (the kernel counted its FMU calls in the FMUs' counters)."""
         for s in self.subsystems:
-            if s.adapter:
-                s.note_kernel_step(n, t, 0, 0)
-                s.map.book()
-            else:
-                s.note_kernel_step(n, t, iterations, steps, redone)
+            s.note_kernel_step(n, t)
 
     def run_info(self):
         """For the run summary: which path and thread plan ran."""

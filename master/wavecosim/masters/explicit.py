@@ -20,7 +20,7 @@ class ExplicitMaster(KernelRoute, PhysicalMaster):
         if self.kernel is not None:
             _, self.y = self.planned(lambda measure: self.kernel.explicit_step(n, t, self.y, int(self.sequential),
                                                                               measure))
-            self.book_kernel(n, t, 0, 1)
+            self.book_kernel(n, t)
             return StepLog(iterations=0, reason="explicit")
         self.y = self.sweep(self.y, lambda sub, inputs: step_forward(sub, n, t, inputs))
         return StepLog(iterations=0, reason="explicit")
@@ -32,11 +32,10 @@ class ExplicitMaster(KernelRoute, PhysicalMaster):
     def configure_kernel(self):
         """Nothing to set: an explicit step has no inner loop."""
 
-    def book_kernel(self, n, t, iterations, steps):
-        """Book `steps` kernel macro-steps (the last one step n at t) as step_forward books each."""
+    def book_kernel(self, n, t):
+        """After kernel macro-steps, the last one step n at t: where the subsystems are."""
         for sub in self.subsystems:
             sub.begin(n, t)
-            sub.calls["doStep"] += steps
 
     def took_block(self, log, done):
         """After a block of kernel steps: its last y^{n+1} (copied: the next call overwrites the log)."""

@@ -45,7 +45,7 @@ class JacobiIterMaster(KernelRoute, RollbackPhysicalMaster):
             self.y, self.u = self.kernel.one_pass(n, t, y, commit=True, first=not passes, measure=measure)
 
         log = self._iterate(n, t, query, commit, freeze=False)
-        self.book_kernel(n, t, log.iterations, 1)
+        self.book_kernel(n, t)
         return (log,)
 
     def _iterate(self, n, t, query, commit, freeze=True):
@@ -71,12 +71,12 @@ class JacobiIterMaster(KernelRoute, RollbackPhysicalMaster):
         return StepLog(iterations=k, residual=residual, reason=reason if self.K else "explicit")
 
     def _kernel_step(self, n, t) -> StepLog:
-        """The same macro-step in C (classical.c); the Subsystems book its calls."""
+        """The same macro-step in C (classical.c); its FMU calls count in the FMUs' counters."""
         self.step_started = time.perf_counter()
         self.configure_kernel()
         io, y_next, u = self.planned(lambda measure: self.kernel.fixed_point_step(n, t, self.y, int(self.sequential),
                                                                                   measure))
-        self.book_kernel(n, t, io.iterations, 1)
+        self.book_kernel(n, t)
         self.y_step_start, self.y, self.u = self.y, y_next, u
         return StepLog(iterations=io.iterations, residual=io.residual, reason=REASONS[io.reason])
 
@@ -84,10 +84,10 @@ class JacobiIterMaster(KernelRoute, RollbackPhysicalMaster):
         """The budget, tolerance and deadline of the kernel's next macro-steps."""
         self.kernel.configure(self.K, self.eps, self.inner_deadline_s if self.deadline_s else None)
 
-    def book_kernel(self, n, t, iterations, steps):
-        """Book `steps` kernel macro-steps (the last one step n at t, `iterations` queries in all)."""
+    def book_kernel(self, n, t):
+        """After kernel macro-steps, the last one step n at t: where the subsystems are."""
         for s in self.subsystems:
-            s.note_kernel_step(n, t, iterations, steps)
+            s.note_kernel_step(n, t)
 
     def took_block(self, log, done):
         """After a block of kernel steps: y^n and y^{n+1} of its last step and its committed inputs

@@ -90,7 +90,7 @@ class KernelRoute(KernelOwner):
             if timed:
                 self.planner.end(measure, self._step_s * done / (done + iterations))
             last = n0 + done - 1
-            self.book_kernel(last, self.t0 + last * self.dt, iterations, done)
+            self.book_kernel(last, self.t0 + last * self.dt)
             self.took_block(log, done)
             if log.stopped:
                 log.last = self.step_log(log, done - 1)

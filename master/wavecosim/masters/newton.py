@@ -37,20 +37,15 @@ class NewtonMaster(KernelOwner, WaveMaster):
         return StepLog(iterations=iters, residual=res, reason="converged", a_hat=a_hat)
 
     def _kernel_step(self, n, t) -> StepLog:
-        """The same macro-step in C (newton.c); the Subsystems book its calls."""
+        """The same macro-step in C (newton.c); its FMU calls count in the FMUs' counters."""
         self.step_started = time.perf_counter()
-        io, b_next, a_hat, evals = self.kernel.step(n, t, self.b)
-        book_kernel_step(self.subsystems, n, t, evals)
+        io, b_next, a_hat, _ = self.kernel.step(n, t, self.b)
+        book_kernel_step(self.subsystems, n, t)
         self._b_step_start, self._b = self._b, b_next
         return StepLog(iterations=io.iterations, residual=io.residual, reason="converged", a_hat=a_hat)
 
 
-def book_kernel_step(subsystems, n, t, queries):
-    """Book a kernel macro-step on the Subsystems (frozen at x^n, `queries` S-evaluations and the
-    commit); a wave adapter's FMU calls are its own count."""
+def book_kernel_step(subsystems, n, t):
+    """After a kernel macro-step, step n at t: where the Subsystems are (the kernel counted its calls)."""
     for s in subsystems:
-        if s.adapter:
-            s.note_kernel_step(n, t, 0, 0)
-            s.map.book()
-        else:
-            s.note_kernel_step(n, t, queries)
+        s.note_kernel_step(n, t)

@@ -40,8 +40,10 @@ SUMMARY = {
     "loop_time_s": ("from the first macro-step to the last row written: the run's cost beyond set-up", "s"),
     "real_time_factor": ("simulated time over the master's wall time", "1"),
     "fmu_calls": ("FMU calls the run made from its first step on, `doStep`, `save` and `restore` (state get and "
-                  "set), over every FMU (those stepped alone, signals only, too), the same on the C kernel route "
-                  "and the Python one; the observers' own calls (certificates, probes) not counted", "1"),
+                  "set), `get` and `set` (value transfers: fmi2Get/Set Real, Integer, Boolean, String and their "
+                  "FMI 3 kin, one per call whatever its length), over every FMU (those stepped alone, signals only, "
+                  "too), counted where each call is made and the same on the C kernel route and the Python one; "
+                  "the observers' own calls (certificates, probes) not counted", "1"),
     "fmu_calls_by_subsystem": ("the same per subsystem (they add up to `fmu_calls`)", "1"),
     "output_interval": ("a row is written every this many macro-steps (and at the last)", "steps"),
     "energy_guard": ("the energy guard in force: `ledger`, `monolithic`, `off`, or `n/a` for a master that does "

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import WavecosimError
+from ..fmi.fmu import CALLS                # the FMU calls a run counts (fmu_calls)
 from ..fmi.values import BOOLEAN, INTEGER, category
 from ..kernel.drkernel import REASONS as KERNEL_REASONS
 from ..kernel.linalg import total
@@ -32,7 +33,6 @@ from .closing import RunFiles
 from .parts import STEP_COLUMNS, make_observers, open_parts, _warn_stderr
 from .result import grid_clock
 
-CALLS = ("doStep", "save", "restore")       # the FMU calls a run counts (fmu_calls)
 BLOCK_STEPS = BLOCK                    # macro-steps per call of the master, at most a table block
 DURABLE_S = 0.05                       # in a supervised run: the most time of steps a process killed outright loses
 assert REASONS[:len(KERNEL_REASONS)] == KERNEL_REASONS     # the kernel's reason codes are the runner's
@@ -204,11 +204,12 @@ class LiveRun(BlockSteps, RunFiles):
         return self.led
 
     def _counts(self):
-        """Each FMU's calls so far (CALLS), one tuple per subsystem: those with a port, then those stepped alone."""
-        return [tuple(s.calls[k] for k in CALLS) for s in self.scene.subsystems + self.scene.signal_only]
+        """Each FMU's calls so far (CALLS, its own counters), one tuple per subsystem: those with a port,
+        then those stepped alone."""
+        return [tuple(s.fmu.calls) for s in self.scene.subsystems + self.scene.signal_only]
 
     def fmu_calls_by_subsystem(self):
-        """{subsystem: its doStep, save and restore calls from the first step on}, observers' probes excluded."""
+        """{subsystem: its FMU calls (CALLS) from the first step on}, observers' probes excluded."""
         now = self._counts()
         start = now if self.calls_at_start is None else self.calls_at_start     # before the first step: none yet
         excluded = [(0,) * len(CALLS)] * len(now) if self.excluded is None else self.excluded
@@ -269,7 +270,7 @@ class LiveRun(BlockSteps, RunFiles):
         return self.time_of(n) - self.t0 if self.master is not None and self.master.variable else n * self.dt
 
     def fmu_calls(self):
-        """doStep, save and restore calls the run made, over every FMU (observers' probes excluded)."""
+        """The FMU calls (CALLS) the run made, over every FMU (observers' probes excluded)."""
         by = self.fmu_calls_by_subsystem().values()
         return {k: sum(c[k] for c in by) for k in CALLS}
 

@@ -66,15 +66,12 @@ static int fmu_failed(WaveAdapterC *w) {
 /* _eval -> Subsystem.raw_query: restore x_i^n if moved, set u, one doStep, read y. */
 WC_INLINE int eval(WaveAdapterC *w, size_t m, const double *u, double *y, double t, double h) {
     w->do_steps++;
-    if (w->dirty) {
-        if (fmi_set_state(w->fn.setFMUstate, w->comp, *w->state, &w->failed)) return fmu_failed(w);
-        w->calls[2]++;
-    }
+    if (w->dirty && fmi_set_state(w->fn.setFMUstate, w->fn.calls, w->comp, *w->state, &w->failed))
+        return fmu_failed(w);
     w->dirty = 1;
-    if (fmi_set_real(w->fn.setReal, w->comp, w->in_vr, m, u, &w->failed)) return fmu_failed(w);
-    if (fmi_do_step(w->fn.doStep, w->comp, t, h, w->no_prior, &w->failed)) return fmu_failed(w);
-    w->calls[0]++;
-    return fmi_get_real(w->fn.getReal, w->comp, w->out_vr, m, y, &w->failed) ? fmu_failed(w) : 0;
+    if (fmi_set_real(w->fn.setReal, w->fn.calls, w->comp, w->in_vr, m, u, &w->failed)) return fmu_failed(w);
+    if (fmi_do_step(w->fn.doStep, w->fn.calls, w->comp, t, h, w->no_prior, &w->failed)) return fmu_failed(w);
+    return fmi_get_real(w->fn.getReal, w->fn.calls, w->comp, w->out_vr, m, y, &w->failed) ? fmu_failed(w) : 0;
 }
 
 /* _residual: wu u + wy y - target. */
@@ -250,10 +247,9 @@ fmi2Status adapter_solve(WaveAdapterC *w, double t, double h) {
 fmi2Status adapter_getFMUstate(fmi2Component c, fmi2FMUstate *state) {
     WaveAdapterC *w = c;
     w->failure = AD_OK;
-    if (fmi_get_state(w->fn.getFMUstate, w->comp, state, &w->failed) && fmu_failed(w))
+    if (fmi_get_state(w->fn.getFMUstate, w->fn.calls, w->comp, state, &w->failed) && fmu_failed(w))
         return (fmi2Status)w->failed.status;
     w->state = state;
-    w->calls[1]++;
     w->dirty = 0;            /* Subsystem.freeze */
     w->have_slope = 0;       /* WaveAdapter.new_step */
     return fmi2OK;

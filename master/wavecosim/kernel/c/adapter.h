@@ -45,7 +45,6 @@ typedef struct {
     double h2, u_scale;
     long evaluations, do_steps, accepted;
     double worst_accepted;
-    long calls[3];                   /* FMU calls made (doStep, getFMUstate, setFMUstate), for the caller to book */
     /* one query */
     double *a, *e, *f, *b;           /* incident wave, stage effort and flow, outgoing wave */
     /* the failure of the last query: AD_*, the FMU call (fmicall.h: its DR_FN_* and status), residual */

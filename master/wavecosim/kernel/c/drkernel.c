@@ -39,12 +39,11 @@ typedef struct {
     fmi2Component obs_comp;
     int obs_no_H;                  /* the first observed value is no stored energy (NaN): not checked */
     const double *noise;           /* a wave adapter's worst kept residual (dr_set_adapter), or NULL */
-    const long *fmu_do_steps;      /* a wave adapter's count of its FMU's doSteps, or NULL */
+    long *calls;                   /* its FMU's call counters (fmicall.h): fn.calls, or a wave adapter's FMU's */
     int thread;
     int frozen, dirty;             /* x_i^n saved this macro-step / instance moved away from it */
     int no_prior;                  /* noSetFMUStatePriorToCurrentPoint of its doSteps (dr_set_no_prior) */
     FmiFailure failed;             /* the FMU call that failed this macro-step (fmicall.h) */
-    long n_do_step, n_save, n_restore;
     double sample_ns[MAX_SAMPLES];
     int n_samples;
 } Sub;
@@ -187,22 +186,17 @@ WC_INLINE int evaluate(Sub *s, const double *in, double *out, double t, double h
     measure = measure && s->n_samples < MAX_SAMPLES;       /* a clock read costs tens of ns: only those kept */
     double t0 = measure ? now_ns() : 0.0;
     if (!s->frozen) {
-        if (fmi_get_state(s->fn.getFMUstate, s->comp, s->state, &s->failed)) return 1;
-        s->n_save++;
+        if (fmi_get_state(s->fn.getFMUstate, s->fn.calls, s->comp, s->state, &s->failed)) return 1;
         s->frozen = 1;
         s->dirty = 0;
     }
-    if (s->dirty) {
-        if (fmi_set_state(s->fn.setFMUstate, s->comp, *s->state, &s->failed)) return 1;
-        s->n_restore++;
-    }
+    if (s->dirty && fmi_set_state(s->fn.setFMUstate, s->fn.calls, s->comp, *s->state, &s->failed)) return 1;
     s->dirty = !commit;
-    if (fmi_set_real(s->fn.setReal, s->comp, s->in_vr, s->m, in + s->offset, &s->failed)) return 1;
+    if (fmi_set_real(s->fn.setReal, s->fn.calls, s->comp, s->in_vr, s->m, in + s->offset, &s->failed)) return 1;
     /* noSetFMUStatePriorToCurrentPoint as in the reference (Subsystem.no_prior): x_i^n is restored
      * only at t, this doStep's own communication point. */
-    if (fmi_do_step(s->fn.doStep, s->comp, t, h, s->no_prior, &s->failed)) return 1;
-    s->n_do_step++;
-    if (fmi_get_real(s->fn.getReal, s->comp, s->out_vr, s->m, out + s->offset, &s->failed)) return 1;
+    if (fmi_do_step(s->fn.doStep, s->fn.calls, s->comp, t, h, s->no_prior, &s->failed)) return 1;
+    if (fmi_get_real(s->fn.getReal, s->fn.calls, s->comp, s->out_vr, s->m, out + s->offset, &s->failed)) return 1;
     if (measure) s->sample_ns[s->n_samples++] = now_ns() - t0;
     return 0;
 }
@@ -527,10 +521,10 @@ int dr_set_observed_view(DRKernel *k, int i, fmi2GetRealTYPE *get, fmi2Component
     return 0;
 }
 
-int dr_set_adapter(DRKernel *k, int i, const double *worst, const long *do_steps) {
+int dr_set_adapter(DRKernel *k, int i, const double *worst, long *calls) {
     if (i < 0 || i >= k->n_sub) return -1;
     k->sub[i].noise = worst;
-    k->sub[i].fmu_do_steps = do_steps;
+    k->sub[i].calls = calls;
     return 0;
 }
 
@@ -573,7 +567,7 @@ static int log_step(DRKernel *k, const DRStep *io, double *rows, size_t ld, size
         Sub *s_i = &k->sub[i];
         size_t n_obs = s_i->n_obs, j = 0;
         if (!n_obs) continue;
-        if (fmi_get_real(s_i->obs_get, s_i->obs_comp, s_i->obs_vr, n_obs, k->obs, &s_i->failed)) return i;
+        if (fmi_get_real(s_i->obs_get, s_i->calls, s_i->obs_comp, s_i->obs_vr, n_obs, k->obs, &s_i->failed)) return i;
         double *to = row + c * ld;
         if (s_i->obs_no_H) to[0] = obs[j++];                         /* no stored energy: NaN, not checked */
         for (; j < n_obs; j++) {
@@ -662,8 +656,7 @@ static double largest_root(double q0, double qh, double q1, double target) {
 static int restore_all(DRKernel *k) {
     for (int i = 0; i < k->n_sub; i++) {
         Sub *s = &k->sub[i];
-        if (fmi_set_state(s->fn.setFMUstate, s->comp, *s->state, &s->failed)) return i;
-        s->n_restore++;
+        if (fmi_set_state(s->fn.setFMUstate, s->fn.calls, s->comp, *s->state, &s->failed)) return i;
         s->dirty = 0;
     }
     return -1;
@@ -866,10 +859,11 @@ static double map_noise(const DRKernel *k) {
     return noise;
 }
 
-/* doSteps the FMUs made so far (a wave adapter's own count: its queries take a varying number). */
+/* doSteps the FMUs made so far, as their call counters hold them (a wave adapter's queries take a
+ * varying number). */
 static long fmu_do_steps(const DRKernel *k) {
     long n = 0;
-    for (int i = 0; i < k->n_sub; i++) n += k->sub[i].fmu_do_steps ? *k->sub[i].fmu_do_steps : k->sub[i].n_do_step;
+    for (int i = 0; i < k->n_sub; i++) n += k->sub[i].calls ? k->sub[i].calls[FMI_CALL_DO_STEP] : 0;
     return n;
 }
 
@@ -1104,6 +1098,7 @@ int dr_set_subsystem(DRKernel *k, int i, const DRFunctions *fn, fmi2Component co
     memcpy(s->in_vr, in_vr, (size_t)m * sizeof *in_vr);
     memcpy(s->out_vr, out_vr, (size_t)m * sizeof *out_vr);
     s->fn = *fn;
+    s->calls = fn->calls;
     s->comp = comp;
     s->state = state ? state : &s->own_state;
     s->m = (size_t)m;
@@ -1193,14 +1188,6 @@ void dr_costs(DRKernel *k, double *us_per_eval) {
     }
 }
 
-void dr_counts(const DRKernel *k, long *counts) {
-    for (int i = 0; i < k->n_sub; i++) {
-        counts[3 * i] = k->sub[i].n_do_step;
-        counts[3 * i + 1] = k->sub[i].n_save;
-        counts[3 * i + 2] = k->sub[i].n_restore;
-    }
-}
-
 void dr_destroy(DRKernel *k) {
     if (!k) return;
     stop_workers(k);
@@ -1254,14 +1241,13 @@ void dr_iterates(DRKernel *k, double **u0, double **uK, double **trace, int *cap
 
 int dr_read(DRKernel *k, int i, const fmi2ValueReference *vr, int count, double *out) {
     Sub *s = &k->sub[i];
-    return fmi_get_real(s->fn.getReal, s->comp, vr, (size_t)count, out, &s->failed);
+    return fmi_get_real(s->fn.getReal, s->fn.calls, s->comp, vr, (size_t)count, out, &s->failed);
 }
 
 int dr_thaw(DRKernel *k, int i) {
     Sub *s = &k->sub[i];
     if (!s->frozen || !s->dirty) return 0;
-    if (fmi_set_state(s->fn.setFMUstate, s->comp, *s->state, &s->failed)) return 1;
-    s->n_restore++;
+    if (fmi_set_state(s->fn.setFMUstate, s->fn.calls, s->comp, *s->state, &s->failed)) return 1;
     s->dirty = 0;
     return 0;
 }

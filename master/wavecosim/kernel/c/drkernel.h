@@ -53,6 +53,7 @@ typedef struct {
     fmi2SetRealTYPE *setReal;
     fmi2DoStepTYPE *doStep;
     fmi2GetRealTYPE *getReal;
+    long *calls;         /* the FMU's call counters (fmicall.h FmiCall) its calls count in; NULL: not counted */
 } DRFunctions;
 
 /* One macro-step: the caller fills the inputs, the kernel the results. */
@@ -168,9 +169,10 @@ int dr_set_bound(DRKernel *k, double bound, const int *indices, int count);
 int dr_set_observed_view(DRKernel *k, int i, fmi2GetRealTYPE *get, fmi2Component comp, int no_H);
 
 /* Where subsystem i's wave adapter keeps the worst relative residual it accepted (read at each step:
- * the ledger's tolerance is (io->ledger_rtol + the largest of them) times the traffic) and its count
- * of the FMU's doSteps, or NULLs. Returns 0, or -1 on bad arguments. */
-int dr_set_adapter(DRKernel *k, int i, const double *worst, const long *do_steps);
+ * the ledger's tolerance is (io->ledger_rtol + the largest of them) times the traffic), and its FMU's
+ * call counters (fmicall.h), which the observed reads count in; NULLs: none. Call after
+ * dr_set_subsystem. Returns 0, or -1 on bad arguments. */
+int dr_set_adapter(DRKernel *k, int i, const double *worst, long *calls);
 
 /* doSteps of the FMUs in the ledger's redos (dr_run_steps) so far. */
 long dr_redo_do_steps(const DRKernel *k);
@@ -225,8 +227,6 @@ int dr_ledger_redo(DRKernel *k, DRStep *io, double supplied, double budget, doub
  * then resets the measurement. */
 void dr_costs(DRKernel *k, double *us_per_eval);
 
-/* Calls made so far per subsystem: counts[3 i + 0..2] = doStep, getFMUstate, setFMUstate. */
-void dr_counts(const DRKernel *k, long *counts);
 
 /* Stops the workers, frees the kernel's own saved FMU states (call it before the instances are
  * freed) and the kernel. */

@@ -1,7 +1,9 @@
 /* The kernel's FMI call table: one wrapper per fmi2 function the kernel calls (drkernel.c, adapter.c,
  * signals.c, queries.c), each through the one status check, fmi_check, which records the function
  * that failed and the status it returned; the Python twin is wavecosim/fmi/fmu.py (Fmu.status_error).
- * Header only: every wrapper is inlined into its caller, so a call costs what the bare call costs. */
+ * A call that went through counts once in the FMU's call counters the caller passes (FmiCall), the
+ * one place the kernel's FMU calls are counted. Header only: every wrapper is inlined into its
+ * caller, so a call costs what the bare call costs. */
 #ifndef WAVECOSIM_FMICALL_H
 #define WAVECOSIM_FMICALL_H
 
@@ -10,6 +12,11 @@
 
 /* The FMU functions of the signals' Integer and Boolean calls, numbered past DR_FN_* (drkernel.h). */
 enum { SG_FN_GET_INTEGER = 16, SG_FN_GET_BOOLEAN = 17, SG_FN_SET_INTEGER = 18, SG_FN_SET_BOOLEAN = 19 };
+
+/* What a call counts as in an FMU's call counters (fmi/fmu.py CALLS): a doStep, a state saved or
+ * restored, a get or a set of values (one call, whatever its length). */
+enum FmiCall { FMI_CALL_DO_STEP = 0, FMI_CALL_SAVE = 1, FMI_CALL_RESTORE = 2, FMI_CALL_GET = 3, FMI_CALL_SET = 4,
+               FMI_CALLS = 5 };
 
 /* The FMU call that failed: its DR_FN_* or SG_FN_*, and the fmi2Status it returned. */
 typedef struct {
@@ -27,12 +34,18 @@ WC_INLINE int fmi_check(FmiFailure *f, int function, fmi2Status status) {
     return 1;
 }
 
-WC_INLINE int fmi_get_state(fmi2GetFMUstateTYPE *call, fmi2Component c, fmi2FMUstate *state, FmiFailure *f) {
-    return fmi_check(f, DR_FN_GET_STATE, call(c, state));
+/* A call that went through counts once in the FMU's counters (NULL: not counted); returns failed. */
+WC_INLINE int fmi_counted(long *calls, int kind, int failed) {
+    if (calls && !failed) calls[kind]++;
+    return failed;
 }
 
-WC_INLINE int fmi_set_state(fmi2SetFMUstateTYPE *call, fmi2Component c, fmi2FMUstate state, FmiFailure *f) {
-    return fmi_check(f, DR_FN_SET_STATE, call(c, state));
+WC_INLINE int fmi_get_state(fmi2GetFMUstateTYPE *call, long *calls, fmi2Component c, fmi2FMUstate *state, FmiFailure *f) {
+    return fmi_counted(calls, FMI_CALL_SAVE, fmi_check(f, DR_FN_GET_STATE, call(c, state)));
+}
+
+WC_INLINE int fmi_set_state(fmi2SetFMUstateTYPE *call, long *calls, fmi2Component c, fmi2FMUstate state, FmiFailure *f) {
+    return fmi_counted(calls, FMI_CALL_RESTORE, fmi_check(f, DR_FN_SET_STATE, call(c, state)));
 }
 
 /* Freeing a state is not checked: the handle is gone whatever the FMU answers. */
@@ -40,38 +53,38 @@ WC_INLINE void fmi_free_state(fmi2FreeFMUstateTYPE *call, fmi2Component c, fmi2F
     (void)call(c, state);
 }
 
-WC_INLINE int fmi_do_step(fmi2DoStepTYPE *call, fmi2Component c, double t, double h, int no_prior, FmiFailure *f) {
-    return fmi_check(f, DR_FN_DO_STEP, call(c, t, h, no_prior ? fmi2True : fmi2False));
+WC_INLINE int fmi_do_step(fmi2DoStepTYPE *call, long *calls, fmi2Component c, double t, double h, int no_prior, FmiFailure *f) {
+    return fmi_counted(calls, FMI_CALL_DO_STEP, fmi_check(f, DR_FN_DO_STEP, call(c, t, h, no_prior ? fmi2True : fmi2False)));
 }
 
-WC_INLINE int fmi_get_real(fmi2GetRealTYPE *call, fmi2Component c, const fmi2ValueReference *vr, size_t n,
+WC_INLINE int fmi_get_real(fmi2GetRealTYPE *call, long *calls, fmi2Component c, const fmi2ValueReference *vr, size_t n,
                            double *values, FmiFailure *f) {
-    return fmi_check(f, DR_FN_GET_REAL, call(c, vr, n, values));
+    return fmi_counted(calls, FMI_CALL_GET, fmi_check(f, DR_FN_GET_REAL, call(c, vr, n, values)));
 }
 
-WC_INLINE int fmi_set_real(fmi2SetRealTYPE *call, fmi2Component c, const fmi2ValueReference *vr, size_t n,
+WC_INLINE int fmi_set_real(fmi2SetRealTYPE *call, long *calls, fmi2Component c, const fmi2ValueReference *vr, size_t n,
                            const double *values, FmiFailure *f) {
-    return fmi_check(f, DR_FN_SET_REAL, call(c, vr, n, values));
+    return fmi_counted(calls, FMI_CALL_SET, fmi_check(f, DR_FN_SET_REAL, call(c, vr, n, values)));
 }
 
-WC_INLINE int fmi_get_integer(fmi2GetIntegerTYPE *call, fmi2Component c, const fmi2ValueReference *vr, size_t n,
+WC_INLINE int fmi_get_integer(fmi2GetIntegerTYPE *call, long *calls, fmi2Component c, const fmi2ValueReference *vr, size_t n,
                               int *values, FmiFailure *f) {
-    return fmi_check(f, SG_FN_GET_INTEGER, call(c, vr, n, values));
+    return fmi_counted(calls, FMI_CALL_GET, fmi_check(f, SG_FN_GET_INTEGER, call(c, vr, n, values)));
 }
 
-WC_INLINE int fmi_set_integer(fmi2SetIntegerTYPE *call, fmi2Component c, const fmi2ValueReference *vr, size_t n,
+WC_INLINE int fmi_set_integer(fmi2SetIntegerTYPE *call, long *calls, fmi2Component c, const fmi2ValueReference *vr, size_t n,
                               const int *values, FmiFailure *f) {
-    return fmi_check(f, SG_FN_SET_INTEGER, call(c, vr, n, values));
+    return fmi_counted(calls, FMI_CALL_SET, fmi_check(f, SG_FN_SET_INTEGER, call(c, vr, n, values)));
 }
 
-WC_INLINE int fmi_get_boolean(fmi2GetBooleanTYPE *call, fmi2Component c, const fmi2ValueReference *vr, size_t n,
+WC_INLINE int fmi_get_boolean(fmi2GetBooleanTYPE *call, long *calls, fmi2Component c, const fmi2ValueReference *vr, size_t n,
                               int *values, FmiFailure *f) {
-    return fmi_check(f, SG_FN_GET_BOOLEAN, call(c, vr, n, values));
+    return fmi_counted(calls, FMI_CALL_GET, fmi_check(f, SG_FN_GET_BOOLEAN, call(c, vr, n, values)));
 }
 
-WC_INLINE int fmi_set_boolean(fmi2SetBooleanTYPE *call, fmi2Component c, const fmi2ValueReference *vr, size_t n,
+WC_INLINE int fmi_set_boolean(fmi2SetBooleanTYPE *call, long *calls, fmi2Component c, const fmi2ValueReference *vr, size_t n,
                               const int *values, FmiFailure *f) {
-    return fmi_check(f, SG_FN_SET_BOOLEAN, call(c, vr, n, values));
+    return fmi_counted(calls, FMI_CALL_SET, fmi_check(f, SG_FN_SET_BOOLEAN, call(c, vr, n, values)));
 }
 
 #endif

@@ -123,9 +123,9 @@ static int read_group(SGPlan *p, const Groups *g, int r) {
     int a = g->start[r], b = g->start[r + 1];
     size_t n = (size_t)(b - a);
     FmiFailure *fail = &p->failure.call;
-    int failed = g->type[r] == SG_REAL ? fmi_get_real(f->getReal, f->comp, g->vr + a, n, p->scratch, fail)
-               : g->type[r] == SG_INTEGER ? fmi_get_integer(f->getInteger, f->comp, g->vr + a, n, p->ints, fail)
-               : fmi_get_boolean(f->getBoolean, f->comp, g->vr + a, n, p->ints, fail);
+    int failed = g->type[r] == SG_REAL ? fmi_get_real(f->getReal, f->calls, f->comp, g->vr + a, n, p->scratch, fail)
+               : g->type[r] == SG_INTEGER ? fmi_get_integer(f->getInteger, f->calls, f->comp, g->vr + a, n, p->ints, fail)
+               : fmi_get_boolean(f->getBoolean, f->calls, f->comp, g->vr + a, n, p->ints, fail);
     if (failed) return fmu_failed(p, g->fmu[r]);
     for (int j = a; j < b; j++)
         p->value[g->signal[j]] = g->type[r] == SG_REAL ? p->scratch[j - a]
@@ -144,9 +144,9 @@ static int write_group(SGPlan *p, const Groups *g, int w) {
         p->scratch[j - a] = v;
         p->ints[j - a] = g->type[w] == SG_BOOLEAN ? (v != 0.0) : (int)v;
     }
-    int failed = g->type[w] == SG_REAL ? fmi_set_real(f->setReal, f->comp, g->vr + a, n, p->scratch, fail)
-               : g->type[w] == SG_INTEGER ? fmi_set_integer(f->setInteger, f->comp, g->vr + a, n, p->ints, fail)
-               : fmi_set_boolean(f->setBoolean, f->comp, g->vr + a, n, p->ints, fail);
+    int failed = g->type[w] == SG_REAL ? fmi_set_real(f->setReal, f->calls, f->comp, g->vr + a, n, p->scratch, fail)
+               : g->type[w] == SG_INTEGER ? fmi_set_integer(f->setInteger, f->calls, f->comp, g->vr + a, n, p->ints, fail)
+               : fmi_set_boolean(f->setBoolean, f->calls, f->comp, g->vr + a, n, p->ints, fail);
     return failed ? fmu_failed(p, g->fmu[w]) : 0;
 }
 
@@ -181,7 +181,7 @@ static int before(void *ctx, DRStep *io, int n) {
         if (write_group(p, g, w)) return 1;
     for (int a = 0; a < p->n_alone; a++) {                       /* Subsystem.step_alone: never rolled back */
         SGFmu *f = &p->fmu[p->alone_fmu[a]];
-        if (fmi_do_step(f->doStep, f->comp, io->t, io->dt, 1, &p->failure.call)) return fmu_failed(p, p->alone_fmu[a]);
+        if (fmi_do_step(f->doStep, f->calls, f->comp, io->t, io->dt, 1, &p->failure.call)) return fmu_failed(p, p->alone_fmu[a]);
         p->failure.alone_done = a + 1;
     }
     return 0;
@@ -194,7 +194,7 @@ static int observe(void *ctx, double *out, size_t ld) {
         SGFmu *f = &p->fmu[p->alone_fmu[a]];
         int first = p->alone_start[a], count = p->alone_start[a + 1] - first;
         if (!count) continue;
-        if (fmi_get_real(f->getReal, f->comp, p->alone_vr + first, (size_t)count, p->scratch, &p->failure.call))
+        if (fmi_get_real(f->getReal, f->calls, f->comp, p->alone_vr + first, (size_t)count, p->scratch, &p->failure.call))
             return fmu_failed(p, p->alone_fmu[a]);
         for (int j = 0; j < count; j++) out[(size_t)(first + j) * ld] = p->scratch[j];
     }

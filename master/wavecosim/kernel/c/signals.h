@@ -26,6 +26,7 @@ typedef struct {
     fmi2GetBooleanTYPE *getBoolean;
     fmi2SetBooleanTYPE *setBoolean;
     fmi2Component comp;
+    long *calls;                 /* the FMU's call counters (fmicall.h FmiCall), or NULL: not counted */
 } SGFmu;
 
 /* The categories of values a signal carries (wavecosim/fmi/values.py): a call's type, an input's. */
