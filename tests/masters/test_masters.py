@@ -38,7 +38,8 @@ def test_classical_masters_are_registered_in_physical_mode():
 @pytest.mark.parametrize("name", ["explicit", "gauss-seidel"])
 def test_explicit_masters_step_once_and_never_roll_back(name):
     s = run_quiet(scenario(TABLE_I, 1.0, algorithm=name)).summary
-    assert s["fmu_calls"] == {"doStep": 2 * 100, "save": 0, "restore": 0}
+    # per step and subsystem: its inputs set, one doStep, its outputs read, and the run's reading after the step
+    assert s["fmu_calls"] == {"doStep": 2 * 100, "save": 0, "restore": 0, "get": 2 * 2 * 100, "set": 2 * 100}
     assert s["iterations_max"] == 0
 
 
@@ -46,8 +47,10 @@ def test_explicit_masters_step_once_and_never_roll_back(name):
 def test_fixed_point_masters_count_queries_saves_and_restores(name):
     K, N = 3, 100
     s = run_quiet(scenario(TABLE_I, 1.0, algorithm=name, K=K)).summary
-    # per step and subsystem: one save, K queries and one commit, each after a restore but the first
-    assert s["fmu_calls"] == {"doStep": 2 * N * (K + 1), "save": 2 * N, "restore": 2 * N * K}
+    # per step and subsystem: one save, K queries and one commit, each after a restore but the first,
+    # each a set, a doStep and a get; and the run's reading after the step
+    assert s["fmu_calls"] == {"doStep": 2 * N * (K + 1), "save": 2 * N, "restore": 2 * N * K,
+                              "get": 2 * N * (K + 1) + 2 * N, "set": 2 * N * (K + 1)}
     assert s["iterations_max"] == K and s["iterations_mean"] == K
 
 

@@ -166,6 +166,11 @@ class Sampler:
             return [v[0] if h else math.nan, *e, *f, *b, *v[h + 2 * m:]]
         return read, m, 1 + 2 * m + (m if s.adapter else 0)
 
+    def last(self, observed) -> Reading:
+        """The Reading of the last step of a block's observed values (no FMU read)."""
+        block = self.block(observed)
+        return Reading(*(list(getattr(block, key)[-1]) for key in BlockReading.KEYS))
+
     def read(self) -> Reading:
         H, E, F, B, own = [], [], [], [], []
         for read, m, k in self.parts:

@@ -83,7 +83,7 @@ class DRStep(ctypes.Structure):
                 ("ledger_on", ctypes.c_int), ("ledger", ctypes.c_double), ("traffic", ctypes.c_double),
                 ("ledger_rtol", ctypes.c_double), ("step_deadline_s", ctypes.c_double), ("round_s", ctypes.c_double),
                 ("tail_s", ctypes.c_double), ("t0", ctypes.c_double), ("at", ctypes.c_int), ("passes", ctypes.c_int),
-                ("passed", ctypes.c_int)]
+                ("passed", ctypes.c_int), ("observe", ctypes.c_int)]
 
 
 _lib = None
@@ -292,15 +292,16 @@ class Kernel:
         if self.lib.dr_set_passes(self._handle, len(passes), fns, args):
             raise FmuError(f"the DR kernel refused {len(passes)} passes over its log (drkernel.h, DR_MAX_PASSES)")
 
-    def run_steps(self, n0, count, H_cap=math.inf, measure=False, at=0, passes=False):
+    def run_steps(self, n0, count, H_cap=math.inf, measure=False, at=0, passes=False, observe=True):
         """Macro-steps n0 .. n0 + count - 1 in one call (drkernel.h, dr_run_steps): (steps done, their
         BlockLog, the FmuError of the step after them or None). The call logs from column `at` on,
         after the last call's first `at` steps (joined_log reads them as one, without a copy); the log
         is overwritten by the next call from column 0. passes: it makes the passes (set_passes) over
-        the block's steps as it logs them (BlockLog.passed: how far they went)."""
+        the block's steps as it logs them (BlockLog.passed: how far they went). observe: it reads the
+        observed values after each step (False: a step whose values the caller reads itself)."""
         self._log_room(at, at + count)
         io = self.io
-        io.measure, io.at, io.passes = measure, at, passes
+        io.measure, io.at, io.passes, io.observe = measure, at, passes, observe
         log, ld = self.log, self.log.shape[1]
         if self.plan is not None:
             self.plan.prepare(n0, count)

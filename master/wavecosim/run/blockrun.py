@@ -66,9 +66,10 @@ class BlockSteps:
             self._after_block(n0, log.first(whole))
         if whole < done:
             n = n0 + whole
-            self._after_master(n, self.t0 + n * self.dt, log.last)
-        elif log.stopped:
-            self.bounds.check(self.sampler.read(), n0 + done - 1)
+            kept = log.last.reason != "energy-guard"          # as the kernel made and read it: no second read
+            self._after_master(n, self.t0 + n * self.dt, log.last, self.sampler.last(log.observed) if kept else None)
+        elif log.stopped:                                        # the values the kernel read after its last step
+            self.bounds.check(self.sampler.last(log.observed), n0 + done - 1)
         self.loop_time = time.perf_counter() - self.loop_started
         if error is not None:
             raise error

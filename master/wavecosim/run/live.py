@@ -150,9 +150,9 @@ class LiveRun(BlockSteps, RunFiles):
             raise self.scene.ended
         return reading
 
-    def _after_master(self, n, t, log):
-        """After the master made step n: read the FMUs, the observers, one row."""
-        reading = self.sampler.read()
+    def _after_master(self, n, t, log, reading=None):
+        """After the master made step n: read the FMUs (unless the reading is given), the observers, one row."""
+        reading = self.sampler.read() if reading is None else reading
         for o, row in self.after:
             o.after_step(n, t, log, reading, row)
         self._record(n, log, reading)

@@ -549,8 +549,9 @@ static inline int not_finite(double v) {
     return (bits & 0x7ff0000000000000u) == 0x7ff0000000000000u;
 }
 
-/* Log step s after its commit, column-major: value c at rows[c ld + s]; the first failing subsystem's
- * read, or -1. *finite: whether every observed value checked by stop_after is finite. */
+/* Log step s after its commit, column-major: value c at rows[c ld + s], the observed values read
+ * when io->observe; the first failing subsystem's read, or -1. *finite: whether every observed value
+ * checked by stop_after is finite. */
 static int log_step(DRKernel *k, const DRStep *io, double *rows, size_t ld, size_t s, int *finite) {
     size_t n = k->n, c = 3 + 2 * n;         /* locals: the stores into rows may alias k's arrays */
     const double *a_hat = k->a_hat, *b = k->b, *obs = k->obs;
@@ -563,6 +564,8 @@ static int log_step(DRKernel *k, const DRStep *io, double *rows, size_t ld, size
         row[(3 + j) * ld] = a_hat[j];
         row[(3 + n + j) * ld] = b[j];
     }
+    *finite = 1;
+    if (!io->observe) return -1;                                     /* its caller reads the step's values */
     for (int i = 0; i < k->n_sub; i++) {
         Sub *s_i = &k->sub[i];
         size_t n_obs = s_i->n_obs, j = 0;
@@ -1039,7 +1042,7 @@ int dr_run_steps_of(DRKernel *k, DRStep *io, int n0, int count, double *rows, lo
             return s;
         }
         if (k->hook_after) k->hook_after(k->hook_ctx, io, n0 + s);
-        if (stop_after(k, rows + first_observed + s, m, H_cap, finite)) {
+        if (io->observe && stop_after(k, rows + first_observed + s, m, H_cap, finite)) {
             io->stopped = 1;
             return s + 1;
         }

@@ -83,6 +83,8 @@ typedef struct {
                           * steps before it were logged by the calls before, from column 0) */
     int passes;          /* in (dr_run_steps): make the passes (dr_set_passes) over the steps as they are logged */
     int passed;          /* out (dr_run_steps, passes): the block's steps, from column 0, the passes went over */
+    int observe;         /* in (dr_run_steps): read the observed values after each step and stop on them (0: a
+                          * step made on its own, whose values its caller reads: nothing read, no stop) */
 } DRStep;
 
 /* A pass over logged steps (the runner's, wavecosim/kernel/c/blocks.c): steps first .. first + count - 1 of
