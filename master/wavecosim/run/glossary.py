@@ -39,11 +39,13 @@ SUMMARY = {
     "total_time_s": ("from the FMUs opened to the summary: steps, observers, rows written", "s"),
     "loop_time_s": ("from the first macro-step to the last row written: the run's cost beyond set-up", "s"),
     "real_time_factor": ("simulated time over the master's wall time", "1"),
-    "fmu_calls": ("FMU calls the run made from its first step on, `doStep`, `save` and `restore` (state get and "
-                  "set), `get` and `set` (value transfers: fmi2Get/Set Real, Integer, Boolean, String and their "
-                  "FMI 3 kin, one per call whatever its length), over every FMU (those stepped alone, signals only, "
-                  "too), counted where each call is made and the same on the C kernel route and the Python one; "
-                  "the observers' own calls (certificates, probes) not counted", "1"),
+    "fmu_calls": ("FMU calls the run made from its first step on, over every FMU (those stepped alone, signals only, "
+                  "too): `doStep`, `save` and `restore` (state get and set), `get` and `set` (value transfers: "
+                  "fmi2Get/Set Real, Integer, Boolean, String and their FMI 3 kin, one per call whatever its length), "
+                  "each counted where the call is made; the same on the C kernel route and the Python one, but for "
+                  "`get` with `energy_guard: monolithic` (its check reads H apart after a step made alone, where the "
+                  "kernel's blocks use the run's own reading); the observers' own calls (certificates, probes) not "
+                  "counted", "1"),
     "fmu_calls_by_subsystem": ("the same per subsystem (they add up to `fmu_calls`)", "1"),
     "output_interval": ("a row is written every this many macro-steps (and at the last)", "steps"),
     "energy_guard": ("the energy guard in force: `ledger`, `monolithic`, `off`, or `n/a` for a master that does "
