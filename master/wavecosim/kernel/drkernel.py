@@ -339,8 +339,12 @@ class Kernel:
         self.lib.dr_set_anchors(self._handle, int(bool(on)))
 
     def set_previous(self, a_prev):
-        """a^{n-1} for the start of the next macro-step after an undo (None: the step undone was the first)."""
+        """a^{n-1} for the start of the next macro-step (None: none, the start is then P b^n)."""
         self.lib.dr_set_previous(self._handle, None if a_prev is None else (ctypes.c_double * self.n)(*a_prev))
+
+    def previous(self):
+        """a^{n-1} the next macro-step starts from, as the kernel holds it (its a_hat), or None."""
+        return self.a_hat[:] if self.lib.dr_has_previous(self._handle) else None
 
     def set_maps(self, P, J_L):
         """P and J_L (linalg.Sparse, or dense rows) for the next macro-steps, copied by the kernel."""

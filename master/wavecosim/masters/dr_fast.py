@@ -80,17 +80,23 @@ class FastDRMaster(DRMaster):
         else:
             self._own_b = b
 
+    @property
+    def _a_before(self):
+        """a^{n-1}, one copy: the kernel's while it runs (the start of its next step), else the master's own."""
+        return self.kernel.previous() if getattr(self, "kernel", None) is not None else self._own_a_before
+
+    @_a_before.setter
+    def _a_before(self, a):
+        if getattr(self, "kernel", None) is not None:
+            self.kernel.set_previous(None if a is None else [float(x) for x in a])
+        else:
+            self._own_a_before = a
+
     def _commit(self, a_hat):
         """A commit made from Python (a guard's redo): the kernel's a_hat, a^{n-1} of its next start, too."""
         super()._commit(a_hat)
         if self.kernel is not None:
             self.kernel.a_hat[:] = [float(x) for x in a_hat]
-
-    def _undo_step(self):
-        """x^n, b^n and a^{n-1} back (the kernel's start too)."""
-        super()._undo_step()
-        if self.kernel is not None:
-            self.kernel.set_previous(self._a_before)
 
     def _compile(self):
         super()._compile()
@@ -160,7 +166,7 @@ class FastDRMaster(DRMaster):
     def _kernel_step(self, n, t, call):
         """Macro-step n by the kernel, `call(measure)` giving (its DRStep, the ledger's redo rounds);
         booked as DRMaster.step books it."""
-        kernel, b_n = self.kernel, self._b
+        kernel, b_n, a_n = self.kernel, self._b, self._a_before        # b^n and a^{n-1} before the step
         self.step_started = time.perf_counter()
         measure, timed = self.planner.begin()
         io, redone = call(measure)
@@ -170,8 +176,7 @@ class FastDRMaster(DRMaster):
         self._note_kernel_steps(n, t)            # frozen at x^n (saved by the kernel)
         n_ch = kernel.n
         out = kernel.results[:]                  # b^{n+1}, a, u^0, u^K
-        self._b_step_start = b_n
-        self._a_step_start, self._a_before = self._a_before, out[n_ch:2 * n_ch]
+        self._b_step_start, self._a_step_start = b_n, a_n
         if self._trace is not None:
             self._trace = kernel.recorded(k)
         u0, uK = (None, None) if redone else (out[2 * n_ch:3 * n_ch], out[3 * n_ch:])   # a redo's log has none
@@ -185,7 +190,6 @@ class FastDRMaster(DRMaster):
         if self.kernel is None:
             return None
         done = self.kernel.redo(supplied, budget, left_s, round_s)
-        self._a_before = self.kernel.a_hat[:]
         self._note_kernel_steps(self.subsystems[0].step_index, self.subsystems[0].t)
         return (*done, self.kernel.a_hat[:])
 
@@ -199,16 +203,15 @@ class FastDRMaster(DRMaster):
         made, self._redo_seen = self._redo_seen, self.kernel.redo_do_steps()
         return self._redo_seen - made
 
-    def _book(self, n0, done, log, b_n):
-        """Book macro-steps n0 .. n0 + done - 1 of the kernel, b_n the b^n of the first: the step on the
-        Subsystems, the b^n of the last step (for an undo) and a^{n-1}."""
+    def _book(self, n0, done, log, b_n, a_n):
+        """Book macro-steps n0 .. n0 + done - 1 of the kernel, b_n and a_n the b^n and a^{n-1} of the
+        first: the step on the Subsystems, the b^n and a^{n-1} of the last step (for an undo)."""
         if not done:
             return
         last = n0 + done - 1
         self._note_kernel_steps(last, self.t0 + last * self.dt)
         self._b_step_start = log.b[done - 2].tolist() if done > 1 else b_n
-        self._a_step_start = log.a_hat[done - 2].tolist() if done > 1 else self._a_before
-        self._a_before = self.kernel.a_hat[:]
+        self._a_step_start = log.a_hat[done - 2].tolist() if done > 1 else a_n
         if self._trace is not None:
             self._trace = self.kernel.recorded(int(log.iterations[-1]))
 
@@ -226,7 +229,7 @@ class FastDRMaster(DRMaster):
 
     def close(self):
         if self.kernel is not None:
-            self._own_b = self.kernel.b[:]            # b^n kept past the kernel's release
+            self._own_b, self._own_a_before = self.kernel.b[:], self.kernel.previous()   # kept past its release
         for part in (self._certs, self.kernel, self._newton):
             if part is not None:
                 part.close()

@@ -83,7 +83,7 @@ class DRRoute:
         started = time.perf_counter()
         if m._certs is not None:
             m._certs.arm(n0, count)
-        self._call, b_n = n0, m._b
+        self._call, b_n, a_n = n0, m._b, m._a_before
         done, log, error = m.kernel.run_steps(n0, count, H_cap, measure, at, passes)
         if m._certs is not None:
             error = m._certs.disarm(done) or error
@@ -91,7 +91,7 @@ class DRRoute:
             self._step_s = (time.perf_counter() - started) / done
             rounds = 1.0 + float(log.iterations.mean()) + float(log.ledger["rounds"].mean())
             m.planner.end(measure, self._step_s / rounds)
-        m._book(n0, done, log, b_n)
+        m._book(n0, done, log, b_n, a_n)
         return done, log, error
 
     def step_in_progress(self):

@@ -377,6 +377,8 @@ void dr_set_previous(DRKernel *k, const double *a_prev) {
     if (a_prev) memcpy(k->a_hat, a_prev, k->n * sizeof *a_prev);
 }
 
+int dr_has_previous(const DRKernel *k) { return k->opt && k->opt->have_prev; }
+
 /* The Anderson memory across macro-steps and the extrapolated b^* (after dr_set_options); -1 without Anderson. */
 int dr_set_anderson_modes(DRKernel *k, int memory, int extrapolate) {
     if (!memory && !extrapolate) return 0;

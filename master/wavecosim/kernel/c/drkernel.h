@@ -148,6 +148,11 @@ void dr_set_anchors(DRKernel *k, int on);
 /* After a macro-step was undone: a^{n-1} again (what the caller's a_hat holds when the step begins), or
  * NULL when the step undone was the first (no a^{n-1}: the start is then P b^n). */
 void dr_set_previous(DRKernel *k, const double *a_prev);
+
+/* Whether the next macro-step starts from a^{n-1}, which a_hat then holds: 1 after a step made with
+ * named options (dr_set_options) or dr_set_previous with one; 0 without options, before the first
+ * step, or after dr_set_options. */
+int dr_has_previous(const DRKernel *k);
 /* After dr_set_options with an Anderson window: keep its differences across macro-steps (memory) and
  * commit the Anderson combination of the responses (extrapolate). Returns -1 without a window. */
 int dr_set_anderson_modes(DRKernel *k, int memory, int extrapolate);
