@@ -25,9 +25,9 @@ class KernelAdapter(ports.AdapterPort):
                   "have_slope": port.D is not None, "h2": port.h2, "u_scale": port.u_scale,
                   "evaluations": port.evaluations, "do_steps": port.doSteps, "accepted": port.accepted,
                   "worst_accepted": port.worst_accepted}
-        # the Subsystem's x_i^n handle and its physical input and output value references
-        self.lib, self.struct, self._ref = new_adapter(fns, comp, sub.state_handle_address(), sub._in_vr,
-                                                       sub._out_vr, self.effort_in, self.sign, memory)
+        # the Subsystem's x_i^n handle and its dirty flag, its physical input and output value references
+        self.lib, self.struct, self._ref = new_adapter(fns, comp, sub.state_handle_address(), sub.dirty_address(),
+                                                       sub._in_vr, sub._out_vr, self.effort_in, self.sign, memory)
         st = self.struct
         st.no_prior = sub.no_prior                            # the doStep flag of its FMU calls
         st.tol, st.accept, st.slope_rel = ports.TOL, ports.ACCEPT, ports.SLOPE_REL
@@ -71,9 +71,7 @@ class KernelAdapter(ports.AdapterPort):
         st, sub = self.struct, self.sub
         for j in range(self.m):
             st.a[j] = a[j]
-        st.dirty = sub._dirty                                  # the Subsystem's own record of it
-        status = self.lib.adapter_solve(self._ref, sub.t, sub.dt)
-        sub._dirty = bool(st.dirty)
+        status = self.lib.adapter_solve(self._ref, sub.t, sub.dt)         # moving the Subsystem's own flag
         if fails(status):
             raise self.kernel_error(sub.step_index, sub.t)
         return st.e[:self.m], st.f[:self.m]

@@ -69,7 +69,9 @@ class Subsystem:
         self._out_val = cvalues.doubles(m)
         self._m = cvalues.size(m)
         self._state = cvalues.pointer()
-        self._dirty = False
+        # _dirty[0]: the instance moved away from x_i^n; one flag, which the C queries and the wave
+        # adapter read and set through its address (dirty_address)
+        self._dirty = cvalues.ints([0])
         # noSetFMUStatePriorToCurrentPoint of the doSteps whose state may be restored after: 0 (the
         # standard's choice for a master that rolls back), or 1 where the FMU freezes with 0
         # (core/quirks.py). Either is by the book here: x_i^n is only ever restored at t_n, the
@@ -150,7 +152,7 @@ class Subsystem:
         """Save x_i^n, the state every query of this macro-step starts from."""
         self.begin(step_index, t)
         self._call(self._get_state, "fmi2GetFMUstate", self._comp, cvalues.ref(self._state))
-        self._dirty = False
+        self._dirty[0] = 0
         self.map.new_step()
 
     def _step(self, a):
@@ -174,10 +176,14 @@ class Subsystem:
 
     def raw_query(self, u):
         """Restore x_i^n, set the FMU's inputs u, one doStep, read its outputs; the state is discarded."""
-        if self._dirty:
+        if self._dirty[0]:
             self._restore()
-        self._dirty = True
+        self._dirty[0] = 1
         return self._step(u)
+
+    def dirty_address(self):
+        """The address of the flag saying the instance moved away from x_i^n (a C int, 0 or 1)."""
+        return cvalues.address(self._dirty)
 
     def adapter_in_kernel(self, fns, comp, functions):
         """The wave adapter moved to C over the FMU function table (fns, comp), once: the adapter's
@@ -212,32 +218,31 @@ class Subsystem:
             return np.array([self.raw_query(list(r)) for r in rows], float).reshape(len(rows), self.m)
         out, done, fn, status = self._batch(self._comp, self._state, self._in_vr, self._out_vr, self.m, self._t,
                                             self._h, rows, self._dirty, self.no_prior)
-        self._dirty = self._dirty or done > 0 or fn > FUNCTIONS.index("fmi2SetFMUstate")
         if fn:
             raise self.fmu.status_error(FUNCTIONS[fn], status, self.step_index, self.t)
         return out
 
     def raw_advance(self, u):
         """Like raw_query, but the new state is kept."""
-        if self._dirty:
+        if self._dirty[0]:
             self._restore()
-        self._dirty = False
+        self._dirty[0] = 0
         return self._step(u)
 
     def keep(self):
         """Keep the state the last raw_query left (it becomes the commit of the macro-step)."""
-        self._dirty = False
+        self._dirty[0] = 0
 
     def thaw(self):
         """Put the instance back at x_i^n after queries made outside the master (certificates)."""
-        if self._dirty:
+        if self._dirty[0]:
             self._restore()
-            self._dirty = False
+            self._dirty[0] = 0
 
     def restore_frozen(self):
         """Back to x_i^n even after the commit: the energy guard undoes a macro-step with it."""
         self._restore()
-        self._dirty = False
+        self._dirty[0] = 0
 
     def set_step(self, h):
         """A new communication step size h from the next doStep on (the tolerance mode); the wave
@@ -255,7 +260,7 @@ class Subsystem:
     def back_to_snapshot(self):
         """Put the instance back where snapshot() saved it."""
         self._call(self._set_state, "fmi2SetFMUstate", self._comp, self._snap)
-        self._dirty = False
+        self._dirty[0] = 0
 
     def read(self, names):
         return self.fmu.get_real(self.fmu.vrs(names))
@@ -285,7 +290,7 @@ class Subsystem:
         """After macro-steps the C kernel made, the last one step n at t: frozen at x^n and at the
         commit (the kernel counted its FMU calls in the FMU's counters)."""
         self.begin(step_index, t)
-        self._dirty = False
+        self._dirty[0] = 0
 
     def release(self):
         """Free the saved x_i^n (not after the FMU reported fatal). The handle object stays the same

@@ -68,8 +68,8 @@ def kernel_subsystem(s, offset):
         vr_out, noise, impedance, adapter_error = vr_in, s.map.noise(), s.map.impedance(), s.map.kernel_error
     else:
         vr_in, vr_out = s.port_vrs()
-    return KernelSubsystem(fmu, s.m, int(offset), functions, component, s.state_handle_address(), vr_in, vr_out,
-                           int(s.no_prior), s.port_scales(), noise, impedance, adapter_error,
+    return KernelSubsystem(fmu, s.m, int(offset), functions, component, s.state_handle_address(), s.dirty_address(),
+                           vr_in, vr_out, int(s.no_prior), s.port_scales(), noise, impedance, adapter_error,
                            s.plain_wave_port(), _probe_vrs(s))
 
 

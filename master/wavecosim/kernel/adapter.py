@@ -24,7 +24,7 @@ class AdapterC(ctypes.Structure):
                 ("sign", _D),
                 ("gamma", ctypes.c_double), ("c", ctypes.c_double), ("k", ctypes.c_double), ("wu", _D), ("wy", _D),
                 ("tol", ctypes.c_double), ("accept", ctypes.c_double), ("slope_rel", ctypes.c_double),
-                ("max_iter", ctypes.c_int), ("stall", ctypes.c_int), ("dirty", ctypes.c_int),
+                ("max_iter", ctypes.c_int), ("stall", ctypes.c_int), ("dirty", ctypes.c_void_p),
                 ("have_slope", ctypes.c_int), ("u", _D), ("y", _D), ("D", _D), ("J_inv", _D),
                 ("h2", ctypes.c_double), ("u_scale", ctypes.c_double), ("evaluations", _L), ("do_steps", _L),
                 ("accepted", _L), ("worst_accepted", ctypes.c_double),
@@ -49,14 +49,14 @@ def _doubles(values):
     return (ctypes.c_double * len(values))(*values)
 
 
-def new_adapter(fns, comp, state, in_vr, out_vr, effort_in, sign, memory):
+def new_adapter(fns, comp, state, dirty, in_vr, out_vr, effort_in, sign, memory):
     """A WaveAdapterC over the FMU function table `fns` (a DRFunctions) and component `comp`, saving
-    x_i^n into the handle at address `state`, with the ports.WaveAdapter memory it takes over
+    x_i^n into the handle at address `state`, the flag at address `dirty` saying the FMU moved away from it, with the ports.WaveAdapter memory it takes over
     (u, y, D, J_inv, h2, u_scale and the figures); the Newton constants are set by the caller.
     Returns (the library, the struct, a reference to it for the calls)."""
     lib, m, st = load_library(), len(effort_in), AdapterC()
     ctypes.memmove(st.fn, ctypes.addressof(fns), ctypes.sizeof(st.fn))
-    st.comp, st.state, st.m, st.in_vr, st.out_vr = comp, state, m, in_vr, out_vr
+    st.comp, st.state, st.dirty, st.m, st.in_vr, st.out_vr = comp, state, dirty, m, in_vr, out_vr
     # arrays assigned to the struct's pointers stay alive with it (ctypes keeps them)
     st.effort_in, st.sign = (ctypes.c_int * m)(*effort_in), _doubles(sign)
     st.u, st.y = _doubles(memory["u"]), _doubles(memory["y"])

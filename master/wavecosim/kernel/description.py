@@ -28,6 +28,7 @@ class KernelSubsystem:
     functions: tuple           # the addresses of drkernel.FMI_NAMES it is called through (the FMU's or a shim's)
     component: int             # the fmi2Component passed with them
     state: int                 # the address of the handle x_i^n is saved into (shared with the scene)
+    dirty: int                 # the address of its flag of the instance moved away from x_i^n (shared too)
     vr_in: object              # C arrays of the value references a query sets and reads
     vr_out: object
     no_prior: int              # noSetFMUStatePriorToCurrentPoint of its doSteps

@@ -223,6 +223,7 @@ class Kernel:
             fns, comp = self.shims[-1].functions, self.shims[-1].handle
         if lib.dr_set_subsystem(self.handle, i, ctypes.byref(fns), comp, s.state, s.vr_in, s.vr_out, s.m,
                                 s.offset) or lib.dr_set_no_prior(self.handle, i, s.no_prior) \
+                or lib.dr_set_dirty(self.handle, i, None if s.noise is not None else s.dirty) \
                 or (s.noise is not None and lib.dr_set_adapter(self.handle, i, s.noise, calls)):
             self.close()
             raise FmuError(f"subsystem {s.name}: the DR kernel refused its port")

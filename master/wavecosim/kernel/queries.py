@@ -19,13 +19,13 @@ class Queries:
 
     def __call__(self, comp, state, in_vr, out_vr, m, t, h, rows, dirty, no_prior=0):
         """Each row of `rows` as a query from x_i^n (held in the handle `state`; restored first only
-        when dirty; the doSteps get noSetFMUStatePriorToCurrentPoint = no_prior): (outputs as rows,
+        when dirty[0], the caller's flag, which the call sets as the instance moves; the doSteps get noSetFMUStatePriorToCurrentPoint = no_prior): (outputs as rows,
         queries made, the FMU function that failed as an index into drkernel.FUNCTIONS (0: none), its
         status)."""
         inputs = np.ascontiguousarray(rows, dtype=float)
         out, p = np.empty_like(inputs), ctypes.c_void_p
         done = self.lib.fq_queries(ctypes.byref(self.fns), comp, ctypes.byref(state), in_vr, out_vr, m, t, h,
-                                   p(inputs.ctypes.data), len(inputs), p(out.ctypes.data), int(dirty), int(no_prior),
+                                   p(inputs.ctypes.data), len(inputs), p(out.ctypes.data), ctypes.byref(dirty), int(no_prior),
                                    ctypes.byref(self.failed))
         return out, done, self.failed.function if done < len(inputs) else 0, self.failed.status
 

@@ -66,9 +66,9 @@ static int fmu_failed(WaveAdapterC *w) {
 /* _eval -> Subsystem.raw_query: restore x_i^n if moved, set u, one doStep, read y. */
 WC_INLINE int eval(WaveAdapterC *w, size_t m, const double *u, double *y, double t, double h) {
     w->do_steps++;
-    if (w->dirty && fmi_set_state(w->fn.setFMUstate, w->fn.calls, w->comp, *w->state, &w->failed))
+    if (*w->dirty && fmi_set_state(w->fn.setFMUstate, w->fn.calls, w->comp, *w->state, &w->failed))
         return fmu_failed(w);
-    w->dirty = 1;
+    *w->dirty = 1;
     if (fmi_set_real(w->fn.setReal, w->fn.calls, w->comp, w->in_vr, m, u, &w->failed)) return fmu_failed(w);
     if (fmi_do_step(w->fn.doStep, w->fn.calls, w->comp, t, h, w->no_prior, &w->failed)) return fmu_failed(w);
     return fmi_get_real(w->fn.getReal, w->fn.calls, w->comp, w->out_vr, m, y, &w->failed) ? fmu_failed(w) : 0;
@@ -250,7 +250,7 @@ fmi2Status adapter_getFMUstate(fmi2Component c, fmi2FMUstate *state) {
     if (fmi_get_state(w->fn.getFMUstate, w->fn.calls, w->comp, state, &w->failed) && fmu_failed(w))
         return (fmi2Status)w->failed.status;
     w->state = state;
-    w->dirty = 0;            /* Subsystem.freeze */
+    *w->dirty = 0;            /* Subsystem.freeze */
     w->have_slope = 0;       /* WaveAdapter.new_step */
     return fmi2OK;
 }
@@ -258,7 +258,7 @@ fmi2Status adapter_getFMUstate(fmi2Component c, fmi2FMUstate *state) {
 fmi2Status adapter_setFMUstate(fmi2Component c, fmi2FMUstate state) {
     WaveAdapterC *w = c;
     (void)state;             /* always w->state's: the next doStep restores it before its first doStep */
-    w->dirty = 1;
+    *w->dirty = 1;
     return fmi2OK;
 }
 

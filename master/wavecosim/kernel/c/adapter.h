@@ -39,7 +39,7 @@ typedef struct {
     double tol, accept, slope_rel;
     int max_iter, stall;
     /* the solver's memory (ports.py::WaveAdapter's attributes; D and J_inv m x m row-major) */
-    int dirty;                       /* the FMU moved away from x_i^n (Subsystem._dirty) */
+    int *dirty;                      /* the FMU moved away from x_i^n: the Subsystem's own flag (Subsystem._dirty) */
     int have_slope;                  /* y, D and J_inv hold for this macro-step */
     double *u, *y, *D, *J_inv;
     double h2, u_scale;

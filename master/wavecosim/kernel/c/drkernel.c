@@ -41,7 +41,8 @@ typedef struct {
     const double *noise;           /* a wave adapter's worst kept residual (dr_set_adapter), or NULL */
     long *calls;                   /* its FMU's call counters (fmicall.h): fn.calls, or a wave adapter's FMU's */
     int thread;
-    int frozen, dirty;             /* x_i^n saved this macro-step / instance moved away from it */
+    int frozen;                    /* x_i^n saved this macro-step */
+    int *dirty, own_dirty;         /* instance moved away from x_i^n: the caller's flag (dr_set_dirty), or own_dirty */
     int no_prior;                  /* noSetFMUStatePriorToCurrentPoint of its doSteps (dr_set_no_prior) */
     FmiFailure failed;             /* the FMU call that failed this macro-step (fmicall.h) */
     double sample_ns[MAX_SAMPLES];
@@ -188,10 +189,10 @@ WC_INLINE int evaluate(Sub *s, const double *in, double *out, double t, double h
     if (!s->frozen) {
         if (fmi_get_state(s->fn.getFMUstate, s->fn.calls, s->comp, s->state, &s->failed)) return 1;
         s->frozen = 1;
-        s->dirty = 0;
+        *s->dirty = 0;
     }
-    if (s->dirty && fmi_set_state(s->fn.setFMUstate, s->fn.calls, s->comp, *s->state, &s->failed)) return 1;
-    s->dirty = !commit;
+    if (*s->dirty && fmi_set_state(s->fn.setFMUstate, s->fn.calls, s->comp, *s->state, &s->failed)) return 1;
+    *s->dirty = !commit;
     if (fmi_set_real(s->fn.setReal, s->fn.calls, s->comp, s->in_vr, s->m, in + s->offset, &s->failed)) return 1;
     /* noSetFMUStatePriorToCurrentPoint as in the reference (Subsystem.no_prior): x_i^n is restored
      * only at t, this doStep's own communication point. */
@@ -208,7 +209,7 @@ WC_INLINE int run_group(DRKernel *k, int thread) {
     for (int i = 0; i < k->n_sub; i++) {
         Sub *s = &k->sub[i];
         if (s->thread != thread) continue;
-        if (forward) s->frozen = 1, s->dirty = 0;
+        if (forward) s->frozen = 1, *s->dirty = 0;
         if (evaluate(s, k->task_in, k->task_out, k->task_t, k->task_h, k->task_how != DR_QUERY, k->task_measure))
             return i;
     }
@@ -662,7 +663,7 @@ static int restore_all(DRKernel *k) {
     for (int i = 0; i < k->n_sub; i++) {
         Sub *s = &k->sub[i];
         if (fmi_set_state(s->fn.setFMUstate, s->fn.calls, s->comp, *s->state, &s->failed)) return i;
-        s->dirty = 0;
+        *s->dirty = 0;
     }
     return -1;
 }
@@ -1072,6 +1073,7 @@ DRKernel *dr_create(int n_sub, int n, const double *P, const double *J_L, double
         dr_destroy(k);
         return NULL;
     }
+    for (int i = 0; i < n_sub; i++) k->sub[i].dirty = &k->sub[i].own_dirty;
     if (!P) memset(k->P->start, 0, (nn + 1) * sizeof(int));
     if (!J_L) memset(k->J_L->start, 0, (nn + 1) * sizeof(int));
     k->u = k->work;
@@ -1108,6 +1110,12 @@ int dr_set_subsystem(DRKernel *k, int i, const DRFunctions *fn, fmi2Component co
     s->state = state ? state : &s->own_state;
     s->m = (size_t)m;
     s->offset = (size_t)offset;
+    return 0;
+}
+
+int dr_set_dirty(DRKernel *k, int i, int *dirty) {
+    if (i < 0 || i >= k->n_sub) return -1;
+    k->sub[i].dirty = dirty ? dirty : &k->sub[i].own_dirty;
     return 0;
 }
 
@@ -1251,15 +1259,15 @@ int dr_read(DRKernel *k, int i, const fmi2ValueReference *vr, int count, double 
 
 int dr_thaw(DRKernel *k, int i) {
     Sub *s = &k->sub[i];
-    if (!s->frozen || !s->dirty) return 0;
+    if (!s->frozen || !*s->dirty) return 0;
     if (fmi_set_state(s->fn.setFMUstate, s->fn.calls, s->comp, *s->state, &s->failed)) return 1;
-    s->dirty = 0;
+    *s->dirty = 0;
     return 0;
 }
 
 int dr_advance(DRKernel *k, int i, const double *in, double *out, double t, double h) {
     k->sub[i].frozen = 1;                                   /* nothing saved, nothing to restore */
-    k->sub[i].dirty = 0;
+    *k->sub[i].dirty = 0;
     return evaluate(&k->sub[i], in, out, t, h, 1, 0);
 }
 

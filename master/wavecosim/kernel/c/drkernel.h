@@ -107,6 +107,11 @@ DRKernel *dr_create(int n_sub, int n, const double *P, const double *J_L, double
 int dr_set_subsystem(DRKernel *k, int i, const DRFunctions *fn, fmi2Component comp, fmi2FMUstate *state,
                      const fmi2ValueReference *in_vr, const fmi2ValueReference *out_vr, int m, int offset);
 
+/* Subsystem i's flag of its instance moved away from x_i^n: the caller's (its frozen port map's, which
+ * the caller reads and sets too, and every kernel over the same instance and handle), or NULL: the
+ * kernel's own (a wave adapter's shim, whose adapter keeps the FMU's). Returns 0, or -1 on bad arguments. */
+int dr_set_dirty(DRKernel *k, int i, int *dirty);
+
 /* noSetFMUStatePriorToCurrentPoint for subsystem i's doSteps (0 unless set; frozen_port_map.py,
  * Subsystem.no_prior). Returns 0, or -1 for a bad index. */
 int dr_set_no_prior(DRKernel *k, int i, int no_prior);

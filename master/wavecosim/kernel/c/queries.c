@@ -6,11 +6,12 @@
 
 int fq_queries(const DRFunctions *fn, fmi2Component comp, fmi2FMUstate *state, const fmi2ValueReference *in_vr,
                const fmi2ValueReference *out_vr, int m, double t, double dt, const double *inputs, int count,
-               double *outputs, int dirty, int no_prior, FmiFailure *failed)
+               double *outputs, int *dirty, int no_prior, FmiFailure *failed)
 {
     size_t n = (size_t)m;
     for (int q = 0; q < count; q++) {
-        if ((dirty || q > 0) && fmi_set_state(fn->setFMUstate, fn->calls, comp, *state, failed)) return q;
+        if (*dirty && fmi_set_state(fn->setFMUstate, fn->calls, comp, *state, failed)) return q;
+        *dirty = 1;
         if (fmi_set_real(fn->setReal, fn->calls, comp, in_vr, n, inputs + (size_t)q * n, failed)) return q;
         if (fmi_do_step(fn->doStep, fn->calls, comp, t, dt, no_prior, failed)) return q;
         if (fmi_get_real(fn->getReal, fn->calls, comp, out_vr, n, outputs + (size_t)q * n, failed)) return q;
