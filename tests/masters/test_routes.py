@@ -191,6 +191,7 @@ def test_step_by_step(scenario, case):
 @pytest.mark.parametrize("name, scene, settings", [
     ("dr", "two_oscillators", dict(K=8, energy_guard="off")),
     ("dr", "two_oscillators", dict(K=8, threads="1", energy_guard="off")),
+    ("dr", "two_oscillators", dict(K=3, start="previous", energy_guard="off")),     # a^{n-1} after the undo
     ("explicit", "two_oscillators_stiff", {}),
     ("gauss-seidel", "two_oscillators", {}), ("jacobi-iter", "two_oscillators_stiff", dict(K=3)),
     ("gauss-seidel-iter", "two_oscillators_stiff", dict(K=10, eps=1e-12))])
