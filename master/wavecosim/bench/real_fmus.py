@@ -15,6 +15,8 @@ with the masters of MASTERS it can run. Per row, side by side in one process:
                      readings, the observers' columns, the rows), whatever the FMUs cost;
   libcosim_us_per_step  libcosim's fixed-step master on the same SSD (explicit rows; None where
                      libcosimpy is missing or refuses the file, with the reason).
+  calls_per_step     the run's FMU calls per macro-step by kind (summary.json's fmu_calls: doStep,
+                     save, restore, get, set), what the floor makes again.
 The repeats go in rounds over every row, so a slow spell of the machine hits them alike; in each
 round a row whose run is shorter than SHORT_RUN_S is timed SHORT_TRIES times.
 """
@@ -140,6 +142,7 @@ def _time_row(r):
     us, summary = _whole_run(r["scenario"])
     r["run_us_per_step"] = min(r["run_us_per_step"], us)
     r["fast_path"], r["block_steps"] = summary["fast_path"], summary["block_steps"]
+    r["calls_per_step"] = {k: n / summary["steps"] for k, n in summary["fmu_calls"].items()}     # the run's own
     r["floor_us_per_step"] = min(r["floor_us_per_step"], _floor(r["scenario"], r["recorder"]))
 
 
@@ -182,7 +185,8 @@ def report_real_fmus(result):
     """Printed lines of the real_fmus rows."""
     lines = [f"real FMUs (whole run, µs per macro-step, best of {result['repeats']}; load average "
              f"{result['load_average_1min']:.2f}):",
-             f"  {'system':<22}{'master':<14}{'run':>9}{'floor':>9}{'run/floor':>11}{'added':>8}{'libcosim':>10}"]
+             f"  {'system':<22}{'master':<14}{'run':>9}{'floor':>9}{'run/floor':>11}{'added':>8}{'libcosim':>10}"
+             f"{'calls':>7}  (FMU calls per macro-step: doStep save restore get set)"]
     for r in result["rows"]:
         if r.get("skipped"):
             lines.append(f"  {r['name']:<22}skipped: {r['skipped']}")
@@ -190,7 +194,8 @@ def report_real_fmus(result):
         master = r["master"] + (f" K={r['K']}" if r["K"] is not None else "")
         lc = r.get("libcosim_us_per_step")
         lines.append(f"  {r['name']:<22}{master:<14}{r['run_us_per_step']:>9.1f}{r['floor_us_per_step']:>9.1f}"
-                     f"{r['run_over_floor']:>11.2f}{r['added_us_per_step']:>8.2f}{(f'{lc:.1f}' if lc else '-'):>10}")
+                     f"{r['run_over_floor']:>11.2f}{r['added_us_per_step']:>8.2f}{(f'{lc:.1f}' if lc else '-'):>10}"
+                     f"{sum(r['calls_per_step'].values()):>7.1f}  ({' '.join(f'{n:g}' for n in r['calls_per_step'].values())})")
         if r.get("libcosim_note"):
             lines.append(f"    libcosim: {r['libcosim_note']}")
     return lines
