@@ -1,7 +1,7 @@
 """A subsystem as the masters see it: an FMU, its port channels, and its frozen port map S_i^n.
 
-`freeze()` saves x_i^n; `query(a)` is S_i^n(a) (paper eq. 12): restore x_i^n, apply a, one doStep,
-read b, discard the state; `advance(a)` is Phi_i (eq. 21): the same from x_i^n, but the state is
+`freeze()` saves x_i^n; `query(a)` is S_i^n(a) (paper eq. 12): restore x_i^n, apply a, one doStep
+(or `substeps` doSteps of dt / substeps, the input held: multi-rate), read b, discard the state; `advance(a)` is Phi_i (eq. 21): the same from x_i^n, but the state is
 kept. Calls go straight to the FMU's C functions with pre-converted arguments (in fmi2 form; for an
 FMI 3 FMU, wavecosim/fmi/fmi3.py puts its fmi3 functions behind the same signatures). How a becomes b is
 the subsystem's port (wavecosim/core/ports.py): the FMU's own wave mode, or the wave adapter for an FMU
@@ -47,14 +47,18 @@ class Subsystem:
     """One FMU instance with a port; `wave` says whether the masters exchange waves with it, and
     `adapter` whether those waves go through the wave adapter (an FMU without a wave mode)."""
 
-    def __init__(self, name, fmu, port: PortSpec, dt, wave=True, adapter=False, gamma=1.0):
+    def __init__(self, name, fmu, port: PortSpec, dt, wave=True, adapter=False, gamma=1.0, substeps=1):
         self.name, self.fmu, self.port, self.dt, self.wave = name, fmu, port, dt, wave
-        self.adapter = adapter
+        self.adapter, self.substeps = adapter, substeps
         self.m = port.m
         self.step_index = 0
         m = self.m
         self._comp = cvalues.pointer(fmu.component)
-        self._h = cvalues.double(dt)
+        self._h = cvalues.double(dt / substeps)
+        self._tk = cvalues.double(0.0)       # a substep's communication point
+        # The FMU's own wave mode scales its waves by sqrt(h): a substep takes a sqrt(h / dt) so that
+        # e + gamma f = sqrt(2 gamma / dt) a holds at each, and b is its outgoing waves' mean at dt's scale.
+        self._wave_scale = 1.0 / math.sqrt(substeps) if wave and not port.physical and not adapter else 1.0
         self._get_state = fmu.raw_function("fmi2GetFMUstate")
         self._set_state = fmu.raw_function("fmi2SetFMUstate")
         self._set_real = fmu.raw_function("fmi2SetReal")
@@ -131,6 +135,11 @@ class Subsystem:
         (signals only), stepped once per macro-step and never frozen or rolled back."""
         self.begin(step_index, t)
         status = self._do_step(self._comp, self._t, self._h, 1)                     # never rolled back
+        for k in range(1, self.substeps):
+            if fails(status):
+                break
+            self._tk.value = t + k * self._h.value
+            status = self._do_step(self._comp, self._tk, self._h, 1)
         reached = self.fmu.asked_to_end(status) if fails(status) else None
         if reached is not None:
             done = math.isclose(reached, t + self.dt, rel_tol=1e-12, abs_tol=1e-12 * self.dt)
@@ -151,6 +160,8 @@ class Subsystem:
         self.map.new_step()
 
     def _step(self, a):
+        if self.substeps != 1:
+            return self._substeps(a)
         for j in range(self.m):
             self._in_val[j] = a[j]
         self._call(self._set_real, "fmi2SetReal", self._comp, self._in_vr, self._m, self._in_val)
@@ -158,6 +169,24 @@ class Subsystem:
         self.calls["doStep"] += 1
         self._call(self._get_real, "fmi2GetReal", self._comp, self._out_vr, self._m, self._out_val)
         return self._out_val[:]
+
+    def _substeps(self, a):
+        """Multi-rate: the input held over `substeps` doSteps of dt / substeps; a physical output as the
+        last leaves it, the FMU's own wave mode's b as the mean of the substeps' (at dt's scale, so that
+        the macro-step's map stays passive: the mean's square is at most the squares' mean)."""
+        scale, n = self._wave_scale, self.substeps
+        for j in range(self.m):
+            self._in_val[j] = a[j] * scale
+        self._call(self._set_real, "fmi2SetReal", self._comp, self._in_vr, self._m, self._in_val)
+        total = [0.0] * self.m
+        for k in range(n):
+            self._tk.value = self.t + k * self._h.value
+            self._call(self._do_step, "fmi2DoStep", self._comp, self._tk, self._h, self.no_prior)
+            self.calls["doStep"] += 1
+            if scale != 1.0 or k == n - 1:
+                self._call(self._get_real, "fmi2GetReal", self._comp, self._out_vr, self._m, self._out_val)
+                total = [s + b for s, b in zip(total, self._out_val)]
+        return [s * scale for s in total] if scale != 1.0 else self._out_val[:]
 
     def _restore(self):
         self._call(self._set_state, "fmi2SetFMUstate", self._comp, self._state)
@@ -206,7 +235,7 @@ class Subsystem:
         """raw_query of each row of a 2-D array, in order, as rows of outputs: one C call
         (kernel/c/queries.c) making the same FMU calls, or raw_query row by row without it."""
         if self._batch is None:
-            self._batch = queries.batch(self.fmu.function_pointer) or False
+            self._batch = self.substeps == 1 and queries.batch(self.fmu.function_pointer) or False
         if not self._batch:
             return np.array([self.raw_query(list(r)) for r in rows], float).reshape(len(rows), self.m)
         out, done, fn, status = self._batch(self._comp, self._state, self._in_vr, self._out_vr, self.m, self._t,
@@ -244,7 +273,7 @@ class Subsystem:
     def set_step(self, h):
         """A new communication step size h from the next doStep on (the tolerance mode); the wave
         adapter's weights follow, as its waves are scaled by sqrt(h)."""
-        self.dt, self._h.value = h, h
+        self.dt, self._h.value = h, h / self.substeps
         if self.adapter:
             self.map.set_gamma(self.map.gamma)
 

@@ -16,6 +16,9 @@ def unusable(scene):
     """Why the kernel cannot run this scene, or None if it can (subsystems stepped alone need only
     getReal, setReal and doStep); a library whose structs differ from their mirrors is no reason to
     fall back but an error (abi.LayoutError)."""
+    multi = next((s for s in scene.subsystems + scene.signal_only if s.substeps != 1), None)
+    if multi is not None:
+        return f"subsystem {multi.name} makes {multi.substeps} substeps per macro-step, which the kernel does not"
     for s in scene.signal_only:
         for name in ALONE_NAMES:
             try:
