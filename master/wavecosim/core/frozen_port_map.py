@@ -59,6 +59,10 @@ class Subsystem:
         # The FMU's own wave mode scales its waves by sqrt(h): a substep takes a sqrt(h / dt) so that
         # e + gamma f = sqrt(2 gamma / dt) a holds at each, and b is its outgoing waves' mean at dt's scale.
         self._wave_scale = 1.0 / math.sqrt(substeps) if wave and not port.physical and not adapter else 1.0
+        self.macro_stage = None              # multi-rate wave mode: the macro-step's [e..., f..., b...] (means)
+        if self._wave_scale != 1.0:
+            self._stage_vr = cvalues.uints(fmu.real_vrs([*port.effort, *port.flow, *port.wave_out]))
+            self._stage_val, self._3m = cvalues.doubles(3 * m), cvalues.size(3 * m)
         self._get_state = fmu.raw_function("fmi2GetFMUstate")
         self._set_state = fmu.raw_function("fmi2SetFMUstate")
         self._set_real = fmu.raw_function("fmi2SetReal")
@@ -84,6 +88,11 @@ class Subsystem:
         self._t = cvalues.double(0.0)
         self.calls = {"doStep": 0, "save": 0, "restore": 0}
         self.map = self._port_map(gamma)
+
+    @property
+    def multi_rate_wave(self):
+        """Substeps in the FMU's own wave mode: the macro-step's e, f and b are the substeps' means."""
+        return self._wave_scale != 1.0
 
     def _port_map(self, gamma):
         """The port that turns the master's inputs into outputs (wavecosim/core/ports.py)."""
@@ -174,19 +183,23 @@ class Subsystem:
         """Multi-rate: the input held over `substeps` doSteps of dt / substeps; a physical output as the
         last leaves it, the FMU's own wave mode's b as the mean of the substeps' (at dt's scale, so that
         the macro-step's map stays passive: the mean's square is at most the squares' mean)."""
-        scale, n = self._wave_scale, self.substeps
-        for j in range(self.m):
+        scale, n, m = self._wave_scale, self.substeps, self.m
+        for j in range(m):
             self._in_val[j] = a[j] * scale
         self._call(self._set_real, "fmi2SetReal", self._comp, self._in_vr, self._m, self._in_val)
-        total = [0.0] * self.m
+        total = [0.0] * (3 * m)
         for k in range(n):
             self._tk.value = self.t + k * self._h.value
             self._call(self._do_step, "fmi2DoStep", self._comp, self._tk, self._h, self.no_prior)
             self.calls["doStep"] += 1
-            if scale != 1.0 or k == n - 1:
-                self._call(self._get_real, "fmi2GetReal", self._comp, self._out_vr, self._m, self._out_val)
-                total = [s + b for s, b in zip(total, self._out_val)]
-        return [s * scale for s in total] if scale != 1.0 else self._out_val[:]
+            if scale != 1.0:
+                self._call(self._get_real, "fmi2GetReal", self._comp, self._stage_vr, self._3m, self._stage_val)
+                total = [s + v for s, v in zip(total, self._stage_val)]
+        if scale == 1.0:
+            self._call(self._get_real, "fmi2GetReal", self._comp, self._out_vr, self._m, self._out_val)
+            return self._out_val[:]
+        self.macro_stage = [s / n for s in total[:2 * m]] + [s * scale for s in total[2 * m:]]
+        return self.macro_stage[2 * m:]
 
     def _restore(self):
         self._call(self._set_state, "fmi2SetFMUstate", self._comp, self._state)
