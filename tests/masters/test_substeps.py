@@ -12,7 +12,7 @@ from paths import CLI, CONFIGS
 from wavecosim import api
 from wavecosim.fmi.builtin import builtin_fmus
 from wavecosim.masters import MASTERS
-from wavecosim.scenario.config import load_scenario
+from wavecosim.scenario.config import load_scenario, parse_scenario
 
 FAST = {"subsystems.A.parameters.k1": 20000.0}          # mass 1 on a stiff spring: A is the fast side
 
@@ -120,3 +120,15 @@ def test_the_kernel_route_insists_in_one_line(tmp_path):
     done = run_cli(tmp_path, "subsystems.A.substeps=2", "master.fast=true")
     assert done.returncode == 2
     assert "master.fast: true, but subsystem A makes 2 substeps per macro-step" in done.stderr
+
+
+def test_a_subsystem_joined_by_signals_only_makes_its_substeps():
+    pair = {"name": "pair", "dt": 0.01, "T": 0.1, "outputs": {"qA": "A.q2"},
+            "subsystems": {"A": {"fmu": "LinearSide", "parameters": {"m2": 1.0, "k2": 10.0}, "start": {"q2": 0.1}},
+                           "B": {"fmu": "LinearSide", "parameters": {"m2": 2.0, "k2": 5.0}}},
+            "signals": [{"from": "A.q2", "to": "B.F"}, {"from": "B.q2", "to": "A.F"}]}
+    runs = [api.simulate(parse_scenario({**pair, "subsystems": {**pair["subsystems"], "A": {
+        **pair["subsystems"]["A"], "substeps": n}}}, "pair.yaml"), reference=False) for n in (1, 3)]
+    calls = runs[1].summary["fmu_calls_by_subsystem"]
+    assert calls["A"]["doStep"] == 3 * calls["B"]["doStep"] == 3 * 10
+    assert not np.array_equal(runs[0].column("qA"), runs[1].column("qA"))

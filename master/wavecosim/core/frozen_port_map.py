@@ -140,13 +140,14 @@ class Subsystem:
         self._t.value = t
 
     def step_alone(self, step_index, t):
-        """One doStep from the current state with the inputs already set: a subsystem without a port
-        (signals only), stepped once per macro-step and never frozen or rolled back."""
+        """One doStep (or `substeps` of dt / substeps) from the current state with the inputs already set: a
+        subsystem without a port (signals only), stepped once per macro-step and never frozen or rolled back."""
         self.begin(step_index, t)
         status = self._do_step(self._comp, self._t, self._h, 1)                     # never rolled back
         for k in range(1, self.substeps):
             if fails(status):
                 break
+            self.calls["doStep"] += 1
             self._tk.value = t + k * self._h.value
             status = self._do_step(self._comp, self._tk, self._h, 1)
         reached = self.fmu.asked_to_end(status) if fails(status) else None
