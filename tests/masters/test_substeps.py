@@ -71,7 +71,7 @@ def test_every_master_counts_n_do_steps_per_macro_step(master):
     assert four["A"]["doStep"] == 4 * four["B"]["doStep"] and one["A"]["doStep"] == one["B"]["doStep"]
     if master in ("explicit", "gauss-seidel"):
         assert four["A"]["doStep"] == 4 * one["A"]["doStep"] == 4 * 5
-    assert "substeps" in runs[1]["fast_note"]
+    assert runs[1]["fast_path"] == runs[0]["fast_path"]          # substeps keep the route the master has
 
 
 def test_dr_with_substeps_keeps_the_ledger_and_gains_no_energy():
@@ -116,10 +116,38 @@ def test_an_fmu_that_keeps_its_step_takes_substeps_only_at_that_step(tmp_path):
     assert json.loads((tmp_path / "out" / "summary.json").read_text())["fmu_calls_by_subsystem"]["A"]["doStep"] == 2
 
 
-def test_the_kernel_route_insists_in_one_line(tmp_path):
-    done = run_cli(tmp_path, "subsystems.A.substeps=2", "master.fast=true")
+def test_the_kernel_route_insists_in_one_line_where_it_cannot(tmp_path):
+    done = run_cli(tmp_path, "subsystems.B.substeps=2", "master.fast=true", config="foreign_pair.yaml")
     assert done.returncode == 2
-    assert "master.fast: true, but subsystem A makes 2 substeps per macro-step" in done.stderr
+    assert "master.fast: true, but subsystem B makes 2 substeps per macro-step with a wave adapter" in done.stderr
+
+
+# (master, scene, T, master settings, substeps) run on both routes
+ROUTES = {
+    "dr-ledger-acting": ("dr", "two_oscillators_stiff", 0.3, dict(K=1, energy_guard="ledger"), {"A": 3}),
+    "dr-two-threads": ("dr", "two_oscillators", 0.2, dict(K=5, threads="2"), {"A": 4, "B": 2}),
+    "newton": ("newton", "two_oscillators", 0.2, {}, {"A": 4}),
+    "explicit-signed-port": ("explicit", "foreign_pair", 0.05, {}, {"B": 3}),
+    "jacobi-iter-ledger": ("jacobi-iter", "two_oscillators_stiff", 0.3, dict(K=1, energy_guard="ledger"), {"A": 3}),
+    "aitken": ("aitken", "two_oscillators", 0.2, dict(K=3), {"B": 2}),
+}
+
+
+@pytest.mark.parametrize("case", ROUTES)
+def test_the_kernel_route_makes_the_substeps_of_the_reference(case):
+    name, config, T, settings, substeps = ROUTES[case]
+    changes = {f"subsystems.{k}.substeps": n for k, n in substeps.items()}
+    runs = [api.simulate(scene(config, T, changes, algorithm=name, fast=fast, **settings),
+                         reference=name != "explicit") for fast in ("false", "true")]
+    ref, fast = runs
+    assert fast.summary["fast_path"] and not ref.summary["fast_path"]
+    for table in ("trajectory", "steps"):
+        a, b = getattr(ref, table), getattr(fast, table)
+        assert a.dtype == b.dtype and a.tobytes() == b.tobytes(), table
+    for key in ("fmu_calls_by_subsystem", "max_passivity_pos", "max_ledger", "energy_guard_extra_doSteps"):
+        assert json.dumps(ref.summary.get(key)) == json.dumps(fast.summary.get(key)), key
+    if settings.get("energy_guard") == "ledger":
+        assert fast.summary["energy_guard_steps"] > 0
 
 
 def test_a_subsystem_joined_by_signals_only_makes_its_substeps():

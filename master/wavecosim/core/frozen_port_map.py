@@ -59,10 +59,9 @@ class Subsystem:
         # The FMU's own wave mode scales its waves by sqrt(h): a substep takes a sqrt(h / dt) so that
         # e + gamma f = sqrt(2 gamma / dt) a holds at each, and b is its outgoing waves' mean at dt's scale.
         self._wave_scale = 1.0 / math.sqrt(substeps) if wave and not port.physical and not adapter else 1.0
-        self.macro_stage = None              # multi-rate wave mode: the macro-step's [e..., f..., b...] (means)
-        if self._wave_scale != 1.0:
+        if self._wave_scale != 1.0:          # the macro-step's [e..., f..., b...] and 1.0 once made (both routes')
             self._stage_vr = cvalues.uints(fmu.real_vrs([*port.effort, *port.flow, *port.wave_out]))
-            self._stage_val, self._3m = cvalues.doubles(3 * m), cvalues.size(3 * m)
+            self._stage_val, self._3m, self._stage = cvalues.doubles(3 * m), cvalues.size(3 * m), cvalues.doubles(3 * m + 1)
         self._get_state = fmu.raw_function("fmi2GetFMUstate")
         self._set_state = fmu.raw_function("fmi2SetFMUstate")
         self._set_real = fmu.raw_function("fmi2SetReal")
@@ -88,6 +87,11 @@ class Subsystem:
         self._t = cvalues.double(0.0)
         self.calls = {"doStep": 0, "save": 0, "restore": 0}
         self.map = self._port_map(gamma)
+
+    @property
+    def macro_stage(self):
+        """Multi-rate wave mode: the last macro-step's [e..., f..., b...] (None before the first)."""
+        return self._stage[:3 * self.m] if self.multi_rate_wave and self._stage[3 * self.m] == 1.0 else None
 
     @property
     def multi_rate_wave(self):
@@ -199,8 +203,8 @@ class Subsystem:
         if scale == 1.0:
             self._call(self._get_real, "fmi2GetReal", self._comp, self._out_vr, self._m, self._out_val)
             return self._out_val[:]
-        self.macro_stage = [s / n for s in total[:2 * m]] + [s * scale for s in total[2 * m:]]
-        return self.macro_stage[2 * m:]
+        self._stage[:] = [s / n for s in total[:2 * m]] + [s * scale for s in total[2 * m:]] + [1.0]
+        return self._stage[2 * m:3 * m]
 
     def _restore(self):
         self._call(self._set_state, "fmi2SetFMUstate", self._comp, self._state)
@@ -235,9 +239,20 @@ class Subsystem:
             return self.map.in_scale, self.map.out_scale
         return None
 
+    def kernel_substeps(self):
+        """(substeps, input scale, stage value references and the address of the stage values, or two
+        Nones) for multirate.c's shim, or None without it: the kernel makes the same substeps and sums
+        as _substeps, into the same stage values."""
+        if self.substeps == 1 or self.adapter or not self.m:
+            return None
+        if not self.multi_rate_wave:
+            return self.substeps, 1.0, None, None
+        return self.substeps, self._wave_scale, list(self._stage_vr), cvalues.address(self._stage)
+
     def plain_wave_port(self):
-        """Whether the port is the FMU's own wave map: no adapter, no input scaling."""
-        return not self.adapter and isinstance(self.map, DirectPort) and self.map.in_scale is None
+        """Whether the port is the FMU's own wave map: no adapter, no input scaling, no substeps."""
+        plain = not self.adapter and isinstance(self.map, DirectPort) and self.map.in_scale is None
+        return plain and self.substeps == 1
 
     def queries(self, rows):
         """query of each row of a 2-D array, in order, as rows (one C call when the port is the FMU's own map)."""
@@ -331,10 +346,11 @@ class Subsystem:
     def note_kernel_step(self, step_index, t, iterations, steps=1, redone=0):
         """Book `steps` macro-steps the C kernel made, the last one step n at t (frozen at x^n):
         each a save, its queries and one commit; `iterations` counts the queries of them all and
-        `redone` the energy ledger's redo rounds (a restore and a doStep each)."""
+        `redone` the energy ledger's redo rounds (a restore and a doStep each; `substeps` doSteps each
+        query, commit and redo)."""
         self.begin(step_index, t)
         self.calls["save"] += steps
-        self.calls["doStep"] += iterations + steps + redone
+        self.calls["doStep"] += (iterations + steps + redone) * self.substeps
         self.calls["restore"] += iterations + redone
         self._dirty = False
 
