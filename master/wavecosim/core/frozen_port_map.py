@@ -1,11 +1,12 @@
 """A subsystem as the masters see it: an FMU, its port channels, and its frozen port map S_i^n.
 
 `freeze()` saves x_i^n; `query(a)` is S_i^n(a) (paper eq. 12): restore x_i^n, apply a, one doStep
-(or `substeps` doSteps of dt / substeps, the input held: multi-rate), read b, discard the state; `advance(a)` is Phi_i (eq. 21): the same from x_i^n, but the state is
-kept. Calls go straight to the FMU's C functions with pre-converted arguments (in fmi2 form; for an
-FMI 3 FMU, wavecosim/fmi/fmi3.py puts its fmi3 functions behind the same signatures). How a becomes b is
-the subsystem's port (wavecosim/core/ports.py): the FMU's own wave mode, or the wave adapter for an FMU
-with only a physical port.
+(or `substeps` doSteps of dt / substeps, the input held: multi-rate), read b, discard the state;
+`advance(a)` is Phi_i (eq. 21): the same from x_i^n, but the state is kept. Calls go straight to the
+FMU's C functions with pre-converted arguments (in fmi2 form; for an FMI 3 FMU, wavecosim/fmi/fmi3.py
+puts its fmi3 functions behind the same signatures). How a becomes b is the subsystem's port
+(wavecosim/core/ports.py): the FMU's own wave mode, or the wave adapter for an FMU with only a
+physical port.
 """
 import math
 from dataclasses import dataclass, field
@@ -61,7 +62,8 @@ class Subsystem:
         self._wave_scale = 1.0 / math.sqrt(substeps) if wave and not port.physical and not adapter else 1.0
         if self._wave_scale != 1.0:          # the macro-step's [e..., f..., b...] and 1.0 once made (both routes')
             self._stage_vr = cvalues.uints(fmu.real_vrs([*port.effort, *port.flow, *port.wave_out]))
-            self._stage_val, self._3m, self._stage = cvalues.doubles(3 * m), cvalues.size(3 * m), cvalues.doubles(3 * m + 1)
+            self._stage_val, self._3m = cvalues.doubles(3 * m), cvalues.size(3 * m)
+            self._stage = cvalues.doubles(3 * m + 1)
         self._get_state = fmu.raw_function("fmi2GetFMUstate")
         self._set_state = fmu.raw_function("fmi2SetFMUstate")
         self._set_real = fmu.raw_function("fmi2SetReal")

@@ -20,7 +20,8 @@ def unusable(scene):
                  None)
     if multi is not None:
         why = "a wave adapter" if multi.adapter else "no port"
-        return f"subsystem {multi.name} makes {multi.substeps} substeps per macro-step with {why}, which the kernel does not"
+        return (f"subsystem {multi.name} makes {multi.substeps} substeps per macro-step with {why}, which the "
+                f"kernel does not")
     for s in scene.signal_only:
         for name in ALONE_NAMES:
             try:
