@@ -111,9 +111,8 @@ def test_an_fmu_that_keeps_its_step_takes_substeps_only_at_that_step(tmp_path):
     assert done.returncode == 2, done.stderr
     assert "subsystems.A.substeps: 2 makes doSteps of 0.0005 s, but FixedStepMass.fmu keeps its step 0.01 s" \
         in done.stderr and len(done.stderr.strip().splitlines()) == 1
-    done = run_cli(tmp_path, "subsystems.A.substeps=2", "master.algorithm=explicit", "dt=0.02", config=config)
-    assert done.returncode == 0, done.stderr
-    assert json.loads((tmp_path / "out" / "summary.json").read_text())["fmu_calls_by_subsystem"]["A"]["doStep"] == 2
+    sc = api.load(config, T=0.02, dt=0.02, changes={"subsystems.A.substeps": 2}).with_master(algorithm="explicit")
+    assert api.simulate(sc, reference=False).summary["fmu_calls_by_subsystem"]["A"]["doStep"] == 2
 
 
 def test_the_kernel_route_insists_in_one_line_where_it_cannot(tmp_path):
