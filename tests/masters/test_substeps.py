@@ -10,6 +10,8 @@ from fmpy.fmi2 import FMU2Slave
 
 from paths import CLI, CONFIGS
 from wavecosim import api
+from wavecosim.core.gamma import rescatter
+from wavecosim.core.scene import build_scene
 from wavecosim.fmi.builtin import builtin_fmus
 from wavecosim.masters import MASTERS
 from wavecosim.scenario.config import load_scenario, parse_scenario
@@ -159,3 +161,15 @@ def test_a_subsystem_joined_by_signals_only_makes_its_substeps():
     calls = runs[1].summary["fmu_calls_by_subsystem"]
     assert calls["A"]["doStep"] == 3 * calls["B"]["doStep"] == 3 * 10
     assert not np.array_equal(runs[0].column("qA"), runs[1].column("qA"))
+
+
+def test_the_stage_of_a_multi_rate_wave_port_is_the_macro_steps():
+    built = build_scene(scene("two_oscillators", 0.1, {**FAST, "subsystems.A.substeps": 4}))
+    try:
+        a = built.subsystems[0]
+        a.freeze(0, 0.0)
+        b = a.advance([0.3])
+        assert rescatter(built, built.gammas)[0] == pytest.approx(b[0], rel=1e-12)
+        assert a.stage() != list(a.read(list(a.port.effort) + list(a.port.flow)))
+    finally:
+        built.close()

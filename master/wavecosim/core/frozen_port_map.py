@@ -131,7 +131,11 @@ class Subsystem:
             self.fmu.set_real(self.fmu.vrs(["gamma"]), [gamma])
 
     def stage(self):
-        """Oriented stage effort and flow of the last step, [e..., f...] (power into the FMU = e f)."""
+        """Oriented stage effort and flow of the last step, [e..., f...] (power into the FMU = e f); a
+        multi-rate subsystem in the FMU's own wave mode gives the macro-step's (the substeps' means)."""
+        made = self.macro_stage
+        if made is not None:
+            return list(made[:2 * self.m])
         v = self.read(list(self.port.effort) + list(self.port.flow))
         if self.port.physical:
             v[self.m:] = [s * f for s, f in zip(self.port.sign, v[self.m:])]
