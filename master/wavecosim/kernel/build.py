@@ -38,7 +38,7 @@ CFLAGS = ["-O2", "-std=c99", "-fPIC", "-ffp-contract=off", "-Wall", "-Wextra", "
 # C files compiled into another file's library: the routes built on the DR kernel's subsystem
 # evaluation (classical.c, newton.c, certs.c) go into libdrkernel.so.
 PART_OF_LIBRARY = {"classical.c": "drkernel", "newton.c": "drkernel", "certs.c": "drkernel", "portview.c": "drkernel",
-                   "signals.c": "drkernel"}
+                   "signals.c": "drkernel", "multirate.c": "drkernel"}
 _loaded = {}
 _verified = {}                   # {path: (size, mtime)} of cached builds whose checksum was checked here
 _failed = {}         # library name -> why it could not be built or loaded

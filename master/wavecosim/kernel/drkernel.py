@@ -21,7 +21,7 @@ from .build import kernel_library
 from .contract import constant, names
 from ..errors import ConfigError, FmuError
 from .linalg import Sparse
-from .portview import ObservedPort, PortView, SignedPort
+from .portview import MultiRate, ObservedPort, PortView, SignedPort
 from .signals import SignalPlan
 
 LOG_PAD = 8               # a log's rows steps + LOG_PAD apart: 8 KiB apart, a step's values would share cache sets
@@ -213,18 +213,23 @@ class Kernel:
 
     def _set_subsystem(self, i, s):
         """Subsystem i (a description.KernelSubsystem): its functions, or portview.c's signed shim over
-        them, or its wave adapter in C. x_i^n goes into the scene's own handle (s.state), so that after
-        a fast macro-step the scene holds x_i^n exactly as after the reference one."""
+        them (over multirate.c's shim for substeps), or its wave adapter in C. x_i^n goes into the
+        scene's own handle (s.state), so that after a fast macro-step the scene holds x_i^n exactly as
+        after the reference one; its calls count in its FMU's counters where the FMU is called."""
         calls = s.fmu.calls if self.counted else None
         lib, comp = self.lib, s.component
-        fns = DRFunctions(*s.functions, None if s.noise is not None else calls)     # an adapter counts its own
+        own = s.noise is None and s.substeps is None                  # else the adapter or the shim counts
+        fns = DRFunctions(*s.functions, calls if own else None)
+        if s.substeps is not None:
+            self.shims.append(MultiRate(lib, DRFunctions(*s.functions, calls), comp, s.m, s.substeps))
+            fns, comp = self.shims[-1].functions, self.shims[-1].handle
         if s.scales is not None:
             self.shims.append(SignedPort(lib, fns, comp, s.m, *s.scales))
             fns, comp = self.shims[-1].functions, self.shims[-1].handle
         if lib.dr_set_subsystem(self.handle, i, ctypes.byref(fns), comp, s.state, s.vr_in, s.vr_out, s.m,
                                 s.offset) or lib.dr_set_no_prior(self.handle, i, s.no_prior) \
                 or lib.dr_set_dirty(self.handle, i, None if s.noise is not None else s.dirty) \
-                or (s.noise is not None and lib.dr_set_adapter(self.handle, i, s.noise, calls)):
+                or (not own and lib.dr_set_adapter(self.handle, i, s.noise, calls)):
             self.close()
             raise FmuError(f"subsystem {s.name}: the DR kernel refused its port")
 

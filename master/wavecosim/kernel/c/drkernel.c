@@ -36,10 +36,12 @@ typedef struct {
     fmi2ValueReference *obs_vr;    /* values read after each commit of dr_run_steps (first: H_i) */
     size_t m, offset, n_obs;
     fmi2GetRealTYPE *obs_get;      /* reads them (the FMU's getReal, or a view's: dr_set_observed_view) */
+    long *obs_calls;               /* where those reads count: fn.calls, or a view's FMU's (calls) */
     fmi2Component obs_comp;
     int obs_no_H;                  /* the first observed value is no stored energy (NaN): not checked */
     const double *noise;           /* a wave adapter's worst kept residual (dr_set_adapter), or NULL */
-    long *calls;                   /* its FMU's call counters (fmicall.h): fn.calls, or a wave adapter's FMU's */
+    long *calls;                   /* its FMU's call counters (fmicall.h): fn.calls, or those of the FMU behind
+                                    * a wave adapter or a multi-rate shim (dr_set_adapter) */
     int thread;
     int frozen;                    /* x_i^n saved this macro-step */
     int *dirty, own_dirty;         /* instance moved away from x_i^n: the caller's flag (dr_set_dirty), or own_dirty */
@@ -499,6 +501,7 @@ int dr_set_observed(DRKernel *k, int i, const fmi2ValueReference *vrs, int count
     s->obs_vr = copy;
     s->n_obs = (size_t)count;
     s->obs_get = s->fn.getReal;
+    s->obs_calls = s->fn.calls;
     s->obs_comp = s->comp;
     s->obs_no_H = 0;
     k->obs = obs;
@@ -519,6 +522,7 @@ int dr_set_bound(DRKernel *k, double bound, const int *indices, int count) {
 int dr_set_observed_view(DRKernel *k, int i, fmi2GetRealTYPE *get, fmi2Component comp, int no_H) {
     if (i < 0 || i >= k->n_sub || !get) return -1;
     k->sub[i].obs_get = get;
+    k->sub[i].obs_calls = k->sub[i].calls;                   /* the view reads its FMU's values */
     k->sub[i].obs_comp = comp;
     k->sub[i].obs_no_H = no_H;
     return 0;
@@ -573,7 +577,7 @@ static int log_step(DRKernel *k, const DRStep *io, double *rows, size_t ld, size
         Sub *s_i = &k->sub[i];
         size_t n_obs = s_i->n_obs, j = 0;
         if (!n_obs) continue;
-        if (fmi_get_real(s_i->obs_get, s_i->calls, s_i->obs_comp, s_i->obs_vr, n_obs, k->obs, &s_i->failed)) return i;
+        if (fmi_get_real(s_i->obs_get, s_i->obs_calls, s_i->obs_comp, s_i->obs_vr, n_obs, k->obs, &s_i->failed)) return i;
         double *to = row + c * ld;
         if (s_i->obs_no_H) to[0] = obs[j++];                         /* no stored energy: NaN, not checked */
         for (; j < n_obs; j++) {

@@ -181,9 +181,10 @@ int dr_set_bound(DRKernel *k, double bound, const int *indices, int count);
 int dr_set_observed_view(DRKernel *k, int i, fmi2GetRealTYPE *get, fmi2Component comp, int no_H);
 
 /* Where subsystem i's wave adapter keeps the worst relative residual it accepted (read at each step:
- * the ledger's tolerance is (io->ledger_rtol + the largest of them) times the traffic), and its FMU's
- * call counters (fmicall.h), which the observed reads count in; NULLs: none. Call after
- * dr_set_subsystem. Returns 0, or -1 on bad arguments. */
+ * the ledger's tolerance is (io->ledger_rtol + the largest of them) times the traffic, NULL: none), and
+ * the call counters (fmicall.h) of the FMU behind its adapter or multi-rate shim, where its port view's
+ * reads count and the ledger's redo reads its doSteps. Call after dr_set_subsystem. Returns 0, or -1
+ * on bad arguments. */
 int dr_set_adapter(DRKernel *k, int i, const double *worst, long *calls);
 
 /* doSteps of the FMUs in the ledger's redos (dr_run_steps) so far. */
