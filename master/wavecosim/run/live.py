@@ -139,9 +139,7 @@ class LiveRun(BlockSteps, RunFiles):
         for o in self.observers:
             o.before_step(n, t)
         if before is not None:                       # observers' own FMU calls are not the master's
-            now = self._counts()
-            if now != before:
-                self.excluded = [tuple(x + a - b for x, a, b in zip(*c)) for c in zip(self.excluded, now, before)]
+            self._exclude(before)
         t0 = time.perf_counter()
         log = self.master.step(n, t)
         self.master_time += time.perf_counter() - t0
@@ -202,6 +200,23 @@ class LiveRun(BlockSteps, RunFiles):
             self.led += 1
             self.recent[self.led] = reading.outputs
         return self.led
+
+    def recheck_restores(self, n):
+        """After n steps: the restore re-checked where it is due (RestoreWatch), its FMU calls, the
+        run's own check, left out of fmu_calls as the observers' are."""
+        if n != self.restores.next:
+            return
+        before = self._counts()
+        try:
+            self.restores.after(n)
+        finally:
+            self._exclude(before)
+
+    def _exclude(self, before):
+        """Leave the FMU calls made since the counts were `before` out of fmu_calls."""
+        now = self._counts()
+        if now != before:
+            self.excluded = [tuple(x + a - b for x, a, b in zip(*c)) for c in zip(self.excluded, now, before)]
 
     def _counts(self):
         """Each FMU's calls so far (CALLS, its own counters), one tuple per subsystem: those with a port,
