@@ -22,8 +22,9 @@ import time
 from pathlib import Path
 
 from ..errors import Interrupted, StepTimeout
-from ..kernel import guard
-from .channel import Channel, DONE, RESCUING, RUNNING, SETUP, TIMEOUT, describe, locate
+from ..kernel import fmicall, guard
+from ..kernel.fmicall import FMI_ENTRIES
+from .channel import Channel, DONE, RESCUING, RUNNING, SETUP, TIMEOUT, describe, in_progress, locate
 
 _current = None
 POLLS_PER_TIMEOUT = 20            # the watchdog looks this often per timeout (at most 4 times a second)
@@ -48,6 +49,7 @@ class Containment:
         self.parts, self.current, self.labels, self.in_setup = [], None, {}, False
         self._rescue_r, self._rescue_w = os.pipe()
         guard.arm(self.status.fault, self._rescue_w)
+        fmicall.trace_calls(self.status)
         threading.Thread(target=self._rescue, name="wavecosim-rescue", daemon=True).start()
         self.status.heartbeat = time.monotonic()        # the first beat: a call that holds the interpreter
         threading.Thread(target=self._watchdog, name="wavecosim-watchdog", daemon=True).start()   # from the start
@@ -57,6 +59,7 @@ class Containment:
         """The run is over: faults are the process's own again."""
         global _current
         guard.disarm()
+        fmicall.trace_calls(None)
         _current = None
 
     # ---- what the runner tells ----
@@ -82,7 +85,8 @@ class Containment:
                           "K": part.scenario.master.K, "dt": part.dt, "T": part.scenario.T,
                           "reference": bool(self.labels.get(id(part))), "files": files,
                           "subsystems": {s.name: str(s.fmu.folder) for s in _fmus(part)}})
-        return {"parts": parts, "libraries": self.libraries()}
+        return {"parts": parts, "libraries": self.libraries(),
+                "components": {str(c): label for c, label in self.components().items()}}
 
     def libraries(self):
         """The FMU binaries this process has loaded: path, address range and fmi entry points."""
@@ -187,10 +191,16 @@ class Containment:
         order = [p for p in self.parts if p is not part] + ([part] if part is not None else [])
         where = locate(fault.get("pc", []), self.libraries(),       # a binary both runs share: the active one's
                        {k: v for p in order for k, v in self._subsystems(p).items()})
+        where = in_progress(where, fmicall.call_now(self.status), self.components())
         step = part.steps_done if part is not None else None
         t = part.t0 + step * part.dt if part is not None else None
         return describe(fault, self.status.request, where, step, t, self.step_timeout,
                         self.setup_timeout if self.in_setup else None)
+
+    def components(self):
+        """{component: subsystem label} of every FMU instance of the runs (the call in progress names one)."""
+        return {s.fmu.component: f"{s.name}{self.labels.get(id(p), '')}" for p in self.parts for s in _fmus(p)
+                if s.fmu.component}
 
     def _subsystems(self, part):
         return {str(s.fmu.folder): f"{s.name}{self.labels.get(id(part), '')}" for s in _fmus(part)}
@@ -230,16 +240,3 @@ def announcement(error):
 def _fmus(part):
     scene = getattr(part, "scene", None)
     return [] if scene is None else [s for s in scene.subsystems + scene.signal_only if s.fmu is not None]
-
-
-FMI_ENTRIES = tuple(f"fmi2{n}" for n in (
-    "Instantiate", "FreeInstance", "SetupExperiment", "EnterInitializationMode", "ExitInitializationMode",
-    "Terminate", "Reset", "GetReal", "GetInteger", "GetBoolean", "GetString", "SetReal", "SetInteger", "SetBoolean",
-    "SetString", "GetFMUstate", "SetFMUstate", "FreeFMUstate", "SerializedFMUstateSize", "SerializeFMUstate",
-    "DeSerializeFMUstate", "GetDirectionalDerivative", "SetRealInputDerivatives", "GetRealOutputDerivatives",
-    "DoStep", "CancelStep", "GetStatus", "GetRealStatus", "GetIntegerStatus", "GetBooleanStatus",
-    "GetStringStatus", "SetDebugLogging")) + tuple(f"fmi3{n}" for n in (
-    "InstantiateCoSimulation", "FreeInstance", "EnterInitializationMode", "ExitInitializationMode", "Terminate",
-    "Reset", "GetFloat64", "SetFloat64", "GetFloat32", "SetFloat32", "GetInt32", "SetInt32", "GetBoolean",
-    "SetBoolean", "GetString", "SetString", "GetFMUState", "SetFMUState", "FreeFMUState", "DoStep",
-    "EnterStepMode", "UpdateDiscreteStates", "EnterEventMode"))

@@ -31,9 +31,10 @@ import tempfile
 import time
 from pathlib import Path
 
+from ..kernel.fmicall import call_now
 from ..kernel.guard import die_with_parent, freeze_signal, require
 from ..errors import FmuCrashed, Interrupted, StepTimeout, Terminated
-from .channel import Channel, DONE, RESCUING, SETUP, STOP, TERM, TIMEOUT
+from .channel import Channel, DONE, RESCUING, SETUP, STOP, TERM, TIMEOUT, in_progress
 from .containment import Containment, announcement, flush_streams
 
 STOP_GRACE_S = 5.0        # after passing a stop on: time for the child to stop between two steps
@@ -208,7 +209,7 @@ class Child:
         status = self.channel.status
         why = ("it stopped itself (SIGSTOP)" if self.stopped_at is not None else
                "it went silent (stuck holding the interpreter)" if stuck else
-               "the FMU holds the signals that would stop it")
+               "the FMU holds the signals that would stop it") + self._inside()
         if self.stop_at is not None:
             cls = Terminated if status.request == TERM else Interrupted
             return cls, f"{'stopped by SIGTERM' if cls is Terminated else 'interrupted by the user'}; {why}, the child was ended"
@@ -216,6 +217,12 @@ class Child:
             return StepTimeout, f"the set-up did not finish within {self.setup_timeout:g} s (set-up timeout); {why}"
         late = f"did not finish within {self.step_timeout:g} s (step timeout)" if self.step_timeout else "did not finish"
         return StepTimeout, f"a step {late}; {why}"
+
+    def _inside(self):
+        """` inside subsystem B in fmi2DoStep`: the FMU call in progress the status page records, if any."""
+        components = {int(c): label for c, label in ((self.channel.layout() or {}).get("components") or {}).items()}
+        who, call = in_progress(("", ""), call_now(self.channel.status), components)
+        return f" inside {who} in {call}" if who and call else ""
 
     def _end(self, cls, message):
         """Kill the child's process group now; its summary says `message` (an error of class cls)."""
