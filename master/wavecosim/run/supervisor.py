@@ -321,6 +321,7 @@ def _become_child(body, channel, timeouts, announce, relays):
             sys.stdout, sys.stderr = (Relay(fd, tty, enc) for fd, tty, enc in relays)
         tempfile.tempdir = str(channel.temp)
         os.environ["TMPDIR"] = str(channel.temp)
+        signal.signal(signal.SIGINT, signal.default_int_handler)    # a Dask worker's ignores it
         signal.signal(signal.SIGTERM, _terminate)
         contain = Containment(channel, timeouts[0], announce, timeouts[1])
         code = body()
