@@ -111,7 +111,8 @@ def test_a_process_killed_outright_still_gets_its_summary(tmp_path, tmp_env, fau
     assert summary["status"] == "crashed" and summary["fault"]["signal"] == "SIGKILL"
     rows = lines(out / "trajectory.csv")
     assert summary["steps"] == len(rows) - 1 >= 1024 and all(r.count(b",") == rows[0].count(b",") for r in rows)
-    assert summary["message"] == f"the run crashed (SIGKILL); {summary['steps']} steps kept"
+    assert summary["message"] == (f"the run crashed (SIGKILL) inside subsystem B (monolithic reference) in fmi2DoStep; "
+                                  f"{summary['steps']} steps kept")        # the call in progress, from the status page
     assert list(temp.iterdir()) == []
 
 

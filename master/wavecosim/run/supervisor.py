@@ -32,7 +32,7 @@ import time
 from pathlib import Path
 
 from ..kernel.fmicall import call_now
-from ..kernel.guard import die_with_parent, freeze_signal, require
+from ..kernel.guard import die_with_parent, freeze_signal, require, signal_name
 from ..errors import FmuCrashed, Interrupted, StepTimeout, Terminated
 from .channel import Channel, DONE, RESCUING, SETUP, STOP, TERM, TIMEOUT, in_progress
 from .containment import Containment, announcement, flush_streams
@@ -224,6 +224,15 @@ class Child:
         who, call = in_progress(("", ""), call_now(self.channel.status), components)
         return f" inside {who} in {call}" if who and call else ""
 
+    def _killed(self):
+        """(FmuCrashed, message) for a child killed outright (it left no fault record: SIGKILL, the
+        out-of-memory killer) inside an FMU call, naming the call; else None."""
+        status = self.wait_status
+        if self.channel.status.fault.kind or status is None or not os.WIFSIGNALED(status):
+            return None
+        inside = self._inside()
+        return (FmuCrashed, f"the run crashed ({signal_name(os.WTERMSIG(status))}){inside}") if inside else None
+
     def _end(self, cls, message):
         """Kill the child's process group now; its summary says `message` (an error of class cls)."""
         self.cause = (cls, message)
@@ -275,7 +284,8 @@ class Child:
     def _fallback(self):
         """The child died without finishing: the summary from the channel, one line, the exit code."""
         from .salvage import salvage
-        error = salvage(self.channel, self.wait_status, self.summary_path, self.step_timeout, self.cause)
+        error = salvage(self.channel, self.wait_status, self.summary_path, self.step_timeout,
+                        self.cause or self._killed())
         self.error = str(error)
         if self.announce:
             print(announcement(error), file=sys.stderr, flush=True)
