@@ -72,11 +72,13 @@ def _kept(out, steps=None):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("fault", [5, pytest.param(7, marks=pytest.mark.slow)], ids=["signals-blocked", "own-handlers"])
-def test_a_hang_that_holds_the_freeze_signal_is_rescued(fault, hostile):
+@pytest.mark.parametrize("fault,options", [(5, ()), (7, ()), (5, ("--set", "master.fast=false"))],
+                         ids=["signals-blocked", "own-handlers", "python-route"])
+def test_a_hang_that_holds_the_freeze_signal_is_rescued(fault, options, hostile):
     """The watchdog takes the freeze the FMU never takes; the rescue writes every step before it, and
-    names the subsystem and the call from the call in progress the kernel records (no stack is taken)."""
-    proc, out, temp = hostile(fault, "--no-reference")
+    names the subsystem and the call from the call in progress the kernel (or the Python route)
+    records in the status page (no stack is taken)."""
+    proc, out, temp = hostile(fault, "--no-reference", *options)
     line = _one_line(proc, 6)
     assert line == (f"error: step {STEP} (t = 0.5) did not finish within 1 s (step timeout); stopped inside "
                     "subsystem B in fmi2DoStep; the FMU holds the signal that would stop it")
