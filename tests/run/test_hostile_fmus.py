@@ -198,3 +198,34 @@ def test_a_parent_killed_outright_leaves_nothing_behind(tmp_path, faulty_scenari
     for pid in left:
         os.kill(pid, signal.SIGKILL)
     assert left == [] and list(temp.iterdir()) == []
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["ctrl-c", "sigterm"])
+def test_a_stop_while_the_fmu_holds_every_signal_keeps_every_step(signum, tmp_path, faulty_scenario):
+    """Ctrl-C (to the process group) or SIGTERM while doStep hangs with every signal blocked, no step
+    timeout: the run's watchdog takes the stop the FMU never lets through, and the rescue writes every
+    step before the hung one, naming the call, as a stop between two steps would."""
+    (tmp_path / "scenario.yaml").write_text(yaml.safe_dump(faulty_scenario(5, STEP, T=1.0), sort_keys=False))
+    temp = tmp_path / "temp"
+    temp.mkdir()
+    proc = subprocess.Popen([*CLI, "run", "scenario.yaml", "--out", "out", "--quiet", "--no-reference"], cwd=tmp_path,
+                            env={**os.environ, "TMPDIR": str(temp)}, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, start_new_session=True)
+    deadline = time.monotonic() + 30
+    while not (tmp_path / "out" / "steps.csv").exists():                # stepping
+        assert time.monotonic() < deadline and proc.poll() is None
+        time.sleep(0.1)
+    time.sleep(1.5)                                                     # and inside the hung doStep
+    os.killpg(proc.pid, signum) if signum == signal.SIGINT else proc.send_signal(signum)
+    try:
+        _, err = proc.communicate(timeout=30)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        raise
+    verb = "interrupted by the user" if signum == signal.SIGINT else "stopped by SIGTERM"
+    lines = [ln for ln in err.strip().splitlines() if not ln.startswith("wavecosim: building")]
+    assert proc.returncode == 128 + signum and lines == [
+        f"interrupted: {verb} at step {STEP} (t = 0.5), inside subsystem B in fmi2DoStep; results so far are on disk"]
+    assert _kept(tmp_path / "out", STEP)["status"] == "interrupted" and list(temp.iterdir()) == []
+    assert _running_in(tmp_path) == []

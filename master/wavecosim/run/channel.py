@@ -22,6 +22,7 @@ from ..kernel.guard import RunStatus
 
 SETUP, RUNNING, RESCUING, DONE = range(4)          # the child's state
 NONE, TIMEOUT, STOP, TERM = range(4)               # what ended the run from outside (the parent, the watchdog)
+STOP_GRACE_S = 5.0             # after a stop (Ctrl-C, SIGTERM): time for the run to stop between two steps
 MAGIC = 0x57435354
 PAGE = 4096
 

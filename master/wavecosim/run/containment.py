@@ -24,7 +24,7 @@ from pathlib import Path
 from ..errors import Interrupted, StepTimeout
 from ..kernel import fmicall, guard
 from ..kernel.fmicall import FMI_ENTRIES
-from .channel import Channel, DONE, RESCUING, RUNNING, SETUP, TIMEOUT, describe, in_progress, locate
+from .channel import Channel, DONE, RESCUING, RUNNING, SETUP, STOP, STOP_GRACE_S, TERM, TIMEOUT, describe, in_progress, locate
 
 _current = None
 POLLS_PER_TIMEOUT = 20            # the watchdog looks this often per timeout (at most 4 times a second)
@@ -100,8 +100,12 @@ class Containment:
         return id(part), part.steps_done, part.step_in_progress()
 
     def _limit(self):
-        """The seconds the run may go without progress now (None: no limit)."""
-        return self.setup_timeout if self.status.state == SETUP else self.step_timeout
+        """The seconds the run may go without progress now (None: no limit); after a stop (Ctrl-C,
+        SIGTERM) at most STOP_GRACE_S: a call that holds the signals is then taken as a timeout is."""
+        limit = self.setup_timeout if self.status.state == SETUP else self.step_timeout
+        if self.status.request in (STOP, TERM):
+            return min(limit or STOP_GRACE_S, STOP_GRACE_S)
+        return limit
 
     def _watchdog(self):
         """Beat for the parent; ask for a rescue when the run makes no progress within its timeout (the
@@ -125,9 +129,12 @@ class Containment:
 
     def _ask_freeze(self, poll, tries):
         """One request to the main thread to park for the rescue; True once a fault is recorded. tries
-        counts the requests it declined (it runs Python: interrupted there) and those nobody took."""
+        counts the requests it declined (it runs Python: interrupted there, unless a stop came, which
+        it takes between two steps) and those nobody took."""
         self.in_setup = self.status.state == SETUP
-        self.status.request = TIMEOUT
+        stopping = self.status.request in (STOP, TERM)
+        if not stopping:
+            self.status.request = TIMEOUT
         declined = self.status.fault.declined
         if not guard.freeze_main():
             return False
@@ -135,6 +142,8 @@ class Containment:
         if self.status.fault.kind:
             return True
         if self.status.fault.declined > declined:
+            if stopping:
+                return False
             tries[0] += 1
             if tries[0] >= DECLINED_TRIES:
                 guard.raise_in_main(PythonTimeout)

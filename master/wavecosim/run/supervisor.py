@@ -34,10 +34,9 @@ from pathlib import Path
 from ..kernel.fmicall import call_now
 from ..kernel.guard import die_with_parent, freeze_signal, require, signal_name
 from ..errors import FmuCrashed, Interrupted, StepTimeout, Terminated
-from .channel import Channel, DONE, RESCUING, SETUP, STOP, TERM, TIMEOUT, in_progress
+from .channel import Channel, DONE, RESCUING, SETUP, STOP, STOP_GRACE_S, TERM, TIMEOUT, in_progress
 from .containment import Containment, announcement, flush_streams
 
-STOP_GRACE_S = 5.0        # after passing a stop on: time for the child to stop between two steps
 RESCUE_GRACE_S = 20.0     # once its rescue began: time for the child to write its rows
 ASKED_GRACE_S = 3.0       # after a rescue was asked (by the parent or the child's watchdog): time for it to begin
 HEARTBEAT_GRACE_S = 5.0   # a child whose watchdog is silent this long past its timeout is stuck
