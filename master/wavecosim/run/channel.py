@@ -106,12 +106,13 @@ def in_progress(where, call_now, components):
     """(who, call) of a fault, where a stack named no subsystem (none was taken: the FMU holds the
     freeze signal; or the set-up had named none yet), from the FMU call in progress the status page
     records: call_now = (instance, call, opening) (kernel/fmicall.py), components maps an FMU
-    instance's component to its subsystem's name; the subsystem whose FMU the set-up opens otherwise."""
+    instance's component to its subsystem's name; before the runs have any (the set-up), the subsystem
+    whose FMU the set-up opens. An instance no run knows (a shim's) names the call alone."""
     who, call = where
     instance, now, opening = call_now
     if not now or (who and not who.startswith("an FMU (")):
         return where
-    name = components.get(instance) or opening.split("~")[0]
+    name = components.get(instance) or ("" if components and instance else opening.split("~")[0])
     return (f"subsystem {name}" if name else who), call or now
 
 
