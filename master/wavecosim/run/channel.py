@@ -144,7 +144,7 @@ def describe(fault, request, where, step, t, step_timeout, setup_timeout=None):
         cls, verb = (Terminated, "stopped by SIGTERM") if request == TERM else (Interrupted, "interrupted by the user")
         return cls(f"{verb}{at}, inside {who}{call_text}" if who else f"{verb}{at}")
     held = "; the FMU holds the signal that would stop it" if kind == "frozen" and fault.get("code") == -1 else ""
-    inside = (f"; stopped inside {who}{call_text}" if who else "") + held
+    inside = (f"; stopped inside {who}{call_text}" if who else f"; stopped{call_text}" if call else "") + held
     if request == TIMEOUT and kind in ("frozen", None, "none") and setup_timeout:
         return StepTimeout(f"the set-up did not finish within {setup_timeout:g} s (set-up timeout){inside}")
     if request == TIMEOUT and kind in ("frozen", None, "none"):
