@@ -89,11 +89,12 @@ def test_the_workers_of_a_scheduler_survive_faulty_runs(tmp_path, faulty_scenari
 
 
 @pytest.mark.slow  # starts a Dask LocalCluster; its runs hang until they are stopped
-@pytest.mark.parametrize("signum,group", [(signal.SIGINT, True), (signal.SIGTERM, False)], ids=["ctrl-c", "sigterm"])
+@pytest.mark.parametrize("signum,group", [(signal.SIGINT, True), (signal.SIGTERM, False), (signal.SIGTERM, True)],
+                         ids=["ctrl-c", "sigterm", "sigterm-to-the-group"])
 def test_a_stopped_sweep_on_a_local_cluster_keeps_the_rows_of_its_runs(signum, group, tmp_path, faulty_scenario):
-    """Ctrl-C (SIGINT to the whole process group, the workers included) or SIGTERM to the command while
-    two runs hang in doStep (no step timeout): each stops where it is, with its rows and a summary that
-    says interrupted and names the call; the third run never starts; nothing is left."""
+    """Ctrl-C (SIGINT to the whole process group, the workers included) or SIGTERM (to the command or to
+    its group) while two runs hang in doStep (no step timeout): each stops where it is, with its rows
+    and a summary that says interrupted and names the call; the third run never starts; nothing is left."""
     path, out, temp = tmp_path / "faulty.yaml", tmp_path / "out", tmp_path / "tmp"
     path.write_text(yaml.safe_dump(faulty_scenario(3, 20, T=0.5), sort_keys=False))
     temp.mkdir()

@@ -31,6 +31,9 @@ from ..scenario.overrides import apply_overrides
 from ..scenario.ssp import import_ssp, is_ssp
 
 ROW_FILE = "row.json"
+STOPS = (signal.SIGINT, signal.SIGTERM)     # what stops a sweep
+STOP_POLL_S = 0.5           # a Dask task looks this often whether its sweep was stopped
+STOP_WAIT_S = 60.0          # after a stop: time the Dask sweep's runs have to stop and write their rows
 
 
 @dataclass(frozen=True)
@@ -234,7 +237,7 @@ def _stop_events(name):
     if name is None:
         return []
     from distributed import Event
-    return [(signum, Event(f"{name}-{int(signum)}")) for signum in (signal.SIGINT, signal.SIGTERM)]
+    return [(signum, Event(f"{name}-{int(signum)}")) for signum in STOPS]
 
 
 def _stop_signal(events):
@@ -291,8 +294,6 @@ def _child_row(task, child, started):
     return _book_row(task, row, started)
 
 
-STOP_POLL_S = 0.5           # a Dask task looks this often whether its sweep was stopped
-STOP_WAIT_S = 60.0          # after a stop: time the Dask sweep's runs have to stop and write their rows
 SCHEDULER = re.compile(r"^(tcp|tls)://(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):(\d{1,5})$")
 CONNECT_TIMEOUT_S = 10          # seconds to reach a Dask scheduler before the sweep is refused
 
@@ -323,15 +324,15 @@ def dask_cluster(scheduler, workers, scratch):
     settings = {"distributed.scheduler.allowed-failures": 0,     # a dead worker's task is not run again
                 "temporary-directory": scratch}                  # the scheduler's scratch space
     main = threading.current_thread() is threading.main_thread()
-    old = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None   # the workers inherit it: Ctrl-C
-    try:                                                                    # is the sweep's to pass on
+    old = {sig: signal.signal(sig, signal.SIG_IGN) for sig in STOPS} if main else {}   # the workers inherit it:
+    try:                                                   # a stop sent to the whole group is the sweep's to pass on
         with dask.config.set(settings):
             cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                                dashboard_address=None, silence_logs=logging.ERROR,
                                                local_directory=scratch, env={"TMPDIR": scratch})
     finally:
-        if main:
-            signal.signal(signal.SIGINT, old)
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
     return Client(cluster), cluster
 
 
