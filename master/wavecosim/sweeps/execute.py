@@ -310,7 +310,8 @@ def check_scheduler(scheduler):
 def dask_cluster(scheduler, workers, scratch):
     """(client, cluster): a Dask client of the scheduler at an address (reached within
     CONNECT_TIMEOUT_S), or of an embedded LocalCluster of `workers` one-thread worker processes for
-    scheduler "local", its scratch space and temporary files in the folder `scratch`."""
+    scheduler "local", its scratch space and temporary files in the folder `scratch`, ignoring SIGINT
+    and SIGTERM (a stop reaches its runs through the sweep's stop events)."""
     import logging
     distributed = optional("distributed", "dask", "--scheduler (a sweep on Dask)")
     Client = distributed.Client
@@ -324,8 +325,8 @@ def dask_cluster(scheduler, workers, scratch):
     settings = {"distributed.scheduler.allowed-failures": 0,     # a dead worker's task is not run again
                 "temporary-directory": scratch}                  # the scheduler's scratch space
     main = threading.current_thread() is threading.main_thread()
-    old = {sig: signal.signal(sig, signal.SIG_IGN) for sig in STOPS} if main else {}   # the workers inherit it:
-    try:                                                   # a stop sent to the whole group is the sweep's to pass on
+    old = {sig: signal.signal(sig, signal.SIG_IGN) for sig in STOPS} if main else {}    # the workers inherit it
+    try:
         with dask.config.set(settings):
             cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                                dashboard_address=None, silence_logs=logging.ERROR,
