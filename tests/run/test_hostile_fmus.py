@@ -72,17 +72,19 @@ def _kept(out, steps=None):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("fault,options", [(5, ()), (7, ()), (5, ("--set", "master.fast=false"))],
-                         ids=["signals-blocked", "own-handlers", "python-route"])
-def test_a_hang_that_holds_the_freeze_signal_is_rescued(fault, options, hostile):
+@pytest.mark.parametrize("fault,options,step", [(5, (), STEP), (7, (), STEP), (5, ("--set", "master.fast=false"), STEP),
+                                                (5, ("--set", "subsystems.B.substeps=2"), STEP // 2)],
+                         ids=["signals-blocked", "own-handlers", "python-route", "substeps"])
+def test_a_hang_that_holds_the_freeze_signal_is_rescued(fault, options, step, hostile):
     """The watchdog takes the freeze the FMU never takes; the rescue writes every step before it, and
-    names the subsystem and the call from the call in progress the kernel (or the Python route)
-    records in the status page (no stack is taken)."""
+    names the subsystem and the call from the call in progress the kernel (or the Python route, or the
+    kernel's multi-rate shim) records in the status page (no stack is taken). The FMU faults at its
+    STEP-th doStep: with two substeps a macro-step makes two."""
     proc, out, temp = hostile(fault, "--no-reference", *options)
     line = _one_line(proc, 6)
-    assert line == (f"error: step {STEP} (t = 0.5) did not finish within 1 s (step timeout); stopped inside "
-                    "subsystem B in fmi2DoStep; the FMU holds the signal that would stop it")
-    assert _kept(out, STEP)["status"] == "timed out" and list(temp.iterdir()) == []
+    assert line == (f"error: step {step} (t = {step / 100:g}) did not finish within 1 s (step timeout); stopped "
+                    "inside subsystem B in fmi2DoStep; the FMU holds the signal that would stop it")
+    assert _kept(out, step)["status"] == "timed out" and list(temp.iterdir()) == []
 
 
 @pytest.mark.slow

@@ -53,24 +53,31 @@ void mr_destroy(MultiRate *p) {
 
 const long *mr_do_steps(const MultiRate *p) { return &p->do_steps; }
 
-static fmi2Status mr_getFMUstate(fmi2Component c, fmi2FMUstate *state) {
+/* The shim of c: the call in progress (fmicall.h) names the FMU behind it, not the shim. */
+static MultiRate *mr_of(fmi2Component c) {
     MultiRate *p = c;
+    fmi_call_now->instance = p->comp;
+    return p;
+}
+
+static fmi2Status mr_getFMUstate(fmi2Component c, fmi2FMUstate *state) {
+    MultiRate *p = mr_of(c);
     return p->fn.getFMUstate(p->comp, state);
 }
 
 static fmi2Status mr_setFMUstate(fmi2Component c, fmi2FMUstate state) {
-    MultiRate *p = c;
+    MultiRate *p = mr_of(c);
     return p->fn.setFMUstate(p->comp, state);
 }
 
 static fmi2Status mr_freeFMUstate(fmi2Component c, fmi2FMUstate *state) {
-    MultiRate *p = c;
+    MultiRate *p = mr_of(c);
     return p->fn.freeFMUstate(p->comp, state);
 }
 
 /* Subsystem._substeps: the FMU gets a times scale on its inputs. */
 static fmi2Status mr_setReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[]) {
-    MultiRate *p = c;
+    MultiRate *p = mr_of(c);
     if (nvr > (size_t)p->m) return fmi2Error;
     for (size_t j = 0; j < nvr; j++) p->values[j] = value[j] * p->scale;
     return p->fn.setReal(p->comp, vr, nvr, p->values);
@@ -78,7 +85,7 @@ static fmi2Status mr_setReal(fmi2Component c, const fmi2ValueReference vr[], siz
 
 /* n doSteps of h / n from t, the inputs held; with stage values, their sums over the substeps. */
 static fmi2Status mr_doStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_prior) {
-    MultiRate *p = c;
+    MultiRate *p = mr_of(c);
     size_t w = 3 * (size_t)p->m;
     double hs = h / p->n;
     fmi2Status worst = fmi2OK;
@@ -104,7 +111,7 @@ static fmi2Status mr_doStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean
 
 /* The FMU's values, a stage value reference's as the last macro-step's (readings.py, _macro_stage). */
 static fmi2Status mr_getReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]) {
-    MultiRate *p = c;
+    MultiRate *p = mr_of(c);
     fmi2Status status = p->fn.getReal(p->comp, vr, nvr, value);
     if (fmi_fails(status) || !p->staged || p->stage[3 * (size_t)p->m] != 1.0) return status;
     for (size_t j = 0; j < nvr; j++)
