@@ -56,24 +56,31 @@ static fmi2Status counted(const MultiRate *p, int kind, fmi2Status status) {
     return status;
 }
 
-static fmi2Status mr_getFMUstate(fmi2Component c, fmi2FMUstate *state) {
+/* The shim of c: the call in progress (fmicall.h) names the FMU behind it, not the shim. */
+static MultiRate *mr_of(fmi2Component c) {
     MultiRate *p = c;
+    fmi_call_now->instance = p->comp;
+    return p;
+}
+
+static fmi2Status mr_getFMUstate(fmi2Component c, fmi2FMUstate *state) {
+    MultiRate *p = mr_of(c);
     return counted(p, FMI_CALL_SAVE, p->fn.getFMUstate(p->comp, state));
 }
 
 static fmi2Status mr_setFMUstate(fmi2Component c, fmi2FMUstate state) {
-    MultiRate *p = c;
+    MultiRate *p = mr_of(c);
     return counted(p, FMI_CALL_RESTORE, p->fn.setFMUstate(p->comp, state));
 }
 
 static fmi2Status mr_freeFMUstate(fmi2Component c, fmi2FMUstate *state) {
-    MultiRate *p = c;
+    MultiRate *p = mr_of(c);
     return p->fn.freeFMUstate(p->comp, state);
 }
 
 /* Subsystem._substeps: the FMU gets a times scale on its inputs. */
 static fmi2Status mr_setReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, const fmi2Real value[]) {
-    MultiRate *p = c;
+    MultiRate *p = mr_of(c);
     if (nvr > (size_t)p->m) return fmi2Error;
     for (size_t j = 0; j < nvr; j++) p->values[j] = value[j] * p->scale;
     return counted(p, FMI_CALL_SET, p->fn.setReal(p->comp, vr, nvr, p->values));
@@ -81,7 +88,7 @@ static fmi2Status mr_setReal(fmi2Component c, const fmi2ValueReference vr[], siz
 
 /* n doSteps of h / n from t, the inputs held; with stage values, their sums over the substeps. */
 static fmi2Status mr_doStep(fmi2Component c, fmi2Real t, fmi2Real h, fmi2Boolean no_prior) {
-    MultiRate *p = c;
+    MultiRate *p = mr_of(c);
     size_t w = 3 * (size_t)p->m;
     double hs = h / p->n;
     fmi2Status worst = fmi2OK;
@@ -115,7 +122,7 @@ static int stage_index(const MultiRate *p, fmi2ValueReference vr) {
  * values that are all the stage's are given without calling the FMU, as Subsystem._substeps gives
  * its outgoing waves. */
 static fmi2Status mr_getReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, fmi2Real value[]) {
-    MultiRate *p = c;
+    MultiRate *p = mr_of(c);
     int made = p->staged && p->stage[3 * (size_t)p->m] == 1.0, all = made;
     for (size_t j = 0; j < nvr && all; j++) all = stage_index(p, vr[j]) >= 0;
     fmi2Status status = all ? fmi2OK : counted(p, FMI_CALL_GET, p->fn.getReal(p->comp, vr, nvr, value));
