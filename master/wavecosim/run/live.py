@@ -179,12 +179,15 @@ class LiveRun(BlockSteps, RunFiles):
             self.block_cap = max(1, min(BLOCK_STEPS, fit, 2 * self.block_cap))
 
     def advance(self, n, count):
-        """Macro-steps from n on: up to `count` in one call of the master when count > 1, else step(n);
-        returns how many were made."""
+        """Macro-steps from n on: up to `count` in one call of the master when count > 1, else step(n),
+        then the restore re-checked where it is due; returns how many were made."""
         if count == 1:
             self.step(n)
-            return 1
-        return self.step_block(n, count)
+            done = 1
+        else:
+            done = self.step_block(n, count)
+        self._recheck_restores(n + done)
+        return done
 
     def lead(self, n, end):
         """As the lockstep reference of a run at step n: make the steps up to end - 1 not made yet,
@@ -201,7 +204,7 @@ class LiveRun(BlockSteps, RunFiles):
             self.recent[self.led] = reading.outputs
         return self.led
 
-    def recheck_restores(self, n):
+    def _recheck_restores(self, n):
         """After n steps: the restore re-checked where it is due (RestoreWatch), its FMU calls, the
         run's own check, left out of fmu_calls as the observers' are."""
         if n != self.restores.next:

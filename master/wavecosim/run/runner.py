@@ -128,7 +128,6 @@ def _loop(live, ref, progress, contain=None):
                         raise ref.failure
                 active(live)
                 done = live.advance(n, count)
-                live.recheck_restores(n + done)
                 stop.check()
                 if progress and ((n + done) // every > n // every or not live.more(n + done)):
                     progress(_progress_of(live, n + done), live.n_steps)
