@@ -22,7 +22,7 @@ from ..run.fine import FINE_STEPS, true_error
 
 PEERS = ("ecco",)
 SAFETY, P_GAIN, I_GAIN = 0.8, 0.2, 0.15       # ECCO's controller: libcosimpy's EccoParams defaults (the paper's)
-CHANGE_RATE = (0.2, 1.5)                      # bounds of h_new / h: libcosimc's ECCO example (tests/ecco_algorithm_test.c)
+CHANGE_RATE = (0.2, 1.5)                      # bounds of h_new / h: libcosimc's tests/ecco_algorithm_multi_bond_test.c
 TITLE = "libcosim's ECCO"
 
 
