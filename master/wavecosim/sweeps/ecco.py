@@ -15,9 +15,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..bench.peers import Refused, in_child, installed, libcosim, serve
+from ..bench.peers import Refused, in_child, libcosim, serve
 from ..core.scene import resolve_fmu
-from ..errors import ConfigError
+from ..errors import ConfigError, optional
 from ..run.fine import FINE_STEPS, true_error
 
 PEERS = ("ecco",)
@@ -244,8 +244,7 @@ def peer_rows(scenario, tolerances, reference, peers=(), progress=None, note=Non
     if "ecco" not in peers:
         return rows
     try:
-        if not installed("libcosim"):
-            libcosim()
+        optional("libcosimpy", "peers", "--peers ecco")
         bonds = power_bonds(scenario)
     except (Refused, ConfigError) as exc:        # not installed (the line names the extra), or no power bond
         if note:
