@@ -4,6 +4,7 @@ its doSteps are its steps times the FMUs, a tighter tolerance makes more steps; 
 the value references libcosim reads from the FMUs; a system without a power bond is one line."""
 import dataclasses
 import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -16,7 +17,7 @@ from wavecosim.run.runner import run
 from wavecosim.scenario.config import load_scenario
 from wavecosim.sweeps.ecco import _request, observed_columns, peer_rows, power_bonds, run_ecco
 
-pytestmark = pytest.mark.skipif(not installed("libcosim"), reason="libcosimpy is not installed (the peers extra)")
+needs_libcosim = pytest.mark.skipif(not installed("libcosim"), reason="libcosimpy is not installed (the peers extra)")
 T = 0.2
 
 
@@ -27,6 +28,7 @@ def pair():
     return scenario, fine_reference(scenario, None, dt=T / 4000)
 
 
+@needs_libcosim
 def test_ecco_runs_on_the_foreign_pair_at_a_tolerance(pair):
     scenario, reference = pair
     loose, tight = peer_rows(scenario, [1e-2, 1e-3], reference, ("ecco",))
@@ -39,6 +41,7 @@ def test_ecco_runs_on_the_foreign_pair_at_a_tolerance(pair):
     assert tight["accepted_steps"] > 2 * loose["accepted_steps"] and tight["true_error"] < loose["true_error"]
 
 
+@needs_libcosim
 def test_ecco_counts_every_step_it_makes(pair):
     scenario, reference = pair
     out = run_ecco(_request(scenario, power_bonds(scenario), 1e-3, observed_columns(scenario, reference)))
@@ -48,6 +51,7 @@ def test_ecco_counts_every_step_it_makes(pair):
     assert set(out["values"]) == {"x", "v"}
 
 
+@needs_libcosim
 def test_the_power_bond_names_the_value_references_libcosim_reads(pair):
     scenario, _ = pair
     from libcosimpy.CosimEnums import CosimVariableCausality as causality
@@ -67,6 +71,7 @@ def test_the_power_bond_names_the_value_references_libcosim_reads(pair):
     assert [c for _, c in expected] == [out, inp, out, inp]
 
 
+@needs_libcosim
 def test_a_system_without_a_power_bond_is_one_line():
     scenario = load_scenario(path("two_oscillators"))
     lines = []
@@ -84,6 +89,14 @@ def test_a_port_pair_libcosim_cannot_connect_unchanged_is_no_power_bond(pair, ch
     changed = scenario.with_changes("the test", subsystems=[a, dataclasses.replace(b, port={**b.port, **change})])
     with pytest.raises(Refused, match=words):
         power_bonds(changed)
+
+
+def test_libcosimpy_missing_is_one_line_and_no_rows(monkeypatch):
+    monkeypatch.setitem(sys.modules, "libcosimpy", None)          # import libcosimpy fails, as where it is absent
+    lines = []
+    assert peer_rows(load_scenario(path("foreign_pair")), [1e-3], None, ("ecco",), note=lines.append) == []
+    assert lines == ["libcosim's ECCO skipped: --peers ecco needs libcosimpy, which is not installed here: "
+                     "pip install 'wavecosim[peers]'"]
 
 
 @pytest.mark.parametrize("args, words", [(["--tolerances", "1e-2", "--peers", "nope"], "unknown peer 'nope'"),
