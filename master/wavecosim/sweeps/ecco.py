@@ -85,19 +85,19 @@ def power_bonds(scenario):
     for c in scenario.couplings:
         if c.type != "equal_effort_opposite_flow":
             raise Refused(f"no power bond: a {c.type} coupling is not a plain connection")
-        (a, i), (b, j) = _pair(c, subsystems)
-        bonds.append(_bond(a, i, b, j, refs))
+        bonds += [_bond(a, i, b, j, refs) for (a, i), (b, j) in _pairs(c, subsystems)]
     if not bonds:
         raise Refused("no power bond: the system couples no physical ports")
     return bonds
 
 
-def _pair(coupling, subsystems):
-    """The two (subsystem, channel) an equal_effort_opposite_flow coupling joins, one channel each."""
+def _pairs(coupling, subsystems):
+    """The (subsystem, channel) pairs an equal_effort_opposite_flow coupling joins, channel by channel."""
     sides = [_channels(entry, subsystems) for entry in coupling.ports]
-    if len(sides) != 2 or any(len(side) != 1 for side in sides):
-        raise Refused(f"no power bond: the coupling of {', '.join(coupling.ports)} joins more than one channel a side")
-    return sides[0][0], sides[1][0]
+    if len(sides) != 2 or len(sides[0]) != len(sides[1]):
+        raise Refused(f"no power bond: the coupling of {', '.join(coupling.ports)} does not join two ports channel "
+                      "by channel")
+    return list(zip(*sides))
 
 
 def ecco_params(scenario, tolerance):
