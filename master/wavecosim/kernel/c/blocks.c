@@ -252,27 +252,40 @@ static int changed(const double *const *x, const double *last, const int *which,
     return 0;
 }
 
-/* Step n of subsystem i: its outputs the same as before it (same), its inputs changed (moved);
- * FreezeWatch._count. */
-static void freeze_count(const FreezeBlock *p, int i, int n, int same, int moved) {
-    if (!same) {
-        p->count[i] = 0;
-        p->since[i] = -1;
-        return;
-    }
-    if (p->since[i] < 0) p->since[i] = n;
-    p->count[i] += moved;
-    if (p->count[i] < p->frozen_steps) return;
-    int steps = n + 1 - p->since[i];
+/* Subsystem i's stretch reached frozen_steps at step n (count: its steps so far, since: its first step):
+ * its longest stretch is this one when it is the first, goes on or is longer (FreezeWatch._count). */
+static void freeze_found(const FreezeBlock *p, int i, int n, int since) {
+    int steps = n + 1 - since;
     if (p->found_from[i] < 0) {
         p->found_at[i] = n;
-        p->first_from[i] = p->since[i];
+        p->first_from[i] = since;
         ++*p->found;
-    } else if (p->found_from[i] != p->since[i] && steps <= p->found_steps[i]) {
+    } else if (p->found_from[i] != since && steps <= p->found_steps[i]) {
         return;
     }
-    p->found_from[i] = p->since[i];
+    p->found_from[i] = since;
     p->found_steps[i] = steps;
+}
+
+/* Subsystem i over steps n .. n + count - 1 (x: the values' rows from the first), step by step as
+ * FreezeWatch.after_step and _count: a step whose outputs changed ends the stretch, one with the same
+ * outputs starts or goes on with it, and counts when its inputs changed. */
+static void freeze_subsystem(const FreezeBlock *p, const double *const *x, int i, int n, int count) {
+    int since = p->since[i], stretch = p->count[i];
+    const int *outs = p->outs, *ins = p->ins;
+    int o0 = p->out_at[i], o1 = p->out_at[i + 1], i0 = p->in_at[i], i1 = p->in_at[i + 1];
+    for (int s = 0; s < count; s++) {
+        if (changed(x, p->last, outs, o0, o1, (size_t)s)) {
+            stretch = 0;
+            since = -1;
+            continue;
+        }
+        if (since < 0) since = n + s;
+        stretch += changed(x, p->last, ins, i0, i1, (size_t)s);
+        if (stretch >= p->frozen_steps) freeze_found(p, i, n + s, since);
+    }
+    p->since[i] = since;
+    p->count[i] = stretch;
 }
 
 /* Steps first .. first + count - 1 of the block from macro-step n0 (a DRPassFn). */
@@ -281,13 +294,7 @@ void freeze_steps(void *args, int n0, const double *log, long ld, int first, int
     int n_values = p->n_values;
     const double *x[n_values > 0 ? n_values : 1];
     for (int v = 0; v < n_values; v++) x[v] = log + (size_t)p->rows[v] * (size_t)ld + first;
-    for (int s = 0; s < count; s++)
-        for (int i = 0; i < p->k; i++) {
-            int same = !changed(x, p->last, p->outs, p->out_at[i], p->out_at[i + 1], (size_t)s);
-            if (same || p->since[i] >= 0)
-                freeze_count(p, i, n0 + first + s, same,
-                             same && changed(x, p->last, p->ins, p->in_at[i], p->in_at[i + 1], (size_t)s));
-        }
+    for (int i = 0; i < p->k; i++) freeze_subsystem(p, x, i, n0 + first, count);
     for (int v = 0; v < n_values && count > 0; v++) p->last[v] = x[v][count - 1];
 }
 
