@@ -40,7 +40,7 @@ class FreezeBlock(ctypes.Structure):
     _fields_ = [*[(name, ctypes.c_int) for name in ("k", "frozen_steps", "n_values")],
                 *[(name, _int_p) for name in ("rows", "out_at", "outs", "in_at", "ins")], ("last", _double_p),
                 *[(name, _int_p) for name in ("count", "since", "found_from", "found_steps", "found_at",
-                                              "first_from", "found")]]
+                                              "first_from", "found_count")]]
 
 
 @mirrors("blocks", "SampledBlock")

@@ -40,8 +40,8 @@ class BlockSteps:
         self.passes = [(self.rows_pass, None)] + [(o.block_pass(), span) for o, span in self.block_observers
                                                    if o.block_pass() is not None]
         self.python_observers = [(o, span) for o, span in self.block_observers if o.block_pass() is None]
-        self.reporting = [o for o, _ in self.block_observers if o.block_pass() is not None
-                          and type(o).after_passes is not Observer.after_passes]
+        self.handing = [o for o, _ in self.block_observers if o.block_pass() is not None and (
+            type(o).before_passes is not Observer.before_passes or type(o).after_passes is not Observer.after_passes)]
         self.column_passes = [(p, span) for p, span in self.passes[1:] if span.stop > span.start]
         self.rows_pass.args.lds, self.rows_pass.args.ldt = self.steps.ld, self.trajectory.ld
         for p, _ in self.column_passes:
@@ -57,6 +57,8 @@ class BlockSteps:
         value ends the run after it). Returns the steps made; raises the FmuError of the step after them."""
         if self.kernel_passes:
             self._aim(self.steps.reserve_at(count), self.trajectory.reserve_at(count))
+        for o in self.handing:
+            o.before_passes()
         t0 = time.perf_counter()
         self.in_block = n0
         done, log, error = self.route.run_steps(n0, count, passes=self.kernel_passes)
@@ -92,7 +94,7 @@ class BlockSteps:
         if log.passed < count:
             for p, _ in self.passes:
                 p.steps(n0, log, log.passed, count - log.passed)
-        for o in self.reporting:
+        for o in self.handing:
             o.after_passes()
         if self.python_observers:
             if every:

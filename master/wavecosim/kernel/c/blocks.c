@@ -234,12 +234,12 @@ void block_rows_steps(void *args, int block_n0, const double *log, long ld_, int
  * step before, left at the last step's. Per subsystem: count, the steps of its current stretch of equal
  * outputs whose inputs changed, from step since (-1: none); found_from and found_steps, its longest
  * stretch that reached frozen_steps (-1: none), found_at the step where the first one did, first_from
- * where that one began; *found counts the subsystems found. */
+ * where that one began; *found_count counts the subsystems found. */
 typedef struct FreezeBlock {
     int k, frozen_steps, n_values;
     const int *rows, *out_at, *outs, *in_at, *ins;
     double *last;
-    int *count, *since, *found_from, *found_steps, *found_at, *first_from, *found;
+    int *count, *since, *found_from, *found_steps, *found_at, *first_from, *found_count;
 } FreezeBlock;
 
 /* Whether any of the values which[from .. to - 1] differs at step s from the step before (x[v]: value
@@ -259,7 +259,7 @@ static void freeze_found(const FreezeBlock *p, int i, int n, int since) {
     if (p->found_from[i] < 0) {
         p->found_at[i] = n;
         p->first_from[i] = since;
-        ++*p->found;
+        ++*p->found_count;
     } else if (p->found_from[i] != since && steps <= p->found_steps[i]) {
         return;
     }

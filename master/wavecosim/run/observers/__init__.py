@@ -75,6 +75,9 @@ class Observer:
         row of these columns) and `ldo` (doubles between them) where it has columns."""
         return None
 
+    def before_passes(self):
+        """Before a kernel call whose steps its block_pass makes: hand the pass what after_step carried on."""
+
     def after_passes(self):
         """After a block whose steps its block_pass made: what it says of them itself (a warning)."""
 

@@ -19,11 +19,14 @@ from . import Observer
 FROZEN_STEPS = 20    # steps with the inputs changing and the outputs the same that make a subsystem suspect
 
 
+STATE = ("last", "count", "since", "found_from", "found_steps", "found_at", "first_from", "found_count")
+
+
 class FreezeWatch(Observer):
     """Counts, per subsystem, the committed steps whose outputs equal the previous step's while its
     inputs differ; a stretch reaching FROZEN_STEPS is reported (once per subsystem, through warn).
-    Its state lives in C arrays that after_step and the blocks' C pass (kernel/c/blocks.c,
-    freeze_steps) both carry on, step after step."""
+    Blocks of steps go to the C pass (kernel/c/blocks.c, freeze_steps), which carries the same state
+    on in C arrays: it is handed over where the run goes from steps made one by one to blocks and back."""
     blocks = True
 
     def __init__(self, scene, warn):
@@ -46,16 +49,18 @@ class FreezeWatch(Observer):
             at += s.m
         self.getters = [(itemgetter(*out), itemgetter(*inp) if inp else (lambda values: ())) for out, inp in
                         zip(self.outs, self.ins)]           # a step's outputs and inputs as tuples, compared at once
-        self.last = cvalues.doubles(n + 2 * channels)       # H, E and F after the step before
-        self.count = cvalues.ints([0] * n)          # steps in the current stretch with outputs same, inputs changed
-        self.since = cvalues.ints([-1] * n)         # the first step of the current stretch of equal outputs (-1: none)
-        self.found_from = cvalues.ints([-1] * n)    # the longest stretch found (-1: none): first step, steps
-        self.found_steps = cvalues.ints([0] * n)
-        self.found_at = cvalues.ints([0] * n)       # the step where the first stretch found reached FROZEN_STEPS
-        self.first_from = cvalues.ints([0] * n)     # and its first step
-        self.found_count = cvalues.ints([0])        # subsystems found
+        self.last = [0.0] * (n + 2 * channels)      # H, E and F after the step before
+        self.count = [0] * n                 # steps in the current stretch with outputs same, inputs changed
+        self.since = [-1] * n                # the first step of the current stretch of equal outputs (-1: none)
+        self.found_from = [-1] * n           # the longest stretch found (-1: none): its first step, its steps
+        self.found_steps = [0] * n
+        self.found_at = [0] * n              # the step where the first stretch found reached FROZEN_STEPS
+        self.first_from = [0] * n            # and that stretch's first step
+        self.found_count = [0]               # subsystems found
         self.warned = set()
-        self.call = None                            # the C pass (blocks.Pass), from the blocks' layout
+        self.c = {name: (cvalues.doubles if name == "last" else cvalues.ints)(getattr(self, name)) for name in STATE}
+        self.in_c = False                    # whether the C arrays hold the state (a block came last)
+        self.call = None                     # the C pass (blocks.Pass), from the blocks' layout
 
     @staticmethod
     def _flat(reading):
@@ -65,13 +70,15 @@ class FreezeWatch(Observer):
         self.last[:] = self._flat(first)
 
     def after_step(self, n, t, log, reading, row):
+        self._in_python()
         now, last = self._flat(reading), self.last
         for i, (out, inp) in enumerate(self.getters):
             same = out(now) == out(last)
             if same or self.since[i] >= 0:
                 self._count(i, n, same, same and inp(now) != inp(last))
-        last[:] = now
-        self.after_passes()
+        self.last = now
+        if self.found_count[0] != len(self.warned):
+            self._warn_found()
 
     def prepare_block(self, logs, readings):
         """The C pass with its fixed arguments: the kernel log's rows of H, E and F, each subsystem's
@@ -79,21 +86,39 @@ class FreezeWatch(Observer):
         at, ints = logs.observed_at, cvalues.ints
         rows = [at + r for key in ("H", "E", "F") for r in readings.rows(key)]
         ends = lambda lists: ints([0, *itertools.accumulate(map(len, lists))])      # noqa: E731
-        args = blocks.FreezeBlock(
-            k=len(self.names), frozen_steps=FROZEN_STEPS, n_values=len(rows), rows=ints(rows),
-            out_at=ends(self.outs), outs=ints(sum(self.outs, [])), in_at=ends(self.ins), ins=ints(sum(self.ins, [])),
-            last=self.last, count=self.count, since=self.since, found_from=self.found_from,
-            found_steps=self.found_steps, found_at=self.found_at, first_from=self.first_from, found=self.found_count)
-        self.call = blocks.Pass("freeze_steps", args)
+        self.call = blocks.Pass("freeze_steps", blocks.FreezeBlock(
+            k=len(self.names), frozen_steps=FROZEN_STEPS, n_values=len(rows), rows=ints(rows), out_at=ends(self.outs),
+            outs=ints(sum(self.outs, [])), in_at=ends(self.ins), ins=ints(sum(self.ins, [])), **self.c))
 
     def block_pass(self):
         """The watch over a block's steps in C, in after_step's order (kernel/c/blocks.c, freeze_steps)."""
         return self.call
 
+    def before_passes(self):
+        if not self.in_c:
+            self._hand_over(to_c=True)
+
     def after_passes(self):
-        """Warn of each subsystem found since the last time, in the order found."""
-        if self.found_count[0] == len(self.warned):
-            return
+        if self.c["found_count"][0] != len(self.warned):
+            self._in_python()
+            self._warn_found()
+
+    def _in_python(self):
+        """The state back from the C arrays after a block."""
+        if self.in_c:
+            self._hand_over(to_c=False)
+
+    def _hand_over(self, to_c):
+        for name in STATE:
+            values, array = getattr(self, name), self.c[name]
+            if to_c:
+                array[:len(values)] = values
+            else:
+                setattr(self, name, array[:len(values)])
+        self.in_c = to_c
+
+    def _warn_found(self):
+        """Warn of each subsystem found since the last warning, in the order found."""
         for i in self._found():
             if self.names[i] not in self.warned:
                 self.warned.add(self.names[i])
@@ -126,6 +151,7 @@ class FreezeWatch(Observer):
     @property
     def found(self):
         """{subsystem: {"from_step", "from_t", "steps"}}: the longest stretch of each subsystem found."""
+        self._in_python()
         return {self.names[i]: {"from_step": self.found_from[i], "from_t": self.t0 + self.found_from[i] * self.dt,
                                 "steps": self.found_steps[i]} for i in self._found()}
 
