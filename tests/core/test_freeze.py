@@ -132,11 +132,28 @@ def state(watch):
     return [np.array(held[0]).tobytes(), *held[1:]]
 
 
+def held_stretches(watch, rng, steps):
+    """H, E and F of A and B over the steps (steps x 6): all moving, with stretches of held outputs
+    of every length around FROZEN_STEPS (the inputs held too in some of their steps) and NaNs."""
+    values = rng.random((steps, 6))
+    values[rng.random(steps) < 0.01, 2] = np.nan              # a NaN differs from every value, itself too
+    for out, inp in zip(watch.outs, watch.ins):
+        j = 0
+        while j < steps:
+            start, length = j + int(rng.integers(1, 30)), int(rng.integers(5, 45))
+            for k in range(start + 1, min(start + length, steps)):
+                values[k, out] = values[k - 1, out]
+                if rng.random() < 0.2:
+                    values[k, inp] = values[k - 1, inp]
+            j = start + length
+    return values
+
+
 def test_the_watch_in_blocks_equals_the_watch_step_by_step():
     """Stretches of equal outputs (some with changing inputs, of every length around FROZEN_STEPS)
     given step by step, and in blocks of uneven sizes to the C pass (kernel/c/blocks.c) with steps
-    made one by one among them: the same subsystems found and warned of, with the same stretches, the same
-    state after every block."""
+    made one by one among them: the same subsystems found and warned of, with the same stretches, the
+    same state after every block."""
     from wavecosim.core.scene import build_scene
     from wavecosim.run.observers.freeze_watch import FreezeWatch
     scene = build_scene(pair("explicit"), wave=False, needs_rollback=False)
@@ -145,17 +162,7 @@ def test_the_watch_in_blocks_equals_the_watch_step_by_step():
         said = {"one": [], "blocks": []}
         one, blocks = (FreezeWatch(scene, said[key].append) for key in said)
         steps = 3000
-        values = rng.random((steps, 6))                           # H, E and F of A and B: all move
-        values[rng.random(steps) < 0.01, 2] = np.nan              # a NaN differs from every value, itself too
-        for out, inp in zip(one.outs, one.ins):                   # stretches of held outputs, inputs held in some
-            j = 0
-            while j < steps:
-                start, length = j + int(rng.integers(1, 30)), int(rng.integers(5, 45))
-                for k in range(start + 1, min(start + length, steps)):
-                    values[k, out] = values[k - 1, out]
-                    if rng.random() < 0.2:
-                        values[k, inp] = values[k - 1, inp]
-                j = start + length
+        values = held_stretches(one, rng, steps)
         reading = [Values(list(v[:2]), list(v[2:4]), list(v[4:])) for v in values]
         first = Values([0.0, 0.0], [0.0, 0.0], [0.0, 0.0])
         one.start(first)
