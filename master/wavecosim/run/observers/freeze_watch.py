@@ -67,7 +67,9 @@ class FreezeWatch(Observer):
         return [*reading.H, *reading.E, *reading.F]
 
     def start(self, first):
+        """The values at t = 0, in the C arrays too: a run that goes in blocks hands nothing over."""
         self.last[:] = self._flat(first)
+        self._hand_over(to_c=True)
 
     def after_step(self, n, t, log, reading, row):
         self._in_python()
