@@ -6,8 +6,8 @@ Per subsystem with a port: its outputs are its stored energy H (where the port n
 port's output of each channel (a physical port: the effort or flow the FMU gives; a wave port: its
 effort and flow), its inputs the other side of a physical port (the values the master set), or
 for a wave port the effort and flow of the channels coupled to its own (its incoming waves come
-from them). It only
-reads the values the runner reads after every step (the Reading, or a block's rows in the kernel's log)."""
+from them). It only reads the values the runner reads after every step (the Reading, or a block's
+rows in the kernel's log)."""
 import itertools
 from operator import itemgetter
 
@@ -17,9 +17,7 @@ from ...kernel import blocks, cvalues
 from . import Observer
 
 FROZEN_STEPS = 20    # steps with the inputs changing and the outputs the same that make a subsystem suspect
-
-
-STATE = ("last", "count", "since", "found_from", "found_steps", "found_at", "first_from", "found_count")
+STATE = ("last", "count", "since", "found_from", "found_steps", "found_at", "first_from", "found_count")   # carried on
 
 
 class FreezeWatch(Observer):
@@ -111,6 +109,7 @@ class FreezeWatch(Observer):
             self._hand_over(to_c=False)
 
     def _hand_over(self, to_c):
+        """The state from the Python lists into the C arrays (to_c), or back."""
         for name in STATE:
             values, array = getattr(self, name), self.c[name]
             if to_c:
