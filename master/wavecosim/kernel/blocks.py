@@ -1,7 +1,8 @@
 """The runner's per-block arithmetic over the C kernel's log (kernel/c/blocks.c, built into
-the kernel library libblocks.so): the rows of a block of macro-steps (block_rows_steps) and Condition 2
-over it (passivity_steps) and the freeze watch (freeze_steps), which the kernel makes as it logs the steps (Pass), and the certificates'
-columns (sampled_block, watch_block), each bit for bit the step-by-step Python's. Without a C compiler
+the kernel library libblocks.so): the rows of a block of macro-steps (block_rows_steps), Condition 2
+over it (passivity_steps) and the freeze watch (freeze_steps), which the kernel makes as it logs the
+steps (Pass), and the certificates' columns (sampled_block, watch_block), each bit for bit the
+step-by-step Python's. Without a C compiler
 the library is missing, `library()` is None and the runner goes step by step (as it must anyway:
 the kernel needs the compiler too)."""
 import ctypes
