@@ -40,8 +40,11 @@ class BlockSteps:
         self.passes = [(self.rows_pass, None)] + [(o.block_pass(), span) for o, span in self.block_observers
                                                    if o.block_pass() is not None]
         self.python_observers = [(o, span) for o, span in self.block_observers if o.block_pass() is None]
+        self.handing = [o for o, _ in self.block_observers if o.block_pass() is not None and (
+            type(o).before_passes is not Observer.before_passes or type(o).after_passes is not Observer.after_passes)]
+        self.column_passes = [(p, span) for p, span in self.passes[1:] if span.stop > span.start]
         self.rows_pass.args.lds, self.rows_pass.args.ldt = self.steps.ld, self.trajectory.ld
-        for p, _ in self.passes[1:]:
+        for p, _ in self.column_passes:
             p.args.ldo = self.steps.ld
         self.kernel_passes = self.every == 1
         if self.kernel_passes:
@@ -54,6 +57,8 @@ class BlockSteps:
         value ends the run after it). Returns the steps made; raises the FmuError of the step after them."""
         if self.kernel_passes:
             self._aim(self.steps.reserve_at(count), self.trajectory.reserve_at(count))
+        for o in self.handing:
+            o.before_passes()
         t0 = time.perf_counter()
         self.in_block = n0
         done, log, error = self.route.run_steps(n0, count, passes=self.kernel_passes)
@@ -89,6 +94,8 @@ class BlockSteps:
         if log.passed < count:
             for p, _ in self.passes:
                 p.steps(n0, log, log.passed, count - log.passed)
+        for o in self.handing:
+            o.after_passes()
         if self.python_observers:
             if every:
                 rows, steps_at = self.steps.reserve(count), self.steps.reserve_at(count)
@@ -111,7 +118,7 @@ class BlockSteps:
         tables' ld between columns): the observers' columns are spans of the steps'."""
         args, ld = self.rows_pass.args, self.steps.ld
         args.steps, args.trajectory = steps_at, trajectory_at
-        for p, span in self.passes[1:]:
+        for p, span in self.column_passes:
             p.args.out = steps_at + 8 * ld * span.start
 
     def _rows_pass(self, log, readings):
