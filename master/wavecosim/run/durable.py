@@ -1,0 +1,88 @@
+"""The shared memory of a durable table (a supervised run's, run/recorder.py): its two blocks of rows
+and a record of the rows they hold, mapped (MAP_SHARED) from files in the run's channel folder
+(run/channel.py). A value written there is in the page cache at once, so when the child is killed
+outright (SIGKILL, _exit, memory exhausted, every file descriptor closed) its parent still reads every
+row it committed and appends those its CSV file lacks (run/salvage.py).
+
+    <prefix>.record    int64: rows counted, rows with every column, each block's first row, and the rows
+                       and bytes in the file, twice (the pair `which` names is whole: a death between
+                       two stores leaves the other)
+    <prefix>.block0/1  float64 (BLOCK + PAD) x columns, columns contiguous, as the table's blocks
+"""
+import mmap
+import os
+from pathlib import Path
+
+import numpy as np
+
+ROWS, WHOLE, FIRST, WHICH, FILED = 0, 1, 2, 4, 5     # record: rows counted, rows with every column, blocks' first
+RECORD = FILED + 4                                    # rows, which (rows, bytes in the file) pair of the two holds
+
+
+class Mapped:
+    """A table's record and blocks mapped from files `prefix`.*: made afresh (create) by the table, read
+    back by the parent. A block holds `rows` rows of `columns` columns, `ld` doubles apart."""
+
+    def __init__(self, prefix, rows, ld, columns, create=True):
+        self.prefix, self.rows, self.shape = Path(prefix), rows, (ld, columns)
+        self._record = self._map("record", 8 * RECORD, create)
+        self.record = memoryview(self._record).cast("q")
+        if create:
+            self.record[FIRST], self.record[FIRST + 1] = -1, -1
+        self.address = np.frombuffer(self._record, np.int64).ctypes.data      # of record[ROWS], for C
+        self._blocks = {}
+
+    def files(self):
+        """The files this table's memory lives in (the record's, then the blocks')."""
+        return [str(self.prefix.with_suffix(f".{name}")) for name in ("record", "block0", "block1")]
+
+    def _map(self, name, size, create):
+        path = self.prefix.with_suffix(f".{name}")
+        fd = os.open(path, os.O_RDWR | (os.O_CREAT | os.O_TRUNC if create else 0), 0o600)
+        try:
+            if create:
+                os.ftruncate(fd, size)
+            return mmap.mmap(fd, size)
+        finally:
+            os.close(fd)
+
+    def block(self, slot, create=True):
+        """Block `slot` (0 or 1) as a Fortran-order array of the full shape (NaN when made afresh)."""
+        if slot not in self._blocks:
+            self._blocks[slot] = self._map(f"block{slot}", 8 * self.shape[0] * self.shape[1], create)
+        block = np.ndarray(self.shape, float, buffer=self._blocks[slot], order="F")
+        if create:
+            block[:] = np.nan
+        return block
+
+    def taken(self, slot, first):
+        """Block `slot` holds rows from `first` on (its rows before are in the file)."""
+        self.record[FIRST + slot] = first
+
+    def count(self, rows):
+        """`rows` rows are committed, every column of each written."""
+        record = self.record
+        record[ROWS] = rows
+        record[WHOLE] = rows
+
+    def filed(self, rows=None, size=None):
+        """(rows, bytes) in the file so far; with `rows` and `size`: set them (a writer did, after a write)."""
+        record, which = self.record, self.record[WHICH]
+        if rows is None:
+            return record[FILED + 2 * which], record[FILED + 2 * which + 1]
+        record[FILED + 2 - 2 * which], record[FILED + 3 - 2 * which] = rows, size
+        record[WHICH] = 1 - which
+
+    def rows_at(self, first, upto):
+        """[(slot, row in it, count)] covering table rows first .. upto - 1 (those the blocks hold)."""
+        out, at = [], first
+        starts = sorted(((self.record[FIRST + s], s) for s in (0, 1) if self.record[FIRST + s] >= 0), reverse=True)
+        while at < upto:
+            slot = next(((s, start) for start, s in starts if start <= at < start + self.rows), None)
+            if slot is None:
+                break
+            s, start = slot
+            k = min(upto, start + self.rows) - at
+            out.append((s, at - start, k))
+            at += k
+        return out
