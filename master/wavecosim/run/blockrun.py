@@ -49,7 +49,7 @@ class BlockSteps:
         self.kernel_passes = (PASSES_EACH if self.durable else PASSES_CACHED) if self.every == 1 else 0
         if self.kernel_passes:
             self.route.set_passes([p for p, _ in self.passes])
-            self.describe_rows([j for _, span in self.python_observers for j in range(span.start, span.stop)])
+            self._describe_rows([j for _, span in self.python_observers for j in range(span.start, span.stop)])
 
     def step_block(self, n0, count):
         """Macro-steps n0 .. n0 + count - 1 in one call of the master; the master stops early after a

@@ -93,7 +93,7 @@ class LiveRun(BlockSteps, RunFiles):
             formats.update(o.formats)
         self.steps = Table([*STEP_COLUMNS, *obs_cols], path("steps"), expected_rows=rows, formats=formats,
                            durable=shared("steps"))
-        self.describe_rows()
+        self._describe_rows()
         self.scratch = np.full(len(self.steps.columns), np.nan)
         self.slices, self.spans, at = [], {}, len(STEP_COLUMNS)
         for o in self.observers:
@@ -178,7 +178,7 @@ class LiveRun(BlockSteps, RunFiles):
         when the process is killed outright (run/salvage.py). Its restores are re-checked."""
         self.durable, self.memory = True, Path(tempfile.mkdtemp(prefix="rows-", dir=folder))
 
-    def describe_rows(self, late=()):
+    def _describe_rows(self, late=()):
         """rows.json of a durable run: its two tables (late: the steps' columns filled only after a block)."""
         if self.memory is None or self.trajectory.shared is None:
             return

@@ -48,7 +48,7 @@ def salvage(channel, wait_status, summary_path, step_timeout, cause=None):
 
 def complete_rows(folder):
     """Every durable run's CSV files in a channel folder completed with the committed rows they lack
-    (from its tables' shared memory; rows.json: LiveRun.describe_rows), whatever ended the child."""
+    (from its tables' shared memory; rows.json: LiveRun._describe_rows), whatever ended the child."""
     for described in Path(folder).glob("rows-*/rows.json"):
         try:
             _complete(json.loads(described.read_text()))
