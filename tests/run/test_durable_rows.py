@@ -64,13 +64,14 @@ def kept(out, whole, suffix="", late=()):
     return steps
 
 
-def test_an_exit_no_handler_sees_keeps_the_kernel_call_in_progress(tmp_path, faulty_scenario, uninterrupted):
+@pytest.mark.parametrize("step", [STEP, 50], ids=["in-a-block-filled-again", "in-the-first-block"])
+def test_an_exit_no_handler_sees_keeps_the_kernel_call_in_progress(step, tmp_path, faulty_scenario, uninterrupted):
     """_exit(3) inside a kernel call of 1024 steps: the rows its C pass counted, up to the step before."""
-    proc, out, temp = wavecosim(tmp_path, faulty_scenario(18, STEP), "--no-reference")
-    assert one_line(proc, 5) == f"error: the FMU ended the process with exit(3); {STEP} steps kept"
+    proc, out, temp = wavecosim(tmp_path, faulty_scenario(18, step), "--no-reference")
+    assert one_line(proc, 5) == f"error: the FMU ended the process with exit(3); {step} steps kept"
     late = ("interface_energy", "ledger", "scale", "ledger_action", "ledger_rounds", "gamma_A", "gamma_B",
             "fne_watch", "fne_A", "fne_B", "augmented")
-    assert kept(out, uninterrupted[("--no-reference",)], late=late) == STEP
+    assert kept(out, uninterrupted[("--no-reference",)], late=late) == step
     assert list(temp.iterdir()) == []
 
 

@@ -73,7 +73,7 @@ def _append_rows(table, memory, upto):
     if upto <= have:
         return
     path = table["csv"]
-    formats = [formatter(f) for f in table["formats"]]
+    formats, late = [formatter(f) for f in table["formats"]], set(table["late"])
     with open(path, "a+b") as f:
         if f.seek(0, os.SEEK_END) < size:            # shorter than its writer left it: its whole rows
             have, size = max(whole_rows(path) - 1, 0), os.path.getsize(path)
@@ -81,10 +81,10 @@ def _append_rows(table, memory, upto):
         lines = [] if size else [header(table["columns"])]
         for slot, at, count in memory.rows_at(have, upto):
             block = memory.block(slot, create=False)[at:at + count]
-            cells = [fmt(block[:, j]) for j, fmt in enumerate(formats)]
-            whole = memory.record[WHOLE] - have                  # rows of these whose late columns are written
-            for j in table["late"]:
-                cells[j] = [c if k < whole else "" for k, c in enumerate(cells[j])]
+            whole = max(0, min(count, memory.record[WHOLE] - have))     # rows of these whose late columns are written
+            cells = [fmt(block[:whole if j in late else count, j]) for j, fmt in enumerate(formats)]
+            for j in late:
+                cells[j] += [""] * (count - whole)
             lines += [",".join(row) for row in zip(*cells)]
             have += count
         f.write("".join(line + "\r\n" for line in lines).encode())
