@@ -19,18 +19,29 @@ ROWS, WHOLE, FIRST, WHICH, FILED = 0, 1, 2, 4, 5     # record: rows counted, row
 RECORD = FILED + 4                                    # rows, which (rows, bytes in the file) pair of the two holds
 
 
+def mapped(prefix, rows, ld, columns):
+    """A table's Mapped made afresh, or None when its folder cannot hold it (full, over the process's
+    file size limit): the table then keeps its rows in the process's own memory."""
+    try:
+        return Mapped(prefix, rows, ld, columns)
+    except OSError:
+        return None
+
+
 class Mapped:
-    """A table's record and blocks mapped from files `prefix`.*: made afresh (create) by the table, read
-    back by the parent. A block holds `rows` rows of `columns` columns, `ld` doubles apart."""
+    """A table's record and blocks mapped from files `prefix`.*: made afresh (create; their room taken on
+    disk at once, so a write to them never meets a full disk) by the table, read back by the parent.
+    A block holds `rows` rows of `columns` columns, `ld` doubles apart."""
 
     def __init__(self, prefix, rows, ld, columns, create=True):
         self.prefix, self.rows, self.shape = Path(prefix), rows, (ld, columns)
         self._record = self._map("record", 8 * RECORD, create)
         self.record = memoryview(self._record).cast("q")
+        self.address = np.frombuffer(self._record, np.int64).ctypes.data      # of record[ROWS], for C
+        size = 8 * ld * columns
+        self._blocks = {slot: self._map(f"block{slot}", size, create) for slot in ((0, 1) if create else ())}
         if create:
             self.record[FIRST], self.record[FIRST + 1] = -1, -1
-        self.address = np.frombuffer(self._record, np.int64).ctypes.data      # of record[ROWS], for C
-        self._blocks = {}
 
     def files(self):
         """The files this table's memory lives in (the record's, then the blocks')."""
@@ -41,7 +52,7 @@ class Mapped:
         fd = os.open(path, os.O_RDWR | (os.O_CREAT | os.O_TRUNC if create else 0), 0o600)
         try:
             if create:
-                os.ftruncate(fd, size)
+                os.posix_fallocate(fd, 0, size)
             return mmap.mmap(fd, size)
         finally:
             os.close(fd)

@@ -180,7 +180,7 @@ class LiveRun(BlockSteps, RunFiles):
 
     def _describe_rows(self, late=()):
         """rows.json of a durable run: its two tables (late: the steps' columns filled only after a block)."""
-        if self.memory is None or self.trajectory.shared is None:
+        if self.memory is None or self.trajectory.shared is None or self.steps.shared is None:
             return
         described = {"trajectory": self.trajectory.described(), "steps": self.steps.described(late)}
         part = self.memory / "rows.json.part"

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..kernel.csvfmt import block_writer
-from .durable import Mapped
+from .durable import mapped
 from .outputs import cannot
 from .writer import Writer
 
@@ -91,7 +91,7 @@ class Table:
     def __init__(self, columns, path=None, formats=None, expected_rows=0, durable=None):
         self.columns, self.path = list(columns), path
         self._fmt = [(formats or {}).get(c, _floats) for c in self.columns]
-        self.shared = Mapped(durable, BLOCK, BLOCK + PAD, len(self.columns)) if durable and path else None
+        self.shared = mapped(durable, BLOCK, BLOCK + PAD, len(self.columns)) if durable and path else None
         self._slots = [self._new_slot(0), None]       # (block, its formatter); the second made when first needed
         self._pending = [[], []]                      # each block's hand-overs not yet settled (writer Pieces)
         self._at, self._fill, self._handed = 0, 0, 0  # block in use, rows filled, rows of it handed over
