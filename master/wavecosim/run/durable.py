@@ -43,10 +43,6 @@ class Mapped:
         if create:
             self.record[FIRST], self.record[FIRST + 1] = -1, -1
 
-    def files(self):
-        """The files this table's memory lives in (the record's, then the blocks')."""
-        return [str(self.prefix.with_suffix(f".{name}")) for name in ("record", "block0", "block1")]
-
     def _map(self, name, size, create):
         path = self.prefix.with_suffix(f".{name}")
         fd = os.open(path, os.O_RDWR | (os.O_CREAT | os.O_TRUNC if create else 0), 0o600)
@@ -72,17 +68,18 @@ class Mapped:
 
     def count(self, rows):
         """`rows` rows are committed, every column of each written."""
-        record = self.record
-        record[ROWS] = rows
-        record[WHOLE] = rows
+        self.record[WHOLE] = self.record[ROWS] = rows
 
-    def filed(self, rows=None, size=None):
-        """(rows, bytes) in the file so far; with `rows` and `size`: set them (a writer did, after a write)."""
-        record, which = self.record, self.record[WHICH]
-        if rows is None:
-            return record[FILED + 2 * which], record[FILED + 2 * which + 1]
-        record[FILED + 2 - 2 * which], record[FILED + 3 - 2 * which] = rows, size
-        record[WHICH] = 1 - which
+    def wrote(self, rows, size):
+        """The file holds `rows` rows in `size` bytes (its writer says after each write)."""
+        record, other = self.record, 1 - self.record[WHICH]
+        record[FILED + 2 * other], record[FILED + 2 * other + 1] = rows, size
+        record[WHICH] = other
+
+    def filed(self):
+        """(rows, bytes) in the file, as its writer last said."""
+        which = self.record[WHICH]
+        return self.record[FILED + 2 * which], self.record[FILED + 2 * which + 1]
 
     def rows_at(self, first, upto):
         """[(slot, row in it, count)] covering table rows first .. upto - 1 (those the blocks hold)."""
