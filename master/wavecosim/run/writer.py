@@ -102,7 +102,7 @@ class Writer:
                         self.written += len(piece.data)
                         self.rows += piece.rows
                         if self.shared is not None:
-                            self.shared.filed(self.rows, self.written)
+                            self.shared.wrote(self.rows, self.written)
                     except BaseException as exc:
                         self.error = exc
                 with self.lock:
