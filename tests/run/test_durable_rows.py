@@ -7,7 +7,9 @@ block in progress), and nothing left in the temporary folder. A durable run writ
 as one in the command's own process."""
 import json
 import os
+import signal
 import subprocess
+import time
 
 import pytest
 import yaml
@@ -95,3 +97,27 @@ def test_a_durable_run_writes_what_an_unsupervised_one_writes(tmp_path, faulty_s
     whole = uninterrupted[("--no-reference",)]
     for name in ("trajectory.csv", "steps.csv"):
         assert (out / name).read_bytes() == (whole / name).read_bytes()
+
+
+@pytest.mark.slow
+def test_the_texts_of_string_outputs_are_kept_too(tmp_path):
+    """A process killed outright while its String output's texts go on (SignalSource's label): the rows
+    its parent writes from the shared memory give them as the run writes them."""
+    raw = {"name": "typed", "dt": 0.05, "T": 1000.0, "outputs": {"label": "src.label", "count": "src.count"},
+           "subsystems": {"src": {"fmu": "SignalSource", "integers": {"period": 3}}}}
+    whole, _, _ = wavecosim(tmp_path / "whole", raw)
+    assert whole.returncode == 0, whole.stderr
+    (tmp_path / "killed").mkdir()
+    (tmp_path / "killed" / "scenario.yaml").write_text(yaml.safe_dump({**raw, "T": 5000.0}, sort_keys=False))
+    proc = subprocess.Popen([*CLI, "run", "scenario.yaml", "--out", "out", "--quiet"], cwd=tmp_path / "killed",
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    trajectory = tmp_path / "killed" / "out" / "trajectory.csv"
+    while not (trajectory.exists() and trajectory.stat().st_size > 1000) and proc.poll() is None:
+        time.sleep(0.05)
+    time.sleep(0.2)                                    # rows committed since the last hand-over to the writer
+    os.kill(int(open(f"/proc/{proc.pid}/task/{proc.pid}/children").read().split()[0]), signal.SIGKILL)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 5 and err.startswith("error: the run crashed (SIGKILL)"), err
+    got = rows(trajectory)
+    assert 1024 < len(got) <= 20_001 and got == rows(tmp_path / "whole" / "out" / "trajectory.csv")[:len(got)]
+    assert {row.split(b",", 1)[1].rsplit(b",", 1)[0] for row in got} == {b'"low"', b'"high, ""on"""'}

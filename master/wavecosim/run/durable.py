@@ -8,7 +8,9 @@ row it committed and appends those its CSV file lacks (run/salvage.py).
                        and bytes in the file, twice (the pair `which` names is whole: a death between
                        two stores leaves the other)
     <prefix>.block0/1  float64 (BLOCK + PAD) x columns, columns contiguous, as the table's blocks
+    texts.jsonl        [column, text] per line: the texts of String outputs, in the order met (TextLog)
 """
+import json
 import mmap
 import os
 from pathlib import Path
@@ -94,3 +96,35 @@ class Mapped:
             out.append((s, at - start, k))
             at += k
         return out
+
+
+class TextLog:
+    """The texts a durable run's String outputs meet (their columns' lists, which grow), appended to a
+    file before a row holding them is counted, so the parent writes them in the rows it writes."""
+
+    def __init__(self, path, columns):
+        self.path, self.columns, self.known = path, columns, {j: 0 for j in columns}
+        self.fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o600)
+
+    def note(self):
+        """Append the texts met since the last call."""
+        for j, texts in self.columns.items():
+            if len(texts) > self.known[j]:
+                try:
+                    os.write(self.fd, "".join(json.dumps([j, t]) + "\n" for t in texts[self.known[j]:]).encode())
+                except OSError:           # the descriptor closed under it (an FMU did): those texts are left empty
+                    pass
+                self.known[j] = len(texts)
+
+
+def texts_met(path):
+    """{column: its texts} from a TextLog's file (a last line cut by a death left out)."""
+    met = {}
+    try:
+        lines = Path(path).read_text().split("\n")[:-1]
+    except OSError:
+        return met
+    for line in lines:
+        j, text = json.loads(line)
+        met.setdefault(j, []).append(text)
+    return met

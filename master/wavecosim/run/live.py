@@ -23,6 +23,7 @@ from ..kernel.drkernel import REASONS as KERNEL_REASONS
 from ..kernel.linalg import total
 from ..masters.base import REASONS
 from .bounds import Bounds
+from .durable import TextLog
 from .observers import Observer
 from .observers.errors import ErrorTracker
 from .recorder import BLOCK, Labels, Table, Texts, ints
@@ -70,6 +71,7 @@ class LiveRun(BlockSteps, RunFiles):
         self.rows_pass, self.kernel_passes = None, False    # the blocks' C passes (_prepare_blocks)
         self.in_block = None                                # n0 of the kernel call in progress
         self.durable, self.memory = False, None             # a supervised run; the folder of its tables' memory
+        self.texts = None                                   # its String outputs' TextLog
         self.write_error = None                             # an OutputError met while finishing
         self.calls_at_start = self.excluded = None          # set by start(): a run that failed before has none
 
@@ -93,6 +95,8 @@ class LiveRun(BlockSteps, RunFiles):
             formats.update(o.formats)
         self.steps = Table([*STEP_COLUMNS, *obs_cols], path("steps"), expected_rows=rows, formats=formats,
                            durable=shared("steps"))
+        texts = {j: f.texts for j, f in enumerate(self.trajectory.formats) if isinstance(f, Texts)}
+        self.texts = TextLog(self.memory / "texts.jsonl", texts) if self.memory and texts else None
         self._describe_rows()
         self.scratch = np.full(len(self.steps.columns), np.nan)
         self.slices, self.spans, at = [], {}, len(STEP_COLUMNS)
@@ -121,7 +125,7 @@ class LiveRun(BlockSteps, RunFiles):
             o.start(first)
         row = self.trajectory.next_row()
         row[0], row[1:] = self.t0, first.outputs
-        self.trajectory.commit_row()
+        self._commit_trajectory()
         self.bounds.start(first, self.time_of)
         self.first = {"H": total(first.H), "error": next((o.first for o in self.observers
                                                         if isinstance(o, ErrorTracker)), math.nan)}
@@ -266,6 +270,12 @@ class LiveRun(BlockSteps, RunFiles):
         self.steps.commit_row()
         row = self.trajectory.next_row()
         row[0], row[1:] = self.time_of(n + 1), reading.outputs
+        self._commit_trajectory()
+
+    def _commit_trajectory(self):
+        """Commit the trajectory's row filled; a durable run notes the texts it holds first."""
+        if self.texts is not None:
+            self.texts.note()
         self.trajectory.commit_row()
 
     def _simulated(self, n):

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from ..kernel.guard import signal_name
 from .channel import describe, locate
-from .durable import ROWS, WHOLE, Mapped
+from .durable import ROWS, WHOLE, Mapped, texts_met
 from .recorder import BLOCK, PAD, formatter, header, write_json
 
 
@@ -51,14 +51,17 @@ def complete_rows(folder):
     (from its tables' shared memory; rows.json: LiveRun._describe_rows), whatever ended the child."""
     for described in Path(folder).glob("rows-*/rows.json"):
         try:
-            _complete(json.loads(described.read_text()))
+            _complete(json.loads(described.read_text()), texts_met(described.with_name("texts.jsonl")))
         except (OSError, ValueError):         # the files as they are: the summary counts what they hold
             pass
 
 
-def _complete(described):
+def _complete(described, texts):
     """One run's two tables, each up to as many steps as both hold (a step's trajectory row follows
-    the t = 0 row); the late columns of the rows of a block in progress are left empty."""
+    the t = 0 row); the late columns of the rows of a block in progress are left empty. texts: the
+    trajectory's String columns' texts met (TextLog)."""
+    for j, met in texts.items():
+        described["trajectory"]["formats"][j] = {"texts": met}
     tables = {kind: (table, Mapped(table["memory"], BLOCK, BLOCK + PAD, len(table["columns"]), create=False))
               for kind, table in described.items()}
     steps = min(tables["steps"][1].record[ROWS], tables["trajectory"][1].record[ROWS] - 1)
