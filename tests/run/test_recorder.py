@@ -241,3 +241,32 @@ def test_a_process_killed_outright_leaves_every_committed_row_to_its_parent(tmp_
     for kind in ("trajectory", "steps"):
         assert (tmp_path / f"{kind}.csv").read_bytes() == (whole / f"{kind}.csv").read_bytes()
     assert (tmp_path / "steps.csv").read_bytes().count(b"\n") == len(rows)
+
+
+def test_rows_the_parent_cannot_write_whole_are_not_written_at_all(tmp_path):
+    """The parent's disk fills while it writes the rows a killed child left (a file size limit): the
+    files end with their last whole row."""
+    import resource
+    rows = awkward_rows(2_600, np.random.default_rng(8))[:, :5]
+    pid = os.fork()
+    if pid == 0:
+        try:
+            durable_tables(tmp_path, rows, ["x"])
+        finally:
+            os._exit(0)
+    os.waitpid(pid, 0)
+    sizes = {kind: (tmp_path / f"{kind}.csv").stat().st_size for kind in ("trajectory", "steps")}
+    pid = os.fork()
+    if pid == 0:
+        try:
+            signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+            resource.setrlimit(resource.RLIMIT_FSIZE, (max(sizes.values()) + 5_000,) * 2)
+            from wavecosim.run.salvage import complete_rows
+            complete_rows(tmp_path)
+        finally:
+            os._exit(0)
+    os.waitpid(pid, 0)
+    for kind, size in sizes.items():
+        data = (tmp_path / f"{kind}.csv").read_bytes()
+        assert data.endswith(b"\r\n") and len(data) <= size + 5_000
+        assert len({line.count(b",") for line in data.split(b"\r\n")[:-1]}) == 1

@@ -71,26 +71,37 @@ def _complete(described, texts):
 
 def _append_rows(table, memory, upto):
     """The rows the file lacks up to row `upto` - 1 (after the whole pieces its writer wrote), written
-    from the table's blocks as the writer writes them."""
+    from the table's blocks as the writer writes them; whole rows only (a failed write is undone)."""
     have, size = memory.filed()
     if upto <= have:
         return
     path = table["csv"]
-    formats, late = [formatter(f) for f in table["formats"]], set(table["late"])
     with open(path, "a+b") as f:
         if f.seek(0, os.SEEK_END) < size:            # shorter than its writer left it: its whole rows
             have, size = max(whole_rows(path) - 1, 0), os.path.getsize(path)
         f.truncate(size)
-        lines = [] if size else [header(table["columns"])]
-        for slot, at, count in memory.rows_at(have, upto):
-            block = memory.block(slot, create=False)[at:at + count]
-            whole = max(0, min(count, memory.record[WHOLE] - have))     # rows of these whose late columns are written
-            cells = [fmt(block[:whole if j in late else count, j]) for j, fmt in enumerate(formats)]
-            for j in late:
-                cells[j] += [""] * (count - whole)
-            lines += [",".join(row) for row in zip(*cells)]
-            have += count
-        f.write("".join(line + "\r\n" for line in lines).encode())
+        text = "".join(line + "\r\n" for line in _lines(table, memory, have, upto, size == 0)).encode()
+        try:
+            f.write(text)
+            f.flush()
+        except OSError:
+            f.truncate(size)
+            raise
+
+
+def _lines(table, memory, have, upto, head):
+    """Rows have .. upto - 1 of a table from its blocks as CSV lines (after the header when `head`)."""
+    formats, late = [formatter(f) for f in table["formats"]], set(table["late"])
+    lines = [header(table["columns"])] if head else []
+    for slot, at, count in memory.rows_at(have, upto):
+        block = memory.block(slot, create=False)[at:at + count]
+        whole = max(0, min(count, memory.record[WHOLE] - have))     # rows of these whose late columns are written
+        cells = [fmt(block[:whole if j in late else count, j]) for j, fmt in enumerate(formats)]
+        for j in late:
+            cells[j] += [""] * (count - whole)
+        lines += [",".join(row) for row in zip(*cells)]
+        have += count
+    return lines
 
 
 def _death(wait_status):
