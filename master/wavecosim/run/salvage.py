@@ -71,21 +71,22 @@ def _complete(described, texts):
 
 def _append_rows(table, memory, upto):
     """The rows the file lacks up to row `upto` - 1 (after the whole pieces its writer wrote), written
-    from the table's blocks as the writer writes them; whole rows only (a failed write is undone)."""
+    from the table's blocks as the writer writes them; whole rows only (a write that fails, the disk
+    full, leaves those it wrote whole)."""
     have, size = memory.filed()
     if upto <= have:
         return
     path = table["csv"]
-    with open(path, "a+b") as f:
+    with open(path, "a+b", buffering=0) as f:
         if f.seek(0, os.SEEK_END) < size:            # shorter than its writer left it: its whole rows
             have, size = max(whole_rows(path) - 1, 0), os.path.getsize(path)
         f.truncate(size)
-        text = "".join(line + "\r\n" for line in _lines(table, memory, have, upto, size == 0)).encode()
+        text = memoryview("".join(line + "\r\n" for line in _lines(table, memory, have, upto, size == 0)).encode())
         try:
-            f.write(text)
-            f.flush()
+            while text:
+                text = text[f.write(text):]
         except OSError:
-            f.truncate(size)
+            whole_rows(path)
             raise
 
 
