@@ -66,7 +66,10 @@ def _complete(described, texts):
               for kind, table in described.items()}
     steps = min(tables["steps"][1].record[ROWS], tables["trajectory"][1].record[ROWS] - 1)
     for kind, (table, memory) in tables.items():
-        _append_rows(table, memory, steps + (kind == "trajectory"))
+        try:
+            _append_rows(table, memory, steps + (kind == "trajectory"))
+        except OSError:                       # the disk full: the rows it took stay, and the other table goes on
+            pass
 
 
 def _append_rows(table, memory, upto):
