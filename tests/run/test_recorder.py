@@ -243,9 +243,9 @@ def test_a_process_killed_outright_leaves_every_committed_row_to_its_parent(tmp_
     assert (tmp_path / "steps.csv").read_bytes().count(b"\n") == len(rows)
 
 
-def test_rows_the_parent_cannot_write_whole_are_not_written_at_all(tmp_path):
+def test_a_disk_that_fills_under_the_parent_leaves_whole_rows(tmp_path):
     """The parent's disk fills while it writes the rows a killed child left (a file size limit): the
-    files end with their last whole row."""
+    files end with the last whole row it took, each table on its own."""
     import resource
     rows = awkward_rows(2_600, np.random.default_rng(8))[:, :5]
     pid = os.fork()
