@@ -112,7 +112,8 @@ def test_a_process_killed_outright_still_gets_its_summary(tmp_path, tmp_env, fau
     assert summary["status"] == "crashed" and summary["fault"]["signal"] == "SIGKILL"
     rows = lines(out / "trajectory.csv")
     assert summary["steps"] == len(rows) - 1 >= 1024 and all(r.count(b",") == rows[0].count(b",") for r in rows)
-    assert summary["message"] == f"the run crashed (SIGKILL); {summary['steps']} steps kept"
+    assert summary["message"] == (f"the run crashed (SIGKILL) inside subsystem B (monolithic reference) in fmi2DoStep; "
+                                  f"{summary['steps']} steps kept")        # the call in progress, from the status page
     reference = json.loads((out / "summary_monolithic.json").read_text())
     assert reference["steps"] == len(lines(out / "trajectory_monolithic.csv")) - 1 == 2900
     assert list(temp.iterdir()) == []
@@ -185,3 +186,18 @@ def test_rows_reach_the_file_at_least_every_second(tmp_path, faulty_scenario):
             seen["rows"] = len(lines(tmp_path / "trajectory.csv"))
     run(parse_scenario(raw, "faulty", tmp_path), tmp_path, certificates=False, progress=progress, file_suffix=False)
     assert seen["slept"] < seen["rows"] < 1024
+
+
+def test_the_call_in_progress_names_only_what_it_knows():
+    """The status page's call in progress fills in a fault no stack named: its component's subsystem
+    during the runs, the subsystem whose FMU the set-up opens before them, the call alone for an
+    instance no run knows (a shim's), and nothing between calls; a stack that named one is kept."""
+    from wavecosim.run.channel import in_progress
+    runs = {0x1000: "B (monolithic reference)"}
+    assert in_progress(("", ""), (0x1000, "fmi2DoStep", "A"), runs) == ("subsystem B (monolithic reference)",
+                                                                       "fmi2DoStep")
+    assert in_progress(("an FMU (X.so)", "fmi2Instantiate"), (0, "fmi2Instantiate", "B~probe"), {}) == \
+        ("subsystem B", "fmi2Instantiate")
+    assert in_progress(("", ""), (0x2000, "fmi2DoStep", "A"), runs) == ("", "fmi2DoStep")
+    assert in_progress(("", ""), (0x1000, "", "A"), runs) == ("", "")
+    assert in_progress(("subsystem A", "fmi2DoStep"), (0x1000, "fmi2GetReal", "A"), runs) == ("subsystem A", "fmi2DoStep")

@@ -21,7 +21,7 @@ from .build import kernel_library
 from .contract import constant, names
 from ..errors import ConfigError, FmuError
 from .linalg import Sparse
-from .portview import ObservedPort, PortView, SignedPort
+from .portview import MultiRate, ObservedPort, PortView, SignedPort
 from .signals import SignalPlan
 
 LOG_PAD = 8               # a log's rows steps + LOG_PAD apart: 8 KiB apart, a step's values would share cache sets
@@ -212,11 +212,15 @@ class Kernel:
 
     def _set_subsystem(self, i, s):
         """Subsystem i (a description.KernelSubsystem): its functions, or portview.c's signed shim over
-        them, or its wave adapter in C. x_i^n goes into the scene's own handle (s.state), so that after
+        them (over multirate.c's shim for substeps), or its wave adapter in C. x_i^n goes into the scene's own handle (s.state), so that after
         a fast macro-step the scene holds x_i^n exactly as after the reference one."""
         lib, fns, comp = self.lib, DRFunctions(*s.functions), s.component
         if s.counters is not None:
             lib.dr_set_adapter(self.handle, i, *s.counters)
+        if s.substeps is not None:
+            self.shims.append(MultiRate(lib, fns, comp, s.m, s.substeps))
+            fns, comp = self.shims[-1].functions, self.shims[-1].handle
+            lib.dr_set_adapter(self.handle, i, None, self.shims[-1].do_steps)
         if s.scales is not None:
             self.shims.append(SignedPort(lib, fns, comp, s.m, *s.scales))
             fns, comp = self.shims[-1].functions, self.shims[-1].handle

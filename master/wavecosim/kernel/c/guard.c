@@ -21,6 +21,7 @@
 #include <unistd.h>
 
 #include "abi.h"
+#include "fmicall.h"
 #include "guard.h"
 
 #define GUARD_FRAMES 48
@@ -42,15 +43,20 @@ typedef struct GuardFault {
 } GuardFault;
 
 /* The page a supervised run's parent and child share (wavecosim/run/channel.py): the child's state
- * and exit code, what the parent or the watchdog asks, the watchdog's heartbeat, and the fault. */
+ * and exit code, what the parent or the watchdog asks, the watchdog's heartbeat, the FMU call in
+ * progress and the subsystem whose FMU the set-up opens (named when a stuck process gives no stack),
+ * and the fault. */
 typedef struct {
     unsigned magic;
     int state, exit_code, request, pid, spare;
     double heartbeat;
+    FmiCallNow call;
+    char opening[64];
     GuardFault fault;
 } RunStatus;
 
 MIRRORED(GuardFault)
+MIRRORED(FmiCallNow)
 MIRRORED(RunStatus)
 
 static GuardFault *volatile record = NULL;
