@@ -27,11 +27,12 @@ class PassBlock(ctypes.Structure):
 @mirrors("blocks", "BlockRows")
 class BlockRows(ctypes.Structure):
     """blocks.c: block_rows_steps' arguments (grid, log rows, the block's steps' and trajectory's columns,
-    the run's iterations so far)."""
+    the run's iterations so far, where a durable run's rows are counted)."""
     _fields_ = [("n_out", ctypes.c_int), ("inverse", ctypes.c_double),
                 ("dt", ctypes.c_double), ("outputs", _int_p), ("steps", ctypes.c_void_p), ("lds", ctypes.c_long),
                 ("trajectory", ctypes.c_void_p), ("ldt", ctypes.c_long),
-                ("iterations_sum", ctypes.c_double), ("iterations_max", ctypes.c_double), ("t0", ctypes.c_double)]
+                ("iterations_sum", ctypes.c_double), ("iterations_max", ctypes.c_double), ("t0", ctypes.c_double),
+                ("counted", ctypes.c_void_p * 2), ("base", ctypes.c_long * 2)]
 
 
 @mirrors("blocks", "FreezeBlock")

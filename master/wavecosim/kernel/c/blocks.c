@@ -186,7 +186,11 @@ void passivity_steps(void *args, int n0, const double *log, long ld, int first, 
  * iterations, reason and residual at rows 0, 1, 2 and the outputs at rows outputs[j]. The steps'
  * columns time, iterations, inner_residual, reason go to `steps` (lds doubles apart), the trajectory's
  * time and outputs to `trajectory` (ldt apart), from the block's first step's row. The iterations'
- * sum and max over every step made so far are carried on (the run's). */
+ * sum and max over every step made so far are carried on (the run's). The rows counted: with
+ * counted[j] not NULL (a durable run's tables, run/recorder.py), counted[j][0] is set to base[j] +
+ * the block's rows written so far once the pass is over (j = 0 the steps', 1 the trajectory's), so a
+ * process killed outright has told its parent how many rows its mapped blocks hold (made the last of
+ * the passes, the other passes' columns of those rows are written too). */
 typedef struct {
     int n_out;
     double inverse, dt;
@@ -197,6 +201,8 @@ typedef struct {
     long ldt;
     double iterations_sum, iterations_max;
     double t0;          /* the start time: grid point k is t0 + k / inverse (or t0 + k dt) */
+    long *counted[2];   /* the steps' and the trajectory's rows counted, or NULL */
+    long base[2];       /* their rows before the block's first step */
 } BlockRows;
 
 /* Steps first .. first + count - 1 of the block (a DRPassFn). */
@@ -226,6 +232,8 @@ void block_rows_steps(void *args, int block_n0, const double *log, long ld_, int
     }
     p->iterations_sum = sum;
     p->iterations_max = most;
+    for (int j = 0; j < 2; j++)                 /* after the rows' values: another process reads them */
+        if (p->counted[j]) __atomic_store_n(p->counted[j], p->base[j] + (long)first + n, __ATOMIC_RELEASE);
 }
 
 /* One freeze watch (blocks.py, FreezeBlock). Its values are FreezeWatch's (every H_i, then every
