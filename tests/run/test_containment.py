@@ -94,8 +94,9 @@ def test_without_the_reference_the_kernel_block_in_progress_is_kept(name, tmp_pa
 
 
 def test_a_process_killed_outright_still_gets_its_summary(tmp_path, tmp_env, faulty_scenario):
-    """SIGKILL of the child (as the out-of-memory killer does): the parent writes summary.json from
-    the rows already on disk (handed over at least every second), cut after the last whole row."""
+    """SIGKILL of the child (as the out-of-memory killer does): the parent writes every row committed
+    (the rows on disk, cut after the last whole one, and those in the tables' shared memory) and
+    summary.json: the reference, which runs ahead, made the 2900 steps before its hang."""
     env, temp = tmp_env
     scenario = tmp_path / "scenario.yaml"
     scenario.write_text(yaml.safe_dump(faulty_scenario(3, 2900), sort_keys=False))
@@ -113,6 +114,8 @@ def test_a_process_killed_outright_still_gets_its_summary(tmp_path, tmp_env, fau
     assert summary["steps"] == len(rows) - 1 >= 1024 and all(r.count(b",") == rows[0].count(b",") for r in rows)
     assert summary["message"] == (f"the run crashed (SIGKILL) inside subsystem B (monolithic reference) in fmi2DoStep; "
                                   f"{summary['steps']} steps kept")        # the call in progress, from the status page
+    reference = json.loads((out / "summary_monolithic.json").read_text())
+    assert reference["steps"] == len(lines(out / "trajectory_monolithic.csv")) - 1 == 2900
     assert list(temp.iterdir()) == []
 
 

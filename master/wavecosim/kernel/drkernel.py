@@ -34,6 +34,7 @@ LEDGER_ACTIONS = names("drkernel.h", "DRLedgerAction", "DR_LEDGER_")
 STARTS = names("drkernel.h", "DRStart", "DR_START_")              # masters/dr_options.py
 FUNCTIONS = (None, "fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2SetReal", "fmi2DoStep", "fmi2GetReal")
 FAILED_EXTRA = constant("drkernel.h", "DR_FAILED_EXTRA")   # the signals or a subsystem stepped alone failed
+PASSES_CACHED, PASSES_EACH = (constant("drkernel.h", f"DR_PASSES_{w}") for w in ("CACHED", "EACH"))   # run_steps
 FMI_NAMES = ("fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate", "fmi2SetReal", "fmi2DoStep",
               "fmi2GetReal")
 
@@ -303,8 +304,9 @@ class Kernel:
         BlockLog, the FmuError of the step after them or None). The call logs from column `at` on,
         after the last call's first `at` steps (joined_log reads them as one, without a copy); the log
         is overwritten by the next call from column 0. passes: it makes the passes (set_passes) over
-        the block's steps as it logs them (BlockLog.passed: how far they went). observe: it reads the
-        observed values after each step (False: a step whose values the caller reads itself)."""
+        the block's steps as it logs them, PASSES_CACHED a few at a time, PASSES_EACH after every step
+        (BlockLog.passed: how far they went). observe: it reads the observed values after each step
+        (False: a step whose values the caller reads itself)."""
         self._log_room(at, at + count)
         io = self.io
         io.measure, io.at, io.passes, io.observe = measure, at, passes, observe

@@ -6,6 +6,8 @@ writes into (run/containment.py).
     <tmp>/wavecosim-run-XXXX/layout.json  the child's runs (output files) and FMU binaries (address
                                           ranges, entry points), written once set-up is done
     <tmp>/wavecosim-run-XXXX/tmp/         the child's temporary folder (its extracted FMUs)
+    <tmp>/wavecosim-run-XXXX/rows-XXXX/   a run's tables: their blocks and counts of rows, mapped by
+                                          both (run/durable.py), and rows.json, what they hold
 
 The parent removes the folder when the child has ended, whatever ended it: nothing is left in the
 temporary folder. `locate` turns the fault's code addresses into the subsystem and the FMU call.

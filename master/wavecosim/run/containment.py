@@ -153,8 +153,11 @@ class Containment:
 
     # ---- the rescue ----
     def _rescue(self):
-        """Wait for a fault; then finish every run, print one line and end the process."""
-        os.read(self._rescue_r, 1)
+        """Wait for a fault; then finish every run, print one line and end the process. A pipe closed
+        under it (an FMU closed every descriptor, the process's output files with them) leaves the
+        fault to the parent, which writes the rows from their shared memory."""
+        if not os.read(self._rescue_r, 1):
+            return
         self.in_setup = self.in_setup or self.status.state == SETUP
         self.status.state = RESCUING
         fault = self.status.fault.summary() or {}

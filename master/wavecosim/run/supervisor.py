@@ -267,6 +267,8 @@ class Child:
         try:
             status = self.channel.status
             if status.state == DONE:
+                from .salvage import complete_rows
+                complete_rows(self.channel.folder)          # rows its writers could not write
                 return status.exit_code
             return self._fallback()
         finally:
