@@ -39,7 +39,7 @@ class SGSignal(ctypes.Structure):
 class SGFailure(ctypes.Structure):
     """signals.h: why the last step's signals failed."""
     _fields_ = [("kind", ctypes.c_int), ("index", ctypes.c_int), ("call", FmiFailure), ("step", ctypes.c_int),
-                ("alone_done", ctypes.c_int), ("value", ctypes.c_double)]
+                ("value", ctypes.c_double)]
 
 
 def _array(kind, values):

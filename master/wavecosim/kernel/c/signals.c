@@ -182,7 +182,6 @@ static int before(void *ctx, DRStep *io, int n) {
     for (int a = 0; a < p->n_alone; a++) {                       /* Subsystem.step_alone: never rolled back */
         SGFmu *f = &p->fmu[p->alone_fmu[a]];
         if (fmi_do_step(f->doStep, f->calls, f->comp, io->t, io->dt, 1, &p->failure.call)) return fmu_failed(p, p->alone_fmu[a]);
-        p->failure.alone_done = a + 1;
     }
     return 0;
 }

@@ -48,7 +48,7 @@ enum { SG_OK = 0, SG_FMU = 1, SG_NONFINITE = 2, SG_NO_TABLE = 3 };
 typedef struct {
     int kind, index;
     FmiFailure call;
-    int step, alone_done;
+    int step;
     double value;
 } SGFailure;
 
