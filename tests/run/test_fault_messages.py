@@ -52,3 +52,14 @@ def test_a_broken_restore_is_named_as_one(tmp_path, capsys, faulty_scenario):
     assert code == 4
     assert line.startswith("error: subsystem B: its FMU does not restore its state (fmi2SetFMUstate off by ")
     assert "did not converge" in line
+
+
+@pytest.mark.parametrize("fast", ["true", "false"], ids=["kernel", "python"])
+def test_a_restore_that_breaks_during_the_run_is_named_as_one(fast, tmp_path, capsys, faulty_scenario):
+    """B's restore holds at the set-up probe and breaks from step 5 on (fault 17): the step made twice
+    from the saved state tells why the interface Newton cannot converge, on either route."""
+    code, line = run_cli(tmp_path, faulty_scenario(17, 5, T=0.1), capsys, "--master", "newton",
+                         "--set", f"master.fast={fast}")
+    assert code == 4, line
+    assert line.startswith("error: subsystem B: its FMU does not restore its state (the same step made twice "
+                           "from its saved state gave outputs "), line

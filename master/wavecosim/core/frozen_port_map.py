@@ -344,6 +344,10 @@ class Subsystem:
         """The value references (C arrays) of the inputs a query sets and the outputs it reads."""
         return self._in_vr, self._out_vr
 
+    def has_saved_state(self):
+        """Whether x_i^n is saved (a master that rolls back froze this macro-step)."""
+        return bool(self._state)
+
     def state_handle_address(self):
         """Address of the handle x_i^n is saved into; the C kernel saves into it too, so after a
         kernel macro-step this Subsystem holds x_i^n exactly as after a Python one."""

@@ -30,7 +30,7 @@ goes wrong later would otherwise make the iterating masters silently wrong.
 import math
 from dataclasses import asdict, dataclass
 
-from ..errors import ConfigError, FmuError
+from ..errors import ConfigError, FmuError, WavecosimError
 from ..kernel import cvalues
 
 KEYS = ("no_set_fmu_state_prior", "reentrant", "probe")     # a subsystem's `quirks:` keys
@@ -306,6 +306,21 @@ class QuirkTable:
             notes.append(f"{where}: the port outputs of {name} do not move when its inputs do (two steps "
                               f"from the initial state): the coupling cannot move it, so the run would be frozen")
         return notes
+
+
+def repeat_difference(sub):
+    """After a step that failed: the same step made twice from the saved x_i^n with the FMU's present
+    inputs (two queries); their outputs' relative difference, 0 when the restore reproduces the step.
+    None when there is nothing to compare (no saved state, no port, an FMU call that fails)."""
+    if sub.fmu is None or sub.m == 0 or not sub.has_saved_state():
+        return None
+    try:
+        u = list(sub.fmu.get_real(list(sub.port_vrs()[0])))
+        first, second = sub.raw_query(u), sub.raw_query(u)
+        sub.thaw()
+    except WavecosimError:
+        return None
+    return _relative([first], [second])
 
 
 class RestoreWatch:

@@ -6,6 +6,7 @@ rows up to that step are kept. The C kernel's blocks stop after such a step too 
 bound), so both routes make the same steps and FMU calls."""
 import math
 
+from ..core.quirks import repeat_difference
 from ..errors import FmuError, NumericalError, WavecosimError
 from ..fmi.values import REAL, category
 
@@ -90,20 +91,27 @@ def named_for_nan(scene, error):
 
 
 def named_for_restore(scene, error):
-    """An interface solve that did not converge, named for its cause when the set-up probe found an
-    FMU that does not restore its state (core/quirks.py: restore_difference past BROKEN_RESTORE): its
+    """An interface solve that did not converge, named for its cause when an FMU does not restore its
+    state: the set-up probe found it (core/quirks.py: restore_difference past BROKEN_RESTORE), or the
+    step made twice now from the saved state differs (a restore that broke during the run); its
     iterations then chase a moving target. The same NumericalError class, the FMU named; else `error`."""
     text = str(error)
     if not isinstance(error, NumericalError) or not ("no convergence" in text or "did not converge" in text):
         return error
     broken = sorted(((d.found.get("restore_difference") or 0.0, name) for name, d in scene.decisions.items()
                      if (d.found.get("restore_difference") or 0.0) > BROKEN_RESTORE), reverse=True)
-    if not broken:
-        return error
-    difference, name = broken[0]
-    return NumericalError(f"subsystem {name}: its FMU does not restore its state (fmi2SetFMUstate off by "
-                          f"{difference:.3g}, relative, at the set-up probe), so the iterations cannot converge: "
-                          f"{text}")
+    if broken:
+        difference, name = broken[0]
+        return NumericalError(f"subsystem {name}: its FMU does not restore its state (fmi2SetFMUstate off by "
+                              f"{difference:.3g}, relative, at the set-up probe), so the iterations cannot "
+                              f"converge: {text}")
+    for sub in scene.subsystems:
+        difference = repeat_difference(sub)
+        if difference is not None and difference > BROKEN_RESTORE:
+            return NumericalError(f"subsystem {sub.name}: its FMU does not restore its state (the same step made "
+                                  f"twice from its saved state gave outputs {difference:.3g} apart, relative), so "
+                                  f"the iterations cannot converge: {text}")
+    return error
 
 
 def named_for_cause(scene, error):

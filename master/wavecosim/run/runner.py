@@ -142,7 +142,8 @@ def _loop(live, ref, progress, contain=None):
         except SimulationEnded as exc:              # an FMU ended it: finished, with the steps before
             return "finished", exc
         except WavecosimError as exc:
-            exc = named_for_cause(live.scene, exc)
+            failed = ref if ref is not None and exc is ref.failure else live
+            exc = named_for_cause(failed.scene, exc)
             return exc.status, exc
     return "finished", None
 
