@@ -8,19 +8,18 @@ FMU function table it was given. Queries made from Python (gamma probes, certifi
 commit) run the same C solve on the same memory, so both routes see one adapter.
 """
 from ..fmi.fmu import fails
+from ..kernel.fmicall import FUNCTION_NAMES
 from ..kernel.adapter import AD_FMU, AD_SINGULAR, AD_STALLED, field_address, new_adapter, shim
 from . import ports
 
 
 class KernelAdapter(ports.AdapterPort):
     """ports.WaveAdapter with its solve in C; built from one (`port`), whose memory it takes over,
-    over the FMU function table `fns` (drkernel.h DRFunctions) and component `comp`. `functions`
-    names the FMU functions by the kernel's DR_FN_* index (for errors)."""
+    over the FMU function table `fns` (drkernel.h DRFunctions) and component `comp`."""
 
-    def __init__(self, port, fns, comp, functions):
+    def __init__(self, port, fns, comp):
         super().__init__(port.sub, port.effort_in, port.sign)
         m, sub = self.m, port.sub
-        self.functions = functions
         memory = {"u": port.u, "y": port.y or [0.0] * m, "D": _flat(port.D, m), "J_inv": _flat(port.J_inv, m),
                   "have_slope": port.D is not None, "h2": port.h2, "u_scale": port.u_scale,
                   "evaluations": port.evaluations, "do_steps": port.doSteps, "accepted": port.accepted,
@@ -80,7 +79,7 @@ class KernelAdapter(ports.AdapterPort):
         """The error of the adapter's last failed call, as the Python reference raises it at step n, or None."""
         st, m = self.struct, self.m
         if st.failure == AD_FMU:
-            return self.sub.fmu.status_error(self.functions[st.failed.function], st.failed.status, n, t)
+            return self.sub.fmu.status_error(FUNCTION_NAMES.get(st.failed.function), st.failed.status, n, t)
         if st.failure == AD_SINGULAR:
             return self.error(st.failed_r[:m], ports.singular_why(st.y[:m]), n, t)
         if st.failure == AD_STALLED:

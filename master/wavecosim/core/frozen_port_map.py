@@ -16,7 +16,7 @@ import numpy as np
 from ..kernel import cvalues, queries
 from ..errors import FmuError, SimulationEnded
 from ..fmi.fmu import CALLS, fails
-from ..kernel.drkernel import FUNCTIONS
+from ..kernel.fmicall import FUNCTION_NAMES
 from .adapter_kernel import KernelAdapter
 from .ports import DirectPort, WaveAdapter
 
@@ -237,11 +237,11 @@ class Subsystem:
         """The address of the flag saying the instance moved away from x_i^n (a C int, 0 or 1)."""
         return cvalues.address(self._dirty)
 
-    def adapter_in_kernel(self, fns, comp, functions):
+    def adapter_in_kernel(self, fns, comp):
         """The wave adapter moved to C over the FMU function table (fns, comp), once: the adapter's
         own (function table, component) for the DR kernel to call as a wave port."""
         if not isinstance(self.map, KernelAdapter):
-            self.map = KernelAdapter(self.map, fns, comp, functions)
+            self.map = KernelAdapter(self.map, fns, comp)
         return self.map.shim()
 
     def port_scales(self):
@@ -282,7 +282,7 @@ class Subsystem:
         out, done, fn, status = self._batch(self._comp, self._state, self._in_vr, self._out_vr, self.m, self._t,
                                             self._h, rows, self._dirty, self.no_prior)
         if fn:
-            raise self.fmu.status_error(FUNCTIONS[fn], status, self.step_index, self.t)
+            raise self.fmu.status_error(FUNCTION_NAMES.get(fn), status, self.step_index, self.t)
         return out
 
     def raw_advance(self, u):

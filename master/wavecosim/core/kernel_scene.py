@@ -7,7 +7,7 @@ from ..kernel.abi import LayoutError
 from ..kernel.cvalues import uints
 from ..kernel.adapter import load_library as load_adapter_library
 from ..kernel.description import KernelFmu, KernelScene, KernelSubsystem
-from ..kernel.drkernel import FMI_NAMES, FUNCTIONS, DRFunctions, load_library
+from ..kernel.drkernel import FMI_NAMES, DRFunctions, load_library
 
 ALONE_NAMES = ("fmi2GetReal", "fmi2SetReal", "fmi2DoStep")     # all a subsystem stepped alone needs
 
@@ -69,7 +69,7 @@ def kernel_subsystem(s, offset):
     functions, component = tuple(fmu.pointer(name) for name in FMI_NAMES), fmu.component
     noise = impedance = adapter_error = None
     if s.adapter:
-        table, component = s.adapter_in_kernel(DRFunctions(*functions, fmu.calls), component, FUNCTIONS)
+        table, component = s.adapter_in_kernel(DRFunctions(*functions, fmu.calls), component)
         functions, vr_in = tuple(table), uints(range(s.m))
         vr_out, noise, impedance, adapter_error = vr_in, s.map.noise(), s.map.impedance(), s.map.kernel_error
     else:

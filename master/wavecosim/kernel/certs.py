@@ -11,7 +11,8 @@ import numpy as np
 
 from ..errors import FmuError
 from .abi import mirrors
-from .drkernel import FUNCTIONS, load_library
+from .drkernel import load_library
+from .fmicall import FUNCTION_NAMES
 from .newton import NON_FINITE, NOT_CONVERGED, WHY, NewtonKernel, failed, nan_source, not_converged
 
 
@@ -100,7 +101,7 @@ class KernelCertificates:
         t, where = n * self.kernel.io.dt, f" at step {n} (t = {n * self.kernel.io.dt:.6g})"
         if rc < 0:
             sub = self.subsystems[culprit[0]]
-            return sub.fmu.error(FUNCTIONS[culprit[1]], culprit[2], n, t)
+            return sub.fmu.error(FUNCTION_NAMES.get(culprit[1]), culprit[2], n, t)
         if rc == NOT_CONVERGED:
             return not_converged(where, float(out[0]), float(out[1]))
         return failed(where, WHY[rc], nan_source(self.subsystems, int(out[1])) if WHY[rc] == NON_FINITE

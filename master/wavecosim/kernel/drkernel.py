@@ -19,6 +19,7 @@ import numpy as np
 from .abi import mirrors
 from .build import kernel_library
 from .contract import constant, names
+from .fmicall import FUNCTION_NAMES
 from ..errors import ConfigError, FmuError
 from .linalg import Sparse
 from .portview import MultiRate, ObservedPort, PortView, SignedPort
@@ -32,7 +33,6 @@ REASONS = names("drkernel.h", "DRReason", "DR_", dash=True)     # the kernel nev
 LEDGER_LOG = names("drkernel.h", "DRLedgerLog", "DR_LOG_")        # the ledger's rows of a log
 LEDGER_ACTIONS = names("drkernel.h", "DRLedgerAction", "DR_LEDGER_")
 STARTS = names("drkernel.h", "DRStart", "DR_START_")              # masters/dr_options.py
-FUNCTIONS = (None, "fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2SetReal", "fmi2DoStep", "fmi2GetReal")
 FAILED_EXTRA = constant("drkernel.h", "DR_FAILED_EXTRA")   # the signals or a subsystem stepped alone failed
 PASSES_CACHED, PASSES_EACH = (constant("drkernel.h", f"DR_PASSES_{w}") for w in ("CACHED", "EACH"))   # run_steps
 FMI_NAMES = ("fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate", "fmi2SetReal", "fmi2DoStep",
@@ -269,7 +269,7 @@ class Kernel:
             self.plan.close()
         scene = self.scene
         vrs = [fmu.vrs(names) for fmu, names in zip(scene.alone, alone_names)]
-        self.plan = SignalPlan(self.lib, self._handle, scene.signals, vrs, FUNCTIONS, scene.book_alone)
+        self.plan = SignalPlan(self.lib, self._handle, scene.signals, vrs, scene.book_alone)
 
     def _log_room(self, keep, steps):
         """A log of room for `steps` steps per call (written through once, so no page of it is first
@@ -408,7 +408,7 @@ class Kernel:
             return self.plan.error(n, t)
         sub = self.subsystems[io.failed_subsystem]
         inner = sub.adapter_error(n, t) if sub.adapter_error else None      # the wave adapter's own failure
-        return inner or sub.fmu.error(FUNCTIONS[io.failed_function], io.failed_status, n, t)
+        return inner or sub.fmu.error(FUNCTION_NAMES.get(io.failed_function), io.failed_status, n, t)
 
     def costs(self):
         """Median µs per evaluation of each subsystem since the last call (steps run with measure)."""

@@ -4,10 +4,11 @@ call in progress, which every kernel library and the Python route write, in a su
 status page its parent shares (`trace_calls`), so a process stuck in an FMU that holds every signal
 still names the subsystem and the call (`call_now`)."""
 import ctypes
+import re
 
 from .abi import mirrors
 from .build import LOAD_HOOKS
-from .contract import constant
+from .contract import enum
 
 
 @mirrors("drkernel", "adapter", "queries", "FmiFailure")
@@ -18,7 +19,7 @@ class FmiFailure(ctypes.Structure):
 
 @mirrors("guard", "FmiCallNow")
 class FmiCallNow(ctypes.Structure):
-    """fmicall.h: the component of the FMU call in progress and its code (CALLS; 0: none)."""
+    """fmicall.h: the component of the FMU call in progress and its code (FUNCTION_NAMES; 0: none)."""
     _fields_ = [("instance", ctypes.c_void_p), ("function", ctypes.c_int), ("spare", ctypes.c_int)]
 
 
@@ -34,14 +35,19 @@ FMI_ENTRIES = tuple(f"fmi2{n}" for n in (
     "Reset", "GetFloat64", "SetFloat64", "GetFloat32", "SetFloat32", "GetInt32", "SetInt32", "GetBoolean",
     "SetBoolean", "GetString", "SetString", "GetFMUState", "SetFMUState", "FreeFMUState", "DoStep",
     "EnterStepMode", "UpdateDiscreteStates", "EnterEventMode"))
-_KERNEL = {f"{prefix}_{verb}": f"fmi2{name}" for prefix, verb, name in (
-    ("DR_FN", "GET_STATE", "GetFMUstate"), ("DR_FN", "SET_STATE", "SetFMUstate"), ("DR_FN", "SET_REAL", "SetReal"),
-    ("DR_FN", "DO_STEP", "DoStep"), ("DR_FN", "GET_REAL", "GetReal"), ("SG_FN", "GET_INTEGER", "GetInteger"),
-    ("SG_FN", "SET_INTEGER", "SetInteger"), ("SG_FN", "GET_BOOLEAN", "GetBoolean"),
-    ("SG_FN", "SET_BOOLEAN", "SetBoolean"), ("FN", "FREE_STATE", "FreeFMUstate"))}
-CALLS = {constant("drkernel.h" if key.startswith("DR") else "fmicall.h", key): name for key, name in _KERNEL.items()}
-CALLS.update({64 + k: name for k, name in enumerate((LOAD, *FMI_ENTRIES))})     # the Python route's, past the kernel's
-CODES = {name: code for code, name in sorted(CALLS.items(), reverse=True)}      # a name's lowest code
+
+
+def _fmi2(member):
+    """The fmi2 function a kernel function code names: DR_FN_GET_STATE -> fmi2GetFMUstate."""
+    words = re.sub(r"^(DR_|SG_)?FN_", "", member).split("_")
+    return "fmi2" + "".join("FMUstate" if w == "STATE" else w.title() for w in words)
+
+
+FUNCTION_NAMES = {value: _fmi2(member) for header, tag in (("drkernel.h", "DRFunction"), ("fmicall.h", "SGFunction"),
+                                                          ("fmicall.h", "FmiOtherFunction"))
+                  for member, value in enum(header, tag) if value}          # the kernel's codes (0: none)
+FUNCTION_NAMES.update({64 + k: name for k, name in enumerate((LOAD, *FMI_ENTRIES))})    # the Python route's, past the kernel's
+CODES = {name: code for code, name in sorted(FUNCTION_NAMES.items(), reverse=True)}      # a name's lowest code
 _page = []                 # the RunStatus the calls are written into, while a supervised run traces them
 
 
@@ -104,4 +110,4 @@ def opening(name):
 def call_now(status):
     """(instance, call name, opening) of the call in progress a RunStatus records; the call is "" when none."""
     now = status.call
-    return now.instance or 0, CALLS.get(now.function, ""), status.opening.decode("utf-8", "replace")
+    return now.instance or 0, FUNCTION_NAMES.get(now.function, ""), status.opening.decode("utf-8", "replace")

@@ -20,7 +20,7 @@ class Queries:
     def __call__(self, comp, state, in_vr, out_vr, m, t, h, rows, dirty, no_prior=0):
         """Each row of `rows` as a query from x_i^n (held in the handle `state`; restored first only
         when dirty[0], the caller's flag, which the call sets as the instance moves; the doSteps get noSetFMUStatePriorToCurrentPoint = no_prior): (outputs as rows,
-        queries made, the FMU function that failed as an index into drkernel.FUNCTIONS (0: none), its
+        queries made, the FMU function that failed as a code of fmicall.FUNCTION_NAMES (0: none), its
         status)."""
         inputs = np.ascontiguousarray(rows, dtype=float)
         out, p = np.empty_like(inputs), ctypes.c_void_p

@@ -10,13 +10,11 @@ import numpy as np
 
 from .abi import mirrors
 from .contract import constant, names
-from .fmicall import FmiFailure
+from .fmicall import FUNCTION_NAMES, FmiFailure
 from ..errors import FmuError, NumericalError
 
 SG_FMU, SG_NONFINITE = (constant("signals.h", name) for name in ("SG_FMU", "SG_NONFINITE"))   # SGFailure.kind
 TYPES = names("signals.h", "SGType", "SG_")                  # the types of the values a signal carries
-OTHER_FUNCTIONS = {constant("fmicall.h", f"SG_FN_{verb}_{kind.upper()}"): f"fmi2{verb.title()}{kind.title()}"
-                   for verb in ("GET", "SET") for kind in TYPES[1:]}        # SGFailure.call.function past DR_FN_*
 FMU_FUNCTIONS = ("fmi2GetReal", "fmi2SetReal", "fmi2DoStep", "fmi2GetInteger", "fmi2SetInteger", "fmi2GetBoolean",
                  "fmi2SetBoolean")
 
@@ -70,11 +68,10 @@ class SignalPlan:
     """signals.c's plan over a kernel (`handle`) from `plan` (description.KernelScene.signals: the
     FMUs as KernelFmu (port subsystems first, then those stepped alone), the signals, the getReal and
     setReal calls, the tables) and the outputs read of each subsystem stepped alone (`alone_vrs`, one
-    list each); `functions` names the FMU functions by the kernel's DR_FN_* index (for errors);
-    book_alone(j, n, t) says the j-th stepped alone is at step n (its calls count in its FMU's counters)."""
+    list each); book_alone(j, n, t) says the j-th stepped alone is at step n (its calls count in its FMU's counters)."""
 
-    def __init__(self, lib, handle, plan, alone_vrs, functions, book_alone):
-        self.lib, self.plan, self.functions, self.book_alone = lib, plan, functions, book_alone
+    def __init__(self, lib, handle, plan, alone_vrs, book_alone):
+        self.lib, self.plan, self.book_alone = lib, plan, book_alone
         self.subsystems, self.alone = plan["subsystems"], plan["alone"]
         wanted = [set(FMU_FUNCTIONS[:3]) for _ in self.subsystems]
         for fmu, kind, _, _ in plan["reads"] + plan["writes"]:
@@ -119,7 +116,7 @@ class SignalPlan:
         if f.kind == SG_NONFINITE:
             return NumericalError(self.plan["nonfinite"](f.index, f.value, f.step))
         if f.kind == SG_FMU:
-            name = OTHER_FUNCTIONS.get(f.call.function) or self.functions[f.call.function]
+            name = FUNCTION_NAMES.get(f.call.function)
             return self.subsystems[f.index].error(name, f.call.status, n, t)
         return FmuError(f"the kernel's signals had no source table values for step {f.step}")
 

@@ -42,8 +42,8 @@ enum DRLedgerLog { DR_LOG_SUPPLIED, DR_LOG_LEDGER, DR_LOG_TRAFFIC, DR_LOG_SCALE,
 enum DRLedgerAction { DR_LEDGER_KEPT = 0, DR_LEDGER_SCALED = 1, DR_LEDGER_ZERO = 2, DR_LEDGER_ITERATED = 3, DR_LEDGER_PROJECTED = 4,
        DR_LEDGER_BLENDED = 5, DR_LEDGER_ANCHORED = 6 };
 
-/* FMU functions, as reported in DRStep.failed_function. */
-enum { DR_FN_NONE = 0, DR_FN_GET_STATE, DR_FN_SET_STATE, DR_FN_SET_REAL, DR_FN_DO_STEP, DR_FN_GET_REAL };
+/* FMU functions, as reported in DRStep.failed_function (kernel/fmicall.py CALLS names them). */
+enum DRFunction { DR_FN_NONE = 0, DR_FN_GET_STATE, DR_FN_SET_STATE, DR_FN_SET_REAL, DR_FN_DO_STEP, DR_FN_GET_REAL };
 
 /* The FMU functions the kernel calls, taken from the FMU's own shared library. */
 typedef struct {

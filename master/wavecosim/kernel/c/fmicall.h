@@ -11,7 +11,7 @@
 #include "linalg.h"
 
 /* The FMU functions of the signals' Integer and Boolean calls, numbered past DR_FN_* (drkernel.h). */
-enum { SG_FN_GET_INTEGER = 16, SG_FN_GET_BOOLEAN = 17, SG_FN_SET_INTEGER = 18, SG_FN_SET_BOOLEAN = 19 };
+enum SGFunction { SG_FN_GET_INTEGER = 16, SG_FN_GET_BOOLEAN = 17, SG_FN_SET_INTEGER = 18, SG_FN_SET_BOOLEAN = 19 };
 
 /* What a call counts as in an FMU's call counters (fmi/fmu.py CALLS): a doStep, a state saved or
  * restored, a get or a set of values (one call, whatever its length). */
@@ -19,7 +19,7 @@ enum FmiCall { FMI_CALL_DO_STEP = 0, FMI_CALL_SAVE = 1, FMI_CALL_RESTORE = 2, FM
                FMI_CALLS = 5 };
 
 /* fmi2FreeFMUstate, as the call in progress names it (its failure is never reported). */
-enum { FN_FREE_STATE = 20 };
+enum FmiOtherFunction { FN_FREE_STATE = 20 };
 
 /* The FMU call in progress: the component it was made with and its DR_FN_*, SG_FN_* or FN_*, 0 between
  * calls. A supervised run points fmi_call_now into the status page its parent shares
