@@ -126,3 +126,27 @@ def test_a_stopped_sweep_on_a_local_cluster_keeps_the_rows_of_its_runs(signum, g
         assert len((folder / "trajectory.csv").read_text().splitlines()) == run["steps"] + 2      # header, t = 0
     time.sleep(1.0)                                                        # janitors finish within a second
     assert survivors(temp) == [] and list(temp.iterdir()) == []
+
+
+@pytest.mark.slow  # starts a Dask LocalCluster
+def test_a_sweep_killed_outright_leaves_nothing_behind(tmp_path, faulty_scenario):
+    """SIGKILL to the sweep's own process while its runs hang on a local cluster: the workers, the
+    runs and the cluster's scratch space are gone within a few seconds."""
+    path, out, temp = tmp_path / "faulty.yaml", tmp_path / "out", tmp_path / "tmp"
+    path.write_text(yaml.safe_dump(faulty_scenario(3, 20, T=0.5), sort_keys=False))
+    temp.mkdir()
+    proc = subprocess.Popen([*CLI, "sweep", str(path), "--set", "subsystems.B.integers.fault_step=20,21",
+                             "--scheduler", "local", "--workers", "2", "--out", str(out), "--quiet",
+                             "--no-certificates"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            env={**os.environ, "TMPDIR": str(temp)}, start_new_session=True)
+    deadline = time.monotonic() + 60
+    while len(list(out.glob("runs/*/trajectory.csv"))) < 2:                # both runs stepping
+        assert time.monotonic() < deadline and proc.poll() is None
+        time.sleep(0.2)
+    assert [p.name for p in temp.iterdir() if p.name.startswith("wavecosim-dask-")]
+    proc.kill()
+    proc.wait()
+    deadline = time.monotonic() + 20
+    while (survivors(temp) or list(temp.iterdir())) and time.monotonic() < deadline:
+        time.sleep(0.25)
+    assert survivors(temp) == [] and list(temp.iterdir()) == []

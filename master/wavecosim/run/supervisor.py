@@ -24,11 +24,13 @@ import gc
 import io
 import os
 import selectors
+import shutil
 import signal
 import subprocess
 import sys
 import tempfile
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 from ..kernel.fmicall import call_now
@@ -45,6 +47,7 @@ _JANITORS = set()         # the janitors' stdin descriptors: no child holds one 
 SETUP_TIMEOUT_S = 60.0    # the set-up timeout by default (`--setup-timeout`)
 JANITOR = ("trap '' INT TERM HUP; read end; i=0; while kill -0 $2 2>/dev/null && [ $i -lt 50 ]; "
            "do sleep 0.1; i=$((i+1)); done; kill -KILL -$2 2>/dev/null; rm -rf \"$1\"")
+SWEEPER = "trap '' INT TERM HUP; read end; rm -rf \"$1\""
 
 
 class Relay(io.TextIOBase):
@@ -319,6 +322,22 @@ def _janitor(folder, pid):
     removes the channel folder: nothing outlives a parent killed outright."""
     return subprocess.Popen(["/bin/sh", "-c", JANITOR, "janitor", str(folder), str(pid)], stdin=subprocess.PIPE,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+
+
+@contextmanager
+def swept(folder):
+    """`folder` removed when the block ends, or by a shell waiting for this process to end when it is
+    killed outright (a Dask sweep's scratch space): nothing left in the temporary folder."""
+    sweeper = subprocess.Popen(["/bin/sh", "-c", SWEEPER, "sweeper", str(folder)], stdin=subprocess.PIPE,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    _JANITORS.add(sweeper.stdin.fileno())
+    try:
+        yield folder
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+        _JANITORS.discard(sweeper.stdin.fileno())
+        sweeper.stdin.close()
+        sweeper.wait()
 
 
 def _become_child(body, channel, timeouts, announce, relays):

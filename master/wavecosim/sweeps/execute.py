@@ -11,7 +11,6 @@ the worker lives on, and the others go on.
 import json
 import re
 import selectors
-import shutil
 import signal
 import tempfile
 import threading
@@ -339,22 +338,19 @@ def dask_cluster(scheduler, workers, scratch):
 
 def dask(tasks, scheduler, workers):
     """The tasks on a Dask distributed cluster, each in a supervised child of its worker; rows in
-    completion order. A LocalCluster's scratch space is a temporary folder removed at the end.
+    completion order. A LocalCluster's scratch space is a temporary folder removed at the end, even when
+    the sweep is killed outright (run/supervisor.py swept).
     SIGINT and SIGTERM reach the running runs through the sweep's stop events: each stops between two
     steps and gives its row; no task starts after one."""
-    from ..run.supervisor import passing_stops
-    scratch = tempfile.mkdtemp(prefix="wavecosim-dask-")
-    try:
-        with passing_stops([]) as stops:
-            client, cluster = dask_cluster(scheduler, workers, scratch)
-            try:
-                yield from _dask_rows(client, tasks, stops)
-            finally:
-                client.close()
-                if cluster is not None:
-                    cluster.close()
-    finally:
-        shutil.rmtree(scratch, ignore_errors=True)
+    from ..run.supervisor import passing_stops, swept
+    with swept(tempfile.mkdtemp(prefix="wavecosim-dask-")) as scratch, passing_stops([]) as stops:
+        client, cluster = dask_cluster(scheduler, workers, scratch)
+        try:
+            yield from _dask_rows(client, tasks, stops)
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
     if stops.signal is not None:
         raise (Terminated if stops.signal == signal.SIGTERM else Interrupted)("stopped")
 
