@@ -142,6 +142,8 @@ def test_nan_at_initialization_is_a_numerical_error(hostile):
     proc, out, temp = hostile(14)
     line = _one_line(proc, 4)
     assert line == "error: subsystem B: b = nan is not finite at t = 0 (the initial values)"
+    summary = json.loads((out / "summary.json").read_text())          # a run that failed in its set-up says so
+    assert (summary["status"], summary["steps"]) == ("failed", 0) and summary["message"].startswith(line[7:])
     assert list(temp.iterdir()) == []
 
 

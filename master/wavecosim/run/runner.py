@@ -5,6 +5,8 @@ writer's hand-over.
 """
 import signal
 import time
+from contextlib import contextmanager
+from pathlib import Path
 
 from ..errors import ConfigError, Interrupted, RunFailed, SimulationEnded, Terminated, WavecosimError
 from . import containment
@@ -12,7 +14,7 @@ from .bounds import named_for_cause
 from .live import BLOCK_STEPS, LiveRun
 from .observers.errors import error_observers, stored_reference, stored_rows
 from .parts import OBSERVERS, STEP_COLUMNS, STEP_DESCRIBED, _once, _warn_stderr, open_parts
-from .recorder import Interrupts
+from .recorder import Interrupts, write_json
 from .result import RunResult, grid_clock, grid_inverse, grid_times
 
 __all__ = ["BLOCK_STEPS", "LiveRun", "OBSERVERS", "STEP_COLUMNS", "STEP_DESCRIBED", "open_parts", "RunResult",
@@ -35,7 +37,8 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
     warn = _once(warn or _warn_stderr)                 # the lockstep reference repeats set-up notes
     if reference == "lockstep" and (not scenario.couplings or scenario.master.tolerance is not None):
         reference = None                   # no same-grid reference for a varying step: true_error instead
-    live = LiveRun(scenario, out_dir, label, certificates, warn, file_suffix, output_interval, formats)
+    with _set_up_summary(scenario, out_dir, label, file_suffix):
+        live = LiveRun(scenario, out_dir, label, certificates, warn, file_suffix, output_interval, formats)
     ref = None
     try:
         rows = None
@@ -60,7 +63,8 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
     if contain is not None:
         contain.watch(live, ref)
     status, error = _loop(live, ref, progress, contain)
-    _raise_before_first_row(status, error, live, ref)
+    with _set_up_summary(scenario, out_dir, live.label, file_suffix):
+        _raise_before_first_row(status, error, live, ref)
     message = str(error) if error else ""
     if isinstance(error, Interrupted):
         message = f"{error} after {live.steps_done} steps"
@@ -74,6 +78,24 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
     if failure is not None:
         raise RunFailed(failure, result) from failure
     return result
+
+
+@contextmanager
+def _set_up_summary(scenario, out_dir, label, file_suffix):
+    """A run that fails before its first row still leaves its summary.json (0 steps, its status and the
+    error's line) in out_dir, as every run that started does; the error is raised again."""
+    try:
+        yield
+    except WavecosimError as exc:
+        if out_dir is not None:
+            label = label or f"{scenario.master.algorithm}_K{scenario.master.K}"
+            path = Path(out_dir) / f"summary{'_' + label if file_suffix else ''}.json"
+            try:
+                write_json(path, {"label": label, "master": scenario.master.algorithm, "steps": 0,
+                                  "status": exc.status, "message": f"{exc} (during set-up)"})
+            except WavecosimError:
+                pass
+        raise
 
 
 def _raise_before_first_row(status, error, live, ref):
