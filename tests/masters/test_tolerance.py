@@ -6,12 +6,14 @@ import subprocess
 import numpy as np
 import pytest
 
-from paths import CLI, CONFIGS
+import yaml
+
+from paths import CLI, CONFIGS, THIRD_PARTY
 from wavecosim import api
 from wavecosim.errors import ConfigError
 from wavecosim.run.fine import fine_reference, true_error
 from wavecosim.run.runner import LiveRun
-from wavecosim.scenario.config import load_scenario
+from wavecosim.scenario.config import load_scenario, parse_scenario
 
 
 def scenario(name, T, **master):
@@ -48,6 +50,41 @@ def test_a_rejected_step_leaves_every_fmu_where_it_was(name, master):
     again, rows_again, none = drive(sc, forced=list(steps))
     assert none == 0 and np.array_equal(again, steps)
     assert np.array_equal(rows, rows_again)
+
+
+def with_a_signal(T):
+    """Table I's pair and a third oscillator C without a port, driven by a signal from A's q1."""
+    raw = yaml.safe_load((CONFIGS / "two_oscillators.yaml").read_text())
+    raw["subsystems"]["C"] = {"fmu": "LinearSide", "parameters": {"m2": 1.0, "k2": 40.0}}
+    raw["signals"] = [{"from": "A.q1", "to": "C.F", "factor": 30.0}]
+    raw["outputs"]["qC"] = "C.q2"
+    return parse_scenario({**raw, "T": T}, str(CONFIGS / "two_oscillators.yaml"))
+
+
+@pytest.mark.parametrize("estimate", ["predictor", "doubling"])
+def test_a_rejected_step_puts_back_the_subsystems_without_a_port(estimate):
+    """A signal-only subsystem steps with each try's h and is put back with the others: the same
+    accepted steps made again without a rejection give the same numbers, C's included."""
+    sc = with_a_signal(0.1).with_master(tolerance=1e-3, estimate=estimate)
+    steps, rows, rejected = drive(sc)
+    assert rejected > 0 and len(np.unique(steps)) > 3
+    again, rows_again, none = drive(sc, forced=list(steps))
+    assert none == 0 and np.array_equal(rows, rows_again)
+    fine = api.simulate(sc.with_master(tolerance=None).with_changes("test", dt=1e-4), reference=False,
+                        certificates=False).trajectory["qC"]
+    assert abs(rows[-1, -1] - fine[-1]) < 1e-2 * np.ptp(fine)
+
+
+@pytest.mark.skipif(not (THIRD_PARTY / "dcmotor").exists(), reason="the third-party dcmotor FMUs are absent")
+def test_the_dcmotor_runs_in_the_tolerance_mode():
+    """The dcmotor's stimuli FMU (no port) and its signals follow the varying step; the ledger holds."""
+    sc = scenario("dcmotor", 0.004, tolerance=1e-2)
+    result = api.simulate(sc, reference=False, certificates=False)
+    s = result.summary
+    assert s["status"] == "finished" and s["accepted_steps"] == len(result.steps["dt"])
+    assert len(np.unique(result.steps["dt"])) > 3 and result.t[-1] == 0.004
+    assert s["max_ledger"] <= s["ledger_tolerance"]
+    assert result.trajectory["U"][-1] == 12.0
 
 
 def test_steps_follow_the_tolerance_and_end_on_T():

@@ -86,9 +86,6 @@ def check_tolerance_mode(scene, settings, source):
     if fixed:
         raise ConfigError(f"{source}: master.tolerance: subsystem {fixed[0]}'s FMU cannot change its communication "
                           f"step size (canHandleVariableCommunicationStepSize=\"false\"); run it with a fixed dt")
-    if scene.signals is not None or scene.signal_only:
-        raise ConfigError(f"{source}: master.tolerance: signals and subsystems without a port are held per "
-                          f"fixed macro-step; run this system with a fixed dt")
     if settings.estimate == "doubling" and not all(s.fmu.can_save_state for s in scene.subsystems):
         raise ConfigError(f"{source}: master.estimate: doubling needs every FMU to get and set its state")
 
@@ -133,7 +130,8 @@ class AdaptiveStep:
         self.p = order(self)
         self.control = Controller(settings, sc.dt, self.span, self.p)
         self.doubling = settings.estimate == "doubling"
-        self.can_reject = all(s.fmu.can_save_state for s in scene.subsystems)
+        self.alone = scene.signal_only          # stepped with each try's h after the signals are held
+        self.can_reject = all(s.fmu.can_save_state for s in scene.subsystems + self.alone)
         self.snapshots = self.doubling or not self.needs_rollback
         self.times, self.points = [sc.start_time], []
         self.h_set, self.wave_size = sc.dt, 0.0
@@ -163,18 +161,18 @@ class AdaptiveStep:
                 value = getattr(self, name, None)
                 if value is not None:
                     setattr(self, name, [v * ratio for v in value])
-        for s in self.subsystems:
+        for s in self.subsystems + self.alone:
             s.set_step(h)
         self.dt, self.h_set = h, h
 
     def _save(self):
         """The step's start: every FMU's state (snapshots; the rollback masters' own freeze serves
         otherwise), the step size the waves are scaled to and the master's committed values."""
-        if self.snapshots and self.can_reject:
-            for s in self.subsystems:
-                s.snapshot()
+        snap = self.can_reject or self.doubling
+        for s in ((self.subsystems if self.snapshots else []) + self.alone) if snap else []:
+            s.snapshot()
         return self.h_set, {k: getattr(self, k).copy() for k in STATE if getattr(self, k, None) is not None}, \
-            self._ledger_state()
+            self._ledger_state(), snap
 
     def _ledger_state(self):
         """The energy ledger's running figures (L and its traffic), in Python and in the kernel, so a
@@ -190,7 +188,11 @@ class AdaptiveStep:
                 s.back_to_snapshot()
             else:
                 s.restore_frozen()
+        for s in self.alone if saved[3] else []:
+            s.back_to_snapshot()
+        for s in self.subsystems + self.alone:
             s.set_step(saved[0])
+        self.scene.ended = None
         self.dt = self.h_set = saved[0]
         for k, v in saved[1].items():
             setattr(self, k, v.copy())
@@ -220,6 +222,13 @@ class AdaptiveStep:
             return self.control.inner_eps(self.wave_size * math.sqrt(h), h)
         return self.control.inner_eps(max(self.control.size or [0.0]), h)
 
+    def _make(self, n, t, h):
+        """The master's own step of h from t, after the signals are held and the signal-only
+        subsystems stepped by h (Scene.begin_step)."""
+        self._set_h(h)
+        self.scene.begin_step(n, t)
+        return super().step(n, t)
+
     def _attempt(self, n, t, h, saved):
         """One try of a step of h from the saved state: (its StepLog, the scaled estimate)."""
         eps = self._inner_eps(h)
@@ -227,17 +236,14 @@ class AdaptiveStep:
             self.eps = eps
         self.last.inner_eps = math.nan if eps is None else eps
         if self.doubling:
-            self._set_h(h / 2.0)
-            super().step(n, t)
-            super().step(n, t + h / 2.0)
+            self._make(n, t, h / 2.0)
+            self._make(n, t + h / 2.0, h / 2.0)
             half = self._stage()
             self._restore(saved)
-            self._set_h(h)
-            log = super().step(n, t)
+            log = self._make(n, t, h)
             gain = 2.0 ** self.p / (2.0 ** self.p - 1.0)
             return log, self.control.error([gain * (a - b) for a, b in zip(half, self._stage())], h)
-        self._set_h(h)
-        log = super().step(n, t)
+        log = self._make(n, t, h)
         if len(self.points) <= self.p:
             return log, math.nan
         nodes = self.times[-1 - self.p:]
