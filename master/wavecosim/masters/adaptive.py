@@ -13,6 +13,7 @@ Both are scaled per unit step (times (T - t0) / h), so the error over the run, n
 stays near the tolerance. Iterating masters stop their inner loop once its residual is below
 INNER_SHARE of the step's allowance (their `eps`), within the budget K.
 """
+import copy
 import math
 from dataclasses import dataclass, replace
 
@@ -167,12 +168,13 @@ class AdaptiveStep:
 
     def _save(self):
         """The step's start: every FMU's state (snapshots; the rollback masters' own freeze serves
-        otherwise), the step size the waves are scaled to and the master's committed values."""
+        otherwise), the step size the waves are scaled to, the master's committed values, the ledger's
+        figures and DR's Anderson differences."""
         snap = self.can_reject or self.doubling
         for s in ((self.subsystems if self.snapshots else []) + self.alone) if snap else []:
             s.snapshot()
         return self.h_set, {k: getattr(self, k).copy() for k in STATE if getattr(self, k, None) is not None}, \
-            self._ledger_state(), snap
+            self._ledger_state(), snap, copy.deepcopy(getattr(self, "anderson", None))
 
     def _ledger_state(self):
         """The energy ledger's running figures (L and its traffic), in Python and in the kernel, so a
@@ -198,6 +200,8 @@ class AdaptiveStep:
             setattr(self, k, v.copy())
         for holder, name, value in saved[2]:
             setattr(holder, name, value)
+        if saved[4] is not None:                # DR's Anderson differences kept across steps (anderson_memory)
+            self.anderson = copy.deepcopy(saved[4])
 
     def _target(self, t):
         """Where the step from t must end at the latest: T, or the next output time (output_step)."""
