@@ -164,6 +164,8 @@ def test_equal_error_calls_follow_each_fixed_series():
     assert calls_for(series, 2e-2) == (100.0, False)
     assert calls_for(series, 5e-3) == (pytest.approx(200.0), False)
     assert calls_for(series, 6.25e-5) == (pytest.approx(16000.0), True)
+    unstable = [(1600, 6.4e4), (6400, 4.77)]                         # far from converged: extrapolated at order 2
+    assert calls_for(unstable, 4.77e-2) == (pytest.approx(64000.0), True)
     rows = [{"mode": "fixed", "master": m, "K": "", "doStep": c * f, "true_error": e}
             for m, f in (("explicit", 1), ("newton", 3)) for c, e in series]
     assert best_fixed(rows, 5e-3)[0::2] == (pytest.approx(200.0), "explicit")

@@ -18,6 +18,7 @@ import math
 from dataclasses import dataclass, replace
 
 from ..errors import ConfigError
+from ..kernel.linalg import matvec
 
 SAFETY, SHRINK, GROW = 0.9, 0.2, 5.0          # h_new = h clamp(SAFETY (1/err)^(1/p), SHRINK, GROW)
 STARTUP = 0.01                                # the first p + 1 steps, which have no estimate yet: dt x STARTUP
@@ -125,6 +126,8 @@ class AdaptiveStep:
     def __init__(self, scene, settings):
         super().__init__(scene, replace(settings, fast="false"))       # the Python route, step by step
         check_tolerance_mode(scene, settings, scene.scenario.source)
+        if settings.start == "auto" and hasattr(self, "start"):
+            self.start = "extrapolated"          # DR's start over the varying step (_start_iterate)
         sc = scene.scenario
         self.end, self.span, self.t0 = sc.T, sc.T - sc.start_time, sc.start_time
         self.every = settings.output_step
@@ -135,7 +138,7 @@ class AdaptiveStep:
         self.can_reject = all(s.fmu.can_save_state for s in scene.subsystems + self.alone)
         self.snapshots = self.doubling or not self.needs_rollback
         self.times, self.points = [sc.start_time], []
-        self.h_set, self.wave_size = sc.dt, 0.0
+        self.h_set, self.h_made, self.wave_size = sc.dt, sc.dt, 0.0     # h now; h of the step that gave b^n
         self.watched = watched(scene)
         self.last = StepRecord()
         self.accepted = self.rejected = 0
@@ -173,8 +176,9 @@ class AdaptiveStep:
         snap = self.can_reject or self.doubling
         for s in ((self.subsystems if self.snapshots else []) + self.alone) if snap else []:
             s.snapshot()
-        return self.h_set, {k: getattr(self, k).copy() for k in STATE if getattr(self, k, None) is not None}, \
-            self._ledger_state(), snap, copy.deepcopy(getattr(self, "anderson", None))
+        return {"h": self.h_set, "values": {k: getattr(self, k).copy() for k in STATE if getattr(self, k, None) is not None},
+                "ledger": self._ledger_state(), "snapshots": snap, "h_made": self.h_made,
+                "anderson": copy.deepcopy(getattr(self, "anderson", None))}
 
     def _ledger_state(self):
         """The energy ledger's running figures (L and its traffic), in Python and in the kernel, so a
@@ -190,18 +194,28 @@ class AdaptiveStep:
                 s.back_to_snapshot()
             else:
                 s.restore_frozen()
-        for s in self.alone if saved[3] else []:
+        for s in self.alone if saved["snapshots"] else []:
             s.back_to_snapshot()
         for s in self.subsystems + self.alone:
-            s.set_step(saved[0])
+            s.set_step(saved["h"])
         self.scene.ended = None
-        self.dt = self.h_set = saved[0]
-        for k, v in saved[1].items():
+        self.dt = self.h_set = saved["h"]
+        self.h_made = saved["h_made"]
+        for k, v in saved["values"].items():
             setattr(self, k, v.copy())
-        for holder, name, value in saved[2]:
+        for holder, name, value in saved["ledger"]:
             setattr(holder, name, value)
-        if saved[4] is not None:                # DR's Anderson differences kept across steps (anderson_memory)
-            self.anderson = copy.deepcopy(saved[4])
+        if saved["anderson"] is not None:       # DR's Anderson differences kept across steps (anderson_memory)
+            self.anderson = copy.deepcopy(saved["anderson"])
+
+    def _start_iterate(self):
+        """DR's start `extrapolated` over a varying step: P (b^n + r (b^n - b^{n-1})), r the ratio of this
+        step to the one that gave b^n (the fixed grid's P (2 b^n - b^{n-1}) when they are equal)."""
+        if getattr(self, "start", None) != "extrapolated" or self._b_before is None:
+            return super()._start_iterate()
+        r = self.h_set / self.h_made
+        u, self._b_before = matvec(self.P, [b + r * (b - bp) for b, bp in zip(self.b, self._b_before)]), self.b
+        return u
 
     def _target(self, t):
         """Where the step from t must end at the latest: T, or the next output time (output_step)."""
@@ -231,7 +245,9 @@ class AdaptiveStep:
         subsystems stepped by h (Scene.begin_step)."""
         self._set_h(h)
         self.scene.begin_step(n, t)
-        return super().step(n, t)
+        log = super().step(n, t)
+        self.h_made = h
+        return log
 
     def _attempt(self, n, t, h, saved):
         """One try of a step of h from the saved state: (its StepLog, the scaled estimate)."""
