@@ -125,6 +125,18 @@ def test_true_error_is_near_the_tolerance_and_the_ledger_holds():
     assert fixed > 10 * err                     # dt = 0.01 alone is far from the tolerance
 
 
+def test_dr_starts_from_the_waves_extrapolated_over_the_varying_step():
+    """start: auto is the extrapolated start in the tolerance mode: fewer inner iterations than the
+    previous step's waves, the same steps and about the same true error."""
+    sc = scenario("two_oscillators", 0.5, tolerance=1e-3)
+    auto, previous = (api.simulate(sc.with_master(start=start), reference=False, certificates=False)
+                      for start in ("auto", "previous"))
+    assert auto.summary["start"] == "extrapolated"
+    assert auto.summary["accepted_steps"] == previous.summary["accepted_steps"]
+    assert auto.steps["iterations"].sum() < 0.7 * previous.steps["iterations"].sum()
+    assert np.allclose(auto.trajectory["q1"], previous.trajectory["q1"], atol=1e-3 * 0.4)
+
+
 def test_doubling_estimates_by_two_half_steps():
     sc = scenario("foreign_pair", 0.3, algorithm="gauss-seidel", tolerance=1e-3)
     one = api.simulate(sc, reference=False, certificates=False).summary
