@@ -23,7 +23,7 @@ from ..kernel.linalg import matvec
 SAFETY, SHRINK, GROW = 0.9, 0.2, 5.0          # h_new = h clamp(SAFETY (1/err)^(1/p), SHRINK, GROW)
 STARTUP = 0.01                                # the first p + 1 steps, which have no estimate yet: dt x STARTUP
 INNER_SHARE = 0.1                             # the inner residual allowed, as a share of the step's allowance
-ATOL_SHARE = 1e-3                             # default atol: this share of tolerance x the largest variable's size
+ATOL_SHARE = 0.1                             # default atol: this share of tolerance x the largest variable's size
 CALIBRATION = 1.0                             # the estimate's weight (measured against the true error)
 STATE = ("y", "y_step_start", "u", "_b", "_b_step_start", "_b_before", "_a_before", "_a_step_start")
 
