@@ -176,9 +176,9 @@ class AdaptiveStep:
         snap = self.can_reject or self.doubling
         for s in ((self.subsystems if self.snapshots else []) + self.alone) if snap else []:
             s.snapshot()
-        return {"h": self.h_set, "values": {k: getattr(self, k).copy() for k in STATE if getattr(self, k, None) is not None},
-                "ledger": self._ledger_state(), "snapshots": snap, "h_made": self.h_made,
-                "anderson": copy.deepcopy(getattr(self, "anderson", None))}
+        values = {k: getattr(self, k).copy() for k in STATE if getattr(self, k, None) is not None}
+        return {"h": self.h_set, "values": values, "ledger": self._ledger_state(), "snapshots": snap,
+                "h_made": self.h_made, "anderson": copy.deepcopy(getattr(self, "anderson", None))}
 
     def _ledger_state(self):
         """The energy ledger's running figures (L and its traffic), in Python and in the kernel, so a
