@@ -40,14 +40,14 @@ def drive(sc, forced=None):
         live.finish("finished", "")
 
 
-@pytest.mark.parametrize("name, master, options", [("foreign_pair", "gauss-seidel", "manual"),
-                                                   ("two_oscillators", "dr", "manual"),
-                                                   ("two_oscillators", "dr", "auto"),
-                                                   ("foreign_pair", "explicit", "manual")])
-def test_a_rejected_step_leaves_every_fmu_where_it_was(name, master, options):
+@pytest.mark.parametrize("name, master, options, tol", [("foreign_pair", "gauss-seidel", "manual", 1e-2),
+                                                        ("two_oscillators", "dr", "manual", 1e-3),
+                                                        ("two_oscillators", "dr", "auto", 1e-3),
+                                                        ("foreign_pair", "explicit", "manual", 1e-2)])
+def test_a_rejected_step_leaves_every_fmu_where_it_was(name, master, options, tol):
     """The same accepted steps made again without a rejection give the same numbers to the last bit
     (DR's Anderson differences kept across steps included)."""
-    sc = scenario(name, 0.1, algorithm=master, tolerance=1e-2, options=options)
+    sc = scenario(name, 0.1, algorithm=master, tolerance=tol, options=options)
     steps, rows, rejected = drive(sc)
     assert rejected > 0
     again, rows_again, none = drive(sc, forced=list(steps))
@@ -68,7 +68,7 @@ def with_a_signal(T):
 def test_a_rejected_step_puts_back_the_subsystems_without_a_port(estimate):
     """A signal-only subsystem steps with each try's h and is put back with the others: the same
     accepted steps made again without a rejection give the same numbers, C's included."""
-    sc = with_a_signal(0.1).with_master(tolerance=1e-3, estimate=estimate)
+    sc = with_a_signal(0.1).with_master(tolerance=1e-4, estimate=estimate)
     steps, rows, rejected = drive(sc)
     assert rejected > 0 and len(np.unique(steps)) > 3
     again, rows_again, none = drive(sc, forced=list(steps))
