@@ -78,7 +78,6 @@ def test_a_rejected_step_puts_back_the_subsystems_without_a_port(estimate):
     assert abs(rows[-1, -1] - fine[-1]) < 1e-2 * np.ptp(fine)
 
 
-@pytest.mark.slow
 @pytest.mark.skipif(not (THIRD_PARTY / "dcmotor").exists(), reason="the third-party dcmotor FMUs are absent")
 def test_the_dcmotor_runs_in_the_tolerance_mode():
     """The dcmotor's stimuli FMU (no port) and its signals follow the varying step; the ledger holds."""
