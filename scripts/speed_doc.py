@@ -94,9 +94,9 @@ Reading the ratios: what the master adds per macro-step has three parts, whateve
 the kernel, each step logs its values (the inputs and outputs, the readings of H and the ports,
 16 numbers on the foreign pair; the energy ledger's 9 columns, the same for every step run without
 the ledger, are written once when the log is made) and checks them; DR through the wave adapter adds
-the adapter's Newton solve and DR's own arithmetic to every evaluation. The rows and Condition 2's
-columns are passes in C that the kernel makes itself every 128 steps, while the values it logged are
-in cache. After each block of up to 1024 steps Python books it (the master's state, the tables, the
+the adapter's Newton solve and DR's own arithmetic to every evaluation. The rows, Condition 2's
+columns and the freeze watch are passes in C that the kernel makes itself every 128 steps, while the
+values it logged are in cache. After each block of up to 1024 steps Python books it (the master's state, the tables, the
 thread planner's first timing); a run of 1000 steps is one block. The *added* column is their sum
 per macro-step (the figures under the table): where a whole step costs a fraction of a microsecond
 of FMU calls (our own foreign pair, whose FMUs make a handful of floating-point operations per call)

@@ -290,7 +290,8 @@ def faulty_scenario(built_fmus):
     (models/faulty_side) that faults at macro-step `step` (the faults of its config.h: 1 segfault,
     2 exit(0), 3 endless loop, 4 abort(), 5..14 signal-blind hangs, stops, thread and fork crashes and
     faults outside doStep, 15 an error logged as a printf format with its arguments, 16 NaN outputs with
-    status OK, 17 a broken restore from that step on); integers such as log_bytes go to the FMU too."""
+    status OK, 17 a broken restore from that step on, 18 _exit(3), 19 every file descriptor closed, then
+    a segfault); integers such as log_bytes go to the FMU too."""
     import copy
     import yaml
     from wavecosim.scenario.config import DEFAULT_CONFIG

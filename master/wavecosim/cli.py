@@ -468,10 +468,12 @@ def _sweep_progress(total, skipped):
 @click.option("--tolerances", metavar="LIST", help="Instead: the tolerance mode at each of these tolerances (e.g. "
               "1e-2,1e-4,1e-6; with each of --masters, default dr,gauss-seidel) and step doubling, beside a grid of "
               "fixed (dt, K), all against one fine reference: tolerances.csv, tolerances.json, tolerances.png.")
+@click.option("--peers", default="", metavar="NAMES", help="With --tolerances: also these peers at each tolerance "
+              "on the same FMUs (ecco: libcosim's ECCO over the system's power bonds; needs the peers extra).")
 @step_timeout_option
 @overwrite_option
 def compare_cmd(config, K, eps, gamma, dt, T, quiet, start_time, ports, parameter_set, masters, ks, out,
-                no_certificates, plots, dr_options, tolerances, step_timeout, overwrite):
+                no_certificates, plots, dr_options, tolerances, peers, step_timeout, overwrite):
     """Every master over a grid of budgets against the monolithic reference: error, energy, cost."""
     from .sweeps.comparison import COMPARE_FIELDS, parse_options
     options = parse_options(dr_options)
@@ -486,9 +488,10 @@ def compare_cmd(config, K, eps, gamma, dt, T, quiet, start_time, ports, paramete
         Ks = parse_budgets(ks)
     scenario = _apply_overrides(_read_config(config, ports, parameter_set, dt, T, gamma, start_time), None, eps,
                                 gamma, dt, T, start_time=start_time)
+    peer_names = _peer_list(peers, tolerances)
     if tolerances is not None:
         chosen = names if click.get_current_context().get_parameter_source("masters").name != "DEFAULT" else None
-        return _compare_tolerances(scenario, _tolerance_list(tolerances), chosen, out, quiet, overwrite)
+        return _compare_tolerances(scenario, _tolerance_list(tolerances), chosen, out, quiet, overwrite, peer_names)
 
     def work():
         table = api.compare(scenario, names, Ks, out_dir=out, progress=(lambda label: _progress(label, quiet)),
@@ -519,7 +522,19 @@ def _tolerance_list(text):
     return values
 
 
-def _compare_tolerances(scenario, tolerances, masters, out, quiet, overwrite):
+def _peer_list(text, tolerances):
+    """--peers "ecco" -> ("ecco",): names of sweeps/ecco.py's PEERS, and only with --tolerances."""
+    from .sweeps.ecco import PEERS
+    names = tuple(p.strip() for p in text.split(",") if p.strip())
+    unknown = [p for p in names if p not in PEERS]
+    if unknown:
+        raise ConfigError(f"--peers: unknown peer {unknown[0]!r} (have: {', '.join(PEERS)})")
+    if names and tolerances is None:
+        raise ConfigError("--peers: goes with --tolerances (the peers run at each tolerance)")
+    return names
+
+
+def _compare_tolerances(scenario, tolerances, masters, out, quiet, overwrite, peers=()):
     """compare --tolerances: the rows, the table on stdout, tolerances.png."""
     from .plots import tolerance_plots
     from .sweeps.tolerances import FIELDS, TOLERANCE_MASTERS, compare_tolerances
@@ -527,7 +542,8 @@ def _compare_tolerances(scenario, tolerances, masters, out, quiet, overwrite):
     def work():
         shown = None if quiet else (lambda row: click.echo(f"  {row['mode']} {row['master']}: true error "
                                                            f"{row['true_error']:.3g}", err=True))
-        rows = compare_tolerances(scenario, tolerances, out, tuple(masters or TOLERANCE_MASTERS), shown)
+        rows = compare_tolerances(scenario, tolerances, out, tuple(masters or TOLERANCE_MASTERS), shown, peers,
+                                  click.echo)
         click.echo(f"{scenario.name}: {len(rows)} runs -> {out / 'tolerances.csv'}")
         print_table(rows, list(FIELDS))
         for p in tolerance_plots(rows, scenario.name, out):

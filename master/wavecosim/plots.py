@@ -494,7 +494,7 @@ def tolerance_plots(rows, scenario, out):
     fig, axes = plt.subplots(1, 2, figsize=(13, 5.2))
     for name, members in groups.items():
         color, marker = _style(name.split()[1])
-        ls = {"tolerance": "-", "doubling": "--", "fixed": ":"}[name.split()[0]]
+        ls = {"tolerance": "-", "doubling": "--", "fixed": ":", "ecco": "-."}[name.split()[0]]
         for ax, key in zip(axes, ("doStep", "wall_time_s")):
             pts = sorted((float(r[key]), float(r["true_error"])) for r in members)
             ax.loglog([p[0] for p in pts], _floored([p[1] for p in pts]), marker=marker, color=color, ls=ls, ms=4,
@@ -504,7 +504,8 @@ def tolerance_plots(rows, scenario, out):
     axes[1].set(xlabel="wall time (s), log", title="True error against wall time")
     for ax in axes:
         ax.grid(alpha=0.3, which="both")
-    fig.suptitle(f"{scenario}: what should I run? (solid: tolerance mode, dashed: step doubling, dotted: fixed dt)")
+    fig.suptitle(f"{scenario}: what should I run? (solid: tolerance mode, dashed: step doubling, dotted: fixed dt, "
+                 "dash-dot: libcosim's ECCO)")
     axes[0].legend(fontsize=7, loc="upper center", bbox_to_anchor=(1.1, -0.12), ncol=4)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

@@ -9,7 +9,8 @@
  * drifts), 13 the first fmi2SetFMUstate loops forever, 14 b and e are NaN after the initialization.
  * In doStep again: 15 fails the step with a message logged as a printf format and its arguments,
  * 16 returns NaN outputs with status OK, 17 restores its state only in part (from fault_step on,
- * every step depends on the doSteps the instance made before).
+ * every step depends on the doSteps the instance made before), 18 calls _exit(3) (no exit handler
+ * sees it), 19 closes every file descriptor of its process, then segfaults.
  * The environment variable FAULTYSIDE_HANG = load or instantiate makes the binary loop forever
  * when it is loaded or in fmi2Instantiate. With log_bytes > 0 every successful step logs a warning
  * of that many characters. */
@@ -34,7 +35,7 @@
 
 #define INTEGER_VARIABLES(X) \
     X(port_mode, 0, "0 = wave port (input a, output b), 1 = physical port (input F)") \
-    X(fault, 0, "0 none, 1..17: the fault of config.h's comment, at fault_step") \
+    X(fault, 0, "0 none, 1..19: the fault of config.h's comment, at fault_step") \
     X(fault_step, -1, "the macro-step whose doStep faults (-1: none)") \
     X(log_bytes, 0, "characters of the warning logged after every step (0: none, at most 250)")
 

@@ -14,7 +14,7 @@
 enum { FAULT_NONE, FAULT_SEGFAULT, FAULT_EXIT, FAULT_HANG, FAULT_ABORT, FAULT_BLIND_HANG, FAULT_STOP_SELF,
        FAULT_OWN_HANDLERS, FAULT_THREAD_CRASH, FAULT_FORK_CRASH, FAULT_KILL_SELF, FAULT_CHDIR,
        FAULT_RESTORE_DRIFT, FAULT_RESTORE_HANG, FAULT_NAN_AT_INIT, FAULT_ERROR, FAULT_NAN, FAULT_RESTORE,
-       FAULT_LAST = FAULT_RESTORE };
+       FAULT_UNDERSCORE_EXIT, FAULT_CLOSE_FDS, FAULT_LAST = FAULT_CLOSE_FDS };
 
 static int *volatile nowhere = NULL;      /* read at run time, so the compiler keeps the store */
 static volatile int spin = 1;
@@ -101,6 +101,10 @@ static void strike_more(int fault) {
         }
         *nowhere = 1;
         break;
+    case FAULT_CLOSE_FDS:
+        for (int fd = 0; fd < 65536; fd++) close(fd);
+        *nowhere = 1;
+        break;
     default: break;
     }
 }
@@ -113,6 +117,7 @@ static int strike(const ModelData *m, double h) {
     switch (m->i[VRI_fault]) {
     case FAULT_SEGFAULT: *nowhere = 1; break;
     case FAULT_EXIT: exit(0);
+    case FAULT_UNDERSCORE_EXIT: _exit(3);
     case FAULT_HANG: hang(); break;
     case FAULT_ABORT: abort();
     case FAULT_STOP_SELF: for (;;) raise(SIGSTOP);

@@ -101,47 +101,90 @@ def test_links_at_rest_far_from_a_pulse_are_not_suspect(tmp_path):
 
 
 class Values:
-    """A Reading (H, E, F of one step as lists) or a BlockReading (steps x values arrays)."""
+    """A Reading: H, E, F of one step as lists."""
 
     def __init__(self, H, E, F):
         self.H, self.E, self.F = H, E, F
 
 
+class Layout:
+    """The blocks' log and readings as prepare_block reads them: H, E and F of A and B at log rows 0 .. 5."""
+    observed_at = 0
+
+    @staticmethod
+    def rows(key):
+        return {"H": [0, 1], "E": [2, 3], "F": [4, 5]}[key]
+
+
+class Log:
+    """A kernel log of every step (values x steps, one row per value) as Pass.steps reads it."""
+
+    def __init__(self, values):
+        self.values = np.ascontiguousarray(values.T)
+        self.address, self.ld = self.values.ctypes.data, self.values.shape[1]
+
+
+def state(watch):
+    """What a watch carries from one step to the next, where it holds it (its C arrays after a block),
+    the values before as bits (NaN among them)."""
+    from wavecosim.run.observers.freeze_watch import STATE
+    held = [(watch.c[name][:len(getattr(watch, name))] if watch.in_c else list(getattr(watch, name))) for name in STATE]
+    return [np.array(held[0]).tobytes(), *held[1:]]
+
+
+def held_stretches(watch, rng, steps):
+    """H, E and F of A and B over the steps (steps x 6): all moving, with stretches of held outputs
+    of every length around FROZEN_STEPS (the inputs held too in some of their steps) and NaNs."""
+    values = rng.random((steps, 6))
+    values[rng.random(steps) < 0.01, 2] = np.nan              # a NaN differs from every value, itself too
+    for out, inp in zip(watch.outs, watch.ins):
+        j = 0
+        while j < steps:
+            start, length = j + int(rng.integers(1, 30)), int(rng.integers(5, 45))
+            for k in range(start + 1, min(start + length, steps)):
+                values[k, out] = values[k - 1, out]
+                if rng.random() < 0.2:
+                    values[k, inp] = values[k - 1, inp]
+            j = start + length
+    return values
+
+
 def test_the_watch_in_blocks_equals_the_watch_step_by_step():
     """Stretches of equal outputs (some with changing inputs, of every length around FROZEN_STEPS)
-    given step by step and in blocks of uneven sizes: the same subsystems found, with the same
-    stretches, the same state after every block."""
+    given step by step, and in blocks of uneven sizes to the C pass (kernel/c/blocks.c) with steps
+    made one by one among them: the same subsystems found and warned of, with the same stretches, the
+    same state after every block."""
     from wavecosim.core.scene import build_scene
     from wavecosim.run.observers.freeze_watch import FreezeWatch
     scene = build_scene(pair("explicit"), wave=False, needs_rollback=False)
     try:
         rng = np.random.default_rng(7)
-        one, blocks = FreezeWatch(scene, lambda m: None), FreezeWatch(scene, lambda m: None)
+        said = {"one": [], "blocks": []}
+        one, blocks = (FreezeWatch(scene, said[key].append) for key in said)
         steps = 3000
-        values = rng.random((steps, 6))                           # H, E and F of A and B: all move
-        for out, inp in zip(one.outs, one.ins):                   # stretches of held outputs, inputs held in some
-            j = 0
-            while j < steps:
-                start, length = j + int(rng.integers(1, 30)), int(rng.integers(5, 45))
-                for k in range(start + 1, min(start + length, steps)):
-                    values[k, out] = values[k - 1, out]
-                    if rng.random() < 0.2:
-                        values[k, inp] = values[k - 1, inp]
-                j = start + length
-        H, E, F = values[:, :2], values[:, 2:4], values[:, 4:]
+        values = held_stretches(one, rng, steps)
+        reading = [Values(list(v[:2]), list(v[2:4]), list(v[4:])) for v in values]
         first = Values([0.0, 0.0], [0.0, 0.0], [0.0, 0.0])
         one.start(first)
         blocks.start(first)
-        n = 0
-        for size in rng.integers(1, 90, size=200):
+        blocks.prepare_block(Layout, Layout)
+        log, n = Log(values), 0
+        for j, size in enumerate(rng.integers(1, 90, size=200)):
             size = min(int(size), steps - n)
             if not size:
                 break
             for k in range(n, n + size):
-                one.after_step(k, 0.0, None, Values(list(H[k]), list(E[k]), list(F[k])), None)
-            blocks.after_block(n, None, Values(H[n:n + size], E[n:n + size], F[n:n + size]), None)
-            assert (one.count, one.since, one.found) == (blocks.count, blocks.since, blocks.found), n
+                one.after_step(k, 0.0, None, reading[k], None)
+            if j % 3 == 2:                                        # steps made one by one between blocks
+                for k in range(n, n + size):
+                    blocks.after_step(k, 0.0, None, reading[k], None)
+            else:
+                blocks.before_passes()
+                blocks.block_pass().steps(0, log, n, size)
+                blocks.after_passes()
+            assert state(one) == state(blocks) and said["one"] == said["blocks"], n
             n += size
-        assert one.found and n == steps
+        assert len(one.found) == 2 and n == steps and one.found == blocks.found
+        assert said["one"] == said["blocks"] and len(said["one"]) == 2
     finally:
         scene.close()

@@ -94,8 +94,9 @@ def test_without_the_reference_the_kernel_block_in_progress_is_kept(name, tmp_pa
 
 
 def test_a_process_killed_outright_still_gets_its_summary(tmp_path, tmp_env, faulty_scenario):
-    """SIGKILL of the child (as the out-of-memory killer does): the parent writes summary.json from
-    the rows already on disk (handed over at least every second), cut after the last whole row."""
+    """SIGKILL of the child (as the out-of-memory killer does): the parent writes every row committed
+    (the rows on disk, cut after the last whole one, and those in the tables' shared memory) and
+    summary.json: the reference, which runs ahead, made the 2900 steps before its hang."""
     env, temp = tmp_env
     scenario = tmp_path / "scenario.yaml"
     scenario.write_text(yaml.safe_dump(faulty_scenario(3, 2900), sort_keys=False))
@@ -111,7 +112,10 @@ def test_a_process_killed_outright_still_gets_its_summary(tmp_path, tmp_env, fau
     assert summary["status"] == "crashed" and summary["fault"]["signal"] == "SIGKILL"
     rows = lines(out / "trajectory.csv")
     assert summary["steps"] == len(rows) - 1 >= 1024 and all(r.count(b",") == rows[0].count(b",") for r in rows)
-    assert summary["message"] == f"the run crashed (SIGKILL); {summary['steps']} steps kept"
+    assert summary["message"] == (f"the run crashed (SIGKILL) inside subsystem B (monolithic reference) in fmi2DoStep; "
+                                  f"{summary['steps']} steps kept")        # the call in progress, from the status page
+    reference = json.loads((out / "summary_monolithic.json").read_text())
+    assert reference["steps"] == len(lines(out / "trajectory_monolithic.csv")) - 1 == 2900
     assert list(temp.iterdir()) == []
 
 
@@ -182,3 +186,18 @@ def test_rows_reach_the_file_at_least_every_second(tmp_path, faulty_scenario):
             seen["rows"] = len(lines(tmp_path / "trajectory.csv"))
     run(parse_scenario(raw, "faulty", tmp_path), tmp_path, certificates=False, progress=progress, file_suffix=False)
     assert seen["slept"] < seen["rows"] < 1024
+
+
+def test_the_call_in_progress_names_only_what_it_knows():
+    """The status page's call in progress fills in a fault no stack named: its component's subsystem
+    during the runs, the subsystem whose FMU the set-up opens before them, the call alone for an
+    instance no run knows (a shim's), and nothing between calls; a stack that named one is kept."""
+    from wavecosim.run.channel import in_progress
+    runs = {0x1000: "B (monolithic reference)"}
+    assert in_progress(("", ""), (0x1000, "fmi2DoStep", "A"), runs) == ("subsystem B (monolithic reference)",
+                                                                       "fmi2DoStep")
+    assert in_progress(("an FMU (X.so)", "fmi2Instantiate"), (0, "fmi2Instantiate", "B~probe"), {}) == \
+        ("subsystem B", "fmi2Instantiate")
+    assert in_progress(("", ""), (0x2000, "fmi2DoStep", "A"), runs) == ("", "fmi2DoStep")
+    assert in_progress(("", ""), (0x1000, "", "A"), runs) == ("", "")
+    assert in_progress(("subsystem A", "fmi2DoStep"), (0x1000, "fmi2GetReal", "A"), runs) == ("subsystem A", "fmi2DoStep")

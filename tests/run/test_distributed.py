@@ -83,6 +83,13 @@ def test_what_is_not_carried_over_is_refused(change, message):
         run_distributed(table_i().with_master(**change))
 
 
+def test_substeps_are_refused():
+    scenario = table_i()
+    scenario.subsystems[0].substeps = 2
+    with pytest.raises(ConfigError, match="subsystems.A.substeps: worker processes make one doStep per macro-step"):
+        run_distributed(scenario)
+
+
 def test_a_worker_that_cannot_open_its_fmu_says_so(built_fmus):
     scenario = table_i()
     scenario.subsystems[1].parameters["no_such_parameter"] = 1.0

@@ -72,14 +72,19 @@ def _kept(out, steps=None):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("fault", [5, pytest.param(7, marks=pytest.mark.slow)], ids=["signals-blocked", "own-handlers"])
-def test_a_hang_that_holds_the_freeze_signal_is_rescued(fault, hostile):
-    """The watchdog takes the freeze the FMU never takes; the rescue writes every step before it."""
-    proc, out, temp = hostile(fault, "--no-reference")
+@pytest.mark.parametrize("fault,options,step", [(5, (), STEP), (7, (), STEP), (5, ("--set", "master.fast=false"), STEP),
+                                                (5, ("--set", "subsystems.B.substeps=2"), STEP // 2)],
+                         ids=["signals-blocked", "own-handlers", "python-route", "substeps"])
+def test_a_hang_that_holds_the_freeze_signal_is_rescued(fault, options, step, hostile):
+    """The watchdog takes the freeze the FMU never takes; the rescue writes every step before it, and
+    names the subsystem and the call from the call in progress the kernel (or the Python route, or the
+    kernel's multi-rate shim) records in the status page (no stack is taken). The FMU faults at its
+    STEP-th doStep: with two substeps a macro-step makes two."""
+    proc, out, temp = hostile(fault, "--no-reference", *options)
     line = _one_line(proc, 6)
-    assert line == (f"error: step {STEP} (t = 0.5) did not finish within 1 s (step timeout); "
-                    "the FMU holds the signal that would stop it")
-    assert _kept(out, STEP)["status"] == "timed out" and list(temp.iterdir()) == []
+    assert line == (f"error: step {step} (t = {step / 100:g}) did not finish within 1 s (step timeout); stopped "
+                    "inside subsystem B in fmi2DoStep; the FMU holds the signal that would stop it")
+    assert _kept(out, step)["status"] == "timed out" and list(temp.iterdir()) == []
 
 
 @pytest.mark.slow
@@ -87,9 +92,10 @@ def test_a_process_that_stops_itself_is_ended(hostile):
     """SIGSTOP: the parent sees it stopped, waits the step timeout and ends its process group."""
     proc, out, temp = hostile(6, "--no-reference")
     line = _one_line(proc, 6)
-    assert line.startswith("error: a step did not finish within 1 s (step timeout); it stopped itself (SIGSTOP)")
-    summary = _kept(out)                            # the kernel call in progress is lost; it was short
-    assert summary["status"] == "timed out" and 0 < summary["steps"] < STEP and list(temp.iterdir()) == []
+    assert line.startswith("error: a step did not finish within 1 s (step timeout); it stopped itself (SIGSTOP) "
+                           "inside subsystem B in fmi2DoStep")
+    summary = _kept(out, STEP)                      # the kernel call in progress too: its rows were counted
+    assert summary["status"] == "timed out" and list(temp.iterdir()) == []
 
 
 @pytest.mark.slow
@@ -118,8 +124,7 @@ def test_a_hang_in_the_set_up_ends_at_the_set_up_timeout(where, fault, env, call
     proc, out, temp = hostile(fault, "--step-timeout", "30", env=env)          # the set-up's own timeout ends it
     assert time.monotonic() - started < 20
     line = _one_line(proc, 6)
-    assert line == ("error: the set-up did not finish within 2 s (set-up timeout); stopped inside an FMU "
-                    f"(FaultySide.so) in {call}")
+    assert line == f"error: the set-up did not finish within 2 s (set-up timeout); stopped inside subsystem B in {call}"
     assert _rows(out / "steps.csv") == 0 and list(temp.iterdir()) == []
 
 
@@ -128,7 +133,8 @@ def test_a_hang_while_the_library_loads_ends_too(hostile):
     """dlopen holds the interpreter: the child's watchdog cannot run, and the parent ends the child."""
     proc, out, temp = hostile(0, env={"FAULTYSIDE_HANG": "load"})
     line = _one_line(proc, 6)
-    assert line.startswith("error: the set-up did not finish within 2 s (set-up timeout); it went silent")
+    assert line.startswith("error: the set-up did not finish within 2 s (set-up timeout); it went silent (stuck "
+                           "holding the interpreter) inside subsystem B in the load of its binary")
     assert list(temp.iterdir()) == []
 
 
@@ -194,3 +200,34 @@ def test_a_parent_killed_outright_leaves_nothing_behind(tmp_path, faulty_scenari
     for pid in left:
         os.kill(pid, signal.SIGKILL)
     assert left == [] and list(temp.iterdir()) == []
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["ctrl-c", "sigterm"])
+def test_a_stop_while_the_fmu_holds_every_signal_keeps_every_step(signum, tmp_path, faulty_scenario):
+    """Ctrl-C (to the process group) or SIGTERM while doStep hangs with every signal blocked, no step
+    timeout: the run's watchdog takes the stop the FMU never lets through, and the rescue writes every
+    step before the hung one, naming the call, as a stop between two steps would."""
+    (tmp_path / "scenario.yaml").write_text(yaml.safe_dump(faulty_scenario(5, STEP, T=1.0), sort_keys=False))
+    temp = tmp_path / "temp"
+    temp.mkdir()
+    proc = subprocess.Popen([*CLI, "run", "scenario.yaml", "--out", "out", "--quiet", "--no-reference"], cwd=tmp_path,
+                            env={**os.environ, "TMPDIR": str(temp)}, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, start_new_session=True)
+    deadline = time.monotonic() + 30
+    while not (tmp_path / "out" / "steps.csv").exists():                # stepping
+        assert time.monotonic() < deadline and proc.poll() is None
+        time.sleep(0.1)
+    time.sleep(1.5)                                                     # and inside the hung doStep
+    os.killpg(proc.pid, signum) if signum == signal.SIGINT else proc.send_signal(signum)
+    try:
+        _, err = proc.communicate(timeout=30)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        raise
+    verb = "interrupted by the user" if signum == signal.SIGINT else "stopped by SIGTERM"
+    lines = [ln for ln in err.strip().splitlines() if not ln.startswith("wavecosim: building")]
+    assert proc.returncode == 128 + signum and lines == [
+        f"interrupted: {verb} at step {STEP} (t = 0.5), inside subsystem B in fmi2DoStep; results so far are on disk"]
+    assert _kept(tmp_path / "out", STEP)["status"] == "interrupted" and list(temp.iterdir()) == []
+    assert _running_in(tmp_path) == []

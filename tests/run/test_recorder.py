@@ -199,3 +199,74 @@ def test_a_forked_child_writes_with_threads_of_its_own(tmp_path):
             os._exit(status)
     assert os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1]) == 0
     assert (tmp_path / "child.csv").read_text().splitlines() == ["a", "0.5", "0.5", "0.5"]
+
+
+def durable_tables(folder, rows, texts):
+    """A run's two tables as a supervised run makes them (durable, described in rows.json), filled
+    with `rows`: the trajectory one ahead (its row at t = 0), row by row and in pieces handed over."""
+    memory = folder / "rows-1"
+    memory.mkdir()
+    formats = {"n": ints, "why": Labels(["a", "b", "c"]), "label": recorder.Texts(texts)}
+    tables = {kind: Table(["time", "n", "x", "why", "label"], folder / f"{kind}.csv", formats=formats,
+                          expected_rows=len(rows), durable=memory / kind) for kind in ("trajectory", "steps")}
+    (memory / "rows.json").write_text(json.dumps({kind: t.described([4]) for kind, t in tables.items()}))
+    fill(tables["trajectory"], rows[:1])
+    for at in range(0, len(rows) - 1, 300):
+        piece = rows[1 + at:1 + at + 300]
+        for table, part in ((tables["steps"], piece), (tables["trajectory"], piece)):
+            table.append_block(part)
+            table.hand_over()
+    return tables
+
+
+def test_a_process_killed_outright_leaves_every_committed_row_to_its_parent(tmp_path):
+    """A durable table's rows are in memory the parent reads after the child died without writing
+    them (os._exit: no writer finished, no file closed): the parent writes the file the child would
+    have, bit for bit (floats, integers, labels, texts), however far its writer threads had come."""
+    rows = awkward_rows(2_600, np.random.default_rng(7))[:, :5]
+    rows[:, 4] = np.arange(len(rows)) % 2
+    whole = tmp_path / "whole"
+    whole.mkdir()
+    for table in durable_tables(whole, rows, ["x", 'say "y"']).values():
+        table.close()
+    pid = os.fork()
+    if pid == 0:
+        try:
+            durable_tables(tmp_path, rows, ["x", 'say "y"'])
+        finally:
+            os._exit(0)
+    os.waitpid(pid, 0)
+    from wavecosim.run.salvage import complete_rows
+    complete_rows(tmp_path)
+    for kind in ("trajectory", "steps"):
+        assert (tmp_path / f"{kind}.csv").read_bytes() == (whole / f"{kind}.csv").read_bytes()
+    assert (tmp_path / "steps.csv").read_bytes().count(b"\n") == len(rows)
+
+
+def test_a_disk_that_fills_under_the_parent_leaves_whole_rows(tmp_path):
+    """The parent's disk fills while it writes the rows a killed child left (a file size limit): the
+    files end with the last whole row it took, each table on its own."""
+    import resource
+    rows = awkward_rows(2_600, np.random.default_rng(8))[:, :5]
+    pid = os.fork()
+    if pid == 0:
+        try:
+            durable_tables(tmp_path, rows, ["x"])
+        finally:
+            os._exit(0)
+    os.waitpid(pid, 0)
+    sizes = {kind: (tmp_path / f"{kind}.csv").stat().st_size for kind in ("trajectory", "steps")}
+    pid = os.fork()
+    if pid == 0:
+        try:
+            signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+            resource.setrlimit(resource.RLIMIT_FSIZE, (max(sizes.values()) + 5_000,) * 2)
+            from wavecosim.run.salvage import complete_rows
+            complete_rows(tmp_path)
+        finally:
+            os._exit(0)
+    os.waitpid(pid, 0)
+    for kind, size in sizes.items():
+        data = (tmp_path / f"{kind}.csv").read_bytes()
+        assert data.endswith(b"\r\n") and len(data) <= size + 5_000
+        assert len({line.count(b",") for line in data.split(b"\r\n")[:-1]}) == 1

@@ -4,6 +4,7 @@ child of the worker, so a segfault, an endless loop or a signal-blind hang is on
 process nor a temporary folder of the sweep is left."""
 import json
 import os
+import signal
 import subprocess
 import time
 
@@ -85,3 +86,43 @@ def test_the_workers_of_a_scheduler_survive_faulty_runs(tmp_path, faulty_scenari
         assert set(client.scheduler_info()["workers"]) == workers          # none died, none replaced
         time.sleep(1.0)
         assert sorted(p.name for p in temp.iterdir()) == []                # no run's folder left
+
+
+@pytest.mark.slow  # starts a Dask LocalCluster; its runs hang until they are stopped
+@pytest.mark.parametrize("signum,group", [(signal.SIGINT, True), (signal.SIGTERM, False), (signal.SIGTERM, True)],
+                         ids=["ctrl-c", "sigterm", "sigterm-to-the-group"])
+def test_a_stopped_sweep_on_a_local_cluster_keeps_the_rows_of_its_runs(signum, group, tmp_path, faulty_scenario):
+    """Ctrl-C (SIGINT to the whole process group, the workers included) or SIGTERM (to the command or to
+    its group) while two runs hang in doStep (no step timeout): each stops where it is, with its rows
+    and a summary that says interrupted and names the call; the third run never starts; nothing is left."""
+    path, out, temp = tmp_path / "faulty.yaml", tmp_path / "out", tmp_path / "tmp"
+    path.write_text(yaml.safe_dump(faulty_scenario(3, 20, T=0.5), sort_keys=False))
+    temp.mkdir()
+    proc = subprocess.Popen([*CLI, "sweep", str(path), "--set", "subsystems.B.integers.fault_step=20,21,22",
+                             "--scheduler", "local", "--workers", "2", "--out", str(out), "--quiet",
+                             "--no-certificates"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "TMPDIR": str(temp)}, start_new_session=True)
+    deadline = time.monotonic() + 60
+    while len(list(out.glob("runs/*/trajectory.csv"))) < 2:                # both runs stepping
+        assert time.monotonic() < deadline and proc.poll() is None, proc.communicate()
+        time.sleep(0.2)
+    time.sleep(1.5)                                                        # and hung at steps 20 and 21
+    os.killpg(proc.pid, signum) if group else proc.send_signal(signum)
+    try:
+        _, err = proc.communicate(timeout=60)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        raise
+    assert proc.returncode == 128 + signum, err
+    assert err.strip().splitlines()[-1] == "interrupted: sweep stopped after 2 of 3 runs; results so far are on disk"
+    runs = json.loads((out / "runs.json").read_text())["runs"]
+    assert [(r["status"], r["steps"]) for r in runs] == [("interrupted", 20), ("interrupted", 21)]
+    verb = "interrupted by the user" if signum == signal.SIGINT else "stopped by SIGTERM"
+    for run in runs:
+        assert run["message"].startswith(f"{verb} at step {run['steps']}"), run["message"]
+        assert run["message"].endswith("inside subsystem B (monolithic reference) in fmi2DoStep"), run["message"]
+        folder = next((out / "runs").glob(f"{run['index']}_*"))
+        assert json.loads((folder / "summary.json").read_text())["status"] == "interrupted"
+        assert len((folder / "trajectory.csv").read_text().splitlines()) == run["steps"] + 2      # header, t = 0
+    time.sleep(1.0)                                                        # janitors finish within a second
+    assert survivors(temp) == [] and list(temp.iterdir()) == []

@@ -148,42 +148,58 @@ def _ecos(system, dt, steps, refs, start_time):
 RUNNERS = {"libcosim": _libcosim, "fmpy": _fmpy, "ecos": _ecos}
 
 
-def child():
-    """In the child process: read the request (JSON) from argv[1], write the result (JSON) to argv[2]."""
+def serve(function, title):
+    """In a child process: function(request read as JSON from argv[1]), its answer (JSON) written to
+    argv[2]; a refusal, a missing extra or the peer's own failure is {"refused": one line}."""
     request = json.loads(Path(sys.argv[1]).read_text(encoding="utf-8"))
     try:
-        out = {"values": RUNNERS[request["peer"]](request["system"], request["dt"], request["steps"],
-                                                  request["refs"], request["start_time"])}
+        out = function(request)
     except (Refused, ConfigError) as exc:          # refused, or not installed (the line names the extra)
         out = {"refused": str(exc)}
     except Exception as exc:                        # the peer's own failure, said in one line
-        out = {"refused": f"{TITLES[request['peer']]} fails on it: {type(exc).__name__}: {exc}".splitlines()[0]}
+        out = {"refused": f"{title} fails on it: {type(exc).__name__}: {exc}".splitlines()[0]}
     Path(sys.argv[2]).write_text(json.dumps(out))
+
+
+def child():
+    """The peers' child process: the runner the request names, on its system."""
+    def values(request):
+        return {"values": RUNNERS[request["peer"]](request["system"], request["dt"], request["steps"],
+                                                   request["refs"], request["start_time"])}
+    request = json.loads(Path(sys.argv[1]).read_text(encoding="utf-8"))
+    serve(values, TITLES[request["peer"]])
+
+
+def in_child(module, request, title):
+    """The answer of `module`'s child() to `request` (JSON both ways), in a child process of its own;
+    Refused says why there is none (refused, aborted, or over CHILD_TIMEOUT_S)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        asked, answer = Path(tmp) / "request.json", Path(tmp) / "answer.json"
+        asked.write_text(json.dumps(request))
+        package = str(Path(__file__).resolve().parents[2])
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (package, os.environ.get("PYTHONPATH")) if p)}
+        try:
+            done = subprocess.run([sys.executable, "-c", f"from {module} import child; child()",
+                                   str(asked), str(answer)], capture_output=True, text=True, env=env,
+                                  timeout=CHILD_TIMEOUT_S, cwd=tmp)
+        except subprocess.TimeoutExpired:
+            raise Refused(f"{title} runs more than {CHILD_TIMEOUT_S} s on it") from None
+        if not answer.exists():
+            last = next((line.strip() for line in reversed(done.stderr.splitlines()) if line.strip()), "")
+            how = signal.Signals(-done.returncode).name if done.returncode < 0 else f"exit {done.returncode}"
+            raise Refused(f"{title} aborts on it ({how})" + (f": {last}" if last else ""))
+        out = json.loads(answer.read_text(encoding="utf-8"))
+    if "refused" in out:
+        raise Refused(out["refused"])
+    return out
 
 
 def peer_run(peer, system, dt, steps, refs, start_time=0.0):
     """{ref: np.array of values at the grid points t0 + k dt, k = 0 .. steps} of the peer's run of the
     system (an .ssd, an SSP folder or an .fmu), in a child process; refs: [(ref, instance, variable)].
     Refused says why it has none."""
-    with tempfile.TemporaryDirectory() as tmp:
-        request, answer = Path(tmp) / "request.json", Path(tmp) / "answer.json"
-        request.write_text(json.dumps({"peer": peer, "system": str(system), "dt": dt, "steps": steps,
-                                       "refs": list(refs), "start_time": start_time}))
-        package = str(Path(__file__).resolve().parents[2])
-        env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (package, os.environ.get("PYTHONPATH")) if p)}
-        try:
-            done = subprocess.run([sys.executable, "-c", "from wavecosim.bench.peers import child; child()",
-                                   str(request), str(answer)], capture_output=True, text=True, env=env,
-                                  timeout=CHILD_TIMEOUT_S, cwd=tmp)
-        except subprocess.TimeoutExpired:
-            raise Refused(f"{TITLES[peer]} runs more than {CHILD_TIMEOUT_S} s on it") from None
-        if not answer.exists():
-            last = next((line.strip() for line in reversed(done.stderr.splitlines()) if line.strip()), "")
-            how = signal.Signals(-done.returncode).name if done.returncode < 0 else f"exit {done.returncode}"
-            raise Refused(f"{TITLES[peer]} aborts on it ({how})" + (f": {last}" if last else ""))
-        out = json.loads(answer.read_text(encoding="utf-8"))
-    if "refused" in out:
-        raise Refused(out["refused"])
+    out = in_child("wavecosim.bench.peers", {"peer": peer, "system": str(system), "dt": dt, "steps": steps,
+                                             "refs": list(refs), "start_time": start_time}, TITLES[peer])
     return {ref: np.array(values, dtype=float) for ref, values in out["values"].items()}
 
 

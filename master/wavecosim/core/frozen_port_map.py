@@ -1,11 +1,12 @@
 """A subsystem as the masters see it: an FMU, its port channels, and its frozen port map S_i^n.
 
-`freeze()` saves x_i^n; `query(a)` is S_i^n(a) (paper eq. 12): restore x_i^n, apply a, one doStep,
-read b, discard the state; `advance(a)` is Phi_i (eq. 21): the same from x_i^n, but the state is
-kept. Calls go straight to the FMU's C functions with pre-converted arguments (in fmi2 form; for an
-FMI 3 FMU, wavecosim/fmi/fmi3.py puts its fmi3 functions behind the same signatures). How a becomes b is
-the subsystem's port (wavecosim/core/ports.py): the FMU's own wave mode, or the wave adapter for an FMU
-with only a physical port.
+`freeze()` saves x_i^n; `query(a)` is S_i^n(a) (paper eq. 12): restore x_i^n, apply a, one doStep
+(or `substeps` doSteps of dt / substeps, the input held: multi-rate), read b, discard the state;
+`advance(a)` is Phi_i (eq. 21): the same from x_i^n, but the state is kept. Calls go straight to the
+FMU's C functions with pre-converted arguments (in fmi2 form; for an FMI 3 FMU, wavecosim/fmi/fmi3.py
+puts its fmi3 functions behind the same signatures). How a becomes b is the subsystem's port
+(wavecosim/core/ports.py): the FMU's own wave mode, or the wave adapter for an FMU with only a
+physical port.
 """
 import math
 from dataclasses import dataclass, field
@@ -47,14 +48,22 @@ class Subsystem:
     """One FMU instance with a port; `wave` says whether the masters exchange waves with it, and
     `adapter` whether those waves go through the wave adapter (an FMU without a wave mode)."""
 
-    def __init__(self, name, fmu, port: PortSpec, dt, wave=True, adapter=False, gamma=1.0):
+    def __init__(self, name, fmu, port: PortSpec, dt, wave=True, adapter=False, gamma=1.0, substeps=1):
         self.name, self.fmu, self.port, self.dt, self.wave = name, fmu, port, dt, wave
-        self.adapter = adapter
+        self.adapter, self.substeps = adapter, substeps
         self.m = port.m
         self.step_index = 0
         m = self.m
         self._comp = cvalues.pointer(fmu.component)
-        self._h = cvalues.double(dt)
+        self._h = cvalues.double(dt / substeps)
+        self._tk = cvalues.double(0.0)       # a substep's communication point
+        # The FMU's own wave mode scales its waves by sqrt(h): a substep takes a sqrt(h / dt) so that
+        # e + gamma f = sqrt(2 gamma / dt) a holds at each, and b is its outgoing waves' mean at dt's scale.
+        self._wave_scale = 1.0 / math.sqrt(substeps) if wave and not port.physical and not adapter else 1.0
+        if self._wave_scale != 1.0:          # the macro-step's [e..., f..., b...] and 1.0 once made (both routes')
+            self._stage_vr = cvalues.uints(fmu.real_vrs([*port.effort, *port.flow, *port.wave_out]))
+            self._stage_val, self._3m = cvalues.doubles(3 * m), cvalues.size(3 * m)
+            self._stage = cvalues.doubles(3 * m + 1)
         self._get_state = fmu.raw_function("fmi2GetFMUstate")
         self._set_state = fmu.raw_function("fmi2SetFMUstate")
         self._set_real = fmu.raw_function("fmi2SetReal")
@@ -80,6 +89,16 @@ class Subsystem:
         self._t = cvalues.double(0.0)
         self.calls = {"doStep": 0, "save": 0, "restore": 0}
         self.map = self._port_map(gamma)
+
+    @property
+    def macro_stage(self):
+        """Multi-rate wave mode: the last macro-step's [e..., f..., b...] (None before the first)."""
+        return self._stage[:3 * self.m] if self.multi_rate_wave and self._stage[3 * self.m] == 1.0 else None
+
+    @property
+    def multi_rate_wave(self):
+        """Substeps in the FMU's own wave mode: the macro-step's e, f and b are the substeps' means."""
+        return self._wave_scale != 1.0
 
     def _port_map(self, gamma):
         """The port that turns the master's inputs into outputs (wavecosim/core/ports.py)."""
@@ -112,7 +131,11 @@ class Subsystem:
             self.fmu.set_real(self.fmu.vrs(["gamma"]), [gamma])
 
     def stage(self):
-        """Oriented stage effort and flow of the last step, [e..., f...] (power into the FMU = e f)."""
+        """Oriented stage effort and flow of the last step, [e..., f...] (power into the FMU = e f); a
+        multi-rate subsystem in the FMU's own wave mode gives the macro-step's (the substeps' means)."""
+        made = self.macro_stage
+        if made is not None:
+            return list(made[:2 * self.m])
         v = self.read(list(self.port.effort) + list(self.port.flow))
         if self.port.physical:
             v[self.m:] = [s * f for s, f in zip(self.port.sign, v[self.m:])]
@@ -127,10 +150,16 @@ class Subsystem:
         self._t.value = t
 
     def step_alone(self, step_index, t):
-        """One doStep from the current state with the inputs already set: a subsystem without a port
-        (signals only), stepped once per macro-step and never frozen or rolled back."""
+        """One doStep (or `substeps` of dt / substeps) from the current state with the inputs already set: a
+        subsystem without a port (signals only), stepped once per macro-step and never frozen or rolled back."""
         self.begin(step_index, t)
         status = self._do_step(self._comp, self._t, self._h, 1)                     # never rolled back
+        for k in range(1, self.substeps):
+            if fails(status):
+                break
+            self.calls["doStep"] += 1
+            self._tk.value = t + k * self._h.value
+            status = self._do_step(self._comp, self._tk, self._h, 1)
         reached = self.fmu.asked_to_end(status) if fails(status) else None
         if reached is not None:
             done = math.isclose(reached, t + self.dt, rel_tol=1e-12, abs_tol=1e-12 * self.dt)
@@ -151,6 +180,8 @@ class Subsystem:
         self.map.new_step()
 
     def _step(self, a):
+        if self.substeps != 1:
+            return self._substeps(a)
         for j in range(self.m):
             self._in_val[j] = a[j]
         self._call(self._set_real, "fmi2SetReal", self._comp, self._in_vr, self._m, self._in_val)
@@ -158,6 +189,28 @@ class Subsystem:
         self.calls["doStep"] += 1
         self._call(self._get_real, "fmi2GetReal", self._comp, self._out_vr, self._m, self._out_val)
         return self._out_val[:]
+
+    def _substeps(self, a):
+        """Multi-rate: the input held over `substeps` doSteps of dt / substeps; a physical output as the
+        last leaves it, the FMU's own wave mode's b as the mean of the substeps' (at dt's scale, so that
+        the macro-step's map stays passive: the mean's square is at most the squares' mean)."""
+        scale, n, m = self._wave_scale, self.substeps, self.m
+        for j in range(m):
+            self._in_val[j] = a[j] * scale
+        self._call(self._set_real, "fmi2SetReal", self._comp, self._in_vr, self._m, self._in_val)
+        total = [0.0] * (3 * m)
+        for k in range(n):
+            self._tk.value = self.t + k * self._h.value
+            self._call(self._do_step, "fmi2DoStep", self._comp, self._tk, self._h, self.no_prior)
+            self.calls["doStep"] += 1
+            if scale != 1.0:
+                self._call(self._get_real, "fmi2GetReal", self._comp, self._stage_vr, self._3m, self._stage_val)
+                total = [s + v for s, v in zip(total, self._stage_val)]
+        if scale == 1.0:
+            self._call(self._get_real, "fmi2GetReal", self._comp, self._out_vr, self._m, self._out_val)
+            return self._out_val[:]
+        self._stage[:] = [s / n for s in total[:2 * m]] + [s * scale for s in total[2 * m:]] + [1.0]
+        return self._stage[2 * m:3 * m]
 
     def _restore(self):
         self._call(self._set_state, "fmi2SetFMUstate", self._comp, self._state)
@@ -192,9 +245,20 @@ class Subsystem:
             return self.map.in_scale, self.map.out_scale
         return None
 
+    def kernel_substeps(self):
+        """(substeps, input scale, stage value references and the address of the stage values, or two
+        Nones) for multirate.c's shim, or None without it: the kernel makes the same substeps and sums
+        as _substeps, into the same stage values."""
+        if self.substeps == 1 or self.adapter or not self.m:
+            return None
+        if not self.multi_rate_wave:
+            return self.substeps, 1.0, None, None
+        return self.substeps, self._wave_scale, list(self._stage_vr), cvalues.address(self._stage)
+
     def plain_wave_port(self):
-        """Whether the port is the FMU's own wave map: no adapter, no input scaling."""
-        return not self.adapter and isinstance(self.map, DirectPort) and self.map.in_scale is None
+        """Whether the port is the FMU's own wave map: no adapter, no input scaling, no substeps."""
+        plain = not self.adapter and isinstance(self.map, DirectPort) and self.map.in_scale is None
+        return plain and self.substeps == 1
 
     def queries(self, rows):
         """query of each row of a 2-D array, in order, as rows (one C call when the port is the FMU's own map)."""
@@ -206,7 +270,7 @@ class Subsystem:
         """raw_query of each row of a 2-D array, in order, as rows of outputs: one C call
         (kernel/c/queries.c) making the same FMU calls, or raw_query row by row without it."""
         if self._batch is None:
-            self._batch = queries.batch(self.fmu.function_pointer) or False
+            self._batch = self.substeps == 1 and queries.batch(self.fmu.function_pointer) or False
         if not self._batch:
             return np.array([self.raw_query(list(r)) for r in rows], float).reshape(len(rows), self.m)
         out, done, fn, status = self._batch(self._comp, self._state, self._in_vr, self._out_vr, self.m, self._t,
@@ -244,7 +308,7 @@ class Subsystem:
     def set_step(self, h):
         """A new communication step size h from the next doStep on (the tolerance mode); the wave
         adapter's weights follow, as its waves are scaled by sqrt(h)."""
-        self.dt, self._h.value = h, h
+        self.dt, self._h.value = h, h / self.substeps
         if self.adapter:
             self.map.set_gamma(self.map.gamma)
 
@@ -288,10 +352,11 @@ class Subsystem:
     def note_kernel_step(self, step_index, t, iterations, steps=1, redone=0):
         """Book `steps` macro-steps the C kernel made, the last one step n at t (frozen at x^n):
         each a save, its queries and one commit; `iterations` counts the queries of them all and
-        `redone` the energy ledger's redo rounds (a restore and a doStep each)."""
+        `redone` the energy ledger's redo rounds (a restore and a doStep each; `substeps` doSteps each
+        query, commit and redo)."""
         self.begin(step_index, t)
         self.calls["save"] += steps
-        self.calls["doStep"] += iterations + steps + redone
+        self.calls["doStep"] += (iterations + steps + redone) * self.substeps
         self.calls["restore"] += iterations + redone
         self._dirty = False
 

@@ -16,6 +16,12 @@ def unusable(scene):
     """Why the kernel cannot run this scene, or None if it can (subsystems stepped alone need only
     getReal, setReal and doStep); a library whose structs differ from their mirrors is no reason to
     fall back but an error (abi.LayoutError)."""
+    multi = next((s for s in scene.subsystems + scene.signal_only if s.substeps != 1 and not s.kernel_substeps()),
+                 None)
+    if multi is not None:
+        why = "a wave adapter" if multi.adapter else "no port"
+        return (f"subsystem {multi.name} makes {multi.substeps} substeps per macro-step with {why}, which the "
+                f"kernel does not")
     for s in scene.signal_only:
         for name in ALONE_NAMES:
             try:
@@ -70,7 +76,7 @@ def kernel_subsystem(s, offset):
         vr_in, vr_out = s.port_vrs()
     return KernelSubsystem(fmu, s.m, int(offset), functions, component, s.state_handle_address(), vr_in, vr_out,
                            int(s.no_prior), s.port_scales(), counters, impedance, adapter_error,
-                           s.plain_wave_port(), _probe_vrs(s))
+                           s.plain_wave_port(), _probe_vrs(s), s.kernel_substeps())
 
 
 def describe(scene):

@@ -170,7 +170,7 @@ class WaveAdapter(AdapterPort):
             setattr(self, k, v)
 
     def _eval(self, u):
-        self.doSteps += 1
+        self.doSteps += self.sub.substeps
         return self.sub.raw_query(u)
 
     def _residual(self, u, y, target):

@@ -194,7 +194,7 @@ def _probe_twins(found, sub, twins):
     same; last, B steps with true from the same saved state (the flag: true promises that no earlier
     state is set again)."""
     b, m_out = _open(sub, twins)
-    t0, h = sub.fmu.start_time, sub.dt
+    t0, h = sub.fmu.start_time, sub.dt / sub.substeps      # the FMU's own doStep
     u0 = b.inputs()
     du = [PERTURB * (1.0 + abs(x)) for x in u0]
     u1, u_other = [x + d for x, d in zip(u0, du)], [x - d for x, d in zip(u0, du)]

@@ -96,7 +96,7 @@ class Sampler:
                 continue
             names = [s.port.energy, *s.port.effort, *s.port.flow, *(s.port.wave_out if scene.wave else [])]
             read, buf = s.reader(names + cols)
-            self.parts.append((read, s.m, len(names)))
+            self.parts.append((_macro_stage(s, read, names + cols) if s.multi_rate_wave else read, s.m, len(names)))
             self.observed.append(names + cols)
         alone = [[var for (name, var), r in zip(refs, raw) if name == s.name and r] for s in scene.signal_only]
         self.observed.extend(alone)
@@ -178,6 +178,23 @@ class Sampler:
         own.extend(read()[:] for read in self.alone)         # signal-only subsystems: outputs only
         own.append(self.typed.read())                       # own[-1]: the outputs of other types
         return Reading(H, E, F, B, [own[i][j] for i, j in self._order])
+
+
+def _macro_stage(s, read, names):
+    """A multi-rate subsystem in the FMU's own wave mode: the values of its efforts, flows and outgoing
+    waves among `names` are the macro-step's (the substeps' means, Subsystem._substeps), not the last
+    substep's the FMU holds."""
+    stage = [*s.port.effort, *s.port.flow, *s.port.wave_out]
+    at = [(j, stage.index(name)) for j, name in enumerate(names) if name in stage]
+
+    def macro():
+        v = read()[:]
+        made = s.macro_stage
+        if made is not None:
+            for j, i in at:
+                v[j] = made[i]
+        return v
+    return macro
 
 
 class TypedReads:

@@ -1,4 +1,5 @@
 """A scenario made concrete: FMU instances as Subsystems, stacked channels, the compiled coupling."""
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -340,6 +341,20 @@ def _check_fmu(scenario, sub, fmu, wave, needs_rollback):
                           f"and roll back")
 
 
+def _check_substeps(scenario, sub, fmu):
+    """Refuse substeps on an FMU that keeps one communication step, unless that step is dt / substeps."""
+    if sub.substeps == 1 or fmu.variable_steps:
+        return
+    h = scenario.dt / sub.substeps
+    experiment = fmu.description.defaultExperiment
+    fixed = float(experiment.stepSize) if experiment is not None and experiment.stepSize is not None else None
+    if fixed is None or not math.isclose(fixed, h, rel_tol=1e-9):
+        keeps = f"its step {fixed:.6g} s" if fixed is not None else "one step it does not declare"
+        raise ConfigError(f"{scenario.source}: subsystems.{sub.name}.substeps: {sub.substeps} makes doSteps of "
+                          f"{h:.6g} s, but {fmu.path.name} keeps {keeps} (canHandleVariableCommunicationStepSize="
+                          f"\"false\"); give substeps = dt / its step, or leave it out")
+
+
 def _orient(scenario, subsystem, notes):
     """A physical port's signs: as given, or probed from the initial state (noted once)."""
     port = subsystem.port
@@ -366,11 +381,14 @@ def _subsystem(scenario, sub, path, gamma, wave, needs_rollback, pool=None):
     """One opened subsystem with its port (not yet oriented), or a signal-only one (no port)."""
     fmu = _open_fmu(scenario, sub, path, gamma, wave and not sub.signal_only, pool)
     try:
+        _check_substeps(scenario, sub, fmu)
         if sub.signal_only:
-            return Subsystem(sub.name, fmu, PortSpec([], [], [], [], energy=None), scenario.dt, wave=False)
+            return Subsystem(sub.name, fmu, PortSpec([], [], [], [], energy=None), scenario.dt, wave=False,
+                             substeps=sub.substeps)
         _check_fmu(scenario, sub, fmu, wave, needs_rollback)
         spec = _port_spec(sub, fmu)
-        return Subsystem(sub.name, fmu, spec, scenario.dt, wave=wave, adapter=wave and spec.physical, gamma=gamma)
+        return Subsystem(sub.name, fmu, spec, scenario.dt, wave=wave, adapter=wave and spec.physical, gamma=gamma,
+                         substeps=sub.substeps)
     except ConfigError as exc:
         fmu.close()
         text = str(exc)

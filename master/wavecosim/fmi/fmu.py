@@ -26,6 +26,7 @@ from fmpy.fmi2 import fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE
 from fmpy.fmi2 import fmi2LastSuccessfulTime
 
 from ..errors import FmuError
+from ..kernel import fmicall
 from ..kernel.build import helper_library
 from .me import ModelExchange
 from .messages import MessageLog, cut
@@ -324,6 +325,7 @@ class Fmu:
         folder (see twin). `hold`: the instance stays in initialization mode until
         end_initialization() (a scene settles its connected inputs first, core/signals.py)."""
         self.path, self.name = Path(path), name
+        fmicall.opening(name)
         self._pool = pool
         self._key, self.folder = shared_folder(self.path, pool)
         if like is not None:
@@ -390,7 +392,11 @@ class Fmu:
         """The binding of a new instance: through a copy of `like`'s fmpy slave when both are
         co-simulation instances in one folder (the binary already loaded), else its own."""
         if like is None or like.folder != self.folder or like._fmi is None or binding.interface != "coSimulation":
-            return binding(self, model_identifier)
+            fmicall.enter(None, fmicall.LOAD)
+            try:
+                return binding(self, model_identifier)
+            finally:
+                fmicall.leave()
         slave = copy.copy(like._fmi.slave)
         slave.instanceName, slave.component = self.name, None
         return binding(self, model_identifier, slave)
@@ -415,11 +421,14 @@ class Fmu:
 
     def checked(self, call, fname, *args, **kwargs):
         """call(*args, **kwargs), an fmpy method; its exception becomes an FmuError with the FMU's message."""
+        fmicall.enter(getattr(self, "component", None), fname)
         try:
             return call(*args, **kwargs)
         except Exception as exc:
             self.note_status(getattr(exc, "status", 3))
             raise FmuError(f"{self.name}: {fname} failed: {self.last_message()}", subsystem=self.name) from exc
+        finally:
+            fmicall.leave()
 
     def note_status(self, status):
         """An error status moves the instance out of the state machine's step phase: after fmi2Error
@@ -548,8 +557,9 @@ class Fmu:
     def raw_function(self, fname):
         """A callable with the fmi2 signature of `fname` (e.g. "fmi2DoStep") taking `component` first:
         the FMU's own ctypes function for FMI 2, a wrapper of its fmi3 function for FMI 3 (wavecosim/fmi/fmi3.py).
-        No argtypes: callers pass pre-converted arguments."""
-        return self._fmi.raw_function(fname)
+        No argtypes: callers pass pre-converted arguments. In a supervised run each call is written as
+        the call in progress (kernel/fmicall.py traced)."""
+        return fmicall.traced(self._fmi.raw_function(fname), self.component, self._fmi.name(fname))
 
     def function_pointer(self, fname) -> int:
         """Address of a C function with the fmi2 signature of `fname` taking `component`, for the C fast

@@ -1,7 +1,8 @@
 """The runner's per-block arithmetic over the C kernel's log (kernel/c/blocks.c, built into
-the kernel library libblocks.so): the rows of a block of macro-steps (block_rows_steps) and Condition 2
-over it (passivity_steps), which the kernel makes as it logs the steps (Pass), and the certificates'
-columns (sampled_block, watch_block), each bit for bit the step-by-step Python's. Without a C compiler
+the kernel library libblocks.so): the rows of a block of macro-steps (block_rows_steps), Condition 2
+over it (passivity_steps) and the freeze watch (freeze_steps), which the kernel makes as it logs the
+steps (Pass), and the certificates' columns (sampled_block, watch_block), each bit for bit the
+step-by-step Python's. Without a C compiler
 the library is missing, `library()` is None and the runner goes step by step (as it must anyway:
 the kernel needs the compiler too)."""
 import ctypes
@@ -10,7 +11,7 @@ from .abi import mirrors
 from .build import helper_library
 from .cvalues import ints  # noqa: F401  (the C int arrays of the passes' arguments)
 
-PASSES = ("block_rows_steps", "passivity_steps")      # blocks.c's DRPassFns
+PASSES = ("block_rows_steps", "passivity_steps", "freeze_steps")      # blocks.c's DRPassFns
 _lib = None
 _int_p, _double_p = ctypes.POINTER(ctypes.c_int), ctypes.POINTER(ctypes.c_double)
 
@@ -26,11 +27,22 @@ class PassBlock(ctypes.Structure):
 @mirrors("blocks", "BlockRows")
 class BlockRows(ctypes.Structure):
     """blocks.c: block_rows_steps' arguments (grid, log rows, the block's steps' and trajectory's columns,
-    the run's iterations so far)."""
+    the run's iterations so far, where a durable run's rows are counted)."""
     _fields_ = [("n_out", ctypes.c_int), ("inverse", ctypes.c_double),
                 ("dt", ctypes.c_double), ("outputs", _int_p), ("steps", ctypes.c_void_p), ("lds", ctypes.c_long),
                 ("trajectory", ctypes.c_void_p), ("ldt", ctypes.c_long),
-                ("iterations_sum", ctypes.c_double), ("iterations_max", ctypes.c_double), ("t0", ctypes.c_double)]
+                ("iterations_sum", ctypes.c_double), ("iterations_max", ctypes.c_double), ("t0", ctypes.c_double),
+                ("counted", ctypes.c_void_p * 2), ("base", ctypes.c_long * 2)]
+
+
+@mirrors("blocks", "FreezeBlock")
+class FreezeBlock(ctypes.Structure):
+    """blocks.c: freeze_steps' arguments (the log's rows of the values watched, each subsystem's outputs
+    and inputs among them, the watch's state)."""
+    _fields_ = [*[(name, ctypes.c_int) for name in ("k", "frozen_steps", "n_values")],
+                *[(name, _int_p) for name in ("rows", "out_at", "outs", "in_at", "ins")], ("last", _double_p),
+                *[(name, _int_p) for name in ("count", "since", "found_from", "found_steps", "found_at",
+                                              "first_from", "found_count")]]
 
 
 @mirrors("blocks", "SampledBlock")

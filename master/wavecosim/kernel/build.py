@@ -38,10 +38,11 @@ CFLAGS = ["-O2", "-std=c99", "-fPIC", "-ffp-contract=off", "-Wall", "-Wextra", "
 # C files compiled into another file's library: the routes built on the DR kernel's subsystem
 # evaluation (classical.c, newton.c, certs.c) go into libdrkernel.so.
 PART_OF_LIBRARY = {"classical.c": "drkernel", "newton.c": "drkernel", "certs.c": "drkernel", "portview.c": "drkernel",
-                   "signals.c": "drkernel"}
+                   "signals.c": "drkernel", "multirate.c": "drkernel"}
 _loaded = {}
 _verified = {}                   # {path: (size, mtime)} of cached builds whose checksum was checked here
 _failed = {}         # library name -> why it could not be built or loaded
+LOAD_HOOKS = []      # hook(lib) for every kernel library when it is loaded (kernel/fmicall.py)
 
 
 class BuildError(RuntimeError):
@@ -234,7 +235,14 @@ def helper_library(name):
         except (BuildError, OSError) as exc:
             lib, _failed[name] = None, str(exc).splitlines()[0]
         _loaded[name] = lib and abi.loaded(name, contract.bind(name, lib, library_headers(name)))
+        for hook in LOAD_HOOKS if _loaded[name] is not None else ():
+            hook(_loaded[name])
     return _loaded[name]
+
+
+def loaded_libraries():
+    """The kernel libraries this process has loaded."""
+    return [lib for lib in _loaded.values() if lib is not None]
 
 
 def kernel_library(name, what):

@@ -36,6 +36,8 @@ class KernelSubsystem:
     adapter_error: Optional[Callable]    # (n, t) -> the wave adapter's own failure, or None
     plain_wave: bool           # the port is the FMU's own wave map (no adapter, no input scaling)
     probe_vrs: Optional[list]  # one wave channel: value references of its effort and flow (the watch's probe)
+    substeps: Optional[tuple] = None    # multi-rate: (substeps, input scale, stage value references, address of
+                                        # the stage values; both None for a physical port), else None
 
     @property
     def name(self):

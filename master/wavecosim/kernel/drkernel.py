@@ -21,7 +21,7 @@ from .build import kernel_library
 from .contract import constant, names
 from ..errors import ConfigError, FmuError
 from .linalg import Sparse
-from .portview import ObservedPort, PortView, SignedPort
+from .portview import MultiRate, ObservedPort, PortView, SignedPort
 from .signals import SignalPlan
 
 LOG_PAD = 8               # a log's rows steps + LOG_PAD apart: 8 KiB apart, a step's values would share cache sets
@@ -34,6 +34,7 @@ LEDGER_ACTIONS = names("drkernel.h", "DRLedgerAction", "DR_LEDGER_")
 STARTS = names("drkernel.h", "DRStart", "DR_START_")              # masters/dr_options.py
 FUNCTIONS = (None, "fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2SetReal", "fmi2DoStep", "fmi2GetReal")
 FAILED_EXTRA = constant("drkernel.h", "DR_FAILED_EXTRA")   # the signals or a subsystem stepped alone failed
+PASSES_CACHED, PASSES_EACH = (constant("drkernel.h", f"DR_PASSES_{w}") for w in ("CACHED", "EACH"))   # run_steps
 FMI_NAMES = ("fmi2GetFMUstate", "fmi2SetFMUstate", "fmi2FreeFMUstate", "fmi2SetReal", "fmi2DoStep",
               "fmi2GetReal")
 
@@ -211,11 +212,15 @@ class Kernel:
 
     def _set_subsystem(self, i, s):
         """Subsystem i (a description.KernelSubsystem): its functions, or portview.c's signed shim over
-        them, or its wave adapter in C. x_i^n goes into the scene's own handle (s.state), so that after
+        them (over multirate.c's shim for substeps), or its wave adapter in C. x_i^n goes into the scene's own handle (s.state), so that after
         a fast macro-step the scene holds x_i^n exactly as after the reference one."""
         lib, fns, comp = self.lib, DRFunctions(*s.functions), s.component
         if s.counters is not None:
             lib.dr_set_adapter(self.handle, i, *s.counters)
+        if s.substeps is not None:
+            self.shims.append(MultiRate(lib, fns, comp, s.m, s.substeps))
+            fns, comp = self.shims[-1].functions, self.shims[-1].handle
+            lib.dr_set_adapter(self.handle, i, None, self.shims[-1].do_steps)
         if s.scales is not None:
             self.shims.append(SignedPort(lib, fns, comp, s.m, *s.scales))
             fns, comp = self.shims[-1].functions, self.shims[-1].handle
@@ -294,7 +299,8 @@ class Kernel:
         BlockLog, the FmuError of the step after them or None). The call logs from column `at` on,
         after the last call's first `at` steps (joined_log reads them as one, without a copy); the log
         is overwritten by the next call from column 0. passes: it makes the passes (set_passes) over
-        the block's steps as it logs them (BlockLog.passed: how far they went)."""
+        the block's steps as it logs them, PASSES_CACHED a few at a time, PASSES_EACH after every step
+        (BlockLog.passed: how far they went)."""
         self._log_room(at, at + count)
         io = self.io
         io.measure, io.at, io.passes = measure, at, passes

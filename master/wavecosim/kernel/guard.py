@@ -11,6 +11,7 @@ from pathlib import Path
 
 from .abi import mirrors
 from .build import kernel_library
+from .fmicall import FmiCallNow
 
 FRAMES = 48                       # guard.c GUARD_FRAMES
 KINDS = ("none", "signal", "exit", "frozen")
@@ -39,7 +40,8 @@ class RunStatus(ctypes.Structure):
     """guard.c's RunStatus: the page a supervised run's parent and child share (run/channel.py)."""
     _fields_ = [("magic", ctypes.c_uint32), ("state", ctypes.c_int32), ("exit_code", ctypes.c_int32),
                 ("request", ctypes.c_int32), ("pid", ctypes.c_int32), ("spare", ctypes.c_int32),
-                ("heartbeat", ctypes.c_double), ("fault", GuardFault)]
+                ("heartbeat", ctypes.c_double), ("call", FmiCallNow), ("opening", ctypes.c_char * 64),
+                ("fault", GuardFault)]
 
 
 def signal_name(number):

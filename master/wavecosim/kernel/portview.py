@@ -1,5 +1,6 @@
 """Physical ports on the kernel route (kernel/c/portview.c, in libdrkernel.so): a signed port as an
-fmi2 shim the kernel calls like an FMU (`SignedPort`), and the view the runner reads a physical port
+fmi2 shim the kernel calls like an FMU (`SignedPort`; a multi-rate subsystem's substeps likewise,
+kernel/c/multirate.c, `MultiRate`), and the view the runner reads a physical port
 through after each commit in blocks of steps (`ObservedPort`, `PortView`), both bit for bit what
 wavecosim/core/ports.py and readings.py compute in Python.
 """
@@ -41,6 +42,27 @@ class SignedPort:
     def close(self):
         if self.handle:
             self.lib.sp_destroy(self.handle)
+            self.handle = None
+
+
+class MultiRate:
+    """An FMU making `substeps` doSteps per macro-step behind multirate.c's shim: (functions, component)
+    for the kernel, and the address of its count of the FMU's doSteps (`do_steps`)."""
+
+    def __init__(self, lib, fns, comp, m, substeps):
+        n, scale, stage_vrs, stage = substeps
+        self.lib = lib
+        vrs = (ctypes.c_uint * len(stage_vrs))(*stage_vrs) if stage_vrs is not None else None
+        self.handle = self.lib.mr_create(ctypes.byref(fns), comp, n, scale, m, vrs, stage)
+        if not self.handle:
+            raise FmuError("the kernel could not wrap a multi-rate subsystem (out of memory)")
+        self.functions = type(fns)()
+        self.lib.mr_functions(ctypes.byref(self.functions))
+        self.do_steps = self.lib.mr_do_steps(self.handle)
+
+    def close(self):
+        if self.handle:
+            self.lib.mr_destroy(self.handle)
             self.handle = None
 
 

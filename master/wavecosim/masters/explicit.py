@@ -36,7 +36,7 @@ class ExplicitMaster(KernelRoute, PhysicalMaster):
         """Book `steps` kernel macro-steps (the last one step n at t) as step_forward books each."""
         for sub in self.subsystems:
             sub.begin(n, t)
-            sub.calls["doStep"] += steps
+            sub.calls["doStep"] += steps * sub.substeps
 
     def took_block(self, log, done):
         """After a block of kernel steps: its last y^{n+1} (copied: the next call overwrites the log)."""

@@ -6,6 +6,7 @@ import time
 import numpy as np
 
 from ..kernel import blocks
+from ..kernel.drkernel import PASSES_CACHED, PASSES_EACH
 from .observers import Observer
 from .recorder import BLOCK
 
@@ -32,20 +33,26 @@ class BlockSteps:
 
     def _prepare_blocks(self, layout):
         """The C passes built in set-up, from an empty log of the blocks' layout, so the first block
-        costs no more than the others; with every row kept the kernel makes them as it logs the steps."""
+        costs no more than the others; with every row kept the kernel makes them as it logs the steps
+        (a durable run's after every step: the rows pass, the last, counts each row as it is written)."""
         readings = self.sampler.block(layout.observed)
         self.rows_pass = self._rows_pass(layout, readings)
         for o, _ in self.block_observers:
             o.prepare_block(layout, readings)
-        self.passes = [(self.rows_pass, None)] + [(o.block_pass(), span) for o, span in self.block_observers
-                                                   if o.block_pass() is not None]
+        self.observer_passes = [(o.block_pass(), span) for o, span in self.block_observers
+                                if o.block_pass() is not None]
+        self.passes = self.observer_passes + [(self.rows_pass, None)]
         self.python_observers = [(o, span) for o, span in self.block_observers if o.block_pass() is None]
+        self.handing = [o for o, _ in self.block_observers if o.block_pass() is not None and (
+            type(o).before_passes is not Observer.before_passes or type(o).after_passes is not Observer.after_passes)]
+        self.column_passes = [(p, span) for p, span in self.observer_passes if span.stop > span.start]
         self.rows_pass.args.lds, self.rows_pass.args.ldt = self.steps.ld, self.trajectory.ld
-        for p, _ in self.passes[1:]:
+        for p, _ in self.column_passes:
             p.args.ldo = self.steps.ld
-        self.kernel_passes = self.every == 1
+        self.kernel_passes = (PASSES_EACH if self.durable else PASSES_CACHED) if self.every == 1 else 0
         if self.kernel_passes:
             self.route.set_passes([p for p, _ in self.passes])
+            self._describe_rows([j for _, span in self.python_observers for j in range(span.start, span.stop)])
 
     def step_block(self, n0, count):
         """Macro-steps n0 .. n0 + count - 1 in one call of the master; the master stops early after a
@@ -53,13 +60,14 @@ class BlockSteps:
         (the ledger is kept, and redone, in the kernel: such a step is in the block, and a non-finite
         value ends the run after it). Returns the steps made; raises the FmuError of the step after them."""
         if self.kernel_passes:
-            self._aim(self.steps.reserve_at(count), self.trajectory.reserve_at(count))
+            self._aim(self.steps.reserve_at(count), self.trajectory.reserve_at(count), counted=True)
+        for o in self.handing:
+            o.before_passes()
         t0 = time.perf_counter()
         self.in_block = n0
         done, log, error = self.route.run_steps(n0, count, passes=self.kernel_passes)
         self.in_block = None
         self.master_time += time.perf_counter() - t0
-        self._resize_blocks(done, time.perf_counter() - t0)
         self.block_steps += done
         whole = done - 1 if log.last is not None else done      # the ledger's kernel books every step
         if whole:
@@ -89,6 +97,8 @@ class BlockSteps:
         if log.passed < count:
             for p, _ in self.passes:
                 p.steps(n0, log, log.passed, count - log.passed)
+        for o in self.handing:
+            o.after_passes()
         if self.python_observers:
             if every:
                 rows, steps_at = self.steps.reserve(count), self.steps.reserve_at(count)
@@ -106,12 +116,16 @@ class BlockSteps:
             self.trajectory.append_block(trajectory[keep])
         self.hand_over()
 
-    def _aim(self, steps_at, trajectory_at):
+    def _aim(self, steps_at, trajectory_at, counted=False):
         """The C passes of a block at its first row of the steps and of the trajectory (addresses; the
-        tables' ld between columns): the observers' columns are spans of the steps'."""
+        tables' ld between columns): the observers' columns are spans of the steps'. counted: at the
+        tables' own rows, which a durable table's record counts as the rows pass writes them."""
         args, ld = self.rows_pass.args, self.steps.ld
         args.steps, args.trajectory = steps_at, trajectory_at
-        for p, span in self.passes[1:]:
+        for j, table in enumerate((self.steps, self.trajectory)):
+            shared = table.shared if counted else None
+            args.counted[j], args.base[j] = (shared.address, table.rows) if shared is not None else (None, 0)
+        for p, span in self.column_passes:
             p.args.out = steps_at + 8 * ld * span.start
 
     def _rows_pass(self, log, readings):

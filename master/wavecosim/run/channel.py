@@ -6,6 +6,8 @@ writes into (run/containment.py).
     <tmp>/wavecosim-run-XXXX/layout.json  the child's runs (output files) and FMU binaries (address
                                           ranges, entry points), written once set-up is done
     <tmp>/wavecosim-run-XXXX/tmp/         the child's temporary folder (its extracted FMUs)
+    <tmp>/wavecosim-run-XXXX/rows-XXXX/   a run's tables: their blocks and counts of rows, mapped by
+                                          both (run/durable.py), and rows.json, what they hold
 
 The parent removes the folder when the child has ended, whatever ended it: nothing is left in the
 temporary folder. `locate` turns the fault's code addresses into the subsystem and the FMU call.
@@ -22,6 +24,7 @@ from ..kernel.guard import RunStatus
 
 SETUP, RUNNING, RESCUING, DONE = range(4)          # the child's state
 NONE, TIMEOUT, STOP, TERM = range(4)               # what ended the run from outside (the parent, the watchdog)
+STOP_GRACE_S = 5.0             # after a stop (Ctrl-C, SIGTERM): time for the run to stop between two steps
 MAGIC = 0x57435354
 PAGE = 4096
 
@@ -101,6 +104,20 @@ def locate(pcs, libraries, subsystems):
     return "", ""
 
 
+def in_progress(where, call_now, components):
+    """(who, call) of a fault, where a stack named no subsystem (none was taken: the FMU holds the
+    freeze signal; or the set-up had named none yet), from the FMU call in progress the status page
+    records: call_now = (instance, call, opening) (kernel/fmicall.py), components maps an FMU
+    instance's component to its subsystem's name; before the runs have any (the set-up), the subsystem
+    whose FMU the set-up opens. An instance no run knows (a shim's) names the call alone."""
+    who, call = where
+    instance, now, opening = call_now
+    if not now or (who and not who.startswith("an FMU (")):
+        return where
+    name = components.get(instance) or ("" if components and instance else opening.split("~")[0])
+    return (f"subsystem {name}" if name else who), call or now
+
+
 def _entry(entries, pc):
     """The entry point whose code holds pc: the nearest one at or below it."""
     below = [(addr, name) for name, addr in entries.items() if addr is not None and addr <= pc]
@@ -129,12 +146,11 @@ def describe(fault, request, where, step, t, step_timeout, setup_timeout=None):
         cls, verb = (Terminated, "stopped by SIGTERM") if request == TERM else (Interrupted, "interrupted by the user")
         return cls(f"{verb}{at}, inside {who}{call_text}" if who else f"{verb}{at}")
     held = "; the FMU holds the signal that would stop it" if kind == "frozen" and fault.get("code") == -1 else ""
+    inside = (f"; stopped inside {who}{call_text}" if who else f"; stopped{call_text}" if call else "") + held
     if request == TIMEOUT and kind in ("frozen", None, "none") and setup_timeout:
-        inside = f"; stopped inside {who}{call_text}" if who else held
         return StepTimeout(f"the set-up did not finish within {setup_timeout:g} s (set-up timeout){inside}")
     if request == TIMEOUT and kind in ("frozen", None, "none"):
         late = f"did not finish within {step_timeout:g} s (step timeout)" if step_timeout else "did not finish"
-        inside = f"; stopped inside {who}{call_text}" if who else held
         return StepTimeout(f"step {step} (t = {t:.6g}) {late}{inside}" if step is not None
                            else f"a step {late}{inside}")
     if kind == "exit":

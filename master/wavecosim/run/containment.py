@@ -22,8 +22,9 @@ import time
 from pathlib import Path
 
 from ..errors import Interrupted, StepTimeout
-from ..kernel import guard
-from .channel import Channel, DONE, RESCUING, RUNNING, SETUP, TIMEOUT, describe, locate
+from ..kernel import fmicall, guard
+from ..kernel.fmicall import FMI_ENTRIES
+from .channel import Channel, DONE, RESCUING, RUNNING, SETUP, STOP, STOP_GRACE_S, TERM, TIMEOUT, describe, in_progress, locate
 
 _current = None
 POLLS_PER_TIMEOUT = 20            # the watchdog looks this often per timeout (at most 4 times a second)
@@ -48,6 +49,7 @@ class Containment:
         self.parts, self.current, self.labels, self.in_setup = [], None, {}, False
         self._rescue_r, self._rescue_w = os.pipe()
         guard.arm(self.status.fault, self._rescue_w)
+        fmicall.trace_calls(self.status)
         threading.Thread(target=self._rescue, name="wavecosim-rescue", daemon=True).start()
         self.status.heartbeat = time.monotonic()        # the first beat: a call that holds the interpreter
         threading.Thread(target=self._watchdog, name="wavecosim-watchdog", daemon=True).start()   # from the start
@@ -57,6 +59,7 @@ class Containment:
         """The run is over: faults are the process's own again."""
         global _current
         guard.disarm()
+        fmicall.trace_calls(None)
         _current = None
 
     # ---- what the runner tells ----
@@ -82,7 +85,8 @@ class Containment:
                           "K": part.scenario.master.K, "dt": part.dt, "T": part.scenario.T,
                           "reference": bool(self.labels.get(id(part))), "files": files,
                           "subsystems": {s.name: str(s.fmu.folder) for s in _fmus(part)}})
-        return {"parts": parts, "libraries": self.libraries()}
+        return {"parts": parts, "libraries": self.libraries(),
+                "components": {str(c): label for c, label in self.components().items()}}
 
     def libraries(self):
         """The FMU binaries this process has loaded: path, address range and fmi entry points."""
@@ -96,8 +100,12 @@ class Containment:
         return id(part), part.steps_done, part.step_in_progress()
 
     def _limit(self):
-        """The seconds the run may go without progress now (None: no limit)."""
-        return self.setup_timeout if self.status.state == SETUP else self.step_timeout
+        """The seconds the run may go without progress now (None: no limit); after a stop (Ctrl-C,
+        SIGTERM) at most STOP_GRACE_S: a call that holds the signals is then taken as a timeout is."""
+        limit = self.setup_timeout if self.status.state == SETUP else self.step_timeout
+        if self.status.request in (STOP, TERM):
+            return min(limit or STOP_GRACE_S, STOP_GRACE_S)
+        return limit
 
     def _watchdog(self):
         """Beat for the parent; ask for a rescue when the run makes no progress within its timeout (the
@@ -121,9 +129,12 @@ class Containment:
 
     def _ask_freeze(self, poll, tries):
         """One request to the main thread to park for the rescue; True once a fault is recorded. tries
-        counts the requests it declined (it runs Python: interrupted there) and those nobody took."""
+        counts the requests it declined (it runs Python: interrupted there, unless a stop came, which
+        it takes between two steps) and those nobody took."""
         self.in_setup = self.status.state == SETUP
-        self.status.request = TIMEOUT
+        stopping = self.status.request in (STOP, TERM)
+        if not stopping:
+            self.status.request = TIMEOUT
         declined = self.status.fault.declined
         if not guard.freeze_main():
             return False
@@ -131,6 +142,8 @@ class Containment:
         if self.status.fault.kind:
             return True
         if self.status.fault.declined > declined:
+            if stopping:
+                return False
             tries[0] += 1
             if tries[0] >= DECLINED_TRIES:
                 guard.raise_in_main(PythonTimeout)
@@ -140,8 +153,11 @@ class Containment:
 
     # ---- the rescue ----
     def _rescue(self):
-        """Wait for a fault; then finish every run, print one line and end the process."""
-        os.read(self._rescue_r, 1)
+        """Wait for a fault; then finish every run, print one line and end the process. A pipe closed
+        under it (an FMU closed every descriptor, the process's output files with them) leaves the
+        fault to the parent, which writes the rows from their shared memory."""
+        if not os.read(self._rescue_r, 1):
+            return
         self.in_setup = self.in_setup or self.status.state == SETUP
         self.status.state = RESCUING
         fault = self.status.fault.summary() or {}
@@ -187,10 +203,16 @@ class Containment:
         order = [p for p in self.parts if p is not part] + ([part] if part is not None else [])
         where = locate(fault.get("pc", []), self.libraries(),       # a binary both runs share: the active one's
                        {k: v for p in order for k, v in self._subsystems(p).items()})
+        where = in_progress(where, fmicall.call_now(self.status), self.components())
         step = part.steps_done if part is not None else None
         t = part.t0 + step * part.dt if part is not None else None
         return describe(fault, self.status.request, where, step, t, self.step_timeout,
                         self.setup_timeout if self.in_setup else None)
+
+    def components(self):
+        """{component: subsystem label} of every FMU instance of the runs (the call in progress names one)."""
+        return {s.fmu.component: f"{s.name}{self.labels.get(id(p), '')}" for p in self.parts for s in _fmus(p)
+                if s.fmu.component}
 
     def _subsystems(self, part):
         return {str(s.fmu.folder): f"{s.name}{self.labels.get(id(part), '')}" for s in _fmus(part)}
@@ -230,16 +252,3 @@ def announcement(error):
 def _fmus(part):
     scene = getattr(part, "scene", None)
     return [] if scene is None else [s for s in scene.subsystems + scene.signal_only if s.fmu is not None]
-
-
-FMI_ENTRIES = tuple(f"fmi2{n}" for n in (
-    "Instantiate", "FreeInstance", "SetupExperiment", "EnterInitializationMode", "ExitInitializationMode",
-    "Terminate", "Reset", "GetReal", "GetInteger", "GetBoolean", "GetString", "SetReal", "SetInteger", "SetBoolean",
-    "SetString", "GetFMUstate", "SetFMUstate", "FreeFMUstate", "SerializedFMUstateSize", "SerializeFMUstate",
-    "DeSerializeFMUstate", "GetDirectionalDerivative", "SetRealInputDerivatives", "GetRealOutputDerivatives",
-    "DoStep", "CancelStep", "GetStatus", "GetRealStatus", "GetIntegerStatus", "GetBooleanStatus",
-    "GetStringStatus", "SetDebugLogging")) + tuple(f"fmi3{n}" for n in (
-    "InstantiateCoSimulation", "FreeInstance", "EnterInitializationMode", "ExitInitializationMode", "Terminate",
-    "Reset", "GetFloat64", "SetFloat64", "GetFloat32", "SetFloat32", "GetInt32", "SetInt32", "GetBoolean",
-    "SetBoolean", "GetString", "SetString", "GetFMUState", "SetFMUState", "FreeFMUState", "DoStep",
-    "EnterStepMode", "UpdateDiscreteStates", "EnterEventMode"))

@@ -11,7 +11,7 @@ certificates) to the last bit. Two engines carry the calls:
         end it: the lowest round trip measured here, one machine;
   dask  Dask actors (`distributed`), one per worker of a Dask cluster, on any machine the cluster
         reaches; a round trip costs about a millisecond or more.
-Not carried over (the prototype refuses them): signals and signal-only subsystems, gamma tuning,
+Not carried over (the prototype refuses them): signals and signal-only subsystems, substeps, gamma tuning,
 the energy guards and certificates, deadlines.
 """
 import multiprocessing
@@ -299,6 +299,10 @@ def _check(scenario):
     """What the prototype carries over; a ConfigError naming the rest."""
     if scenario.signals or scenario.signal_subsystems:
         raise ConfigError(f"{scenario.source}: signals are not carried over to worker processes yet")
+    multi = next((s for s in scenario.subsystems if s.substeps != 1), None)
+    if multi is not None:
+        raise ConfigError(f"{scenario.source}: subsystems.{multi.name}.substeps: worker processes make one doStep "
+                          f"per macro-step")
     if isinstance(scenario.gamma, str):
         raise ConfigError(f"{scenario.source}: gamma: {scenario.gamma} is not carried over to worker processes yet")
     m = scenario.master

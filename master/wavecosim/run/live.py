@@ -9,7 +9,9 @@ When the master has a route (the C kernel's run_steps) and every observer takes 
 (Observer.after_block), `advance` makes blocks of up to BLOCK_STEPS steps (run/blockrun.py): the
 same numbers as step by step, to the last bit, without crossing into Python at every step.
 """
+import json
 import math
+import tempfile
 import time
 from pathlib import Path
 
@@ -21,6 +23,7 @@ from ..kernel.drkernel import REASONS as KERNEL_REASONS
 from ..kernel.linalg import total
 from ..masters.base import REASONS
 from .bounds import Bounds
+from .durable import TextLog
 from .observers import Observer
 from .observers.errors import ErrorTracker
 from .recorder import BLOCK, Labels, Table, Texts, ints
@@ -34,7 +37,6 @@ from .result import grid_clock
 
 CALLS = ("doStep", "save", "restore")       # the FMU calls a run counts (fmu_calls)
 BLOCK_STEPS = BLOCK                    # macro-steps per call of the master, at most a table block
-DURABLE_S = 0.05                       # in a supervised run: the most time of steps a process killed outright loses
 assert REASONS[:len(KERNEL_REASONS)] == KERNEL_REASONS     # the kernel's reason codes are the runner's
 
 
@@ -68,8 +70,8 @@ class LiveRun(BlockSteps, RunFiles):
         self.block_steps = 0                                # macro-steps made in blocks
         self.rows_pass, self.kernel_passes = None, False    # the blocks' C passes (_prepare_blocks)
         self.in_block = None                                # n0 of the kernel call in progress
-        self.block_cap = BLOCK_STEPS                        # macro-steps per kernel call at most (see durable)
-        self.durable = False
+        self.durable, self.memory = False, None             # a supervised run; the folder of its tables' memory
+        self.texts = None                                   # its String outputs' TextLog
         self.write_error = None                             # an OutputError met while finishing
         self.calls_at_start = self.excluded = None          # set by start(): a run that failed before has none
 
@@ -84,13 +86,18 @@ class LiveRun(BlockSteps, RunFiles):
     def _tables(self):
         rows = self.n_steps // self.every + 2
         path = (lambda kind: self.out_dir / f"{kind}{self.suffix}.csv") if self.out_dir else (lambda kind: None)
+        shared = (lambda kind: self.memory / kind) if self.memory else (lambda kind: None)
         self.trajectory = Table(["time", *self.columns], path("trajectory"), expected_rows=rows,
-                                formats=self._output_formats())
+                                formats=self._output_formats(), durable=shared("trajectory"))
         obs_cols = [c for o in self.observers for c in o.columns]
         formats = {"iterations": ints, "reason": Labels(REASONS)}
         for o in self.observers:
             formats.update(o.formats)
-        self.steps = Table([*STEP_COLUMNS, *obs_cols], path("steps"), expected_rows=rows, formats=formats)
+        self.steps = Table([*STEP_COLUMNS, *obs_cols], path("steps"), expected_rows=rows, formats=formats,
+                           durable=shared("steps"))
+        texts = {j: f.texts for j, f in enumerate(self.trajectory.formats) if isinstance(f, Texts)}
+        self.texts = TextLog(self.memory / "texts.jsonl", texts) if self.memory and texts else None
+        self._describe_rows()
         self.scratch = np.full(len(self.steps.columns), np.nan)
         self.slices, self.spans, at = [], {}, len(STEP_COLUMNS)
         for o in self.observers:
@@ -118,7 +125,7 @@ class LiveRun(BlockSteps, RunFiles):
             o.start(first)
         row = self.trajectory.next_row()
         row[0], row[1:] = self.t0, first.outputs
-        self.trajectory.commit_row()
+        self._commit_trajectory()
         self.bounds.start(first, self.time_of)
         self.first = {"H": total(first.H), "error": next((o.first for o in self.observers
                                                         if isinstance(o, ErrorTracker)), math.nan)}
@@ -167,19 +174,23 @@ class LiveRun(BlockSteps, RunFiles):
             return 1
         end = min(self.n_steps, self.restores.next)              # a block ends where the restore is checked
         if not self.paced:
-            return min(self.block_cap, end - n)
-        return max(1, min([self.block_cap, end - n] + [o.next_before(n) - n for o in self.paced]))
+            return min(BLOCK_STEPS, end - n)
+        return max(1, min([BLOCK_STEPS, end - n] + [o.next_before(n) - n for o in self.paced]))
 
-    def make_durable(self):
-        """A supervised run (before start): its rows are in the files after every kernel call, and its
-        kernel calls last about DURABLE_S at most (they start short and grow): the rows of a call still
-        in progress are lost when the process is killed outright. Its restores are re-checked."""
-        self.durable, self.block_cap = True, min(BLOCK_STEPS, 32)
+    def make_durable(self, folder):
+        """A supervised run (before start): its tables' rows live in memory mapped from files in `folder`
+        (the run's channel), described in rows.json there, so the parent writes every committed row
+        when the process is killed outright (run/salvage.py). Its restores are re-checked."""
+        self.durable, self.memory = True, Path(tempfile.mkdtemp(prefix="rows-", dir=folder))
 
-    def _resize_blocks(self, done, seconds):
-        if self.durable and done > 0:
-            fit = int(DURABLE_S * done / seconds) if seconds > 0 else BLOCK_STEPS
-            self.block_cap = max(1, min(BLOCK_STEPS, fit, 2 * self.block_cap))
+    def _describe_rows(self, late=()):
+        """rows.json of a durable run: its two tables (late: the steps' columns filled only after a block)."""
+        if self.memory is None or self.trajectory.shared is None or self.steps.shared is None:
+            return
+        described = {"trajectory": self.trajectory.described(), "steps": self.steps.described(late)}
+        part = self.memory / "rows.json.part"
+        part.write_text(json.dumps(described))
+        part.replace(self.memory / "rows.json")
 
     def advance(self, n, count):
         """Macro-steps from n on: up to `count` in one call of the master when count > 1, else step(n);
@@ -217,13 +228,10 @@ class LiveRun(BlockSteps, RunFiles):
                 for s, c, b0, x0 in zip(self.scene.subsystems + self.scene.signal_only, now, start, excluded)}
 
     def hand_over(self):
-        """The rows booked so far to the writer threads now (the loop does every second); a durable run's
-        are in the files when it returns (a process killed outright keeps them)."""
-        tables = [t for t in (getattr(self, "steps", None), getattr(self, "trajectory", None)) if t is not None]
-        for table in tables:
-            table.hand_over()
-        for table in tables if self.durable else ():
-            table.wait()
+        """The rows booked so far to the writer threads now (the loop does every second)."""
+        for table in (getattr(self, "steps", None), getattr(self, "trajectory", None)):
+            if table is not None:
+                table.hand_over()
 
     def step_in_progress(self):
         """The macro-step being made now (inside a kernel call: the one the kernel is at)."""
@@ -263,6 +271,12 @@ class LiveRun(BlockSteps, RunFiles):
         self.steps.commit_row()
         row = self.trajectory.next_row()
         row[0], row[1:] = self.time_of(n + 1), reading.outputs
+        self._commit_trajectory()
+
+    def _commit_trajectory(self):
+        """Commit the trajectory's row filled; a durable run notes the texts it holds first."""
+        if self.texts is not None:
+            self.texts.note()
         self.trajectory.commit_row()
 
     def _simulated(self, n):

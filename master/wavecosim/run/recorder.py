@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..kernel.csvfmt import block_writer
+from .durable import mapped
 from .outputs import cannot
 from .writer import Writer
 
@@ -81,16 +82,23 @@ class Table:
     `formats` maps a column to a formatter (default repr of floats); see `ints` and `Labels`.
     Rows fill one of two blocks; a full block is handed to the writer threads (run/writer.py)
     while the other fills, and is filled again only once its rows are formatted (a table that keeps
-    its rows in memory keeps its full blocks themselves and takes fresh ones)."""
+    its rows in memory keeps its full blocks themselves and takes fresh ones).
 
-    def __init__(self, columns, path=None, formats=None, expected_rows=0):
+    durable (a path prefix; with a file only): the blocks and the count of rows committed live in
+    shared memory mapped from files there (run/durable.py), and a block is filled again only once
+    its rows are in the file, so a process killed outright loses no committed row (run/salvage.py)."""
+
+    def __init__(self, columns, path=None, formats=None, expected_rows=0, durable=None):
         self.columns, self.path = list(columns), path
         self._fmt = [(formats or {}).get(c, _floats) for c in self.columns]
-        self._slots = [self._new_slot(), None]        # (block, its formatter); the second made when first needed
+        self.shared = mapped(durable, BLOCK, BLOCK + PAD, len(self.columns)) if durable and path else None
+        self._slots = [self._new_slot(0), None]       # (block, its formatter); the second made when first needed
         self._pending = [[], []]                      # each block's hand-overs not yet settled (writer Pieces)
         self._at, self._fill, self._handed = 0, 0, 0  # block in use, rows filled, rows of it handed over
         self.ld = BLOCK + PAD                         # doubles between a block's columns
         self._block, self._block_at = self._slots[0][0], self._slots[0][0].ctypes.data
+        if self.shared is not None:
+            self.shared.taken(0, 0)
         self._kept = [] if path is None or expected_rows * len(self.columns) <= KEEP_VALUES else None
         self.rows = 0
         self._file, self._writer = None, None
@@ -101,11 +109,14 @@ class Table:
                 self._file.write((header(self.columns) + "\r\n").encode())
             except OSError as exc:
                 raise cannot(path, exc) from None
-            self._writer = Writer(self._file)
+            self._writer = Writer(self._file, self.shared)
 
-    def _new_slot(self):
-        """A block of BLOCK rows (columns contiguous) and what formats its rows for the file."""
-        block = np.full((BLOCK + PAD, len(self.columns)), np.nan, order="F")[:BLOCK]    # touched here, not in the loop
+    def _new_slot(self, at):
+        """A block of BLOCK rows (columns contiguous) and what formats its rows for the file (slot `at`)."""
+        if self.shared is not None:
+            block = self.shared.block(at)[:BLOCK]
+        else:
+            block = np.full((BLOCK + PAD, len(self.columns)), np.nan, order="F")[:BLOCK]    # touched here, not in the loop
         if self.path is None:
             return block, None
         return block, block_writer(block, [_kind(f) for f in self._fmt]) or self._python_text(block)
@@ -114,6 +125,13 @@ class Table:
     def formats(self):
         """Each column's formatter, in column order."""
         return list(self._fmt)
+
+    def described(self, late=()):
+        """What the parent of a durable run needs to write this table's rows from its shared memory
+        (run/salvage.py): the file, the columns and their formats, the memory's files; late: the
+        columns filled only once a block of steps is made (left empty in the rows of a block in progress)."""
+        return {"csv": str(self.path), "columns": self.columns, "formats": [described(f) for f in self._fmt],
+                "memory": str(self.shared.prefix), "late": list(late)}
 
     def next_row(self):
         """A row to fill in place (the block's next slot); it is booked by `commit_row`."""
@@ -126,6 +144,8 @@ class Table:
     def commit_row(self):
         self._fill += 1
         self.rows += 1
+        if self.shared is not None:
+            self.shared.count(self.rows)
 
     def reserve(self, k):
         """k rows (k <= BLOCK) of the block to fill in place, booked by commit_rows(k)."""
@@ -143,6 +163,8 @@ class Table:
     def commit_rows(self, k):
         self._fill += k
         self.rows += k
+        if self.shared is not None:
+            self.shared.count(self.rows)
 
     def append_block(self, rows):
         """Book many rows at once (a 2-D array of the table's columns), as next_row and commit_row would."""
@@ -155,6 +177,8 @@ class Table:
             k = min(BLOCK - self._fill, len(rows) - at)
             self._block[self._fill:self._fill + k] = rows[at:at + k]
             self._fill, self.rows, at = self._fill + k, self.rows + k, at + k
+            if self.shared is not None:
+                self.shared.count(self.rows)
 
     def hand_over(self):
         """Hand the rows filled since the last hand-over to the writer threads now (the runner does after
@@ -174,21 +198,25 @@ class Table:
         if not self._fill:
             return
         self.hand_over()
-        if self._kept is not None:
+        if self._kept is not None and self.shared is not None:
+            self._kept.append(self._block[:self._fill].copy())     # the shared block is filled again
+        elif self._kept is not None:
             self._kept.append(self._block[:self._fill])      # the block itself: it is not filled again
             self._slots[self._at] = None
         self._at, self._fill, self._handed, self._block = 1 - self._at, 0, 0, None
         for piece in self._pending[self._at]:
-            self._writer.settle(piece)
+            self._writer.settle(piece, written=self.shared is not None)
         self._pending[self._at] = []
         if self._writer is not None:
             self._writer.check()
 
     def _take_block(self):
         """Rows go next into the current slot's block, made when first needed (after a flush)."""
-        self._slots[self._at] = self._slots[self._at] or self._new_slot()
+        self._slots[self._at] = self._slots[self._at] or self._new_slot(self._at)
         self._block = self._slots[self._at][0]
         self._block_at = self._block.ctypes.data
+        if self.shared is not None:
+            self.shared.taken(self._at, self.rows)
 
     def _python_text(self, block):
         """Rows start .. start + rows - 1 of `block` as CSV lines, formatted in Python."""
@@ -258,6 +286,25 @@ def _read_csv(path, formats):
 
 
 ints = _ints
+
+
+def described(fmt):
+    """A formatter as JSON (formatter() makes it again): "float", "int", {"labels": ...} or {"texts": ...}."""
+    if isinstance(fmt, Labels):
+        return {"labels": fmt.names}
+    if isinstance(fmt, Texts):
+        return {"texts": list(fmt.texts)}
+    return "int" if fmt is _ints else "float"
+
+
+def formatter(description):
+    """The formatter `described` gave; a text the run met after it was described is left empty."""
+    if isinstance(description, dict) and "labels" in description:
+        return Labels(description["labels"])
+    if isinstance(description, dict):
+        texts = description["texts"]
+        return lambda col: [quoted(texts[int(v)]) if 0 <= v < len(texts) else "" for v in col.tolist()]
+    return _ints if description == "int" else _floats
 
 
 def _kind(fmt):

@@ -9,7 +9,7 @@ import time
 from ..errors import ConfigError, Interrupted, RunFailed, SimulationEnded, Terminated, WavecosimError
 from . import containment
 from .bounds import named_for_cause
-from .live import BLOCK_STEPS, DURABLE_S, LiveRun
+from .live import BLOCK_STEPS, LiveRun
 from .observers.errors import error_observers, stored_reference, stored_rows
 from .parts import OBSERVERS, STEP_COLUMNS, STEP_DESCRIBED, _once, _warn_stderr, open_parts
 from .recorder import Interrupts
@@ -19,7 +19,6 @@ __all__ = ["BLOCK_STEPS", "LiveRun", "OBSERVERS", "STEP_COLUMNS", "STEP_DESCRIBE
            "grid_clock", "grid_inverse", "grid_times", "run", "check_steps", "reference_scenario", "MAX_STEPS"]
 
 HAND_OVER_S = 1.0                      # rows booked are handed to the writer at least this often
-DURABLE_S = 0.05                       # in a supervised run: the most time of steps a process killed outright loses
 MAX_STEPS = 10 ** 8                    # more macro-steps than this only when asked (--force, max_steps=None)
 
 
@@ -104,14 +103,13 @@ def _progress_of(live, n):
 
 def _loop(live, ref, progress, contain=None):
     """Every macro-step of the run (and of its lockstep reference); returns (status, exception).
-    Rows go to the writer at least every HAND_OVER_S seconds (DURABLE_S in a supervised run); a
-    supervised run (contain) is told which run makes the next steps."""
+    Rows go to the writer at least every HAND_OVER_S seconds; a supervised run (contain) is told
+    which run makes the next steps, and its rows are durable as they are committed."""
     every = max(1, live.n_steps // 200)
     active = contain.active if contain is not None else (lambda part: None)
-    hand_over_s = HAND_OVER_S if contain is None else DURABLE_S
     for part in (live, ref) if contain is not None else ():
         if part is not None:
-            part.make_durable()
+            part.make_durable(contain.channel.folder)
     with Interrupts() as stop:
         try:
             for part in (ref, live):
@@ -133,7 +131,7 @@ def _loop(live, ref, progress, contain=None):
                 if progress and ((n + done) // every > n // every or not live.more(n + done)):
                     progress(_progress_of(live, n + done), live.n_steps)
                 n += done
-                if time.perf_counter() - handed > hand_over_s:
+                if time.perf_counter() - handed > HAND_OVER_S:
                     for part in (ref, live):
                         if part is not None:
                             part.hand_over()

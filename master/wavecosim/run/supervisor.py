@@ -31,12 +31,12 @@ import tempfile
 import time
 from pathlib import Path
 
-from ..kernel.guard import die_with_parent, freeze_signal, require
+from ..kernel.fmicall import call_now
+from ..kernel.guard import die_with_parent, freeze_signal, require, signal_name
 from ..errors import FmuCrashed, Interrupted, StepTimeout, Terminated
-from .channel import Channel, DONE, RESCUING, SETUP, STOP, TERM, TIMEOUT
+from .channel import Channel, DONE, RESCUING, SETUP, STOP, STOP_GRACE_S, TERM, TIMEOUT, in_progress
 from .containment import Containment, announcement, flush_streams
 
-STOP_GRACE_S = 5.0        # after passing a stop on: time for the child to stop between two steps
 RESCUE_GRACE_S = 20.0     # once its rescue began: time for the child to write its rows
 ASKED_GRACE_S = 3.0       # after a rescue was asked (by the parent or the child's watchdog): time for it to begin
 HEARTBEAT_GRACE_S = 5.0   # a child whose watchdog is silent this long past its timeout is stuck
@@ -208,7 +208,7 @@ class Child:
         status = self.channel.status
         why = ("it stopped itself (SIGSTOP)" if self.stopped_at is not None else
                "it went silent (stuck holding the interpreter)" if stuck else
-               "the FMU holds the signals that would stop it")
+               "the FMU holds the signals that would stop it") + self._inside()
         if self.stop_at is not None:
             cls = Terminated if status.request == TERM else Interrupted
             return cls, f"{'stopped by SIGTERM' if cls is Terminated else 'interrupted by the user'}; {why}, the child was ended"
@@ -216,6 +216,21 @@ class Child:
             return StepTimeout, f"the set-up did not finish within {self.setup_timeout:g} s (set-up timeout); {why}"
         late = f"did not finish within {self.step_timeout:g} s (step timeout)" if self.step_timeout else "did not finish"
         return StepTimeout, f"a step {late}; {why}"
+
+    def _inside(self):
+        """` inside subsystem B in fmi2DoStep`: the FMU call in progress the status page records, if any."""
+        components = {int(c): label for c, label in ((self.channel.layout() or {}).get("components") or {}).items()}
+        who, call = in_progress(("", ""), call_now(self.channel.status), components)
+        return f" inside {who} in {call}" if who and call else ""
+
+    def _killed(self):
+        """(FmuCrashed, message) for a child killed outright (it left no fault record: SIGKILL, the
+        out-of-memory killer) inside an FMU call, naming the call; else None."""
+        status = self.wait_status
+        if self.channel.status.fault.kind or status is None or not os.WIFSIGNALED(status):
+            return None
+        inside = self._inside()
+        return (FmuCrashed, f"the run crashed ({signal_name(os.WTERMSIG(status))}){inside}") if inside else None
 
     def _end(self, cls, message):
         """Kill the child's process group now; its summary says `message` (an error of class cls)."""
@@ -252,6 +267,8 @@ class Child:
         try:
             status = self.channel.status
             if status.state == DONE:
+                from .salvage import complete_rows
+                complete_rows(self.channel.folder)          # rows its writers could not write
                 return status.exit_code
             return self._fallback()
         finally:
@@ -268,7 +285,8 @@ class Child:
     def _fallback(self):
         """The child died without finishing: the summary from the channel, one line, the exit code."""
         from .salvage import salvage
-        error = salvage(self.channel, self.wait_status, self.summary_path, self.step_timeout, self.cause)
+        error = salvage(self.channel, self.wait_status, self.summary_path, self.step_timeout,
+                        self.cause or self._killed())
         self.error = str(error)
         if self.announce:
             print(announcement(error), file=sys.stderr, flush=True)
@@ -314,6 +332,7 @@ def _become_child(body, channel, timeouts, announce, relays):
             sys.stdout, sys.stderr = (Relay(fd, tty, enc) for fd, tty, enc in relays)
         tempfile.tempdir = str(channel.temp)
         os.environ["TMPDIR"] = str(channel.temp)
+        signal.signal(signal.SIGINT, signal.default_int_handler)    # a Dask worker's ignores it
         signal.signal(signal.SIGTERM, _terminate)
         contain = Containment(channel, timeouts[0], announce, timeouts[1])
         code = body()

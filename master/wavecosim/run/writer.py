@@ -46,11 +46,13 @@ class Piece:
 
 
 class Writer:
-    """Appends text to one open file, piece after piece in the order handed over."""
+    """Appends text to one open file, piece after piece in the order handed over; a durable table's
+    writer tells its shared record (run/durable.py) the rows and bytes in the file after each piece."""
 
-    def __init__(self, file):
-        self.file, self.error = file, None
+    def __init__(self, file, shared=None):
+        self.file, self.error, self.shared = file, None, shared
         self.written = file.tell()                        # bytes of whole pieces in the file
+        self.rows = 0                                     # rows of those pieces
         self.todo, self.unwritten = deque(), deque()      # pieces nobody has taken; pieces not yet written
         self.lock = threading.Lock()
         self.changed = threading.Condition(self.lock)     # a piece formatted or written
@@ -98,6 +100,9 @@ class Writer:
                         self.file.write(piece.data)
                         self.file.flush()
                         self.written += len(piece.data)
+                        self.rows += piece.rows
+                        if self.shared is not None:
+                            self.shared.wrote(self.rows, self.written)
                     except BaseException as exc:
                         self.error = exc
                 with self.lock:
@@ -105,12 +110,14 @@ class Writer:
                     piece.data = b""
                     self.changed.notify_all()
 
-    def settle(self, piece):
-        """Until `piece` is formatted (its block may then be filled again), helping meanwhile."""
-        while piece.data is None:
+    def settle(self, piece, written=False):
+        """Until `piece` is formatted (its block may then be filled again), or written (or dropped after
+        an error) when `written`, helping meanwhile."""
+        done = (lambda: piece.data == b"") if written else (lambda: piece.data is not None)
+        while not done():
             if not self.work():
                 with self.lock:
-                    self.changed.wait_for(lambda: piece.data is not None)
+                    self.changed.wait_for(done)
 
     def check(self):
         """Raise the writer's error, if any (an OSError as the OutputError naming the file)."""

@@ -25,6 +25,7 @@ from .overrides import apply_overrides
 DEFAULT_CONFIG = DEFAULT
 GROWTH_BOUND = 1e12
 INT32 = (-2 ** 31, 2 ** 31 - 1)       # an FMI Integer
+MAX_SUBSTEPS = 10 ** 6                 # doSteps per macro-step of one subsystem
 COUPLING_TYPES = tuple(COUPLINGS)
 SIGNALS_MASTER = "explicit"            # the master of a system without power bonds
 
@@ -72,6 +73,9 @@ class SubsystemConfig:
         "the relative tolerance given to the FMU's set-up (`fmi2SetupExperiment`, "
         "`fmi3EnterInitializationMode`)", "1", "number > 0",
         "the FMU's DefaultExperiment tolerance; none when it gives none"))
+    substeps: int = field(default=1, metadata=key(
+        "multi-rate: doSteps of dt / substeps the FMU makes per macro-step, its coupling inputs held over the "
+        "macro-step (Masters and DR, multi-rate)", "1", "integer >= 1", "1"))
     quirks: dict = field(default=None, metadata=key(
         "overrides of the quirk probes made at set-up (docs/troubleshooting.md): `no_set_fmu_state_prior` (the "
         "noSetFMUStatePriorToCurrentPoint its doSteps get), `reentrant` (false: its own copy of the binary), "
@@ -507,6 +511,7 @@ def _subsystem(ck, name, raw, base_dir):
                            gamma=ck.number(raw["gamma"], f"{path}.gamma", positive=True) if "gamma" in raw else None,
                            tolerance=(ck.number(raw["tolerance"], f"{path}.tolerance", positive=True)
                                       if raw.get("tolerance") is not None else None),
+                           substeps=ck.integer(raw.get("substeps", 1), f"{path}.substeps", minimum=1, maximum=MAX_SUBSTEPS),
                            quirks={k: ck.boolean(v, f"{path}.quirks.{k}") for k, v in quirks.items()} or None)
 
 

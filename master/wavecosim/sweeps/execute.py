@@ -14,7 +14,9 @@ import selectors
 import shutil
 import signal
 import tempfile
+import threading
 import time
+import uuid
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from pathlib import Path
@@ -29,6 +31,9 @@ from ..scenario.overrides import apply_overrides
 from ..scenario.ssp import import_ssp, is_ssp
 
 ROW_FILE = "row.json"
+STOPS = (signal.SIGINT, signal.SIGTERM)     # what stops a sweep
+STOP_POLL_S = 0.5           # a Dask task looks this often whether its sweep was stopped
+STOP_WAIT_S = 60.0          # after a stop: time the Dask sweep's runs have to stop and write their rows
 
 
 @dataclass(frozen=True)
@@ -204,18 +209,40 @@ def process_pool(tasks, workers):
         raise (Terminated if stops.signal == signal.SIGTERM else Interrupted)("stopped")
 
 
-def supervised_task(task):
+def supervised_task(task, stop=None):
     """One task in a supervised child of this process, waited for; its row (what a Dask worker runs:
-    a crash, an exit() or a hang in the run ends the child, never the worker)."""
+    a crash, an exit() or a hang in the run ends the child, never the worker). stop: the name of the
+    sweep's Dask stop events (_stop_events): once one is set, a task not yet begun gives None, and a
+    running one passes the signal on to its child, which stops as a run of a process pool does."""
     started = time.perf_counter()
-    child = _start_child(task)
+    events = _stop_events(stop)
+    if _stop_signal(events):
+        return None
+    child, asked, looked = _start_child(task), False, time.monotonic()
     try:
         while not child.poll(0.2):
-            pass
+            if not asked and time.monotonic() - looked > STOP_POLL_S:
+                looked, signum = time.monotonic(), _stop_signal(events)
+                if signum:
+                    child.stop(signum)
+                    asked = True
     except BaseException:
         child.kill()
         raise
     return _child_row(task, child, started)
+
+
+def _stop_events(name):
+    """[(signal, Dask Event)] of a sweep's stop: the one set names the signal its command got."""
+    if name is None:
+        return []
+    from distributed import Event
+    return [(signum, Event(f"{name}-{int(signum)}")) for signum in STOPS]
+
+
+def _stop_signal(events):
+    """The signal of the stop event that is set, else None."""
+    return next((signum for signum, event in events if event.is_set()), None)
 
 
 def _start_child(task):
@@ -283,7 +310,8 @@ def check_scheduler(scheduler):
 def dask_cluster(scheduler, workers, scratch):
     """(client, cluster): a Dask client of the scheduler at an address (reached within
     CONNECT_TIMEOUT_S), or of an embedded LocalCluster of `workers` one-thread worker processes for
-    scheduler "local", its scratch space and temporary files in the folder `scratch`."""
+    scheduler "local", its scratch space and temporary files in the folder `scratch`, ignoring SIGINT
+    and SIGTERM (a stop reaches its runs through the sweep's stop events)."""
     import logging
     distributed = optional("distributed", "dask", "--scheduler (a sweep on Dask)")
     Client = distributed.Client
@@ -296,32 +324,63 @@ def dask_cluster(scheduler, workers, scratch):
     import dask.config
     settings = {"distributed.scheduler.allowed-failures": 0,     # a dead worker's task is not run again
                 "temporary-directory": scratch}                  # the scheduler's scratch space
-    with dask.config.set(settings):
-        cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                           dashboard_address=None, silence_logs=logging.ERROR,
-                                           local_directory=scratch, env={"TMPDIR": scratch})
+    main = threading.current_thread() is threading.main_thread()
+    old = {sig: signal.signal(sig, signal.SIG_IGN) for sig in STOPS} if main else {}    # the workers inherit it
+    try:
+        with dask.config.set(settings):
+            cluster = distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                               dashboard_address=None, silence_logs=logging.ERROR,
+                                               local_directory=scratch, env={"TMPDIR": scratch})
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
     return Client(cluster), cluster
 
 
 def dask(tasks, scheduler, workers):
     """The tasks on a Dask distributed cluster, each in a supervised child of its worker; rows in
-    completion order. A LocalCluster's scratch space is a temporary folder removed at the end."""
+    completion order. A LocalCluster's scratch space is a temporary folder removed at the end.
+    SIGINT and SIGTERM reach the running runs through the sweep's stop events: each stops between two
+    steps and gives its row; no task starts after one."""
+    from ..run.supervisor import passing_stops
     scratch = tempfile.mkdtemp(prefix="wavecosim-dask-")
-    futures = {}
     try:
-        client, cluster = dask_cluster(scheduler, workers, scratch)
-        from distributed import as_completed as completed
-        try:
-            futures = dict(zip(client.map(supervised_task, tasks, pure=False, retries=0), tasks))
-            for future in completed(list(futures)):
-                yield _outcome(future, futures[future])
-        finally:
-            client.cancel(list(futures))
-            client.close()
-            if cluster is not None:
-                cluster.close()
+        with passing_stops([]) as stops:
+            client, cluster = dask_cluster(scheduler, workers, scratch)
+            try:
+                yield from _dask_rows(client, tasks, stops)
+            finally:
+                client.close()
+                if cluster is not None:
+                    cluster.close()
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
+    if stops.signal is not None:
+        raise (Terminated if stops.signal == signal.SIGTERM else Interrupted)("stopped")
+
+
+def _dask_rows(client, tasks, stops):
+    """The rows of the tasks as their futures complete; after a stop, those of the runs it stopped
+    (within STOP_WAIT_S), then the rest is cancelled."""
+    from distributed import Event, wait
+    name = f"wavecosim-stop-{uuid.uuid4().hex}"
+    futures = dict(zip(client.map(supervised_task, tasks, stop=name, pure=False, retries=0), tasks))
+    pending, deadline = set(futures), None
+    try:
+        while pending and (deadline is None or time.monotonic() < deadline):
+            if stops.signal is not None and deadline is None:
+                Event(f"{name}-{int(stops.signal)}", client=client).set()
+                deadline = time.monotonic() + STOP_WAIT_S
+            try:
+                done, pending = wait(pending, timeout=0.2, return_when="FIRST_COMPLETED")
+            except TimeoutError:
+                continue
+            for future in done:
+                row = _outcome(future, futures[future])
+                if row is not None:
+                    yield row
+    finally:
+        client.cancel(list(pending))
 
 
 def executor(tasks, workers=1, scheduler=None):

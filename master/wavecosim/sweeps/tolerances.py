@@ -10,6 +10,7 @@ import time
 from ..errors import Interrupted, WavecosimError
 from ..run.fine import FINE_STEPS, true_error
 from ..run.runner import reference_scenario, run
+from .ecco import peer_rows
 
 TOLERANCE_MASTERS = ("dr", "gauss-seidel")          # the tolerance mode's masters by default
 FIXED = (("explicit", None), ("gauss-seidel", None), ("dr", 5), ("dr", 20), ("newton", None))
@@ -62,14 +63,17 @@ def measure(mode, sc, reference):
             "rejected_steps": s.get("rejected_steps", 0), "max_ledger": s.get("max_ledger", ""), "status": s["status"]}
 
 
-def compare_tolerances(scenario, tolerances, out_dir=None, masters=TOLERANCE_MASTERS, progress=None):
-    """Every run of plan() against one fine reference; the rows (and the files in out_dir)."""
+def compare_tolerances(scenario, tolerances, out_dir=None, masters=TOLERANCE_MASTERS, progress=None, peers=(),
+                       note=None):
+    """Every run of plan() against one fine reference, then the peers' (sweeps/ecco.py: PEERS) at each
+    tolerance; the rows (and the files in out_dir). `note` takes the line of a peer left out."""
     reference = fine(scenario)
     rows = []
     for mode, sc in plan(scenario, tolerances, masters):
         rows.append(measure(mode, sc, reference))
         if progress:
             progress(rows[-1])
+    rows += peer_rows(scenario, tolerances, reference, peers, progress, note)
     if out_dir is not None:
         write(rows, out_dir)
     return rows

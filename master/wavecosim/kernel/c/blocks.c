@@ -9,6 +9,9 @@
  * - passivity_steps: Condition 2, per step the energy into each port and into all of them,
  *   r_i = (H_i - H_i before) - supplied_i (eq. 27) and H_total, and the running figures
  *   (wavecosim/run/observers/passivity.py, Passivity.after_block; builtin sum() from 0, left to right);
+ * - freeze_steps: the freeze watch, per subsystem the steps whose outputs equal the step's before while
+ *   its inputs changed, and its longest such stretch (wavecosim/run/observers/freeze_watch.py,
+ *   FreezeWatch.after_step);
  * - sampled_block and watch_block: the certificates' columns of the steps from the rows the
  *   certificates' kernel made (wavecosim/run/observers/certificates.py CertificateSampler and
  *   observers/fne_watch.py FneWatch, after_block). */
@@ -183,7 +186,11 @@ void passivity_steps(void *args, int n0, const double *log, long ld, int first, 
  * iterations, reason and residual at rows 0, 1, 2 and the outputs at rows outputs[j]. The steps'
  * columns time, iterations, inner_residual, reason go to `steps` (lds doubles apart), the trajectory's
  * time and outputs to `trajectory` (ldt apart), from the block's first step's row. The iterations'
- * sum and max over every step made so far are carried on (the run's). */
+ * sum and max over every step made so far are carried on (the run's). The rows counted: with
+ * counted[j] not NULL (a durable run's tables, run/recorder.py), counted[j][0] is set to base[j] +
+ * the block's rows written so far once the pass is over (j = 0 the steps', 1 the trajectory's), so a
+ * process killed outright has told its parent how many rows its mapped blocks hold (made the last of
+ * the passes, the other passes' columns of those rows are written too). */
 typedef struct {
     int n_out;
     double inverse, dt;
@@ -194,6 +201,8 @@ typedef struct {
     long ldt;
     double iterations_sum, iterations_max;
     double t0;          /* the start time: grid point k is t0 + k / inverse (or t0 + k dt) */
+    long *counted[2];   /* the steps' and the trajectory's rows counted, or NULL */
+    long base[2];       /* their rows before the block's first step */
 } BlockRows;
 
 /* Steps first .. first + count - 1 of the block (a DRPassFn). */
@@ -223,6 +232,78 @@ void block_rows_steps(void *args, int block_n0, const double *log, long ld_, int
     }
     p->iterations_sum = sum;
     p->iterations_max = most;
+    for (int j = 0; j < 2; j++)                 /* after the rows' values: another process reads them */
+        if (p->counted[j]) __atomic_store_n(p->counted[j], p->base[j] + (long)first + n, __ATOMIC_RELEASE);
+}
+
+/* One freeze watch (blocks.py, FreezeBlock). Its values are FreezeWatch's (every H_i, then every
+ * channel's e, then its f), value v at log row rows[v]; subsystem i's outputs are the values
+ * outs[out_at[i]] .. outs[out_at[i + 1] - 1], its inputs likewise (ins, in_at). last[v]: value v at the
+ * step before, left at the last step's. Per subsystem: count, the steps of its current stretch of equal
+ * outputs whose inputs changed, from step since (-1: none); found_from and found_steps, its longest
+ * stretch that reached frozen_steps (-1: none), found_at the step where the first one did, first_from
+ * where that one began; *found_count counts the subsystems found. */
+typedef struct FreezeBlock {
+    int k, frozen_steps, n_values;
+    const int *rows, *out_at, *outs, *in_at, *ins;
+    double *last;
+    int *count, *since, *found_from, *found_steps, *found_at, *first_from, *found_count;
+} FreezeBlock;
+
+/* Whether any of the values which[from .. to - 1] differs at step s from the step before (x[v]: value
+ * v's row from the pass's first step; last before it). NaN differs from everything, as in Python. */
+static int changed(const double *const *x, const double *last, const int *which, int from, int to, size_t s) {
+    for (int j = from; j < to; j++) {
+        const double *row = x[which[j]];
+        if (row[s] != (s ? row[s - 1] : last[which[j]])) return 1;
+    }
+    return 0;
+}
+
+/* Subsystem i's stretch reached frozen_steps at step n (count: its steps so far, since: its first step):
+ * its longest stretch is this one when it is the first, goes on or is longer (FreezeWatch._count). */
+static void freeze_found(const FreezeBlock *p, int i, int n, int since) {
+    int steps = n + 1 - since;
+    if (p->found_from[i] < 0) {
+        p->found_at[i] = n;
+        p->first_from[i] = since;
+        ++*p->found_count;
+    } else if (p->found_from[i] != since && steps <= p->found_steps[i]) {
+        return;
+    }
+    p->found_from[i] = since;
+    p->found_steps[i] = steps;
+}
+
+/* Subsystem i over steps n .. n + count - 1 (x: the values' rows from the first), step by step as
+ * FreezeWatch.after_step and _count: a step whose outputs changed ends the stretch, one with the same
+ * outputs starts or goes on with it, and counts when its inputs changed. */
+static void freeze_subsystem(const FreezeBlock *p, const double *const *x, int i, int n, int count) {
+    int since = p->since[i], stretch = p->count[i];
+    const int *outs = p->outs, *ins = p->ins;
+    int o0 = p->out_at[i], o1 = p->out_at[i + 1], i0 = p->in_at[i], i1 = p->in_at[i + 1];
+    for (int s = 0; s < count; s++) {
+        if (changed(x, p->last, outs, o0, o1, (size_t)s)) {
+            stretch = 0;
+            since = -1;
+            continue;
+        }
+        if (since < 0) since = n + s;
+        stretch += changed(x, p->last, ins, i0, i1, (size_t)s);
+        if (stretch >= p->frozen_steps) freeze_found(p, i, n + s, since);
+    }
+    p->since[i] = since;
+    p->count[i] = stretch;
+}
+
+/* Steps first .. first + count - 1 of the block from macro-step n0 (a DRPassFn). */
+void freeze_steps(void *args, int n0, const double *log, long ld, int first, int count) {
+    FreezeBlock *p = args;
+    int n_values = p->n_values;
+    const double *x[n_values > 0 ? n_values : 1];
+    for (int v = 0; v < n_values; v++) x[v] = log + (size_t)p->rows[v] * (size_t)ld + first;
+    for (int i = 0; i < p->k; i++) freeze_subsystem(p, x, i, n0 + first, count);
+    for (int v = 0; v < n_values && count > 0; v++) p->last[v] = x[v][count - 1];
 }
 
 /* Whether step s of a block is sampled: s = first, first + every, ... */
@@ -338,3 +419,4 @@ MIRRORED(PassBlock)
 MIRRORED(BlockRows)
 MIRRORED(SampledBlock)
 MIRRORED(WatchBlock)
+MIRRORED(FreezeBlock)

@@ -12,7 +12,9 @@ struct WatchBlock;
 void block_rows_steps(void *args, int n0, const double *log, long ld, int first, int count);
 /* Condition 2 over the same steps (args: a PassBlock). */
 void passivity_steps(void *args, int n0, const double *log, long ld, int first, int count);
-DRPassFn block_rows_steps, passivity_steps;      /* the kernel calls them as DRPassFns (dr_set_passes) */
+/* The freeze watch over the same steps (args: a FreezeBlock). */
+void freeze_steps(void *args, int n0, const double *log, long ld, int first, int count);
+DRPassFn block_rows_steps, passivity_steps, freeze_steps;      /* the kernel calls them as DRPassFns (dr_set_passes) */
 
 /* CertificateSampler's columns and running figures of one block. */
 void sampled_block(const struct SampledBlock *p);

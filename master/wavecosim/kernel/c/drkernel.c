@@ -1015,6 +1015,7 @@ int dr_run_steps_of(DRKernel *k, DRStep *io, int n0, int count, double *rows, lo
     double *ledger_rows = rows + (dr_log_width(k) - DR_LEDGER_COLUMNS) * m;
     const double *log0 = rows - io->at;
     int passing = io->passes && k->n_passes > 0;
+    int every = io->passes == DR_PASSES_EACH ? 1 : DR_PASS_STEPS;
     io->stopped = 0;
     if (io->at == 0) io->passed = 0;
     for (int i = 0; io->measure && i < k->n_sub; i++) k->sub[i].n_samples = 0;   /* dr_costs: this call's */
@@ -1049,7 +1050,7 @@ int dr_run_steps_of(DRKernel *k, DRStep *io, int n0, int count, double *rows, lo
             io->stopped = 1;
             return s + 1;
         }
-        if (passing && io->at + s + 1 - io->passed >= DR_PASS_STEPS)      /* the last DR_PASS_STEPS still in cache */
+        if (passing && io->at + s + 1 - io->passed >= every)      /* the last steps still in cache */
             make_passes(k, io, n0 - io->at, log0, ld, io->at + s + 1);
     }
     if (passing) make_passes(k, io, n0 - io->at, log0, ld, io->at + count);

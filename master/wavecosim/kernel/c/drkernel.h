@@ -80,7 +80,8 @@ typedef struct {
     double t0;           /* in (dr_run_steps): the start time; step n is at t0 + n dt */
     int at;              /* in (dr_run_steps): the block's log column of this call's first step (the block's
                           * steps before it were logged by the calls before, from column 0) */
-    int passes;          /* in (dr_run_steps): make the passes (dr_set_passes) over the steps as they are logged */
+    int passes;          /* in (dr_run_steps): the passes (dr_set_passes) over the steps as they are logged, a
+                          * DRPasses */
     int passed;          /* out (dr_run_steps, passes): the block's steps, from column 0, the passes went over */
 } DRStep;
 
@@ -202,8 +203,12 @@ void dr_prepare_log(DRKernel *k, const DRStep *io, double *rows, long ld, int co
  * failed in (the one after those done) has no entries. */
 int dr_run_steps(DRKernel *k, DRStep *io, int n0, int count, double *rows, long ld, double H_cap);
 
+/* When dr_run_steps makes the passes (io->passes): none; over each DR_PASS_STEPS steps logged, while
+ * they are in cache; after every step (a durable run's rows counted as each step is made). */
+enum DRPasses { DR_PASSES_NONE, DR_PASSES_CACHED, DR_PASSES_EACH };
+
 /* The passes dr_run_steps makes with io->passes: fns[j](args[j], ...) over each DR_PASS_STEPS steps
- * logged, while they are in cache, and over the rest when the call made all its steps (not over a
+ * logged (each step: DR_PASSES_EACH) and over the rest when the call made all its steps (not over a
  * step it stopped after, nor one an FMU call failed in: io->passed says how far they went, from the
  * block's column 0; the caller makes them over the rest). At most DR_MAX_PASSES; n = 0: none. Returns
  * 0, or -1 for too many. */

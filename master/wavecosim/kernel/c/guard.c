@@ -21,6 +21,7 @@
 #include <unistd.h>
 
 #include "abi.h"
+#include "fmicall.h"
 #include "guard.h"
 
 #define GUARD_FRAMES 48
@@ -42,15 +43,20 @@ typedef struct GuardFault {
 } GuardFault;
 
 /* The page a supervised run's parent and child share (wavecosim/run/channel.py): the child's state
- * and exit code, what the parent or the watchdog asks, the watchdog's heartbeat, and the fault. */
+ * and exit code, what the parent or the watchdog asks, the watchdog's heartbeat, the FMU call in
+ * progress and the subsystem whose FMU the set-up opens (named when a stuck process gives no stack),
+ * and the fault. */
 typedef struct {
     unsigned magic;
     int state, exit_code, request, pid, spare;
     double heartbeat;
+    FmiCallNow call;
+    char opening[64];
     GuardFault fault;
 } RunStatus;
 
 MIRRORED(GuardFault)
+MIRRORED(FmiCallNow)
 MIRRORED(RunStatus)
 
 static GuardFault *volatile record = NULL;
@@ -106,17 +112,15 @@ static int claim(int kind, int sig, int code, void *address, void *context) {
     return 1;
 }
 
-static void wake_rescue(void) {
-    if (notify_fd >= 0) {
-        ssize_t ignored = write(notify_fd, "!", 1);
-        (void)ignored;
-    }
+/* 1 if the rescue was woken; 0 when the pipe is gone (an FMU closed every descriptor): the thread then
+ * goes on to die, and the parent writes what the record says. */
+static int wake_rescue(void) {
+    return notify_fd >= 0 && write(notify_fd, "!", 1) == 1;
 }
 
 static void on_fatal(int sig, siginfo_t *info, void *context) {
     if (armed && claim(FAULT_SIGNAL, sig, info ? info->si_code : 0, info ? info->si_addr : NULL, context)) {
-        wake_rescue();
-        if (record->rescuable) park();
+        if (wake_rescue() && record->rescuable) park();
     } else if (armed && claimed && !(gil_held && gil_held())) {
         park();                          /* a second fault while the first is rescued */
     }
@@ -145,8 +149,7 @@ static void on_exit_call(int status, void *arg) {
     (void)arg;
     if (!armed) return;
     if (claim(FAULT_EXIT, 0, status, NULL, NULL)) {
-        wake_rescue();
-        if (record->rescuable) park();
+        if (wake_rescue() && record->rescuable) park();
     } else if (claimed) {
         park();
     }

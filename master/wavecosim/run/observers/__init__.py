@@ -72,8 +72,14 @@ class Observer:
         """Its columns of a block's steps as a pass in C (kernel/blocks.py, Pass; built by prepare_block),
         which the kernel makes as it logs the steps and the runner over the rest, in place of
         after_block; None when it has none. The runner sets its arguments' `out` (the block's first
-        row of these columns) and `ldo` (doubles between them)."""
+        row of these columns) and `ldo` (doubles between them) where it has columns."""
         return None
+
+    def before_passes(self):
+        """Before a kernel call whose steps its block_pass makes: hand the pass what after_step carried on."""
+
+    def after_passes(self):
+        """After a block whose steps its block_pass made: what it says of them itself (a warning)."""
 
     def after_block(self, n0, logs, readings, rows, at=None):
         """After macro-steps n0 .. n0 + len(rows) - 1 made in one call: `logs` (fast_path.BlockLog)
