@@ -11,7 +11,9 @@ accepts or rejects it. Estimates (docs/masters.md, choosing a tolerance):
              and PyFMI); the step of h is the one committed, so the energy ledger books it as any step.
 Both are scaled per unit step (times (T - t0) / h), so the error over the run, not of one step,
 stays near the tolerance. Iterating masters stop their inner loop once its residual is below
-INNER_SHARE of the step's allowance (their `eps`), within the budget K.
+INNER_SHARE of the step's allowance (their `eps`), within the budget K; DR starts it from its waves
+extrapolated over the varying step. Each try holds the signals and steps the subsystems without a
+port by its h (Scene.begin_step); a rejected try puts them back with the others.
 """
 import copy
 import math
@@ -23,7 +25,7 @@ from ..kernel.linalg import matvec
 SAFETY, SHRINK, GROW = 0.9, 0.2, 5.0          # h_new = h clamp(SAFETY (1/err)^(1/p), SHRINK, GROW)
 STARTUP = 0.01                                # the first p + 1 steps, which have no estimate yet: dt x STARTUP
 INNER_SHARE = 0.1                             # the inner residual allowed, as a share of the step's allowance
-ATOL_SHARE = 0.1                             # default atol: this share of tolerance x the largest variable's size
+ATOL_SHARE = 0.1                              # default atol: this share of tolerance x the largest variable's size
 CALIBRATION = 1.0                             # the estimate's weight (measured against the true error)
 STATE = ("y", "y_step_start", "u", "_b", "_b_step_start", "_b_before", "_a_before", "_a_step_start")
 
