@@ -6,12 +6,14 @@ import subprocess
 import numpy as np
 import pytest
 
-from paths import CLI, CONFIGS
+import yaml
+
+from paths import CLI, CONFIGS, THIRD_PARTY
 from wavecosim import api
 from wavecosim.errors import ConfigError
 from wavecosim.run.fine import fine_reference, true_error
 from wavecosim.run.runner import LiveRun
-from wavecosim.scenario.config import load_scenario
+from wavecosim.scenario.config import load_scenario, parse_scenario
 
 
 def scenario(name, T, **master):
@@ -38,16 +40,54 @@ def drive(sc, forced=None):
         live.finish("finished", "")
 
 
-@pytest.mark.parametrize("name, master", [("foreign_pair", "gauss-seidel"), ("two_oscillators", "dr"),
-                                          ("foreign_pair", "explicit")])
-def test_a_rejected_step_leaves_every_fmu_where_it_was(name, master):
-    """The same accepted steps made again without a rejection give the same numbers to the last bit."""
-    sc = scenario(name, 0.1, algorithm=master, tolerance=1e-2)
+@pytest.mark.parametrize("name, master, options, tol", [("foreign_pair", "gauss-seidel", "manual", 1e-2),
+                                                        ("two_oscillators", "dr", "manual", 1e-3),
+                                                        ("two_oscillators", "dr", "auto", 1e-3),
+                                                        ("foreign_pair", "explicit", "manual", 1e-2)])
+def test_a_rejected_step_leaves_every_fmu_where_it_was(name, master, options, tol):
+    """The same accepted steps made again without a rejection give the same numbers to the last bit
+    (DR's Anderson differences kept across steps included)."""
+    sc = scenario(name, 0.1, algorithm=master, tolerance=tol, options=options)
     steps, rows, rejected = drive(sc)
     assert rejected > 0
     again, rows_again, none = drive(sc, forced=list(steps))
     assert none == 0 and np.array_equal(again, steps)
     assert np.array_equal(rows, rows_again)
+
+
+def with_a_signal(T):
+    """Table I's pair and a third oscillator C without a port, driven by a signal from A's q1."""
+    raw = yaml.safe_load((CONFIGS / "two_oscillators.yaml").read_text())
+    raw["subsystems"]["C"] = {"fmu": "LinearSide", "parameters": {"m2": 1.0, "k2": 40.0}}
+    raw["signals"] = [{"from": "A.q1", "to": "C.F", "factor": 30.0}]
+    raw["outputs"]["qC"] = "C.q2"
+    return parse_scenario({**raw, "T": T}, str(CONFIGS / "two_oscillators.yaml"))
+
+
+@pytest.mark.parametrize("estimate", ["predictor", "doubling"])
+def test_a_rejected_step_puts_back_the_subsystems_without_a_port(estimate):
+    """A signal-only subsystem steps with each try's h and is put back with the others: the same
+    accepted steps made again without a rejection give the same numbers, C's included."""
+    sc = with_a_signal(0.1).with_master(tolerance=1e-4, estimate=estimate)
+    steps, rows, rejected = drive(sc)
+    assert rejected > 0 and len(np.unique(steps)) > 3
+    again, rows_again, none = drive(sc, forced=list(steps))
+    assert none == 0 and np.array_equal(rows, rows_again)
+    fine = api.simulate(sc.with_master(tolerance=None).with_changes("test", dt=1e-4), reference=False,
+                        certificates=False).trajectory["qC"]
+    assert abs(rows[-1, -1] - fine[-1]) < 1e-2 * np.ptp(fine)
+
+
+@pytest.mark.skipif(not (THIRD_PARTY / "dcmotor").exists(), reason="the third-party dcmotor FMUs are absent")
+def test_the_dcmotor_runs_in_the_tolerance_mode():
+    """The dcmotor's stimuli FMU (no port) and its signals follow the varying step; the ledger holds."""
+    sc = scenario("dcmotor", 0.002, tolerance=1e-2, options="auto")
+    result = api.simulate(sc, reference=False, certificates=False)
+    s = result.summary
+    assert s["status"] == "finished" and s["accepted_steps"] == len(result.steps["dt"])
+    assert len(np.unique(result.steps["dt"])) > 3 and result.t[-1] == 0.002
+    assert s["max_ledger"] <= s["ledger_tolerance"]
+    assert result.trajectory["U"][-1] == 12.0
 
 
 def test_steps_follow_the_tolerance_and_end_on_T():
@@ -82,6 +122,18 @@ def test_true_error_is_near_the_tolerance_and_the_ledger_holds():
     fixed = true_error(api.simulate(sc.with_master(tolerance=None), reference=False, certificates=False),
                        reference)["true_error"]
     assert fixed > 10 * err                     # dt = 0.01 alone is far from the tolerance
+
+
+def test_dr_starts_from_the_waves_extrapolated_over_the_varying_step():
+    """start: auto is the extrapolated start in the tolerance mode: fewer inner iterations than the
+    previous step's waves, the same steps and about the same true error."""
+    sc = scenario("two_oscillators", 0.5, tolerance=1e-3)
+    auto, previous = (api.simulate(sc.with_master(start=start), reference=False, certificates=False)
+                      for start in ("auto", "previous"))
+    assert auto.summary["start"] == "extrapolated"
+    assert auto.summary["accepted_steps"] == previous.summary["accepted_steps"]
+    assert auto.steps["iterations"].sum() < 0.7 * previous.steps["iterations"].sum()
+    assert np.allclose(auto.trajectory["q1"], previous.trajectory["q1"], atol=1e-3 * 0.4)
 
 
 def test_doubling_estimates_by_two_half_steps():
@@ -123,6 +175,8 @@ def test_equal_error_calls_follow_each_fixed_series():
     assert calls_for(series, 2e-2) == (100.0, False)
     assert calls_for(series, 5e-3) == (pytest.approx(200.0), False)
     assert calls_for(series, 6.25e-5) == (pytest.approx(16000.0), True)
+    unstable = [(1600, 6.4e4), (6400, 4.77)]                         # far from converged: extrapolated at order 2
+    assert calls_for(unstable, 4.77e-2) == (pytest.approx(64000.0), True)
     rows = [{"mode": "fixed", "master": m, "K": "", "doStep": c * f, "true_error": e}
             for m, f in (("explicit", 1), ("newton", 3)) for c, e in series]
     assert best_fixed(rows, 5e-3)[0::2] == (pytest.approx(200.0), "explicit")

@@ -127,9 +127,10 @@ class Scene:
 
     def begin_step(self, n, t):
         """Before anything of macro-step n (at t = t_n): hold the signal inputs, then one doStep of
-        every signal-only subsystem (stepped once per macro-step, never frozen or rolled back)."""
+        every signal-only subsystem (stepped once per macro-step with its own step size, never frozen;
+        the tolerance mode puts it back from a snapshot when it rejects the step)."""
         if self.signals is not None:
-            self.signals.hold(n)
+            self.signals.hold(n, t)
         for s in self.signal_only:
             try:
                 s.step_alone(n, t)

@@ -188,9 +188,9 @@ class Signals:
             raw[k] = table.value(column, t, linear)
         return [convert(v) for convert, v in zip(self.convert, raw)]
 
-    def hold(self, n):
-        """Read every signal at t_n, then set each on its input (held over macro-step n)."""
-        t = self.t0 + n * self.dt
+    def hold(self, n, t=None):
+        """Read every signal at t_n (default t0 + n dt), then set each on its input (held over macro-step n)."""
+        t = self.t0 + n * self.dt if t is None else t
         values = self.values(t)
         self._check(enumerate(values), n)
         for sub, groups in self.writes.items():

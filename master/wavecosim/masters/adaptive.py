@@ -11,17 +11,21 @@ accepts or rejects it. Estimates (docs/masters.md, choosing a tolerance):
              and PyFMI); the step of h is the one committed, so the energy ledger books it as any step.
 Both are scaled per unit step (times (T - t0) / h), so the error over the run, not of one step,
 stays near the tolerance. Iterating masters stop their inner loop once its residual is below
-INNER_SHARE of the step's allowance (their `eps`), within the budget K.
+INNER_SHARE of the step's allowance (their `eps`), within the budget K; DR starts it from its waves
+extrapolated over the varying step. Each try holds the signals and steps the subsystems without a
+port by its h (Scene.begin_step); a rejected try puts them back with the others.
 """
+import copy
 import math
 from dataclasses import dataclass, replace
 
 from ..errors import ConfigError
+from ..kernel.linalg import matvec
 
 SAFETY, SHRINK, GROW = 0.9, 0.2, 5.0          # h_new = h clamp(SAFETY (1/err)^(1/p), SHRINK, GROW)
 STARTUP = 0.01                                # the first p + 1 steps, which have no estimate yet: dt x STARTUP
 INNER_SHARE = 0.1                             # the inner residual allowed, as a share of the step's allowance
-ATOL_SHARE = 1e-3                             # default atol: this share of tolerance x the largest variable's size
+ATOL_SHARE = 0.1                              # default atol: this share of tolerance x the largest variable's size
 CALIBRATION = 1.0                             # the estimate's weight (measured against the true error)
 STATE = ("y", "y_step_start", "u", "_b", "_b_step_start", "_b_before", "_a_before", "_a_step_start")
 
@@ -86,9 +90,6 @@ def check_tolerance_mode(scene, settings, source):
     if fixed:
         raise ConfigError(f"{source}: master.tolerance: subsystem {fixed[0]}'s FMU cannot change its communication "
                           f"step size (canHandleVariableCommunicationStepSize=\"false\"); run it with a fixed dt")
-    if scene.signals is not None or scene.signal_only:
-        raise ConfigError(f"{source}: master.tolerance: signals and subsystems without a port are held per "
-                          f"fixed macro-step; run this system with a fixed dt")
     if settings.estimate == "doubling" and not all(s.fmu.can_save_state for s in scene.subsystems):
         raise ConfigError(f"{source}: master.estimate: doubling needs every FMU to get and set its state")
 
@@ -127,16 +128,19 @@ class AdaptiveStep:
     def __init__(self, scene, settings):
         super().__init__(scene, replace(settings, fast="false"))       # the Python route, step by step
         check_tolerance_mode(scene, settings, scene.scenario.source)
+        if settings.start == "auto" and hasattr(self, "start"):
+            self.start = "extrapolated"          # DR's start over the varying step (_start_iterate)
         sc = scene.scenario
         self.end, self.span, self.t0 = sc.T, sc.T - sc.start_time, sc.start_time
         self.every = settings.output_step
         self.p = order(self)
         self.control = Controller(settings, sc.dt, self.span, self.p)
         self.doubling = settings.estimate == "doubling"
-        self.can_reject = all(s.fmu.can_save_state for s in scene.subsystems)
+        self.alone = scene.signal_only          # stepped with each try's h after the signals are held
+        self.can_reject = all(s.fmu.can_save_state for s in scene.subsystems + self.alone)
         self.snapshots = self.doubling or not self.needs_rollback
         self.times, self.points = [sc.start_time], []
-        self.h_set, self.wave_size = sc.dt, 0.0
+        self.h_set, self.h_made, self.wave_size = sc.dt, sc.dt, 0.0     # h now; h of the step that gave b^n
         self.watched = watched(scene)
         self.last = StepRecord()
         self.accepted = self.rejected = 0
@@ -163,18 +167,20 @@ class AdaptiveStep:
                 value = getattr(self, name, None)
                 if value is not None:
                     setattr(self, name, [v * ratio for v in value])
-        for s in self.subsystems:
+        for s in self.subsystems + self.alone:
             s.set_step(h)
         self.dt, self.h_set = h, h
 
     def _save(self):
         """The step's start: every FMU's state (snapshots; the rollback masters' own freeze serves
-        otherwise), the step size the waves are scaled to and the master's committed values."""
-        if self.snapshots and self.can_reject:
-            for s in self.subsystems:
-                s.snapshot()
-        return self.h_set, {k: getattr(self, k).copy() for k in STATE if getattr(self, k, None) is not None}, \
-            self._ledger_state()
+        otherwise), the step size the waves are scaled to, the master's committed values, the ledger's
+        figures and DR's Anderson differences."""
+        snap = self.can_reject or self.doubling
+        for s in ((self.subsystems if self.snapshots else []) + self.alone) if snap else []:
+            s.snapshot()
+        values = {k: getattr(self, k).copy() for k in STATE if getattr(self, k, None) is not None}
+        return {"h": self.h_set, "values": values, "ledger": self._ledger_state(), "snapshots": snap,
+                "h_made": self.h_made, "anderson": copy.deepcopy(getattr(self, "anderson", None))}
 
     def _ledger_state(self):
         """The energy ledger's running figures (L and its traffic), in Python and in the kernel, so a
@@ -190,12 +196,28 @@ class AdaptiveStep:
                 s.back_to_snapshot()
             else:
                 s.restore_frozen()
-            s.set_step(saved[0])
-        self.dt = self.h_set = saved[0]
-        for k, v in saved[1].items():
+        for s in self.alone if saved["snapshots"] else []:
+            s.back_to_snapshot()
+        for s in self.subsystems + self.alone:
+            s.set_step(saved["h"])
+        self.scene.ended = None
+        self.dt = self.h_set = saved["h"]
+        self.h_made = saved["h_made"]
+        for k, v in saved["values"].items():
             setattr(self, k, v.copy())
-        for holder, name, value in saved[2]:
+        for holder, name, value in saved["ledger"]:
             setattr(holder, name, value)
+        if saved["anderson"] is not None:       # DR's Anderson differences kept across steps (anderson_memory)
+            self.anderson = copy.deepcopy(saved["anderson"])
+
+    def _start_iterate(self):
+        """DR's start `extrapolated` over a varying step: P (b^n + r (b^n - b^{n-1})), r the ratio of this
+        step to the one that gave b^n (the fixed grid's P (2 b^n - b^{n-1}) when they are equal)."""
+        if getattr(self, "start", None) != "extrapolated" or self._b_before is None:
+            return super()._start_iterate()
+        r = self.h_set / self.h_made
+        u, self._b_before = matvec(self.P, [b + r * (b - bp) for b, bp in zip(self.b, self._b_before)]), self.b
+        return u
 
     def _target(self, t):
         """Where the step from t must end at the latest: T, or the next output time (output_step)."""
@@ -220,6 +242,15 @@ class AdaptiveStep:
             return self.control.inner_eps(self.wave_size * math.sqrt(h), h)
         return self.control.inner_eps(max(self.control.size or [0.0]), h)
 
+    def _make(self, n, t, h):
+        """The master's own step of h from t, after the signals are held and the signal-only
+        subsystems stepped by h (Scene.begin_step)."""
+        self._set_h(h)
+        self.scene.begin_step(n, t)
+        log = super().step(n, t)
+        self.h_made = h
+        return log
+
     def _attempt(self, n, t, h, saved):
         """One try of a step of h from the saved state: (its StepLog, the scaled estimate)."""
         eps = self._inner_eps(h)
@@ -227,17 +258,14 @@ class AdaptiveStep:
             self.eps = eps
         self.last.inner_eps = math.nan if eps is None else eps
         if self.doubling:
-            self._set_h(h / 2.0)
-            super().step(n, t)
-            super().step(n, t + h / 2.0)
+            self._make(n, t, h / 2.0)
+            self._make(n, t + h / 2.0, h / 2.0)
             half = self._stage()
             self._restore(saved)
-            self._set_h(h)
-            log = super().step(n, t)
+            log = self._make(n, t, h)
             gain = 2.0 ** self.p / (2.0 ** self.p - 1.0)
             return log, self.control.error([gain * (a - b) for a, b in zip(half, self._stage())], h)
-        self._set_h(h)
-        log = super().step(n, t)
+        log = self._make(n, t, h)
         if len(self.points) <= self.p:
             return log, math.nan
         nodes = self.times[-1 - self.p:]

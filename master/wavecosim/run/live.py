@@ -141,7 +141,8 @@ class LiveRun(BlockSteps, RunFiles):
         """Macro-step n: observers before, the master (its guard may redo the step), observers after,
         one row; returns the Reading of the FMUs after it."""
         t = self.time_of(n) if self.master.variable else self.t0 + n * self.dt
-        self.scene.begin_step(n, t)                  # signals held, signal-only subsystems stepped
+        if not self.master.variable:                 # a varying step holds them per try (masters/adaptive.py)
+            self.scene.begin_step(n, t)              # signals held, signal-only subsystems stepped
         before = self._counts() if self.bracket else None
         for o in self.observers:
             o.before_step(n, t)

@@ -172,7 +172,7 @@ class MasterConfig:
     start: str = field(default="auto", metadata=key(
         "DR: the start u^{n,0} of the inner loop: `paper` (P bⁿ, Algorithm 1), `extrapolated` (P (2 bⁿ − bⁿ⁻¹)), "
         "`previous` (the waves committed at the previous macro-step), or `auto`: `previous` under the energy "
-        "ledger, `paper` under the other guards",
+        "ledger, `paper` under the other guards, `extrapolated` over the varying step of the tolerance mode",
         type="auto | paper | extrapolated | previous"))
     warm_start: bool = field(default=None, metadata=key(
         "DR: `true` is `start: extrapolated`, `false` is `start: paper`", type="boolean", default="none"))

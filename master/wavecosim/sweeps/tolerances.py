@@ -18,6 +18,7 @@ REFINE = (1, 4, 16)                                 # the fixed grid's steps: dt
 FIELDS = ("mode", "master", "K", "tolerance", "dt", "true_error", "doStep", "save", "restore", "wall_time_s",
           "accepted_steps", "rejected_steps", "max_ledger", "status")
 MAX_STEPS = 2_000_000                               # a fixed run of more steps is left out of the grid
+MAX_ORDER = 2                                       # the highest order in h of any master's error
 
 
 def fine(scenario):
@@ -90,7 +91,8 @@ def write(rows, out_dir):
 def calls_for(points, target):
     """The doSteps a fixed series [(doSteps, true error)] needs for a true error of `target`: its
     cheapest run already that accurate, else along the log-log line through the two runs around the
-    target (past its most accurate run, the line through its last two): (doSteps, extrapolated)."""
+    target (past its most accurate run, the line through its last two, no steeper than order
+    MAX_ORDER: a series that was far from converged does not promise more): (doSteps, extrapolated)."""
     points = sorted(p for p in points if p[1] > 0 and math.isfinite(p[1]))
     first = next((p for p in points if p[1] <= target), None)
     if first is not None and first is points[0]:
@@ -100,7 +102,9 @@ def calls_for(points, target):
         return math.nan, True
     a, b = next(((a, b) for a, b in pairs if b[1] <= target), pairs[-1])
     slope = math.log(b[0] / a[0]) / math.log(b[1] / a[1])
-    return a[0] * (target / a[1]) ** slope, first is None
+    if first is None:                    # past the most accurate run b: at most the highest order of a master
+        return b[0] * (target / b[1]) ** min(slope, -1.0 / MAX_ORDER), True
+    return a[0] * (target / a[1]) ** slope, False
 
 
 def best_fixed(rows, target):
