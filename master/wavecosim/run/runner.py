@@ -83,11 +83,12 @@ def run(scenario, out_dir=None, *, label=None, reference=None, certificates=True
 @contextmanager
 def _set_up_summary(scenario, out_dir, label, file_suffix):
     """A run that fails before its first row still leaves its summary.json (0 steps, its status and the
-    error's line) in out_dir, as every run that started does; the error is raised again."""
+    error's line) in out_dir, as every run that started does; the error is raised again. Bad input
+    (a ConfigError: nothing ran) leaves none."""
     try:
         yield
     except WavecosimError as exc:
-        if out_dir is not None:
+        if out_dir is not None and not isinstance(exc, ConfigError):
             label = label or f"{scenario.master.algorithm}_K{scenario.master.K}"
             path = Path(out_dir) / f"summary{'_' + label if file_suffix else ''}.json"
             try:
