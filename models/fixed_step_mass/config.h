@@ -1,5 +1,6 @@
 /* ForeignMass (models/foreign_mass) declaring canHandleVariableCommunicationStepSize="false", as
  * exports with a solver tied to one step do: a master must keep its communication step. */
+#define MODEL_SOURCE "foreign_mass"
 #define MODEL_IDENTIFIER FixedStepMass
 #define MODEL_GUID "{8c1f7a52-3b0e-4f43-9d55-0e6a1c2b7f31}"
 #define CAN_VARIABLE_STEP "false"

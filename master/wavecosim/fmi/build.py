@@ -30,10 +30,18 @@ def layer_source(model_dir: Path) -> Path:
     return LAYER / (m.group(1) if m else "fmi2_cosim.c")
 
 
+def model_source(model_dir: Path) -> Path:
+    """The model's equations: its model.c, or the one of the model its config.h names in MODEL_SOURCE
+    (a variant that differs only in what it declares, e.g. FixedStepMass of foreign_mass)."""
+    m = re.search(r'#define\s+MODEL_SOURCE\s+"(\w+)"', (model_dir / "config.h").read_text())
+    return (MODELS / m.group(1) if m else model_dir) / "model.c"
+
+
 def _sources(model_dir: Path):
-    """The layer's headers, describe.c, the model's layer and the model's own files."""
+    """The layer's headers, describe.c, the model's layer, its headers and its equations."""
     layer = [p for p in LAYER.iterdir() if p.suffix == ".h" or p.name == "describe.c"]
-    return layer + [layer_source(model_dir)] + [p for p in model_dir.iterdir() if p.suffix in (".c", ".h")]
+    own = [p for p in model_dir.iterdir() if p.suffix == ".h" or (p.suffix == ".c" and p.name != "model.c")]
+    return layer + [layer_source(model_dir)] + own + [model_source(model_dir)]
 
 
 def _packed_sources(model_dir: Path):
@@ -68,7 +76,9 @@ def _compile(model_dir, ident, path):
         describe, so = Path(tmp) / "describe", Path(tmp) / f"{ident}.so"
         run([COMPILER, *CFLAGS, *includes, LAYER / "describe.c", "-o", describe], f"{ident} description")
         xml = run([describe], f"{ident} description")
-        run([COMPILER, *CFLAGS, "-shared", *includes, layer_source(model_dir), model_dir / "model.c", "-o", so, "-lm",
+        equations = Path(tmp) / "model.c"                # copied: its #include "config.h" is the model's own
+        shutil.copyfile(model_source(model_dir), equations)
+        run([COMPILER, *CFLAGS, "-shared", *includes, layer_source(model_dir), equations, "-o", so, "-lm",
              "-lpthread"], ident)
 
         members = [("modelDescription.xml", xml.encode()), (f"binaries/{PLATFORM}/{ident}.so", so.read_bytes())]
