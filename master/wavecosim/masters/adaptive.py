@@ -142,7 +142,7 @@ class AdaptiveStep:
         self.times, self.points = [sc.start_time], []
         self.h_set, self.h_made, self.wave_size = sc.dt, sc.dt, 0.0     # h now; h of the step that gave b^n
         self.watched = watched(scene)
-        self.last = StepRecord()
+        self.step_record = StepRecord()
         self.accepted = self.rejected = 0
 
     def time_at(self, k):
@@ -256,7 +256,7 @@ class AdaptiveStep:
         eps = self._inner_eps(h)
         if eps is not None and hasattr(self, "eps"):
             self.eps = eps
-        self.last.inner_eps = math.nan if eps is None else eps
+        self.step_record.inner_eps = math.nan if eps is None else eps
         if self.doubling:
             self._make(n, t, h / 2.0)
             self._make(n, t + h / 2.0, h / 2.0)
@@ -291,7 +291,7 @@ class AdaptiveStep:
         self.times.append(target if h == target - t else t + h)
         self.points = self.points[-self.p:] + [self._stage()]      # the accepted steps' values, t0 not among them
         self.control.h = self.control.next(h, err) if err == err else self.control.h
-        self.last.dt, self.last.estimate, self.last.rejected = h, err, rejected
+        self.step_record.dt, self.step_record.estimate, self.step_record.rejected = h, err, rejected
         self.accepted, self.rejected = self.accepted + 1, self.rejected + rejected
         return log
 

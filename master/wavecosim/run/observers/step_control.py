@@ -21,7 +21,7 @@ class StepControl(Observer):
         self.master = master
 
     def after_step(self, n, t, log, reading, row):
-        r = self.master.last
+        r = self.master.step_record
         row[0], row[1], row[2], row[3] = r.dt, r.estimate, r.rejected, r.inner_eps
 
     def summary(self):
