@@ -33,7 +33,7 @@ def drive(sc, forced=None):
                 c.h = c.h_min = c.h_max = forced[n]
                 live.master.can_reject = False
             live.step(n)
-            steps.append(live.master.last.dt)
+            steps.append(live.master.step_record.dt)
             n += 1
         return np.array(steps), live.trajectory.array().copy(), live.master.rejected
     finally:
