@@ -212,8 +212,9 @@ tolerance_options = options([
     click.option("--dt-max", type=click.FloatRange(min=0, min_open=True), help="The tolerance mode's largest step (s)."),
     click.option("--output-step", type=click.FloatRange(min=0, min_open=True),
                  help="The tolerance mode: steps also end on the times start + k OUTPUT_STEP (s)."),
-    click.option("--estimate", type=click.Choice(["predictor", "doubling"]),
-                 help="The tolerance mode's error estimate (default: predictor)."),
+    click.option("--estimate", type=click.Choice(["auto", "predictor", "coupling", "doubling"]),
+                 help="The tolerance mode's error estimate (default: auto: coupling for FMUs set up with a "
+                      "tolerance under explicit and gauss-seidel, else predictor)."),
 ])
 
 

@@ -11,7 +11,7 @@ import yaml
 from paths import CLI, CONFIGS, THIRD_PARTY
 from wavecosim import api
 from wavecosim.errors import ConfigError
-from wavecosim.run.fine import fine_reference, true_error
+from wavecosim.run.fine import Extrapolated, fine_reference, true_error
 from wavecosim.run.runner import LiveRun
 from wavecosim.scenario.config import load_scenario, parse_scenario
 
@@ -78,6 +78,51 @@ def test_a_rejected_step_puts_back_the_subsystems_without_a_port(estimate):
     assert abs(rows[-1, -1] - fine[-1]) < 1e-2 * np.ptp(fine)
 
 
+def test_the_coupling_estimate_puts_each_fmu_back():
+    """`estimate: coupling` makes each FMU again from the step's start with the other end of its held
+    inputs and puts it back: the same steps made without it give the same numbers to the last bit."""
+    sc = scenario("foreign_pair", 0.1, algorithm="gauss-seidel", tolerance=1e-3, estimate="coupling")
+    steps, rows, _ = drive(sc)
+    assert len(np.unique(steps)) > 3
+    _, rows_again, _ = drive(sc.with_master(estimate="predictor"), forced=list(steps))
+    assert np.array_equal(rows, rows_again)
+
+
+def from_rest(T, **master):
+    """Table I's pair with both masses at their rest position, A moving: every watched value is zero at t0."""
+    raw = yaml.safe_load((CONFIGS / "two_oscillators.yaml").read_text())
+    raw["subsystems"]["A"]["start"] = {"q1": 0.0, "v1": 1.0, "d": 0.0}
+    return parse_scenario({**raw, "T": T}, str(CONFIGS / "two_oscillators.yaml")).with_master(**master)
+
+
+def test_a_run_from_rest_takes_its_sizes_from_pilot_steps_and_puts_everything_back():
+    """With every watched value zero at t0 the pilot's steps give the sizes, and the FMUs are back at t0
+    after them: the same steps made without the pilot give the same numbers to the last bit."""
+    sc = from_rest(0.5, algorithm="gauss-seidel", tolerance=1e-2)
+    result = api.simulate(sc, reference=False, certificates=False)
+    assert result.summary["pilot"] is True
+    steps, rows, _ = drive(sc)
+    _, rows_again, _ = drive(sc, forced=list(steps))
+    assert np.array_equal(rows, rows_again)
+
+
+@pytest.mark.skipif(not (THIRD_PARTY / "dcmotor").exists(), reason="the third-party dcmotor FMUs are absent")
+def test_the_coupling_estimate_follows_the_held_inputs_on_the_dcmotor():
+    """The Dymola FMUs integrate to their tolerance inside each step: `auto` takes the coupling estimate,
+    which lands the true error near the tolerance with fewer doSteps than the predictor, whose error is
+    larger (it follows the current's own curvature, which the machine's solver resolves, and misses the
+    torque's lag behind the held speed)."""
+    sc = scenario("dcmotor", 0.05, algorithm="gauss-seidel", tolerance=1e-2)
+    coupled = api.simulate(sc, reference=False, certificates=False)
+    assert coupled.summary["estimate"] == "coupling" and coupled.summary["pilot"] is True
+    reference = fine_reference(sc, coupled, dt=1e-5)
+    err = true_error(coupled, reference)["true_error"]
+    assert 1e-3 <= err <= 1e-2
+    predicted = api.simulate(sc.with_master(estimate="predictor"), reference=False, certificates=False)
+    assert predicted.summary["fmu_calls"]["doStep"] > 1.3 * coupled.summary["fmu_calls"]["doStep"]
+    assert true_error(predicted, reference)["true_error"] > 2 * err
+
+
 @pytest.mark.skipif(not (THIRD_PARTY / "dcmotor").exists(), reason="the third-party dcmotor FMUs are absent")
 def test_the_dcmotor_runs_in_the_tolerance_mode():
     """The dcmotor's stimuli FMU (no port) and its signals follow the varying step; the ledger holds."""
@@ -122,6 +167,21 @@ def test_true_error_is_near_the_tolerance_and_the_ledger_holds():
     fixed = true_error(api.simulate(sc.with_master(tolerance=None), reference=False, certificates=False),
                        reference)["true_error"]
     assert fixed > 10 * err                     # dt = 0.01 alone is far from the tolerance
+
+
+def test_the_fine_reference_is_second_order_where_the_monolithic_step_is_first():
+    """Over physical ports (the wave adapter holds the inputs) the monolithic step is first order: the
+    reference is its Richardson extrapolation with a run at half the step. Over own wave ports it is
+    second order and runs once."""
+    sc = load_scenario(CONFIGS / "foreign_pair.yaml").with_changes("test", T=0.2)
+    coarse, finer = (fine_reference(sc, None, dt=0.2 / n) for n in (1000, 4000))
+    plain = api.simulate(sc.with_master(algorithm="newton").with_changes("test", dt=0.2 / 1000), reference=False,
+                         certificates=False)
+    assert plain.summary["error_order"] == 1
+    assert true_error(plain, finer)["true_error"] > 1e-3
+    assert true_error(coarse, finer)["true_error"] < 1e-2 * true_error(plain, finer)["true_error"]
+    wave = fine_reference(scenario("two_oscillators", 0.2), None, dt=1e-3)
+    assert wave.summary["error_order"] == 2 and not isinstance(wave, Extrapolated)
 
 
 def test_dr_starts_from_the_waves_extrapolated_over_the_varying_step():

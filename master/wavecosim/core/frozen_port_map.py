@@ -325,6 +325,19 @@ class Subsystem:
         self._call(self._set_state, "fmi2SetFMUstate", self._comp, self._snap)
         self._dirty[0] = 0
 
+    def response(self, inputs, names):
+        """The values `names` after one step from where snapshot() saved it with these inputs; the
+        instance is then put back where it was (the tolerance mode's coupling estimate)."""
+        if not hasattr(self, "_aside"):
+            self._aside = cvalues.pointer()
+        self._call(self._get_state, "fmi2GetFMUstate", self._comp, cvalues.ref(self._aside))
+        self.back_to_snapshot()
+        self.advance(inputs)
+        out = self.read(names)
+        self._call(self._set_state, "fmi2SetFMUstate", self._comp, self._aside)
+        self._dirty[0] = 0
+        return out
+
     def read(self, names):
         return self.fmu.get_real(self.fmu.vrs(names))
 
@@ -362,7 +375,7 @@ class Subsystem:
     def release(self):
         """Free the saved x_i^n (not after the FMU reported fatal). The handle object stays the same
         (the C kernels hold its address); it is NULL afterwards."""
-        for handle in (self._state, getattr(self, "_snap", None)):
+        for handle in (self._state, getattr(self, "_snap", None), getattr(self, "_aside", None)):
             if handle is not None and handle.value and self.fmu.free_state_allowed():
                 self.fmu.free_state_handle(handle)
             if handle is not None:

@@ -6,27 +6,38 @@ step size h on every subsystem, makes the master's own step once (or three times
 accepts or rejects it. Estimates (docs/masters.md, choosing a tolerance):
   predictor  the watched outputs z^{n+1} (the error columns) against their extrapolation by the
              polynomial of degree p through the last p + 1 accepted points (Milne's device), scaled
-             to the step's h^(p+1); p is the master's order (`order`). No FMU call of its own.
+             to the step's h^(p+1); p is the master's order (base.error_order). No FMU call of its own.
+  coupling   for a master that holds its inputs (explicit, gauss-seidel): half the change in the
+             watched outputs that the other end of each FMU's held inputs makes, the FMU made again
+             from the step's start with them and put back (one doStep per FMU). `auto` takes it for
+             the FMUs set up with a tolerance (their solver keeps its own error below it, so the
+             error of a step is the coupling's) and the predictor for the others.
   doubling   two steps of h/2 against one step of h from the same state (Richardson, as MasterSim
              and PyFMI); the step of h is the one committed, so the energy ledger books it as any step.
-Both are scaled per unit step (times (T - t0) / h), so the error over the run, not of one step,
+All are scaled per unit step (times (T - t0) / h), so the error over the run, not of one step,
 stays near the tolerance. Iterating masters stop their inner loop once its residual is below
 INNER_SHARE of the step's allowance (their `eps`), within the budget K; DR starts it from its waves
 extrapolated over the varying step. Each try holds the signals and steps the subsystems without a
-port by its h (Scene.begin_step); a rejected try puts them back with the others.
+port by its h (Scene.begin_step); a rejected try puts them back with the others. A run whose watched
+values are all zero at t0 has no size to be relative to: PILOT_STEPS steps of the master's own over
+the span give them one first (masters that hold their inputs: one doStep per FMU a step), and
+everything is put back.
 """
 import copy
 import math
 from dataclasses import dataclass, replace
 
 from ..errors import ConfigError
-from ..kernel.linalg import matvec
+from ..kernel.linalg import matvec, matvec_rows
+from .base import error_order
 
 SAFETY, SHRINK, GROW = 0.9, 0.2, 5.0          # h_new = h clamp(SAFETY (1/err)^(1/p), SHRINK, GROW)
-STARTUP = 0.01                                # the first p + 1 steps, which have no estimate yet: dt x STARTUP
+STARTUP = 0.01                                # the predictor's first p + 1 steps, which have no estimate
+                                              # yet: dt x STARTUP, or x the tolerance where it is smaller
 INNER_SHARE = 0.1                             # the inner residual allowed, as a share of the step's allowance
 ATOL_SHARE = 0.1                              # default atol: this share of tolerance x the largest variable's size
 CALIBRATION = 1.0                             # the estimate's weight (measured against the true error)
+PILOT_STEPS = 20                              # a run from rest: the sizes of this many steps of (T - t0) / 20
 STATE = ("y", "y_step_start", "u", "_b", "_b_step_start", "_b_before", "_a_before", "_a_step_start")
 
 
@@ -90,8 +101,25 @@ def check_tolerance_mode(scene, settings, source):
     if fixed:
         raise ConfigError(f"{source}: master.tolerance: subsystem {fixed[0]}'s FMU cannot change its communication "
                           f"step size (canHandleVariableCommunicationStepSize=\"false\"); run it with a fixed dt")
-    if settings.estimate == "doubling" and not all(s.fmu.can_save_state for s in scene.subsystems):
-        raise ConfigError(f"{source}: master.estimate: doubling needs every FMU to get and set its state")
+    if settings.estimate in ("doubling", "coupling") and not all(s.fmu.can_save_state for s in scene.subsystems):
+        raise ConfigError(f"{source}: master.estimate: {settings.estimate} needs every FMU to get and set its state")
+
+
+def holds_inputs(master):
+    """Whether the master holds each FMU's inputs over the step without iterating (explicit,
+    gauss-seidel): its error is the coupling's where the FMUs integrate accurately."""
+    return not master.wave and not master.needs_rollback
+
+
+def coupled(master, settings):
+    """The watched subsystems whose estimate is `coupling` (module docstring), by name."""
+    if settings.estimate == "coupling" and not holds_inputs(master):
+        raise ConfigError(f"{master.scene.scenario.source}: master.estimate: coupling needs a master that holds its "
+                          f"inputs over the step (explicit, gauss-seidel), not {master.settings.algorithm}")
+    if settings.estimate not in ("auto", "coupling") or not holds_inputs(master):
+        return set()
+    return {s.name for s, _ in master.watched if s.fmu.can_save_state
+            and (settings.estimate == "coupling" or s.fmu.tolerance is not None)}
 
 
 def watched(scene):
@@ -113,14 +141,6 @@ def watched(scene):
     return out
 
 
-def order(master):
-    """The order in h of the master's error over the run: 2 for an iterating wave master over FMUs'
-    own wave ports (each step is the FMUs' implicit step with the solved interface), else 1 (the
-    inputs are held over the step, or the wave adapter holds them)."""
-    own_waves = master.wave and not any(s.adapter for s in master.subsystems)
-    return 2 if master.needs_rollback and own_waves else 1
-
-
 class AdaptiveStep:
     """Mixin over a master: its step(n, t) is the controlled step (module docstring)."""
     variable = True
@@ -133,7 +153,7 @@ class AdaptiveStep:
         sc = scene.scenario
         self.end, self.span, self.t0 = sc.T, sc.T - sc.start_time, sc.start_time
         self.every = settings.output_step
-        self.p = order(self)
+        self.p = error_order(self)
         self.control = Controller(settings, sc.dt, self.span, self.p)
         self.doubling = settings.estimate == "doubling"
         self.alone = scene.signal_only          # stepped with each try's h after the signals are held
@@ -142,8 +162,11 @@ class AdaptiveStep:
         self.times, self.points = [sc.start_time], []
         self.h_set, self.h_made, self.wave_size = sc.dt, sc.dt, 0.0     # h now; h of the step that gave b^n
         self.watched = watched(scene)
+        self.coupled = coupled(self, settings)
+        self.predicted = any(s.name not in self.coupled for s, _ in self.watched)    # needs p + 1 points first
         self.step_record = StepRecord()
         self.accepted = self.rejected = 0
+        self.piloted = False
 
     def time_at(self, k):
         """The time after k accepted steps."""
@@ -266,20 +289,58 @@ class AdaptiveStep:
             gain = 2.0 ** self.p / (2.0 ** self.p - 1.0)
             return log, self.control.error([gain * (a - b) for a, b in zip(half, self._stage())], h)
         log = self._make(n, t, h)
-        if len(self.points) <= self.p:
+        if self.predicted and len(self.points) <= self.p:
             return log, math.nan
+        diff = self._predictor_diff(t, h) if self.predicted else None
+        parts, at = [], 0
+        for sub, names in self.watched:
+            parts += (self._coupling_diff(saved, sub, names) if sub.name in self.coupled else diff[at:at + len(names)])
+            at += len(names)
+        return log, self.control.error(parts, h)
+
+    def _predictor_diff(self, t, h):
+        """The watched values against their extrapolation through the last p + 1 accepted points,
+        scaled to the step's h^(p+1) (Milne's device)."""
         nodes = self.times[-1 - self.p:]
         guess = extrapolate(nodes, self.points[-1 - self.p:], t + h)
         weight = h ** (self.p + 1) / math.prod(t + h - tj for tj in nodes)      # z^(p+1) h^(p+1) / (p+1)!
-        return log, self.control.error([weight * (a - b) for a, b in zip(self._stage(), guess)], h)
+        return [weight * (a - b) for a, b in zip(self._stage(), guess)]
+
+    def _coupling_diff(self, saved, sub, names):
+        """Half the change in `names` that the other end of the subsystem's held inputs makes over the
+        step just made (its FMU made again from the step's start with them, then put back)."""
+        off = self.scene.offsets[self.subsystems.index(sub)]
+        start = matvec_rows(self.G, saved["values"]["y"], off, off + sub.m)
+        end = matvec_rows(self.G, self.y, off, off + sub.m)
+        other = [a + b - u for a, b, u in zip(start, end, self.held[off:off + sub.m])]
+        return [(a - b) / 2.0 for a, b in zip(sub.response(other, names), sub.read(names))]
+
+    def _pilot(self, n, t):
+        """Each watched variable's size over PILOT_STEPS steps of the master's own step across the
+        span, for a run whose watched values are all zero at t0; everything is then put back."""
+        for s in self.subsystems + self.alone:
+            s.snapshot()
+        saved, snapshots, h = self._save(), self.snapshots, self.span / PILOT_STEPS
+        sizes = [abs(v) for v in self._stage()]
+        for k in range(PILOT_STEPS):
+            self._make(n + k, t + k * h, h)
+            sizes = [max(a, abs(v)) for a, v in zip(sizes, self._stage())]
+        self.snapshots = True
+        self._restore(saved)
+        self.snapshots = snapshots
+        self.control.observe(sizes)
+        self.piloted = True
 
     def step(self, n, t):
         if self.points:                     # the last accepted step as committed (an energy guard may redo it)
             self.points[-1] = self._stage()
+        elif self.can_reject and holds_inputs(self) and not any(self._stage()):
+            self._pilot(n, t)
         self.control.observe(self.points[-1] if self.points else self._stage())
         saved, rejected = self._save(), 0
-        h = self._fit(t, self.control.h if len(self.points) > self.p else max(self.control.h_min,
-                                                                               self.control.h * STARTUP))
+        startup = self.predicted and len(self.points) <= self.p
+        first = self.control.h * min(STARTUP, self.control.rtol)           # unchecked: small for the tolerance
+        h = self._fit(t, max(self.control.h_min, first) if startup else self.control.h)
         while True:
             log, err = self._attempt(n, t, h, saved)
             if not err > 1.0 or h <= self.control.h_min or not self.can_reject:
@@ -295,9 +356,17 @@ class AdaptiveStep:
         self.accepted, self.rejected = self.accepted + 1, self.rejected + rejected
         return log
 
+    def _estimate_name(self):
+        """The estimate as run: doubling, predictor, coupling, or which subsystems take coupling."""
+        if self.doubling or not self.coupled:
+            return "doubling" if self.doubling else "predictor"
+        if not self.predicted:
+            return "coupling"
+        return f"coupling ({', '.join(sorted(self.coupled))}), predictor (the others)"
+
     def run_info(self):
-        return {**super().run_info(), "tolerance": self.control.rtol, "estimate": "doubling" if self.doubling
-                else "predictor",
+        return {**super().run_info(), "tolerance": self.control.rtol, "estimate": self._estimate_name(),
+                "pilot": self.piloted,
                 "dt_smallest": min(b - a for a, b in zip(self.times, self.times[1:])) if self.accepted else math.nan,
                 "dt_largest": max(b - a for a, b in zip(self.times, self.times[1:])) if self.accepted else math.nan}
 

@@ -272,3 +272,12 @@ class KernelOwner:
             self.kernel.close()
             self.kernel = None
         super().close()
+
+
+def error_order(master) -> int:
+    """The order in h of a master's error over the run: 2 for an iterating wave master over FMUs' own
+    wave ports with no signal between them (each step is the FMUs' implicit step with the solved
+    interface), else 1 (an input is held over the step: a signal, the wave adapter, or a master that
+    does not iterate)."""
+    own_waves = master.wave and not any(s.adapter for s in master.subsystems)
+    return 2 if master.needs_rollback and own_waves and master.scene.signals is None else 1

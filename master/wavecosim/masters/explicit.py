@@ -2,6 +2,8 @@
 
 With `master.fast` (auto, as for DR) the step runs in C (wavecosim/kernel/classical.py), one
 call per step or blocks of steps (masters/kernel_route.py), to the last bit the same."""
+import numpy as np
+
 from .base import StepLog
 from .kernel_route import KernelRoute
 from .physical import PhysicalMaster, step_forward
@@ -14,6 +16,7 @@ class ExplicitMaster(KernelRoute, PhysicalMaster):
 
     def __init__(self, scene, settings):
         super().__init__(scene, settings)
+        self.held = np.zeros(scene.n_channels)   # the inputs held over the last step made in Python
         self.attach_kernel(scene, settings)
 
     def make_step(self, n, t) -> StepLog:
@@ -22,7 +25,7 @@ class ExplicitMaster(KernelRoute, PhysicalMaster):
                                                                               measure))
             self.book_kernel(n, t)
             return StepLog(iterations=0, reason="explicit")
-        self.y = self.sweep(self.y, lambda sub, inputs: step_forward(sub, n, t, inputs))
+        self.y = self.sweep(self.y, lambda sub, inputs: step_forward(sub, n, t, inputs), self.held)
         return StepLog(iterations=0, reason="explicit")
 
     def block_iterations(self, log):

@@ -5,6 +5,7 @@ import time
 
 from ..errors import OutputError
 from ..masters import MASTERS
+from ..masters.base import error_order
 from .metadata import run_metadata
 from .outputs import cannot
 from .recorder import write_json, write_mat
@@ -36,7 +37,7 @@ class RunFiles:
         for o in self.observers:
             out.update(o.summary())
         if self.master is not None:
-            out.update(self.master.run_info())
+            out.update(self.master.run_info(), error_order=error_order(self.master))
             out.update(self.scene.port_info())
             out.update(self.scene.signal_info())
         return out

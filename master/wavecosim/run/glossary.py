@@ -126,7 +126,10 @@ SUMMARY = {
                "size by its largest |value|, one zero throughout by 1", "1"),
     # the tolerance mode (masters/adaptive.py, observers/step_control.py) and the fine reference (run/fine.py)
     "tolerance": ("the tolerance mode's relative tolerance", "1"),
-    "estimate": ("the tolerance mode's error estimate (`predictor` or `doubling`)", "text"),
+    "estimate": ("the tolerance mode's error estimate as run (`predictor`, `coupling`, `doubling`, or which "
+                 "subsystems take `coupling`)", "text"),
+    "pilot": ("whether the tolerance mode made its pilot steps first (every watched value zero at the start: "
+              "their sizes from 20 steps across the span, then everything put back)", "boolean"),
     "accepted_steps": ("macro-steps accepted by the step control (the rows after t₀)", "1"),
     "rejected_steps": ("macro-steps rejected and redone smaller", "1"),
     "dt_smallest": ("the smallest accepted macro-step", "s"),
@@ -136,7 +139,13 @@ SUMMARY = {
                    "1"),
     "true_error_by_column": ("the same per column", "1"),
     "true_reference_dt": ("the refined step the reference of `true_error` ran at", "s"),
+    "true_reference_richardson": ("whether the reference of `true_error` is Richardson's extrapolation "
+                                  "2 x_(h/2) − x_h of runs at the refined step h and at half of it (where the "
+                                  "monolithic step's error is first order in h: `error_order` 1)", "boolean"),
     # the master (masters/)
+    "error_order": ("the order in the macro-step of the master's error over the run: 2 for an iterating wave "
+                    "master over FMUs' own wave ports with no signal between them, else 1 (an input is held over "
+                    "the step)", "1"),
     "fast_path": ("whether the master ran on the C kernel route", "boolean"),
     "fast_note": ("why it ran on the route it did", "text"),
     "threads": ("threads that evaluated the subsystems", "1"),

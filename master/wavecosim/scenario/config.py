@@ -185,7 +185,7 @@ class MasterConfig:
         "the Python route", "1", "number > 0 or null", "none (fixed dt)"))
     atol: float = field(default=None, metadata=key(
         "the tolerance mode's absolute tolerance, added to tolerance × the size of each interface variable",
-        "the port variables' units", "number > 0 or null", "tolerance × 1e-3 of each variable's largest size"))
+        "the port variables' units", "number > 0 or null", "0.1 × tolerance × the largest watched variable's size"))
     dt_min: float = field(default=None, metadata=key(
         "the tolerance mode's smallest macro-step (a step at dt_min is accepted whatever its estimate)", "s",
         "number > 0 or null", "dt / 1000"))
@@ -194,10 +194,12 @@ class MasterConfig:
     output_step: float = field(default=None, metadata=key(
         "the tolerance mode: steps also end on the times start_time + k output_step (no interpolation: "
         "trajectory.csv holds those points among the accepted ones)", "s", "number > 0 or null", "none"))
-    estimate: str = field(default="predictor", metadata=key(
+    estimate: str = field(default="auto", metadata=key(
         "the tolerance mode's error estimate: `predictor` (the committed interface against its extrapolation, "
-        "no extra FMU call) or `doubling` (one step of h against two of h/2, as MasterSim and PyFMI)",
-        type="predictor | doubling"))
+        "no extra FMU call), `coupling` (explicit, gauss-seidel: each FMU made again with the other end of its "
+        "held inputs, one doStep more), `doubling` (one step of h against two of h/2, as MasterSim and PyFMI); "
+        "`auto`: `coupling` for the FMUs set up with a tolerance where the master holds its inputs, else "
+        "`predictor`", type="auto | predictor | coupling | doubling"))
 
 
 @dataclass
@@ -700,7 +702,7 @@ def _step_control(ck, m, master):
         if m.get(name) is not None:
             setattr(master, name, ck.number(m[name], f"master.{name}", positive=True))
     if "estimate" in m:
-        master.estimate = ck.string(m["estimate"], "master.estimate", ("predictor", "doubling"))
+        master.estimate = ck.string(m["estimate"], "master.estimate", ("auto", "predictor", "coupling", "doubling"))
 
 
 def _threads(ck, value, path="master.threads"):
