@@ -115,7 +115,7 @@ def test_the_coupling_estimate_follows_the_held_inputs_on_the_dcmotor():
     sc = scenario("dcmotor", 0.05, algorithm="gauss-seidel", tolerance=1e-2)
     coupled = api.simulate(sc, reference=False, certificates=False)
     assert coupled.summary["estimate"] == "coupling" and coupled.summary["pilot"] is True
-    reference = fine_reference(sc, coupled, dt=1e-5)
+    reference = fine_reference(sc, coupled, dt=1e-4)
     err = true_error(coupled, reference)["true_error"]
     assert 1e-3 <= err <= 1e-2
     predicted = api.simulate(sc.with_master(estimate="predictor"), reference=False, certificates=False)

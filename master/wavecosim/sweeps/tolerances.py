@@ -27,16 +27,16 @@ def fine(scenario):
     return fine_reference(scenario, None, dt=(scenario.T - scenario.start_time) / FINE_STEPS)
 
 
-def plan(scenario, tolerances, masters=TOLERANCE_MASTERS):
+def plan(scenario, tolerances, masters=TOLERANCE_MASTERS, refine=REFINE):
     """(mode, scenario) of every run: the tolerance mode per master and tolerance, doubling with the
-    first master, then the fixed grid."""
+    first master, then the fixed grid (dt / each of `refine`)."""
     out = []
     for tol in tolerances:
         for m in masters:
             out.append(("tolerance", scenario.with_master(algorithm=m, tolerance=tol, estimate="auto")))
         out.append(("doubling", scenario.with_master(algorithm=masters[0], tolerance=tol, estimate="doubling")))
     for m, K in FIXED:
-        for r in REFINE:
+        for r in refine:
             dt = scenario.dt / r
             if (scenario.T - scenario.start_time) / dt <= MAX_STEPS:
                 changes = {"algorithm": m, "tolerance": None, **({"K": K} if K is not None else {})}
@@ -62,12 +62,12 @@ def measure(mode, sc, reference):
 
 
 def compare_tolerances(scenario, tolerances, out_dir=None, masters=TOLERANCE_MASTERS, progress=None, peers=(),
-                       note=None):
+                       note=None, refine=REFINE):
     """Every run of plan() against one fine reference, then the peers' (sweeps/ecco.py: PEERS) at each
     tolerance; the rows (and the files in out_dir). `note` takes the line of a peer left out."""
     reference = fine(scenario)
     rows = []
-    for mode, sc in plan(scenario, tolerances, masters):
+    for mode, sc in plan(scenario, tolerances, masters, refine):
         rows.append(measure(mode, sc, reference))
         if progress:
             progress(rows[-1])
