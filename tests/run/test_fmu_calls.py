@@ -100,12 +100,19 @@ def test_substeps_and_the_tolerance_mode_keep_the_strict_fmus_order(master, fast
     """StrictMass (its layer refuses a call out of the FMI state machine, a doStep from another time
     than its own, a state it did not give) as the foreign pair's mass with 3 substeps, then under a
     tolerance (its rejected steps put back from saved states): every call it takes is in order, and
-    counted as it counts them. (Substeps behind the wave adapter are refused on the kernel route.)"""
-    for change in ({"subsystems": {"A": {"substeps": 3}}, "master": {"algorithm": master, "K": 3, "fast": fast}},
-                   {"master": {"algorithm": master, "K": 3, "fast": fast, "tolerance": 1e-3}}):
+    counted as it counts them; a master that holds its inputs also from rest (its pilot steps) with the
+    coupling estimate (each step made again and put back). (Substeps behind the wave adapter are refused
+    on the kernel route.)"""
+    changes = [{"subsystems": {"A": {"substeps": 3}}, "master": {"algorithm": master, "K": 3, "fast": fast}},
+               {"master": {"algorithm": master, "K": 3, "fast": fast, "tolerance": 1e-3}}]
+    if master in ("explicit", "gauss-seidel"):
+        changes.append({"error": ["v"],              # the mass's speed, zero at t0: the pilot steps first
+                        "master": {"algorithm": master, "fast": fast, "tolerance": 1e-3, "estimate": "coupling"}})
+    for change in changes:
         raw = copy.deepcopy(PAIR)
         raw["subsystems"]["A"].update(change.get("subsystems", {}).get("A", {}))
         raw["master"] = change["master"]
+        raw["error"] = change.get("error", raw["error"])
         scenario = parse_scenario(raw, "pair.yaml")
         if fast and "subsystems" in change and MASTERS[master].wave:
             with pytest.raises(ConfigError, match="substeps per macro-step with a wave adapter"):
@@ -115,3 +122,6 @@ def test_substeps_and_the_tolerance_mode_keep_the_strict_fmus_order(master, fast
         assert result.summary["status"] == "finished", result.summary.get("message")
         mine = result.summary["fmu_calls_by_subsystem"]["A"]
         assert mine == own_counts(result, "A") and mine["doStep"] >= result.summary["steps"]
+        if change["master"].get("estimate") == "coupling":
+            assert result.summary["pilot"] is True and result.summary["estimate"] == "coupling"
+            assert mine["doStep"] >= 2 * result.summary["steps"]

@@ -86,6 +86,7 @@ class Subsystem:
         # (core/quirks.py). Either is by the book here: x_i^n is only ever restored at t_n, the
         # doSteps' own communication point, never before it.
         self.no_prior = 0
+        self.alone_no_prior = 1              # the flag of step_alone: a signal-only subsystem is not stepped back
         self._batch = None                   # kernel.queries.Queries (False without it), on first raw_queries
         self.t = 0.0
         self._t = cvalues.double(0.0)
@@ -160,13 +161,13 @@ class Subsystem:
         """One doStep (or `substeps` of dt / substeps) from the current state with the inputs already set: a
         subsystem without a port (signals only), stepped once per macro-step and never frozen or rolled back."""
         self.begin(step_index, t)
-        status = self._do_step(self._comp, self._t, self._h, 1)                     # never rolled back
+        status = self._do_step(self._comp, self._t, self._h, self.alone_no_prior)
         for k in range(1, self.substeps):
             if fails(status):
                 break
             self.fmu.count("fmi2DoStep")                 # the substep before went through (the last: check)
             self._tk.value = t + k * self._h.value
-            status = self._do_step(self._comp, self._tk, self._h, 1)
+            status = self._do_step(self._comp, self._tk, self._h, self.alone_no_prior)
         reached = self.fmu.asked_to_end(status) if fails(status) else None
         if reached is not None:
             done = math.isclose(reached, t + self.dt, rel_tol=1e-12, abs_tol=1e-12 * self.dt)

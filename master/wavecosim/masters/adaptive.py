@@ -318,8 +318,10 @@ class AdaptiveStep:
     def _pilot(self, n, t):
         """Each watched variable's size over PILOT_STEPS steps of the master's own step across the
         span, for a run whose watched values are all zero at t0; everything is then put back."""
-        for s in self.subsystems + self.alone:
+        flags = [(s, s.no_prior, s.alone_no_prior) for s in self.subsystems + self.alone]
+        for s, _, _ in flags:                   # the pilot's doSteps do not promise to stay ahead of t0
             s.snapshot()
+            s.no_prior = s.alone_no_prior = 0
         saved, snapshots, h = self._save(), self.snapshots, self.span / PILOT_STEPS
         sizes = [abs(v) for v in self._stage()]
         for k in range(PILOT_STEPS):
@@ -328,6 +330,8 @@ class AdaptiveStep:
         self.snapshots = True
         self._restore(saved)
         self.snapshots = snapshots
+        for s, no_prior, alone in flags:
+            s.no_prior, s.alone_no_prior = no_prior, alone
         self.control.observe(sizes)
         self.piloted = True
 
