@@ -101,7 +101,8 @@ def check_tolerance_mode(scene, settings, source):
     if fixed:
         raise ConfigError(f"{source}: master.tolerance: subsystem {fixed[0]}'s FMU cannot change its communication "
                           f"step size (canHandleVariableCommunicationStepSize=\"false\"); run it with a fixed dt")
-    if settings.estimate in ("doubling", "coupling") and not all(s.fmu.can_save_state for s in scene.subsystems):
+    everyone = scene.subsystems + (scene.signal_only if settings.estimate == "coupling" else [])
+    if settings.estimate in ("doubling", "coupling") and not all(s.fmu.can_save_state for s in everyone):
         raise ConfigError(f"{source}: master.estimate: {settings.estimate} needs every FMU to get and set its state")
 
 
@@ -116,10 +117,9 @@ def coupled(master, settings):
     if settings.estimate == "coupling" and not holds_inputs(master):
         raise ConfigError(f"{master.scene.scenario.source}: master.estimate: coupling needs a master that holds its "
                           f"inputs over the step (explicit, gauss-seidel), not {master.settings.algorithm}")
-    if settings.estimate not in ("auto", "coupling") or not holds_inputs(master):
-        return set()
-    return {s.name for s, _ in master.watched if s.fmu.can_save_state
-            and (settings.estimate == "coupling" or s.fmu.tolerance is not None)}
+    if settings.estimate not in ("auto", "coupling") or not holds_inputs(master) or not master.can_reject:
+        return set()                     # each step's snapshot, which the estimate makes again from, is saved
+    return {s.name for s, _ in master.watched if settings.estimate == "coupling" or s.fmu.tolerance is not None}
 
 
 def watched(scene):
