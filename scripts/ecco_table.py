@@ -8,14 +8,13 @@ fixed grid of explicit and gauss-seidel beneath it. Needs libcosimpy (the `peers
 
 The page holds it between `<!-- measured: ecco -->` and `<!-- end of measured -->`.
 """
-import json
-import re
 import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "master"))
 
+import measured  # noqa: E402
 from wavecosim.scenario.config import load_scenario  # noqa: E402
 from wavecosim.sweeps import tolerances  # noqa: E402
 from wavecosim.sweeps.ecco import peer_rows  # noqa: E402
@@ -23,7 +22,6 @@ from wavecosim.sweeps.ecco import peer_rows  # noqa: E402
 MODE_TOLERANCES, ECCO_TOLERANCES = (1e-2, 1e-3), (1e-2, 1e-3, 1e-4, 1e-5, 1e-6)
 MASTERS = ("gauss-seidel", "dr")
 PAGE = ROOT / "docs" / "masters.md"
-BLOCK = re.compile(r"(<!-- measured: ecco -->\n).*?(<!-- end of measured -->)", re.S)
 
 
 def measure():
@@ -54,16 +52,8 @@ def table(rows):
 
 
 def main(out, again=False):
-    out.mkdir(parents=True, exist_ok=True)
-    if again:
-        rows = json.loads((out / "ecco.json").read_text())
-    else:
-        rows = measure()
-        (out / "ecco.json").write_text(json.dumps(rows, indent=1))
-    text = PAGE.read_text()
-    PAGE.write_text(BLOCK.sub(lambda m: m.group(1) + table(rows) + m.group(2), text))
+    measured.write(PAGE, "ecco", table(measured.rows(out / "ecco.json", measure, again)))
 
 
 if __name__ == "__main__":
-    given = [a for a in sys.argv[1:] if not a.startswith("--")]
-    main(Path(given[0]) if given else ROOT / "out" / "ecco", "--again" in sys.argv)
+    main(*measured.arguments(ROOT / "out" / "ecco"))

@@ -8,14 +8,13 @@ reference at dt = 1e-4 without substeps (run/fine.py), doSteps over both FMUs:
 
 The page holds it between `<!-- measured: multirate -->` and `<!-- end of measured -->`.
 """
-import json
-import re
 import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "master"))
 
+import measured  # noqa: E402
 from wavecosim import api  # noqa: E402
 from wavecosim.run.fine import fine_reference, true_error  # noqa: E402
 from wavecosim.scenario.config import load_scenario  # noqa: E402
@@ -24,7 +23,6 @@ CASES = ((0.01, 1, 1), (0.01, 2, 1), (0.01, 4, 1), (0.01, 8, 1), (0.01, 1, 4), (
          (0.00125, 1, 1))                          # (dt, substeps of A, substeps of B)
 MASTERS = (("dr", {"K": 50}), ("newton", {}), ("gauss-seidel", {}), ("explicit", {}))
 PAGE = ROOT / "docs" / "masters.md"
-BLOCK = re.compile(r"(<!-- measured: multirate -->\n).*?(<!-- end of measured -->)", re.S)
 
 
 def scene(dt=0.01, a=1, b=1):
@@ -67,16 +65,8 @@ def table(rows):
 
 
 def main(out, again=False):
-    out.mkdir(parents=True, exist_ok=True)
-    if again:
-        rows = json.loads((out / "multirate.json").read_text())
-    else:
-        rows = measure()
-        (out / "multirate.json").write_text(json.dumps(rows, indent=1))
-    text = PAGE.read_text()
-    PAGE.write_text(BLOCK.sub(lambda m: m.group(1) + table(rows) + m.group(2), text))
+    measured.write(PAGE, "multirate", table(measured.rows(out / "multirate.json", measure, again)))
 
 
 if __name__ == "__main__":
-    given = [a for a in sys.argv[1:] if not a.startswith("--")]
-    main(Path(given[0]) if given else ROOT / "out" / "multirate", "--again" in sys.argv)
+    main(*measured.arguments(ROOT / "out" / "multirate"))
