@@ -88,6 +88,12 @@ def test_the_coupling_estimate_puts_each_fmu_back():
     assert np.array_equal(rows, rows_again)
 
 
+def test_the_coupling_estimate_is_refused_for_a_master_that_iterates():
+    with pytest.raises(ConfigError, match="coupling needs a master that holds its inputs over the step"):
+        api.simulate(scenario("foreign_pair", 0.1, algorithm="dr", tolerance=1e-3, estimate="coupling"),
+                     reference=False, certificates=False)
+
+
 def from_rest(T, **master):
     """Table I's pair with both masses at their rest position, A moving: every watched value is zero at t0."""
     raw = yaml.safe_load((CONFIGS / "two_oscillators.yaml").read_text())
@@ -112,7 +118,7 @@ def test_the_coupling_estimate_follows_the_held_inputs_on_the_dcmotor():
     which lands the true error near the tolerance with fewer doSteps than the predictor, whose error is
     larger (it follows the current's own curvature, which the machine's solver resolves, and misses the
     torque's lag behind the held speed)."""
-    sc = scenario("dcmotor", 0.05, algorithm="gauss-seidel", tolerance=1e-2)
+    sc = scenario("dcmotor", 0.02, algorithm="gauss-seidel", tolerance=1e-2)
     coupled = api.simulate(sc, reference=False, certificates=False)
     assert coupled.summary["estimate"] == "coupling" and coupled.summary["pilot"] is True
     reference = fine_reference(sc, coupled, dt=1e-4)
@@ -120,7 +126,7 @@ def test_the_coupling_estimate_follows_the_held_inputs_on_the_dcmotor():
     assert 1e-3 <= err <= 1e-2
     predicted = api.simulate(sc.with_master(estimate="predictor"), reference=False, certificates=False)
     assert predicted.summary["fmu_calls"]["doStep"] > 1.3 * coupled.summary["fmu_calls"]["doStep"]
-    assert true_error(predicted, reference)["true_error"] > 2 * err
+    assert true_error(predicted, reference)["true_error"] > 1.5 * err
 
 
 @pytest.mark.skipif(not (THIRD_PARTY / "dcmotor").exists(), reason="the third-party dcmotor FMUs are absent")
