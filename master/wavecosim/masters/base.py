@@ -276,8 +276,10 @@ class KernelOwner:
 
 def error_order(master) -> int:
     """The order in h of a master's error over the run: 2 for an iterating wave master over FMUs' own
-    wave ports with no signal between them (each step is the FMUs' implicit step with the solved
-    interface), else 1 (an input is held over the step: a signal, the wave adapter, or a master that
-    does not iterate)."""
+    wave ports that no signal drives (each step is the FMUs' implicit step with the solved
+    interface), else 1 (an input is held over the step: a signal's, the wave adapter's, or a master's
+    that does not iterate)."""
     own_waves = master.wave and not any(s.adapter for s in master.subsystems)
-    return 2 if master.needs_rollback and own_waves and master.scene.signals is None else 1
+    signals = master.scene.signals
+    held = signals is not None and bool({s.name for s in master.subsystems} & set(signals.driven))
+    return 2 if master.needs_rollback and own_waves and not held else 1

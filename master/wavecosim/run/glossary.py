@@ -144,7 +144,7 @@ SUMMARY = {
                                   "monolithic step's error is first order in h: `error_order` 1)", "boolean"),
     # the master (masters/)
     "error_order": ("the order in the macro-step of the master's error over the run: 2 for an iterating wave "
-                    "master over FMUs' own wave ports with no signal between them, else 1 (an input is held over "
+                    "master over FMUs' own wave ports that no signal drives, else 1 (an input is held over "
                     "the step)", "1"),
     "fast_path": ("whether the master ran on the C kernel route", "boolean"),
     "fast_note": ("why it ran on the route it did", "text"),
