@@ -188,6 +188,8 @@ def test_the_fine_reference_is_second_order_where_the_monolithic_step_is_first()
     assert true_error(coarse, finer)["true_error"] < 1e-2 * true_error(plain, finer)["true_error"]
     wave = fine_reference(scenario("two_oscillators", 0.2), None, dt=1e-3)
     assert wave.summary["error_order"] == 2 and not isinstance(wave, Extrapolated)
+    only_c = api.simulate(with_a_signal(0.05).with_master(algorithm="newton"), reference=False, certificates=False)
+    assert only_c.summary["error_order"] == 2            # the signal drives C alone, no port's input
 
 
 def test_dr_starts_from_the_waves_extrapolated_over_the_varying_step():
