@@ -106,3 +106,16 @@ def test_sources_whose_library_lacks_fmi_functions_are_refused_in_one_line(tmp_p
                                           r"fmi3\w+"):
         Fmu(fmu, "feedthrough")
     assert not list((tmp_path / "cache").rglob("Feedthrough.so"))
+
+
+@needs_reference
+def test_a_model_exchange_solver_is_set_up_below_the_tolerance_mode(tmp_path):
+    """The solver of a model-exchange FMU is our CVode (1e-4 where nothing sets it): under a cap
+    (master.fmu_tolerance, the tolerance mode's) it is set up at the cap, as any FMU with a solver."""
+    path = model_exchange_only(REFERENCE / "VanDerPol.fmu", tmp_path / "VanDerPol.fmu")
+    for at_most, told in ((None, None), (1e-6, 1e-6), (1e-2, 1e-4)):
+        fmu = Fmu(path, "F", tolerance_at_most=at_most)
+        try:
+            assert fmu.tolerance == told and fmu._fmi.tolerance == (told or 1e-4)
+        finally:
+            fmu.close()

@@ -129,6 +129,44 @@ def test_the_coupling_estimate_follows_the_held_inputs_on_the_dcmotor():
     assert true_error(predicted, reference)["true_error"] > 1.5 * err
 
 
+def test_the_fmus_are_set_up_below_the_tolerance_asked_for():
+    """An FMU set up with a tolerance (A: 1e-4; B has none) is tightened to fmu_tolerance, `auto`:
+    FMU_SHARE x the tolerance mode's, in the run and in its fine reference; a fixed step or
+    fmu_tolerance null keeps the given one, a number caps it, and a bad value is one line."""
+    raw = yaml.safe_load((CONFIGS / "foreign_pair.yaml").read_text())
+    raw["subsystems"]["A"]["tolerance"] = 1e-4
+    sc = parse_scenario({**raw, "T": 0.02}, str(CONFIGS / "foreign_pair.yaml")).with_master(
+        algorithm="gauss-seidel", tolerance=1e-2)
+
+    def set_up(s):
+        return api.simulate(s, reference=False, certificates=False)
+
+    tight = set_up(sc)
+    assert tight.summary["fmu_tolerance"] == {"A": 1e-5}
+    assert fine_reference(sc, tight, dt=1e-3).summary["fmu_tolerance"] == {"A": 1e-5}
+    assert set_up(sc.with_master(fmu_tolerance=None)).summary["fmu_tolerance"] == {"A": 1e-4}
+    assert set_up(sc.with_master(tolerance=None)).summary["fmu_tolerance"] == {"A": 1e-4}
+    assert set_up(sc.with_master(tolerance=None, fmu_tolerance=1e-7)).summary["fmu_tolerance"] == {"A": 1e-7}
+    with pytest.raises(ConfigError, match=r"master.fmu_tolerance: .*tight"):
+        parse_scenario({**raw, "master": {"fmu_tolerance": "tight"}}, str(CONFIGS / "foreign_pair.yaml"))
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not (THIRD_PARTY / "dcmotor").exists(), reason="the third-party dcmotor FMUs are absent")
+def test_the_dcmotor_fmus_set_up_below_the_tolerance_lift_its_floor():
+    """The Dymola FMUs restart their solver at every doStep: set up at their given 1e-5 under a
+    tolerance of 1e-3, their own error is most of the torque's true error; set up at 1e-6 (`auto`)
+    it is not, with the same steps."""
+    sc = scenario("dcmotor", 0.02, algorithm="gauss-seidel", tolerance=1e-3)
+    tight = api.simulate(sc, reference=False, certificates=False)
+    given = api.simulate(sc.with_master(fmu_tolerance=None), reference=False, certificates=False)
+    assert set(tight.summary["fmu_tolerance"].values()) == {1e-6}
+    assert set(given.summary["fmu_tolerance"].values()) == {1e-5}
+    reference = fine_reference(sc, tight, dt=1e-5)
+    assert true_error(tight, reference)["true_error_by_column"]["M"] < \
+        0.6 * true_error(given, reference)["true_error_by_column"]["M"]
+
+
 @pytest.mark.skipif(not (THIRD_PARTY / "dcmotor").exists(), reason="the third-party dcmotor FMUs are absent")
 def test_the_dcmotor_runs_in_the_tolerance_mode():
     """The dcmotor's stimuli FMU (no port) and its signals follow the varying step; the ledger holds."""
@@ -249,6 +287,15 @@ def test_equal_error_calls_follow_each_fixed_series():
             for m, f in (("explicit", 1), ("newton", 3)) for c, e in series]
     assert best_fixed(rows, 5e-3)[0::2] == (pytest.approx(200.0), "explicit")
 
+
+
+def test_the_fixed_grid_sets_its_fmus_up_as_the_tightest_tolerance_run():
+    """No fixed run is held back by its FMUs' own error where the tolerance mode's are not."""
+    from wavecosim.masters.adaptive import FMU_SHARE
+    from wavecosim.sweeps.tolerances import plan
+    runs = plan(scenario("foreign_pair", 0.1), (1e-2, 1e-4), refine=(1,))
+    assert {sc.master.fmu_tolerance for mode, sc in runs if mode == "fixed"} == {FMU_SHARE * 1e-4}
+    assert {sc.master.fmu_tolerance for mode, sc in runs if mode != "fixed"} == {"auto"}
 
 @pytest.mark.slow
 def test_compare_tolerances_writes_the_table_and_the_figure(tmp_path):

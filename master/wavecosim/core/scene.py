@@ -11,6 +11,7 @@ from ..kernel import linalg
 from ..errors import ConfigError, CouplingError, FmuError, SimulationEnded
 from ..fmi.fmu import Fmu
 from ..fmi.fmi3 import BinaryError
+from ..masters.adaptive import fmu_tolerance_cap
 from .frozen_port_map import PortSpec, Subsystem
 from .gamma import choose_relaxation, initial_gammas
 from .kernel_scene import describe, unusable
@@ -321,7 +322,7 @@ def _open_fmu(scenario, sub, path, gamma, wave, pool=None):
     try:
         return Fmu(path, sub.name, reals, integers, optional=("gamma", "port_mode"), pool=pool,
                    start_time=scenario.start_time, tolerance=sub.tolerance, initialize=table_inputs(scenario, sub.name),
-                   hold=True)
+                   hold=True, tolerance_at_most=fmu_tolerance_cap(scenario.master))
     except BinaryError as exc:
         raise FmuError(f"subsystem {exc}", subsystem=sub.name) from None
     except FmuError as exc:

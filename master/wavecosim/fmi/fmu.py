@@ -29,7 +29,7 @@ from ..errors import FmuError
 from ..kernel import fmicall
 from ..kernel.build import helper_library
 from ..kernel.contract import names
-from .me import ModelExchange
+from .me import DEFAULT_TOLERANCE, ModelExchange
 from .messages import MessageLog, cut
 from .fmi3 import load_binary
 from .sources import provide_binary
@@ -318,17 +318,30 @@ def _settable_in_initialization(v):
         or (v.variability != "constant" and v.initial == "exact")
 
 
+def set_up_tolerance(description, given, at_most, model_exchange):
+    """The tolerance an FMU is set up with: `given`, else its DefaultExperiment's, else none (under
+    `at_most`, a model-exchange FMU's solver's own, DEFAULT_TOLERANCE); at most `at_most`."""
+    experiment = description.defaultExperiment
+    tolerance = given
+    if tolerance is None and experiment is not None and experiment.tolerance is not None:
+        tolerance = float(experiment.tolerance)
+    if tolerance is None and model_exchange and at_most is not None:
+        tolerance = DEFAULT_TOLERANCE
+    return tolerance if tolerance is None or at_most is None else min(tolerance, at_most)
+
+
 class Fmu:
     """One instantiated, initialized FMU (FMI 2.0 or 3.0); `name` is the subsystem name used in messages."""
 
     def __init__(self, path, name, values=None, integer_values=None, start_time=0.0, optional=(), pool=None,
-                 tolerance=None, initialize=None, like=None, hold=False):
+                 tolerance=None, initialize=None, like=None, hold=False, tolerance_at_most=None):
         """Load, instantiate and initialize; `values` (and `integer_values`) are start values and
         parameters by name, each set with the FMI type its variable declares (Real, Integer,
         Enumeration, Boolean, String; in FMI 3 also Float32 and every IntN/UIntN); names in
         `optional` are skipped when the FMU lacks them. Instances opened with one `pool` share the
         extracted FMU (see shared_folder). The experiment starts at `start_time` with `tolerance`
-        (None: the DefaultExperiment's, or none when it gives none), as fmpy sets it up;
+        (None: the DefaultExperiment's, or none when it gives none; at most `tolerance_at_most`), as fmpy
+        sets it up;
         `initialize(fmu)`, when given, runs in initialization mode (e.g. to set inputs). `like`, an Fmu
         of the same file, lends its parsed modelDescription, and its loaded binary when both are in one
         folder (see twin). `hold`: the instance stays in initialization mode until
@@ -372,9 +385,7 @@ class Fmu:
         self.component = self._fmi.component
         drop = [k for k in optional if k not in self.variables]
         self.given = {k: v for k, v in {**(values or {}), **(integer_values or {})}.items() if k not in drop}
-        experiment = self.description.defaultExperiment
-        if tolerance is None and experiment is not None and experiment.tolerance is not None:
-            tolerance = float(experiment.tolerance)
+        tolerance = set_up_tolerance(self.description, tolerance, tolerance_at_most, binding is ModelExchange2)
         self.start_time, self.tolerance, self.initialize = start_time, tolerance, initialize
         try:
             self._setup(self.given, initialize)

@@ -38,6 +38,7 @@ INNER_SHARE = 0.1                             # the inner residual allowed, as a
 ATOL_SHARE = 0.1                              # default atol: this share of tolerance x the largest variable's size
 CALIBRATION = 1.0                             # the estimate's weight (measured against the true error)
 PILOT_STEPS = 20                              # a run from rest: the sizes of this many steps of (T - t0) / 20
+FMU_SHARE = 1e-3                              # fmu_tolerance auto: the FMUs' set-up tolerance, this share of tolerance
 STATE = ("y", "y_step_start", "u", "_b", "_b_step_start", "_b_before", "_a_before", "_a_step_start")
 
 
@@ -373,6 +374,13 @@ class AdaptiveStep:
                 "pilot": self.piloted,
                 "dt_smallest": min(b - a for a, b in zip(self.times, self.times[1:])) if self.accepted else math.nan,
                 "dt_largest": max(b - a for a, b in zip(self.times, self.times[1:])) if self.accepted else math.nan}
+
+
+def fmu_tolerance_cap(settings):
+    """The largest set-up tolerance of an FMU that has one (settings.fmu_tolerance; None: as given)."""
+    if settings.fmu_tolerance == "auto":
+        return FMU_SHARE * settings.tolerance if settings.tolerance is not None else None
+    return settings.fmu_tolerance
 
 
 def adaptive(cls, settings):

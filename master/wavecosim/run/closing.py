@@ -28,6 +28,8 @@ class RunFiles:
                "loop_time_s": self.loop_time,
                "real_time_factor": self._simulated(n) / self.master_time if self.master_time > 0 else float("nan"),
                "fmu_calls": self.fmu_calls(), "fmu_calls_by_subsystem": self.fmu_calls_by_subsystem(),
+               "fmu_tolerance": {s.name: s.fmu.tolerance for s in self.scene.subsystems + self.scene.signal_only
+                                 if s.fmu.tolerance is not None},
                "output_interval": self.every,
                "energy_guard": self.guard_mode, "block_steps": self.block_steps,
                "quirks": {name: {"no_set_fmu_state_prior": d.no_set_fmu_state_prior, "chosen_by": d.chosen_by}

@@ -3,12 +3,14 @@ refined step, FINE times finer than the run's typical step (the smaller of dt an
 accepted steps; at most FINE_STEPS steps), each output column interpolated onto the run's accepted
 times and its error scaled by the column's range. Where the reference's own error is first order in
 its step (an input held over the step: a signal, the wave adapter), it is run again at half the step
-and the two are combined by Richardson's extrapolation, 2 x_(h/2) - x_h, which is second order."""
+and the two are combined by Richardson's extrapolation, 2 x_(h/2) - x_h, which is second order. Its
+FMUs are set up at the run's tolerances (master.fmu_tolerance), so what it tells apart is the coupling."""
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..masters.adaptive import fmu_tolerance_cap
 from .runner import reference_scenario, run
 
 FINE = 16                   # the reference's step: the run's typical step / FINE
@@ -54,7 +56,7 @@ def richardson(coarse, half):
 def fine_reference(scenario, result, dt=None):
     """The monolithic reference of `result`'s scenario at a refined step (fine_dt): a RunResult, or
     its Richardson extrapolation with a run at half the step where its error is first order."""
-    fine = reference_scenario(scenario).with_master(tolerance=None)
+    fine = reference_scenario(scenario).with_master(tolerance=None, fmu_tolerance=fmu_tolerance_cap(scenario.master))
     fine = fine.with_changes("the fine reference", dt=dt or fine_dt(scenario, result))
     coarse = _run(fine)
     if coarse.summary.get("error_order", 2) >= 2 or coarse.status != "finished" or len(coarse.t) < 2:

@@ -47,6 +47,8 @@ SUMMARY = {
                   "kernel's blocks use the run's own reading); the observers' own calls (certificates, probes) not "
                   "counted", "1"),
     "fmu_calls_by_subsystem": ("the same per subsystem (they add up to `fmu_calls`)", "1"),
+    "fmu_tolerance": ("per subsystem whose FMU is set up with a tolerance, the one it was set up with (its "
+                      "`tolerance`, else its DefaultExperiment's, at most master.fmu_tolerance)", "1"),
     "output_interval": ("a row is written every this many macro-steps (and at the last)", "steps"),
     "energy_guard": ("the energy guard in force: `ledger`, `monolithic`, `off`, or `n/a` for a master that does "
                      "not roll back", "text"),

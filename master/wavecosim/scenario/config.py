@@ -18,6 +18,7 @@ from ..core.gamma import MODES as GAMMA_MODES
 from ..core.interconnection import COUPLINGS, TAKES_RATIO
 from ..core.quirks import KEYS as QUIRK_KEYS
 from ..masters import ALGORITHMS
+from ..masters.adaptive import FMU_SHARE
 from ..masters.dr_options import ANDERSON_MAX, OPTION_MODES, STARTS
 from .experiment import from_fmus
 from .overrides import apply_overrides
@@ -71,7 +72,7 @@ class SubsystemConfig:
         "this subsystem's γ, in place of the scenario's", IMPEDANCE, "number > 0", "the scenario's `gamma`"))
     tolerance: float = field(default=None, metadata=key(
         "the relative tolerance given to the FMU's set-up (`fmi2SetupExperiment`, "
-        "`fmi3EnterInitializationMode`)", "1", "number > 0",
+        "`fmi3EnterInitializationMode`); at most `master.fmu_tolerance`", "1", "number > 0",
         "the FMU's DefaultExperiment tolerance; none when it gives none"))
     substeps: int = field(default=1, metadata=key(
         "multi-rate: doSteps of dt / substeps the FMU makes per macro-step, its coupling inputs held over the "
@@ -200,6 +201,11 @@ class MasterConfig:
         "held inputs, one doStep more), `doubling` (one step of h against two of h/2, as MasterSim and PyFMI); "
         "`auto`: `coupling` for the FMUs set up with a tolerance where the master holds its inputs, else "
         "`predictor`", type="auto | predictor | coupling | doubling"))
+    fmu_tolerance: object = field(default="auto", metadata=key(
+        "the largest set-up tolerance of each FMU set up with one (its subsystem's `tolerance`, else its "
+        "DefaultExperiment's); a looser one is tightened to it. `auto`: " + f"{FMU_SHARE:g}" + " × tolerance in the "
+        "tolerance mode, so the FMUs' own error stays below the one asked for; none with a fixed step",
+        "1", "auto | number > 0 | null"))
 
 
 @dataclass
@@ -703,6 +709,10 @@ def _step_control(ck, m, master):
             setattr(master, name, ck.number(m[name], f"master.{name}", positive=True))
     if "estimate" in m:
         master.estimate = ck.string(m["estimate"], "master.estimate", ("auto", "predictor", "coupling", "doubling"))
+    if "fmu_tolerance" in m:
+        value = m["fmu_tolerance"]
+        master.fmu_tolerance = None if value is None else \
+            "auto" if value == "auto" else ck.number(value, "master.fmu_tolerance", positive=True)
 
 
 def _threads(ck, value, path="master.threads"):

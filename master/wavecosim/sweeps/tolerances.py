@@ -8,6 +8,7 @@ import math
 import time
 
 from ..errors import Interrupted, WavecosimError
+from ..masters.adaptive import fmu_tolerance_cap
 from ..run.fine import FINE_STEPS, fine_reference, true_error
 from ..run.runner import run
 from .ecco import peer_rows
@@ -27,9 +28,15 @@ def fine(scenario):
     return fine_reference(scenario, None, dt=(scenario.T - scenario.start_time) / FINE_STEPS)
 
 
+def fixed_fmus(scenario, tolerances):
+    """The scenario with its FMUs set up as the tightest tolerance run sets up its own (master.fmu_tolerance):
+    the fixed grid and the reference, so that no fixed run is held back by its FMUs' error."""
+    return scenario.with_master(fmu_tolerance=fmu_tolerance_cap(scenario.with_master(tolerance=min(tolerances)).master))
+
+
 def plan(scenario, tolerances, masters=TOLERANCE_MASTERS, refine=REFINE):
     """(mode, scenario) of every run: the tolerance mode per master and tolerance, doubling with the
-    first master, then the fixed grid (dt / each of `refine`)."""
+    first master, then the fixed grid (dt / each of `refine`, its FMUs as fixed_fmus sets them up)."""
     out = []
     for tol in tolerances:
         for m in masters:
@@ -40,7 +47,8 @@ def plan(scenario, tolerances, masters=TOLERANCE_MASTERS, refine=REFINE):
             dt = scenario.dt / r
             if (scenario.T - scenario.start_time) / dt <= MAX_STEPS:
                 changes = {"algorithm": m, "tolerance": None, **({"K": K} if K is not None else {})}
-                out.append(("fixed", scenario.with_master(**changes).with_changes("the fixed grid", dt=dt)))
+                out.append(("fixed", fixed_fmus(scenario, tolerances).with_master(**changes)
+                             .with_changes("the fixed grid", dt=dt)))
     return out
 
 
@@ -65,7 +73,7 @@ def compare_tolerances(scenario, tolerances, out_dir=None, masters=TOLERANCE_MAS
                        note=None, refine=REFINE):
     """Every run of plan() against one fine reference, then the peers' (sweeps/ecco.py: PEERS) at each
     tolerance; the rows (and the files in out_dir). `note` takes the line of a peer left out."""
-    reference = fine(scenario)
+    reference = fine(fixed_fmus(scenario, tolerances))
     rows = []
     for mode, sc in plan(scenario, tolerances, masters, refine):
         rows.append(measure(mode, sc, reference))
