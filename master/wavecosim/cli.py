@@ -215,6 +215,9 @@ tolerance_options = options([
     click.option("--estimate", type=click.Choice(["auto", "predictor", "coupling", "doubling"]),
                  help="The tolerance mode's error estimate (default: auto: coupling for FMUs set up with a "
                       "tolerance under explicit and gauss-seidel, else predictor)."),
+    click.option("--fmu-tolerance", metavar="auto|null|X",
+                 help="The largest tolerance an FMU with a solver of its own is set up with (default: auto: "
+                      "1e-3 x --tolerance in the tolerance mode; null: the FMUs' own; master.fmu_tolerance)."),
 ])
 
 
@@ -259,7 +262,8 @@ def tolerance_sets(**given):
 @click.option("--force", is_flag=True, help=f"Run even more than {MAX_STEPS:,} macro-steps.")
 def run_cmd(config, K, eps, gamma, dt, T, quiet, start_time, output_interval, formats, ports, parameter_set, input_csv,
             outputs, algorithm, sets, out, no_certificates, no_reference, fine, tolerance, atol, dt_min, dt_max,
-            output_step, estimate, plots, plot_patterns, threads, step_timeout, setup_timeout, overwrite, force):
+            output_step, estimate, fmu_tolerance, plots, plot_patterns, threads, step_timeout, setup_timeout, overwrite,
+            force):
     """Run one scenario (with the monolithic reference alongside where there are power bonds) and
     write its trajectory, per-step certificates, summary and metadata. CONFIG is a scenario file,
     an SSP system (.ssd, .ssp, folder) or one FMU (.fmu), run as fmpy's simulate runs it.
@@ -268,7 +272,7 @@ def run_cmd(config, K, eps, gamma, dt, T, quiet, start_time, output_interval, fo
     does not return leaves every step before it on disk, a summary.json saying what happened, and
     an exit code of its own (docs/troubleshooting.md). An earlier run's files in OUT are replaced."""
     sets = sets + tolerance_sets(tolerance=tolerance, atol=atol, dt_min=dt_min, dt_max=dt_max, output_step=output_step,
-                                 estimate=estimate)
+                                 estimate=estimate, fmu_tolerance=fmu_tolerance)
     scenario = _apply_overrides(_read_config(config, ports, parameter_set, dt, T, gamma, start_time, input_csv, sets),
                                 K, eps, gamma, dt, T, algorithm, start_time, outputs)
     if threads is not None:

@@ -273,6 +273,14 @@ def test_the_command_line_writes_the_variable_grid_and_true_error(tmp_path):
     bad = subprocess.run([*CLI, "run", str(CONFIGS / "foreign_pair.yaml"), "--T", "0.2", "--tolerance", "-1",
                           "--out", str(tmp_path / "bad")], capture_output=True, text=True)
     assert bad.returncode == 2
+    capped = subprocess.run([*CLI, "run", str(CONFIGS / "foreign_pair.yaml"), "--T", "0.01", "--tolerance", "1e-2",
+                             "--fmu-tolerance", "1e-7", "--set", "subsystems.A.tolerance=1e-4", "--no-certificates",
+                             "--quiet", "--out", str(tmp_path / "capped")], capture_output=True, text=True)
+    assert capped.returncode == 0, capped.stderr
+    assert json.loads((tmp_path / "capped" / "summary.json").read_text())["fmu_tolerance"] == {"A": 1e-7}
+    bad = subprocess.run([*CLI, "run", str(CONFIGS / "foreign_pair.yaml"), "--T", "0.01", "--fmu-tolerance", "tight",
+                          "--out", str(tmp_path / "bad")], capture_output=True, text=True)
+    assert bad.returncode == 2 and "master.fmu_tolerance: must be auto, null or a number > 0" in bad.stderr
 
 
 def test_equal_error_calls_follow_each_fixed_series():

@@ -711,6 +711,8 @@ def _step_control(ck, m, master):
         master.estimate = ck.string(m["estimate"], "master.estimate", ("auto", "predictor", "coupling", "doubling"))
     if "fmu_tolerance" in m:
         value = m["fmu_tolerance"]
+        if isinstance(value, str) and value != "auto":
+            ck.fail("master.fmu_tolerance", f"must be auto, null or a number > 0, got {value!r}")
         master.fmu_tolerance = None if value is None else \
             "auto" if value == "auto" else ck.number(value, "master.fmu_tolerance", positive=True)
 
