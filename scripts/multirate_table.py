@@ -6,7 +6,9 @@ reference at dt = 1e-4 without substeps (run/fine.py), doSteps over both FMUs:
     .venv/bin/python scripts/multirate_table.py [OUT]           # rows into OUT/multirate.json, the table into the page
     .venv/bin/python scripts/multirate_table.py OUT --again     # the table again from the rows in OUT
 
-The page holds it between `<!-- measured: multirate -->` and `<!-- end of measured -->`.
+The page holds it between `<!-- measured: multirate -->` and `<!-- end of measured -->`; beside it,
+in `<!-- measured: multirate-tolerance -->`, DR (`options: auto`) in the tolerance mode at fixed
+substeps of A, against the reference at dt = 1e-5 (OUT/multirate_tolerance.json).
 """
 import sys
 from pathlib import Path
@@ -22,6 +24,7 @@ from wavecosim.scenario.config import load_scenario  # noqa: E402
 CASES = ((0.01, 1, 1), (0.01, 2, 1), (0.01, 4, 1), (0.01, 8, 1), (0.01, 1, 4), (0.005, 1, 1), (0.0025, 1, 1),
          (0.00125, 1, 1))                          # (dt, substeps of A, substeps of B)
 MASTERS = (("dr", {"K": 50}), ("newton", {}), ("gauss-seidel", {}), ("explicit", {}))
+UNDER_TOLERANCE = ((1e-2, 1), (1e-2, 2), (1e-2, 4), (1e-3, 1), (1e-3, 2))     # (tolerance, substeps of A)
 PAGE = ROOT / "docs" / "masters.md"
 
 
@@ -46,6 +49,28 @@ def measure():
     return rows
 
 
+def measure_tolerance():
+    """One row per (tolerance, substeps of A): DR in the tolerance mode, its steps, doSteps and true error."""
+    reference = fine_reference(scene(), None, dt=1e-5)
+    rows = []
+    for tol, a in UNDER_TOLERANCE:
+        run = scene(a=a).with_master(algorithm="dr", tolerance=tol, options="auto")
+        result = api.simulate(run, reference=False, certificates=False)
+        rows.append({"tolerance": tol, "A": a, "steps": result.summary["accepted_steps"],
+                     "doStep": result.summary["fmu_calls"]["doStep"],
+                     "true_error": true_error(result, reference)["true_error"]})
+        print(rows[-1], flush=True)
+    return rows
+
+
+def table_tolerance(rows):
+    """The block of the tolerance mode at fixed substeps."""
+    out = ["| tolerance | substeps of A | accepted steps | doSteps | true error |", "|---|---|---|---|---|"]
+    out += [f"| {r['tolerance']:.0e} | {r['A']} | {r['steps']:_} | {r['doStep']:_} | {r['true_error']:.2e} |"
+            .replace("_", " ") for r in rows]
+    return "\n".join(out) + "\n"
+
+
 def table(rows):
     """The page's block."""
     def get(dt, a, b, master):
@@ -66,6 +91,8 @@ def table(rows):
 
 def main(out, again=False):
     measured.write(PAGE, "multirate", table(measured.rows(out / "multirate.json", measure, again)))
+    measured.write(PAGE, "multirate-tolerance",
+                   table_tolerance(measured.rows(out / "multirate_tolerance.json", measure_tolerance, again)))
 
 
 if __name__ == "__main__":
