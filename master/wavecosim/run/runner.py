@@ -118,10 +118,13 @@ def check_steps(scenario, max_steps=MAX_STEPS):
 
 
 def _progress_of(live, n):
-    """Steps done as the progress shows them: n, or the share of the time made, in fixed steps."""
+    """Steps done as the progress shows them: n, or the share of the time made, in fixed steps (all
+    of them only once the run has ended)."""
     if not live.master.variable:
         return n
-    return min(live.n_steps, round((live.time_of(n) - live.t0) / live.dt))
+    if not live.more(n):
+        return live.n_steps
+    return min(live.n_steps - 1, round((live.time_of(n) - live.t0) / live.dt))
 
 
 def _loop(live, ref, progress, contain=None):
