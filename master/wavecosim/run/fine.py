@@ -4,7 +4,7 @@ accepted steps; at most FINE_STEPS steps), each output column interpolated onto 
 times and its error scaled by the column's range. Where the reference's own error is first order in
 its step (an input held over the step: a signal, the wave adapter), it is run again at half the step
 and the two are combined by Richardson's extrapolation, 2 x_(h/2) - x_h, which is second order. Its
-FMUs are set up at the run's tolerances (master.fmu_tolerance), so what it tells apart is the coupling."""
+FMUs are set up as the run's (master.fmu_tolerance)."""
 import math
 from dataclasses import dataclass
 
