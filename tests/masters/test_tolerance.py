@@ -179,6 +179,25 @@ def test_the_dcmotor_runs_in_the_tolerance_mode():
     assert result.trajectory["U"][-1] == 12.0
 
 
+def test_a_system_of_signals_only_runs_in_the_tolerance_mode():
+    """The foreign pair wired by signals (no power bond): the explicit master's steps vary, the
+    outputs of subsystems without a port are watched, and the fine reference is the explicit master
+    (no bond to solve) extrapolated: the true error lands near the tolerance."""
+    raw = yaml.safe_load((CONFIGS / "foreign_pair.yaml").read_text())
+    for sub in raw["subsystems"].values():
+        del sub["port"]
+    raw.update(T=0.2, couplings=[], master={"tolerance": 1e-3},
+               signals=[{"from": "B.F", "to": "A.F"}, {"from": "A.v", "to": "B.v"}], outputs={"x": "A.x", "v": "A.v"})
+    sc = parse_scenario(raw, str(CONFIGS / "foreign_pair.yaml"))
+    result = api.simulate(sc, reference=False, certificates=False)
+    s = result.summary
+    assert s["master"] == "explicit" and s["status"] == "finished" and s["accepted_steps"] == len(result.steps["dt"])
+    assert len(np.unique(result.steps["dt"])) > 3 and result.t[-1] == 0.2
+    reference = fine_reference(sc, result)
+    assert reference.summary["master"] == "explicit" and isinstance(reference, Extrapolated)
+    assert 1e-4 <= true_error(result, reference)["true_error"] <= 1e-2
+
+
 def test_steps_follow_the_tolerance_and_end_on_T():
     loose = api.simulate(scenario("foreign_pair", 0.2, algorithm="gauss-seidel", tolerance=1e-1), reference=False,
                          certificates=False)

@@ -131,14 +131,14 @@ def watched(scene):
     sc = scene.scenario
     refs = [scene.outputs[c] for c in (sc.error or list(scene.outputs)) if c in scene.outputs]
     out = []
-    for s in scene.subsystems:
+    for s in scene.subsystems + scene.signal_only:
         names = [ref.split(".", 1)[1] for ref in refs if ref.split(".", 1)[0] == s.name]
         names = [v for v in names if s.fmu.kind(v) == s.fmu.real_type and v not in s.port.wave_out]
         if names:
             out.append((s, names))
     if not out:
-        raise ConfigError(f"{sc.source}: master.tolerance: no Real output of a subsystem with a port to estimate the "
-                          f"error on (error: or outputs:)")
+        raise ConfigError(f"{sc.source}: master.tolerance: no Real output to estimate the error on (error: or "
+                          f"outputs:)")
     return out
 
 

@@ -9,6 +9,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from ..errors import ConfigError, Interrupted, RunFailed, SimulationEnded, Terminated, WavecosimError
+from ..scenario.config import SIGNALS_MASTER
 from . import containment
 from .bounds import named_for_cause
 from .live import BLOCK_STEPS, LiveRun
@@ -175,6 +176,7 @@ def _loop(live, ref, progress, contain=None):
 
 
 def reference_scenario(scenario):
-    """The monolithic reference of a scenario: interface Newton at every macro-step."""
-    return scenario.with_master(algorithm="newton")
+    """The monolithic reference of a scenario: interface Newton at every macro-step; the explicit
+    master where there is no power bond to solve (signals only)."""
+    return scenario.with_master(algorithm="newton" if scenario.couplings else SIGNALS_MASTER)
 
