@@ -196,6 +196,9 @@ def test_a_system_of_signals_only_runs_in_the_tolerance_mode():
     reference = fine_reference(sc, result)
     assert reference.summary["master"] == "explicit" and isinstance(reference, Extrapolated)
     assert 1e-4 <= true_error(result, reference)["true_error"] <= 1e-2
+    raw["subsystems"]["A"]["tolerance"] = 1e-4            # no port input to vary: the predictor, not coupling
+    solved = api.simulate(parse_scenario(raw, str(CONFIGS / "foreign_pair.yaml")), reference=False, certificates=False)
+    assert solved.summary["estimate"] == "predictor" and solved.summary["status"] == "finished"
 
 
 def test_steps_follow_the_tolerance_and_end_on_T():

@@ -120,7 +120,8 @@ def coupled(master, settings):
                           f"inputs over the step (explicit, gauss-seidel), not {master.settings.algorithm}")
     if settings.estimate not in ("auto", "coupling") or not holds_inputs(master) or not master.can_reject:
         return set()                     # each step's snapshot, which the estimate makes again from, is saved
-    return {s.name for s, _ in master.watched if settings.estimate == "coupling" or s.fmu.tolerance is not None}
+    return {s.name for s, _ in master.watched if s in master.subsystems         # a port's inputs to vary
+            and (settings.estimate == "coupling" or s.fmu.tolerance is not None)}
 
 
 def watched(scene):
