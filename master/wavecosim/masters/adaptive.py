@@ -126,8 +126,8 @@ def coupled(master, settings):
 
 def watched(scene):
     """[(subsystem, variable names)] the estimate watches: the scenario's error columns (those the
-    true error is measured on), else every recorded output; Real variables of subsystems with a
-    port, not a wave port's outgoing wave (it scales with sqrt(h)). An FMU's port stage values are
+    true error is measured on), else every recorded output; Real variables of any subsystem, not a
+    wave port's outgoing wave (it scales with sqrt(h)). An FMU's port stage values are
     not watched: several FMUs give them at the middle of the step, not at its end."""
     sc = scene.scenario
     refs = [scene.outputs[c] for c in (sc.error or list(scene.outputs)) if c in scene.outputs]
