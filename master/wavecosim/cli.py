@@ -542,12 +542,12 @@ def _peer_list(text, tolerances):
 def _compare_tolerances(scenario, tolerances, masters, out, quiet, overwrite, peers=()):
     """compare --tolerances: the rows, the table on stdout, tolerances.png."""
     from .plots import tolerance_plots
-    from .sweeps.tolerances import FIELDS, TOLERANCE_MASTERS, compare_tolerances
+    from .sweeps.tolerances import FIELDS, compare_tolerances
 
     def work():
         shown = None if quiet else (lambda row: click.echo(f"  {row['mode']} {row['master']}: true error "
                                                            f"{row['true_error']:.3g}", err=True))
-        rows = compare_tolerances(scenario, tolerances, out, tuple(masters or TOLERANCE_MASTERS), shown, peers,
+        rows = compare_tolerances(scenario, tolerances, out, tuple(masters or ()), shown, peers,
                                   click.echo)
         click.echo(f"{scenario.name}: {len(rows)} runs -> {out / 'tolerances.csv'}")
         print_table(rows, list(FIELDS))

@@ -199,6 +199,8 @@ def test_a_system_of_signals_only_runs_in_the_tolerance_mode():
     raw["subsystems"]["A"]["tolerance"] = 1e-4            # no port input to vary: the predictor, not coupling
     solved = api.simulate(parse_scenario(raw, str(CONFIGS / "foreign_pair.yaml")), reference=False, certificates=False)
     assert solved.summary["estimate"] == "predictor" and solved.summary["status"] == "finished"
+    from wavecosim.sweeps.tolerances import plan
+    assert {run.master.algorithm for mode, run in plan(sc, (1e-2,), refine=(1, 4))} == {"explicit"}
 
 
 def test_steps_follow_the_tolerance_and_end_on_T():

@@ -11,10 +11,12 @@ from ..errors import Interrupted, WavecosimError
 from ..masters.adaptive import fmu_tolerance_cap
 from ..run.fine import FINE_STEPS, fine_reference, true_error
 from ..run.runner import run
+from ..scenario.config import SIGNALS_MASTER
 from .ecco import peer_rows
 
 TOLERANCE_MASTERS = ("dr", "gauss-seidel")          # the tolerance mode's masters by default
 FIXED = (("explicit", None), ("gauss-seidel", None), ("dr", 5), ("dr", 20), ("newton", None))
+SIGNALS_ONLY = (SIGNALS_MASTER,)                    # the one master of a system without power bonds
 REFINE = (1, 4, 16)                                 # the fixed grid's steps: dt / each
 FIELDS = ("mode", "master", "K", "tolerance", "dt", "true_error", "doStep", "save", "restore", "wall_time_s",
           "accepted_steps", "rejected_steps", "max_ledger", "status")
@@ -34,15 +36,23 @@ def fixed_fmus(scenario, tolerances):
     return scenario.with_master(fmu_tolerance=fmu_tolerance_cap(scenario.with_master(tolerance=min(tolerances)).master))
 
 
-def plan(scenario, tolerances, masters=TOLERANCE_MASTERS, refine=REFINE):
-    """(mode, scenario) of every run: the tolerance mode per master and tolerance, doubling with the
-    first master, then the fixed grid (dt / each of `refine`, its FMUs as fixed_fmus sets them up)."""
+def default_masters(scenario):
+    """The tolerance mode's masters when none are named: TOLERANCE_MASTERS, or the explicit master
+    alone on a system of signals only."""
+    return TOLERANCE_MASTERS if scenario.couplings else SIGNALS_ONLY
+
+
+def plan(scenario, tolerances, masters=None, refine=REFINE):
+    """(mode, scenario) of every run: the tolerance mode per master (default_masters) and tolerance,
+    doubling with the first master, then the fixed grid (dt / each of `refine`, its FMUs as
+    fixed_fmus sets them up; the explicit master alone without power bonds)."""
+    masters = masters or default_masters(scenario)
     out = []
     for tol in tolerances:
         for m in masters:
             out.append(("tolerance", scenario.with_master(algorithm=m, tolerance=tol, estimate="auto")))
         out.append(("doubling", scenario.with_master(algorithm=masters[0], tolerance=tol, estimate="doubling")))
-    for m, K in FIXED:
+    for m, K in FIXED if scenario.couplings else [(m, None) for m in SIGNALS_ONLY]:
         for r in refine:
             dt = scenario.dt / r
             if (scenario.T - scenario.start_time) / dt <= MAX_STEPS:
@@ -69,7 +79,7 @@ def measure(mode, sc, reference):
             "rejected_steps": s.get("rejected_steps", 0), "max_ledger": s.get("max_ledger", ""), "status": s["status"]}
 
 
-def compare_tolerances(scenario, tolerances, out_dir=None, masters=TOLERANCE_MASTERS, progress=None, peers=(),
+def compare_tolerances(scenario, tolerances, out_dir=None, masters=None, progress=None, peers=(),
                        note=None, refine=REFINE):
     """Every run of plan() against one fine reference, then the peers' (sweeps/ecco.py: PEERS) at each
     tolerance; the rows (and the files in out_dir). `note` takes the line of a peer left out."""
