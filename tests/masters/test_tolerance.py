@@ -203,6 +203,18 @@ def test_a_system_of_signals_only_runs_in_the_tolerance_mode():
     assert {run.master.algorithm for mode, run in plan(sc, (1e-2,), refine=(1, 4))} == {"explicit"}
 
 
+def test_a_step_kept_over_its_allowance_is_counted_and_told(capfd):
+    """At dt_min a step is kept whatever its estimate: summary.json counts such steps, and the first
+    is told on stderr, so a run that could not hold its tolerance does not pass for one that did."""
+    held = api.simulate(scenario("foreign_pair", 0.2, algorithm="gauss-seidel", tolerance=1e-4, dt_min=1e-3),
+                        reference=False, certificates=False)
+    assert held.summary["steps_over_tolerance"] > 0 and held.summary["status"] == "finished"
+    assert "x its allowance (dt_min = 0.001 s); the error can exceed the tolerance" in capfd.readouterr().err
+    free = api.simulate(scenario("foreign_pair", 0.2, algorithm="gauss-seidel", tolerance=1e-2), reference=False,
+                        certificates=False)
+    assert free.summary["steps_over_tolerance"] == 0
+
+
 def test_steps_follow_the_tolerance_and_end_on_T():
     loose = api.simulate(scenario("foreign_pair", 0.2, algorithm="gauss-seidel", tolerance=1e-1), reference=False,
                          certificates=False)

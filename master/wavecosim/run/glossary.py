@@ -133,6 +133,8 @@ SUMMARY = {
     "pilot": ("whether the tolerance mode made its pilot steps first (every watched value zero at the start: "
               "their sizes from 20 steps across the span, then everything put back)", "boolean"),
     "accepted_steps": ("macro-steps accepted by the step control (the rows after t₀)", "1"),
+    "steps_over_tolerance": ("accepted steps whose error estimate was above their allowance: kept because no "
+                             "FMU could be put back, or made at dt_min (the first is warned of)", "1"),
     "rejected_steps": ("macro-steps rejected and redone smaller", "1"),
     "dt_smallest": ("the smallest accepted macro-step", "s"),
     "dt_largest": ("the largest accepted macro-step", "s"),

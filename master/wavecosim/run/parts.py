@@ -79,7 +79,7 @@ def make_observers(scenario, scene, master, tuner, certificates, warn):
     first); none where no subsystem has a port (nothing exchanges energy)."""
     obs, unavailable = [], []
     if not scene.n_channels:
-        return [StepControl(master)] if master.variable else obs
+        return [StepControl(master, warn)] if master.variable else obs
     has_H = all(s.port.energy is not None for s in scene.subsystems)
     guard = scenario.master.energy_guard or master.default_guard
     if isinstance(master.guard, EnergyLedger):
@@ -102,7 +102,7 @@ def make_observers(scenario, scene, master, tuner, certificates, warn):
     obs.append(Passivity(scene, unavailable))
     obs.append(FreezeWatch(scene, warn))
     if master.variable:
-        obs.append(StepControl(master))
+        obs.append(StepControl(master, warn))
     return obs
 
 
