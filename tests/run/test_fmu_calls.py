@@ -80,6 +80,21 @@ def test_a_signal_only_scene_counts_what_its_fmus_count(fast):
     assert result.summary["fmu_calls"] == {k: by["A"][k] + by["B"][k] for k in CALLS}
 
 
+def test_a_signal_only_scene_keeps_the_strict_fmus_order_under_a_tolerance():
+    """The same pair in the tolerance mode (each FMU set up with a tolerance, tightened by
+    fmu_tolerance): its varying steps, rejected ones put back from saved states, are all in the FMI
+    order StrictMass checks, and counted as it counts them."""
+    raw = copy.deepcopy(SIGNAL_PAIR)
+    for sub in raw["subsystems"].values():
+        sub["tolerance"] = 1e-4
+    raw["master"] = {"tolerance": 1e-4}
+    result = run(parse_scenario(raw, "pair.yaml"), None, certificates=False, warn=lambda message: None)
+    s = result.summary
+    assert s["status"] == "finished" and s["fmu_tolerance"] == {"A": 1e-3 * 1e-4, "B": 1e-3 * 1e-4}
+    assert s["accepted_steps"] > 0 and s["rejected_steps"] > 0
+    assert s["fmu_calls_by_subsystem"] == {k: own_counts(result, k) for k in "AB"}
+
+
 @pytest.mark.parametrize("master", list(MASTERS))
 @pytest.mark.parametrize("fast", [True, False])
 def test_every_master_counts_what_the_fmu_counts(master, fast):
