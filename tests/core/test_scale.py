@@ -99,8 +99,14 @@ def dense_reference(scene, settings):
     return master
 
 
-@pytest.mark.parametrize("K", [0, 50])
-@pytest.mark.parametrize("path", CONFIGS + ["chain_64"], ids=lambda p: getattr(p, "stem", p))
+def heavy_slow(path, K):
+    """The case as a parameter, marked slow where it is the largest (heavy_chain_8 at K = 50: seconds)."""
+    heavy = K > 0 and getattr(path, "stem", path) == "heavy_chain_8"
+    return pytest.param(path, K, marks=pytest.mark.slow) if heavy else pytest.param(path, K)
+
+
+@pytest.mark.parametrize("path, K", [heavy_slow(p, K) for p in CONFIGS + ["chain_64"] for K in (0, 50)],
+                         ids=lambda x: getattr(x, "stem", str(x)))
 def test_sparse_fast_path_gives_the_steps_of_the_dense_reference(path, K, built_fmus):
     if path != "chain_64" and needs_third_party(path):
         pytest.skip("third-party FMUs not present")

@@ -16,7 +16,7 @@ from paths import CLI
 
 FAULTS = {"segfault": (1, 5, "{who}: the FMU crashed (SIGSEGV: segmentation fault) in fmi2DoStep at step 2500 (t = 25)"),
           "exit": (2, 5, "{who}: the FMU ended the process with exit(0) in fmi2DoStep at step 2500 (t = 25)"),
-          "hang": (3, 6, "step 2500 (t = 25) did not finish within 5 s (step timeout); stopped inside {who} in "
+          "hang": (3, 6, "step 2500 (t = 25) did not finish within 2 s (step timeout); stopped inside {who} in "
                          "fmi2DoStep"),
           "abort": (4, 5, "{who}: the FMU crashed (SIGABRT: aborted) in fmi2DoStep at step 2500 (t = 25)")}
 
@@ -55,7 +55,7 @@ def fault_free(tmp_path_factory, faulty_scenario):
 def test_a_fault_in_dostep_keeps_every_step_before_it(name, tmp_path, tmp_env, fault_free, faulty_scenario):
     fault, code, what = FAULTS[name]
     env, temp = tmp_env
-    proc, out = wavecosim(tmp_path, env, faulty_scenario(fault, 2500), "--step-timeout", "5")
+    proc, out = wavecosim(tmp_path, env, faulty_scenario(fault, 2500), "--step-timeout", "2")
     err = proc.stderr.strip().splitlines()
     assert proc.returncode == code and len(err) == 1, proc.stderr
     # the reference runs ahead and meets the fault first; the run is brought up to the same step
@@ -84,7 +84,7 @@ def test_without_the_reference_the_kernel_block_in_progress_is_kept(name, tmp_pa
     the rescue books the block's steps before the fault, making the passes over those the kernel had
     not gone over yet (the fault is hundreds of steps into a block)."""
     fault, code, what = FAULTS[name]
-    proc, out = wavecosim(tmp_path, tmp_env[0], faulty_scenario(fault, 2500), "--no-reference", "--step-timeout", "5")
+    proc, out = wavecosim(tmp_path, tmp_env[0], faulty_scenario(fault, 2500), "--no-reference", "--step-timeout", "2")
     assert proc.returncode == code
     assert proc.stderr.strip() == "error: " + what.format(who="subsystem B")
     summary = json.loads((out / "summary.json").read_text())

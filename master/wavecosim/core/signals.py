@@ -24,8 +24,6 @@ import math
 import struct
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from ..errors import ConfigError, FmuError, NumericalError
 from ..fmi.values import BOOLEAN, INTEGER, REAL, STRING, category
@@ -288,7 +286,10 @@ class Signals:
 
     def _dependency_order(self):
         """[(target subsystem, FMI type, vrs, signals)] of the FMU-driven signals, the targets ordered
-        so that a subsystem comes after those that drive it (a loop's members in the file's order)."""
+        so that a subsystem comes after those that drive it (a loop's members in the file's order).
+        scipy is imported here, not with the module: most runs and every refusal never need it."""
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import connected_components
         subs = list(dict.fromkeys([self.sources[k][0] for k in self.sources] + list(self.writes)))
         index = {id(s): j for j, s in enumerate(subs)}
         edges = [(index[id(self.sources[k][0])], index[id(sub)]) for sub, groups in self.writes.items()
