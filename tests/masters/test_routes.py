@@ -335,10 +335,7 @@ def test_whole_runs(scenario, case):
     assert ref.summary["block_steps"] == 0
     if shows in ("blocks", "guard", "deadline") and name in BLOCKS:
         by_step = name != "dr" and s["energy_guard"] == "ledger"        # the classical masters' ledger
-        if by_step:
-            assert s["block_steps"] == 0
-        else:                   # a block cut to its time budget (BLOCK_SECONDS) can leave the last step alone
-            assert s["steps"] - 1 <= s["block_steps"] <= s["steps"]
+        assert s["block_steps"] == (0 if by_step else s["steps"])
     if shows == "guard":
         assert s["energy_guard_steps"] > 0
     if shows == "deadline":

@@ -36,7 +36,7 @@ from .closing import RunFiles
 from .parts import STEP_COLUMNS, make_observers, open_parts, _warn_stderr
 from .result import grid_clock
 
-BLOCK_STEPS = BLOCK                    # macro-steps per call of the master, at most a table block
+BLOCK_STEPS = BLOCK                    # macro-steps per call of the master, at most a table block (1: step by step)
 assert REASONS[:len(KERNEL_REASONS)] == KERNEL_REASONS     # the kernel's reason codes are the runner's
 
 
@@ -168,12 +168,16 @@ class LiveRun(BlockSteps, RunFiles):
 
     def block_size(self, n):
         """How many macro-steps advance(n, ...) may make in one call of the master."""
-        if not (self.blocks and self.route.can_run_steps(n)):
+        if self._alone(n):
             return 1
         end = min(self.n_steps, self.restores.next)              # a block ends where the restore is checked
-        if not self.paced:
-            return min(BLOCK_STEPS, end - n)
-        return max(1, min([BLOCK_STEPS, end - n] + [o.next_before(n) - n for o in self.paced]))
+        return min([BLOCK_STEPS, end - n] + [o.next_before(n) - n for o in self.paced])
+
+    def _alone(self, n):
+        """Whether macro-step n is made by step(): no block can run now, a paced observer acts before
+        it, or BLOCK_STEPS is 1 (every step alone). Otherwise even a last single step is a block."""
+        return (BLOCK_STEPS == 1 or not (self.blocks and self.route.can_run_steps(n))
+                or any(o.next_before(n) <= n for o in self.paced))
 
     def make_durable(self, folder):
         """A supervised run (before start): its tables' rows live in memory mapped from files in `folder`
@@ -191,9 +195,9 @@ class LiveRun(BlockSteps, RunFiles):
         part.replace(self.memory / "rows.json")
 
     def advance(self, n, count):
-        """Macro-steps from n on: up to `count` in one call of the master when count > 1, else step(n),
-        then the restore re-checked where it is due; returns how many were made."""
-        if count == 1:
+        """Macro-steps from n on: up to `count` in one call of the master where a block can run, else
+        step(n); then the restore re-checked where it is due; returns how many were made."""
+        if count == 1 and self._alone(n):
             self.step(n)
             done = 1
         else:
