@@ -29,6 +29,7 @@ SCENES = (("two_oscillators", 2.0), ("two_oscillators_stiff", 2.0), ("chain", 1.
 REFINE = {"dcmotor": (1, 4, 16, 64, 256, 1024)}  # the fixed grid down to the tolerance mode's errors at 1e-4
 PAGE = ROOT / "docs" / "masters.md"
 BLOCK = re.compile(r"(<!-- measured: tolerances -->\n).*?(<!-- end of measured -->)", re.S)
+LEDGER = re.compile(r"(<!-- measured: tolerance-ledger -->\n).*?(<!-- end of measured -->)", re.S)
 
 
 def scene_rows(name, T, out, again):
@@ -58,20 +59,39 @@ def lines(name, T, rows):
     return out
 
 
+def ledger_lines(name, rows):
+    """The energy ledger of the scene's `dr` runs: the largest max_ledger of the tolerance mode and
+    of step doubling over the tolerances, and the largest share of its own ledger_tolerance any of
+    them reached (where the rows record it)."""
+    dr = [r for r in rows if r["mode"] in ("tolerance", "doubling") and r["master"] == "dr" and r["max_ledger"] != ""]
+
+    def largest(mode):
+        values = [r["max_ledger"] for r in dr if r["mode"] == mode]
+        return f"{max(values):.1e}" if values else "–"
+    shares = [r["max_ledger"] / r["ledger_tolerance"] for r in dr if r.get("ledger_tolerance", "") != ""]
+    share = f"{max(shares):.2f}" if len(shares) == len(dr) and dr else "–"
+    return [f"| {name} | {largest('tolerance')} | {largest('doubling')} | {share} |"]
+
+
 def main(out, again=False, only=None):
     head = ["| scene | master | tolerance | true error | / tolerance | doSteps | wall (s) | best fixed at that error: "
             "doSteps (master); ratio | doubling: doSteps; ratio |", "|---|---|---|---|---|---|---|---|---|"]
-    body = []
+    body, ledger = [], []
     for name, T in SCENES:
         if only and name not in only:
             continue
         if (name == "dcmotor" and not (ROOT.parent / "shared" / "third_party").exists()) or \
                 (again and not (out / name / "tolerances.json").exists()):
             continue
-        body += lines(name, T, scene_rows(name, T, out, again))
+        rows = scene_rows(name, T, out, again)
+        body += lines(name, T, rows)
+        ledger += ledger_lines(name, rows)
         print("\n".join(body[-len(TOLERANCES) * 2:]), flush=True)
-    text = PAGE.read_text()
-    PAGE.write_text(BLOCK.sub(lambda m: m.group(1) + "\n".join(head + body) + "\n" + m.group(2), text))
+    ledger_head = ["| scene | max_ledger, tolerance mode | max_ledger, step doubling | largest max_ledger / "
+                   "ledger_tolerance |",
+                   "|---|---|---|---|"]
+    text = BLOCK.sub(lambda m: m.group(1) + "\n".join(head + body) + "\n" + m.group(2), PAGE.read_text())
+    PAGE.write_text(LEDGER.sub(lambda m: m.group(1) + "\n".join(ledger_head + ledger) + "\n" + m.group(2), text))
 
 
 if __name__ == "__main__":

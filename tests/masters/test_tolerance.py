@@ -353,3 +353,14 @@ def test_compare_tolerances_writes_the_table_and_the_figure(tmp_path):
     assert {r["mode"] for r in rows} == {"tolerance", "doubling", "fixed"}
     assert all(0 < r["true_error"] < 1 for r in rows)
     assert (out / "tolerances.png").stat().st_size > 0 and (out / "tolerances.csv").exists()
+
+
+def test_the_rows_give_each_runs_ledger_and_its_tolerance():
+    """Each row of compare --tolerances gives the run's max_ledger beside its own ledger_tolerance
+    (the figures the docs' ledger block reads); dr's stay within it."""
+    from wavecosim.sweeps.tolerances import measure, plan
+    sc = scenario("two_oscillators", 0.2)
+    reference = fine_reference(sc, None, dt=sc.dt / 10)
+    rows = [measure(mode, run, reference) for mode, run in plan(sc, [1e-2], masters=["dr"], refine=())]
+    assert [r["mode"] for r in rows] == ["tolerance", "doubling"]
+    assert all(0 < r["ledger_tolerance"] and r["max_ledger"] <= r["ledger_tolerance"] for r in rows)

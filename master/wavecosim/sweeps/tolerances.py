@@ -19,7 +19,7 @@ FIXED = (("explicit", None), ("gauss-seidel", None), ("dr", 5), ("dr", 20), ("ne
 SIGNALS_ONLY = (SIGNALS_MASTER,)                    # the one master of a system without power bonds
 REFINE = (1, 4, 16)                                 # the fixed grid's steps: dt / each
 FIELDS = ("mode", "master", "K", "tolerance", "dt", "true_error", "doStep", "save", "restore", "wall_time_s",
-          "accepted_steps", "rejected_steps", "max_ledger", "status")
+          "accepted_steps", "rejected_steps", "max_ledger", "ledger_tolerance", "status")
 MAX_STEPS = 2_000_000                               # a fixed run of more steps is left out of the grid
 MAX_ORDER = 2                                       # the highest order in h of any master's error
 
@@ -76,7 +76,8 @@ def measure(mode, sc, reference):
     s = result.summary
     return {**row, "true_error": true_error(result, reference)["true_error"], **s["fmu_calls"],
             "wall_time_s": time.perf_counter() - started, "accepted_steps": s.get("accepted_steps", s["steps"]),
-            "rejected_steps": s.get("rejected_steps", 0), "max_ledger": s.get("max_ledger", ""), "status": s["status"]}
+            "rejected_steps": s.get("rejected_steps", 0), "max_ledger": s.get("max_ledger", ""),
+            "ledger_tolerance": s.get("ledger_tolerance", ""), "status": s["status"]}
 
 
 def compare_tolerances(scenario, tolerances, out_dir=None, masters=None, progress=None, peers=(),
