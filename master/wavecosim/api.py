@@ -27,12 +27,13 @@ def load(path: Union[str, Path, None] = None, *, master: Optional[str] = None, K
          start_time: Optional[float] = None, outputs: Optional[Sequence[str]] = None,
          ports: Union[str, Path, None] = None, parameter_set: Optional[str] = None,
          input: Union[str, Path, None] = None, warn: Optional[Callable[[str], None]] = None,
-         changes: Optional[Mapping[str, Any]] = None) -> Scenario:
+         changes: Optional[Mapping[str, Any]] = None, tolerance: Optional[float] = None) -> Scenario:
     """Read and validate a scenario file (the built-in Table I scene when `path` is None; an example
     by its name, `wavecosim examples`), an SSP
     system (.ssd, .ssp, folder) with the overlay `ports` and the parameter sets named
     `parameter_set`, or one FMU (.fmu) driven by the CSV file `input`, with the given values in
-    place of the file's (the CLI's options; `outputs`: glob patterns of the columns to record).
+    place of the file's (the CLI's options; `outputs`: glob patterns of the columns to record;
+    `tolerance`: the tolerance mode, master.tolerance).
     Notes of an SSP or FMU import go to `warn` (default: Python warnings). `changes` sets keys of the
     scenario's mapping before it is checked, as `--set` does: {"subsystems.A.parameters.k": 2.0}."""
     from .scenario.fmu import is_fmu, load_fmu
@@ -52,7 +53,7 @@ def load(path: Union[str, Path, None] = None, *, master: Optional[str] = None, K
     else:
         scenario = load_scenario(path, times, changes)
     return with_overrides(scenario, master=master, K=K, eps=eps, gamma=gamma, dt=dt, T=T, start_time=start_time,
-                          outputs=outputs)
+                          outputs=outputs, tolerance=tolerance)
 
 
 def _python_warning(message):
@@ -61,17 +62,18 @@ def _python_warning(message):
 
 
 def with_overrides(scenario: Scenario, *, master=None, K=None, eps=None, gamma=None, dt=None, T=None,
-                   start_time=None, outputs=None, where="options") -> Scenario:
+                   start_time=None, outputs=None, tolerance=None, where="options") -> Scenario:
     """The scenario with some values replaced, each checked as in a file (one-line ConfigError);
-    `outputs` (glob patterns) narrows the recorded columns."""
-    K, eps, dt, T, start_time = (_plain(v) for v in (K, eps, dt, T, start_time))
+    `outputs` (glob patterns) narrows the recorded columns; `tolerance` sets the tolerance mode."""
+    K, eps, dt, T, start_time, tolerance = (_plain(v) for v in (K, eps, dt, T, start_time, tolerance))
     check = _Checker(where)
     if K is not None:
         check.integer(K, "K", minimum=0)
-    for name, value in (("eps", eps), ("dt", dt), ("T", T), ("start_time", start_time)):
+    for name, value in (("eps", eps), ("dt", dt), ("T", T), ("start_time", start_time), ("tolerance", tolerance)):
         if value is not None:
-            check.number(value, name, positive=name in ("dt", "eps"))
-    changes = {k: v for k, v in (("K", K), ("eps", eps), ("algorithm", master)) if v is not None}
+            check.number(value, name, positive=name in ("dt", "eps", "tolerance"))
+    changes = {k: v for k, v in (("K", K), ("eps", eps), ("algorithm", master), ("tolerance", tolerance))
+               if v is not None}
     if master is not None and master not in ALGORITHMS:
         raise ConfigError(f"{where}: master: must be one of {', '.join(ALGORITHMS)}, got {master!r}")
     if changes:
@@ -122,6 +124,7 @@ def _progress_printer(enabled):
 def simulate(scenario: ScenarioLike = None, *, master: Optional[str] = None, K: Optional[int] = None,
              eps: Optional[float] = None, gamma=None, dt: Optional[float] = None, T: Optional[float] = None,
              start_time: Optional[float] = None, outputs: Optional[Sequence[str]] = None,
+             tolerance: Optional[float] = None,
              out_dir: Union[str, Path, None] = None, reference: Union[bool, str] = True, certificates: bool = True,
              progress: Union[bool, Callable[[int, int], None]] = False, output_interval: int = 1,
              formats: Sequence[str] = ("csv",), warn: Optional[Callable[[str], None]] = None,
@@ -132,11 +135,12 @@ def simulate(scenario: ScenarioLike = None, *, master: Optional[str] = None, K: 
     `fmpy.util.plot_result(result.trajectory)` draws it; `result.steps` holds the per-step figures,
     `result.summary` the figures of summary.json, `result.reference` the monolithic reference run
     alongside (reference=True) or None; reference="fine" also runs it at a refined step after the run
-    and adds `true_error` to the summary (run/fine.py). Files are written only into `out_dir`, which is locked while
+    and adds `true_error` to the summary (run/fine.py). `tolerance` runs the tolerance mode: the
+    macro-step varies to keep the error near it (master.tolerance; `dt` is the first step). Files are written only into `out_dir`, which is locked while
     the run writes; an earlier run's files there are replaced, and other files refused unless
     `overwrite` (run/outputs.py). More than max_steps macro-steps are refused (None: no limit)."""
     sc = _scenario(scenario, master=master, K=K, eps=eps, gamma=gamma, dt=dt, T=T, start_time=start_time,
-                   outputs=outputs)
+                   outputs=outputs, tolerance=tolerance)
     check_steps(sc, max_steps)
     with OutputFolder(out_dir, overwrite) if out_dir is not None else nullcontext():
         result = run(sc, out_dir, label=sc.master.algorithm, reference="lockstep" if reference else None,

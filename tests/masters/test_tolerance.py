@@ -364,3 +364,16 @@ def test_the_rows_give_each_runs_ledger_and_its_tolerance():
     rows = [measure(mode, run, reference) for mode, run in plan(sc, [1e-2], masters=["dr"], refine=())]
     assert [r["mode"] for r in rows] == ["tolerance", "doubling"]
     assert all(0 < r["ledger_tolerance"] and r["max_ledger"] <= r["ledger_tolerance"] for r in rows)
+
+
+def test_the_api_takes_a_tolerance_as_the_file_does():
+    """simulate(tolerance=...) is master.tolerance: the same steps, to the bit, as the key set in the
+    scenario; with reference="fine" the summary gives the true error; a tolerance <= 0 is one line."""
+    given = api.simulate("two_oscillators", T=0.2, tolerance=1e-3, reference="fine", certificates=False)
+    keyed = api.simulate(api.load("two_oscillators", T=0.2, changes={"master.tolerance": 1e-3}), reference=False,
+                         certificates=False)
+    assert given.summary["tolerance"] == 1e-3 and given.summary["accepted_steps"] == keyed.summary["accepted_steps"]
+    assert given.trajectory.tobytes() == keyed.trajectory.tobytes()
+    assert 1e-4 < given.summary["true_error"] < 1e-2
+    with pytest.raises(ConfigError, match="tolerance: must be > 0"):
+        api.load("two_oscillators", tolerance=0)
