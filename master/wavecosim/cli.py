@@ -42,10 +42,11 @@ class Finite(click.FloatRange):
 POSITIVE = Finite(min=0, min_open=True)
 
 
-def _progress(label, quiet):
+def _progress(label, quiet, span=None):
     """A progress callback (n steps done of total) on stderr: on a terminal click's progress bar with
     the steps, the percentage, the time since the run began and the time left at the pace so far;
-    elsewhere one line when the run is done."""
+    elsewhere one line when the run is done. span: the time span (s) of a run whose step varies,
+    whose progress is the share of it made (its steps are counted in the summary)."""
     if quiet:
         return None
     started, tty, bar, first = time.perf_counter(), sys.stderr.isatty(), None, None
@@ -55,10 +56,11 @@ def _progress(label, quiet):
         now = time.perf_counter()
         if not tty:
             if n == total:
-                click.echo(f"  {label}: {n}/{total} steps done in {now - started:.1f} s", err=True)
+                done = f"{n}/{total} steps done" if span is None else f"{span:g} s simulated"
+                click.echo(f"  {label}: {done} in {now - started:.1f} s", err=True)
             return
         if bar is None:
-            bar, first = click.progressbar(length=total, label=f"  {label}", file=sys.stderr, show_pos=True,
+            bar, first = click.progressbar(length=total, label=f"  {label}", file=sys.stderr, show_pos=span is None,
                                            show_percent=True, show_eta=False, item_show_func=str), (now, n)
         pace = (now - first[0]) / (n - first[1]) if n > first[1] else None        # seconds per step since the first
         left = f", ETA {pace * (total - n):.1f} s" if pace and n < total else ""
@@ -281,8 +283,10 @@ def run_cmd(config, K, eps, gamma, dt, T, quiet, start_time, output_interval, fo
     max_steps = None if force else MAX_STEPS
     check_steps(scenario, max_steps)
 
+    span = scenario.T - scenario.start_time if scenario.master.tolerance is not None else None
+
     def work():
-        result = simulate(scenario, out_dir=out, progress=_progress("run", quiet) or False,
+        result = simulate(scenario, out_dir=out, progress=_progress("run", quiet, span) or False,
                           certificates=not no_certificates, reference=fine or not no_reference,
                           output_interval=output_interval, formats=("csv", *formats), max_steps=max_steps)
         _report_run(scenario, result, out)
