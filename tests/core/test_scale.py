@@ -28,7 +28,7 @@ from wavecosim.masters.dr_fast import FastDRMaster
 from wavecosim.core.scene import build_scene
 
 CONFIGS = [p for p in sorted((ROOT / "configs").glob("*.yaml"))    # scenes, not SSP port overlays
-           if p.stem != "chain_512" and "ports" not in yaml.safe_load(p.read_text())]   # (chain_64 below)
+           if p.stem != "chain_512" and "ports" not in yaml.safe_load(p.read_text(encoding="utf-8"))]   # (chain_64 below)
 THIRD_PARTY = ROOT.parent / "shared" / "third_party"
 STEPS = 20
 
@@ -46,7 +46,7 @@ def bits(x):
 
 
 def needs_third_party(path):
-    return "third_party" in path.read_text() and not THIRD_PARTY.exists()
+    return "third_party" in path.read_text(encoding="utf-8") and not THIRD_PARTY.exists()
 
 
 def test_sparse_matvec_has_the_bits_of_the_dense_sum():
@@ -167,7 +167,7 @@ def test_repeat_expressions_and_set_keys(tmp_path):
     assert [c.ports for c in sc.couplings[1:4]] == [["L0[1]", "L1[0]"], ["L1[1]", "L2[0]"], ["L2[1]", "L3[0]"]]
     assert [s.start["q"] for s in sc.subsystems[1:]] == [0, 2, 4]
     path = tmp_path / "c.yaml"
-    path.write_text((ROOT / "configs" / "chain_512.yaml").read_text())
+    path.write_text((ROOT / "configs" / "chain_512.yaml").read_text(encoding="utf-8"), encoding="utf-8")
     assert load_raw(path)["subsystems"]["L300"]["parameters"]["k"] == 100.0     # --set sees every copy
 
 
