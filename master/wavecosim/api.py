@@ -109,15 +109,20 @@ def _scenario(scenario: ScenarioLike, **overrides) -> Scenario:
     return load(scenario, **overrides)
 
 
-def _progress_printer(enabled):
-    """progress=True prints a line every 10 % to stderr; a callable gets (step, total)."""
+def _progress_printer(enabled, variable=False):
+    """progress=True prints a line every 10 % to stderr (variable: a run whose step varies, as the
+    share of its time span made); a callable gets (step, total)."""
     if callable(enabled) or not enabled:
         return enabled or None
     import sys
+    last = [0]                                        # the tenth of the run last printed
 
     def report(n, total):
-        if n == total or (10 * n) // total != (10 * (n - 1)) // total:
-            print(f"  {n}/{total} steps", file=sys.stderr, flush=True)
+        tenth = (10 * n) // total
+        if n == total or tenth != last[0]:
+            last[0] = tenth
+            print(f"  {100 * n // total} % of the time span" if variable else f"  {n}/{total} steps",
+                  file=sys.stderr, flush=True)
     return report
 
 
@@ -136,15 +141,17 @@ def simulate(scenario: ScenarioLike = None, *, master: Optional[str] = None, K: 
     `result.summary` the figures of summary.json, `result.reference` the monolithic reference run
     alongside (reference=True) or None; reference="fine" also runs it at a refined step after the run
     and adds `true_error` to the summary (run/fine.py). `tolerance` runs the tolerance mode: the
-    macro-step varies to keep the error near it (master.tolerance; `dt` is the first step). Files are written only into `out_dir`, which is locked while
-    the run writes; an earlier run's files there are replaced, and other files refused unless
-    `overwrite` (run/outputs.py). More than max_steps macro-steps are refused (None: no limit)."""
+    macro-step varies to keep the error near it (master.tolerance; `dt` is the first step). Files
+    are written only into `out_dir`, which is locked while the run writes; an earlier run's files
+    there are replaced, and other files refused unless `overwrite` (run/outputs.py). More than
+    max_steps macro-steps are refused (None: no limit)."""
     sc = _scenario(scenario, master=master, K=K, eps=eps, gamma=gamma, dt=dt, T=T, start_time=start_time,
                    outputs=outputs, tolerance=tolerance)
     check_steps(sc, max_steps)
     with OutputFolder(out_dir, overwrite) if out_dir is not None else nullcontext():
+        printer = _progress_printer(progress, sc.master.tolerance is not None)
         result = run(sc, out_dir, label=sc.master.algorithm, reference="lockstep" if reference else None,
-                     certificates=certificates, progress=_progress_printer(progress), warn=warn,
+                     certificates=certificates, progress=printer, warn=warn,
                      file_suffix=False, output_interval=output_interval, formats=tuple(formats), max_steps=max_steps)
         if reference == "fine":
             _true_error(sc, result, out_dir)

@@ -366,10 +366,14 @@ def test_the_rows_give_each_runs_ledger_and_its_tolerance():
     assert all(0 < r["ledger_tolerance"] and r["max_ledger"] <= r["ledger_tolerance"] for r in rows)
 
 
-def test_the_api_takes_a_tolerance_as_the_file_does():
+def test_the_api_takes_a_tolerance_as_the_file_does(capsys):
     """simulate(tolerance=...) is master.tolerance: the same steps, to the bit, as the key set in the
-    scenario; with reference="fine" the summary gives the true error; a tolerance <= 0 is one line."""
-    given = api.simulate("two_oscillators", T=0.2, tolerance=1e-3, reference="fine", certificates=False)
+    scenario; with reference="fine" the summary gives the true error; its progress is the share of
+    the time span, each tenth once; a tolerance <= 0 is one line."""
+    given = api.simulate("two_oscillators", T=0.2, tolerance=1e-3, reference="fine", certificates=False,
+                         progress=True)
+    shown = capsys.readouterr().err.splitlines()
+    assert [line for line in shown if "%" in line] == [f"  {p} % of the time span" for p in range(10, 101, 10)]
     keyed = api.simulate(api.load("two_oscillators", T=0.2, changes={"master.tolerance": 1e-3}), reference=False,
                          certificates=False)
     assert given.summary["tolerance"] == 1e-3 and given.summary["accepted_steps"] == keyed.summary["accepted_steps"]
